@@ -1,0 +1,57 @@
+//! Compiles every compute shader in `glsl/` to SPIR-V with naga (pure Rust, no shaderc).
+//! The SPIR-V lands in OUT_DIR and is embedded by `src/vk/shaders.rs`; it is never committed.
+//! A shader may be built in several variants, each with its own `#define`s (skinning: K = 4, 8).
+
+use std::path::Path;
+
+/// (source file, output name, defines)
+const SHADERS: &[(&str, &str, &[(&str, &str)])] = &[
+    ("predict.comp", "predict", &[]),
+    ("blend_gemm.comp", "blend_gemm", &[]),
+    ("skin.comp", "skin_k4", &[("K", "4")]),
+    ("skin.comp", "skin_k8", &[("K", "8")]),
+    ("normals.comp", "normals", &[]),
+];
+
+fn main() {
+    let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
+    for (src, name, defines) in SHADERS {
+        let path = Path::new("glsl").join(src);
+        println!("cargo:rerun-if-changed={}", path.display());
+        let source = std::fs::read_to_string(&path)
+            .unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+        let words = compile(&path, &source, defines);
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        std::fs::write(Path::new(&out_dir).join(format!("{name}.spv")), bytes)
+            .expect("writing SPIR-V to OUT_DIR");
+    }
+}
+
+fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
+    use naga::{back::spv, front::glsl, valid};
+    let mut options = glsl::Options::from(naga::ShaderStage::Compute);
+    for (k, v) in defines {
+        options.defines.insert((*k).to_string(), (*v).to_string());
+    }
+    let module = glsl::Frontend::default()
+        .parse(&options, source)
+        .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(source)));
+    let info = valid::Validator::new(valid::ValidationFlags::all(), valid::Capabilities::all())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(source)));
+    let spv_options = spv::Options {
+        lang_version: (1, 3),
+        // Compute only: no coordinate-space flip; no injected loop counters (they cost in the
+        // GEMM inner loop and our loops are bounded by push constants the runtime checks).
+        flags: spv::WriterFlags::empty(),
+        force_loop_bounding: false,
+        emit_int_div_checks: false,
+        ..Default::default()
+    };
+    let pipeline = spv::PipelineOptions {
+        shader_stage: naga::ShaderStage::Compute,
+        entry_point: "main".to_string(),
+    };
+    spv::write_vec(&module, &info, &spv_options, Some(&pipeline))
+        .unwrap_or_else(|e| panic!("{}: SPIR-V output: {e}", path.display()))
+}

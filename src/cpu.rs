@@ -1,0 +1,142 @@
+//! CPU reference evaluator of the whole per-frame pipeline (paper §6, METHOD.md §9), in `f64`:
+//! the oracle every GPU test compares against.
+//!
+//! Per character: (1) key gradients `d = D_ℓ(q)`; (2) proxy transforms `t_c = C1 d_c + C2 q_c`
+//! for c = x, y, z (Eq. 5 in the separable form of METHOD.md §8); (3) palette skinning over
+//! `[t (P); q (J)]` with K influences; (4) normals: area-weighted sum of incident triangle
+//! normals, normalised (zero where the sum vanishes).
+
+use crate::error::{Error, Result};
+use crate::model::Model;
+use crate::predict::{key_gradient, Affine};
+use glam::{DMat3, DVec3};
+
+/// Evaluates C characters of one model. Holds its scratch, so repeated frames allocate nothing.
+pub struct CpuEvaluator<'m> {
+    model: &'m Model,
+    /// `[C1 | C2]`, 4P x (3P + 4J), row-major.
+    c1_c2: Vec<f64>,
+    /// Right-hand side of the GEMM for one character and coordinate: `[d_c; q_c]`, 3P + 4J.
+    rhs: Vec<f64>,
+    /// Palette of one character: P + J transforms, 3x4 row-major.
+    palette: Vec<[f64; 12]>,
+    gradients: Vec<DMat3>,
+    positions: Vec<DVec3>,
+}
+
+impl<'m> CpuEvaluator<'m> {
+    pub fn new(model: &'m Model) -> Self {
+        let (p, j) = (model.proxy_count(), model.bone_count());
+        CpuEvaluator {
+            model,
+            c1_c2: model.c1_c2().into_iter().map(f64::from).collect(),
+            rhs: vec![0.0; 3 * p + 4 * j],
+            palette: vec![[0.0; 12]; p + j],
+            gradients: vec![DMat3::ZERO; p],
+            positions: vec![DVec3::ZERO; model.vertex_count()],
+        }
+    }
+
+    /// `bones`: C x J transforms. `positions`, `normals`: C x V, written.
+    pub fn evaluate(
+        &mut self,
+        bones: &[Affine],
+        positions: &mut [[f32; 3]],
+        normals: &mut [[f32; 3]],
+    ) -> Result<()> {
+        let (v, j) = (self.model.vertex_count(), self.model.bone_count());
+        if bones.len() % j != 0 {
+            return Err(Error::WrongLength {
+                what: "bone transforms (characters x bones)",
+                expected: bones.len().div_ceil(j) * j,
+                actual: bones.len(),
+            });
+        }
+        let c = bones.len() / j;
+        check_finite(bones)?;
+        for (what, out) in [("positions", &*positions), ("normals", &*normals)] {
+            if out.len() != c * v {
+                return Err(Error::WrongLength { what, expected: c * v, actual: out.len() });
+            }
+        }
+        for ch in 0..c {
+            let q = &bones[ch * j..(ch + 1) * j];
+            self.palette_of(q);
+            self.skin();
+            self.normals_into(&mut normals[ch * v..(ch + 1) * v]);
+            for (out, p) in positions[ch * v..(ch + 1) * v].iter_mut().zip(&self.positions) {
+                *out = p.as_vec3().to_array();
+            }
+        }
+        Ok(())
+    }
+
+    /// The P + J palette of one character: proxies by Eq. 5, then the bones themselves.
+    fn palette_of(&mut self, q: &[Affine]) {
+        let model = self.model;
+        let (p, j) = (model.proxy_count(), model.bone_count());
+        for (g, pred) in self.gradients.iter_mut().zip(&model.parts().predictors) {
+            *g = key_gradient(model, pred, q);
+        }
+        let width = 3 * p + 4 * j;
+        for c in 0..3 {
+            for (l, g) in self.gradients.iter().enumerate() {
+                let row = g.row(c);
+                self.rhs[3 * l..3 * l + 3].copy_from_slice(&row.to_array());
+            }
+            for (b, t) in q.iter().enumerate() {
+                for k in 0..4 {
+                    self.rhs[3 * p + 4 * b + k] = t[4 * c + k] as f64;
+                }
+            }
+            for r in 0..4 * p {
+                let a = &self.c1_c2[r * width..(r + 1) * width];
+                self.palette[r / 4][4 * c + r % 4] = a.iter().zip(&self.rhs).map(|(x, y)| x * y).sum();
+            }
+        }
+        for (slot, t) in self.palette[p..].iter_mut().zip(q) {
+            *slot = t.map(f64::from);
+        }
+    }
+
+    fn skin(&mut self) {
+        let parts = self.model.parts();
+        let k = self.model.influences();
+        for (a, out) in self.positions.iter_mut().enumerate() {
+            let rest = DVec3::from(parts.rest_positions[a].map(f64::from));
+            let mut m = [0.0f64; 12];
+            for i in a * k..(a + 1) * k {
+                let w = parts.skin_weights[i] as f64;
+                let entry = &self.palette[parts.skin_indices[i] as usize];
+                m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
+            }
+            *out = DVec3::new(
+                m[0] * rest.x + m[1] * rest.y + m[2] * rest.z + m[3],
+                m[4] * rest.x + m[5] * rest.y + m[6] * rest.z + m[7],
+                m[8] * rest.x + m[9] * rest.y + m[10] * rest.z + m[11],
+            );
+        }
+    }
+
+    fn normals_into(&self, out: &mut [[f32; 3]]) {
+        let tris = &self.model.parts().triangles;
+        let (offsets, incident) = self.model.incidence();
+        for (a, n) in out.iter_mut().enumerate() {
+            let mut sum = DVec3::ZERO;
+            for &k in &incident[offsets[a] as usize..offsets[a + 1] as usize] {
+                let [i, j, l] = tris[k as usize].map(|x| self.positions[x as usize]);
+                sum += (j - i).cross(l - i);
+            }
+            let len = sum.length();
+            *n = if len > 0.0 { (sum / len).as_vec3().to_array() } else { [0.0; 3] };
+        }
+    }
+}
+
+/// Per-frame input must be finite: one NaN would spread through C1/C2 to a whole character.
+pub(crate) fn check_finite(bones: &[Affine]) -> Result<()> {
+    match bones.as_flattened().iter().position(|x| !x.is_finite()) {
+        Some(index) => Err(Error::NonFinite { what: "bone transforms", index }),
+        None => Ok(()),
+    }
+}

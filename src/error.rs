@@ -1,0 +1,156 @@
+//! One error type for the whole runtime, and its `Result` alias.
+//!
+//! Every variant has named fields so that a message names what is wrong and so that the C ABI
+//! can map variants one-to-one onto status codes. Model-file and model-content problems are one
+//! variant, [`Error::BadModel`], whose [`ModelProblem`] says exactly what failed and where.
+
+use ash::vk;
+use std::fmt;
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Error {
+    /// A file could not be read or written.
+    Io { path: String, message: String },
+    /// A model (from a file, from memory, or from parts) is malformed. `origin` is the file path,
+    /// `<memory>` or `<parts>`.
+    BadModel { origin: String, problem: ModelProblem },
+    /// The caller passed data of the wrong size (e.g. bone transforms for the wrong bone count).
+    WrongLength { what: &'static str, expected: usize, actual: usize },
+    /// The caller passed an index past the end (e.g. a character index past a crowd's capacity).
+    OutOfRange { what: &'static str, index: usize, count: usize },
+    /// The caller passed a non-finite number (NaN or infinity) in per-frame input.
+    NonFinite { what: &'static str, index: usize },
+    /// Two objects that must belong together do not (e.g. a crowd of another context).
+    Mismatch { what: &'static str },
+    /// The Vulkan loader could not be found or loaded.
+    Loader { message: String },
+    /// A Vulkan call failed.
+    Vulkan { call: &'static str, result: vk::Result },
+    /// No usable Vulkan device (or the requested one is not there).
+    NoDevice { reason: String },
+    /// A requested instance layer is missing (e.g. the validation layer in tests).
+    MissingLayer { name: String },
+    /// GPU memory allocation failed.
+    Allocation { what: &'static str, message: String },
+    /// The work does not fit a device limit (e.g. one character's output beyond
+    /// maxStorageBufferRange, or a crowd larger than maxMemoryAllocationSize).
+    DeviceLimit { what: &'static str, needed: u64, limit: u64 },
+    /// Results were asked for before the GPU produced them (timestamps of unfinished work).
+    NotReady { what: &'static str },
+}
+
+/// What is wrong with a model. Counts are in elements unless the name says bytes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelProblem {
+    /// The data ends before `what` (needed `expected` bytes, `actual` left).
+    Truncated { what: String, expected: u64, actual: u64 },
+    /// The file does not start with the `.rrs` magic.
+    BadMagic,
+    /// The format version is not one this build reads.
+    UnsupportedVersion { found: u32, supported: u32 },
+    /// The stored checksum does not match the contents (corruption).
+    Checksum { stored: u32, computed: u32 },
+    /// A required section is absent.
+    MissingSection { tag: String },
+    /// A section appears twice.
+    DuplicateSection { tag: String },
+    /// A section's byte range leaves the file.
+    SectionBounds { tag: String, offset: u64, length: u64, file_length: u64 },
+    /// A section's length disagrees with the model's dimensions.
+    SectionLength { tag: String, expected: u64, actual: u64 },
+    /// A dimension is invalid (e.g. zero vertices, K not 4 or 8).
+    Dimension { what: &'static str, value: u64, reason: &'static str },
+    /// Two arrays that must agree in length do not.
+    Length { what: &'static str, expected: usize, actual: usize },
+    /// A NaN or infinity in `what` at element `index`.
+    NonFinite { what: &'static str, index: usize },
+    /// An index in `what` at element `index` is `value`, not below `bound`.
+    IndexOutOfRange { what: &'static str, index: usize, value: i64, bound: usize },
+    /// The bone hierarchy has a cycle through `bone`.
+    ParentCycle { bone: usize },
+    /// A vertex's skinning weights are negative or do not sum to one.
+    BadWeights { vertex: usize, sum: f32 },
+    /// A matrix that must be a rotation is not (orthonormality or determinant off by `error`).
+    NotRotation { what: &'static str, index: usize, error: f32 },
+}
+
+impl fmt::Display for ModelProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use ModelProblem::*;
+        match self {
+            Truncated { what, expected, actual } => {
+                write!(f, "truncated at {what}: needs {expected} bytes, only {actual} left")
+            }
+            BadMagic => write!(f, "not an rrskin model (bad magic)"),
+            UnsupportedVersion { found, supported } => {
+                write!(f, "format version {found} is not supported (this build reads {supported})")
+            }
+            Checksum { stored, computed } => write!(
+                f,
+                "checksum mismatch (stored {stored:#010x}, computed {computed:#010x}): the file is corrupted"
+            ),
+            MissingSection { tag } => write!(f, "required section '{tag}' is missing"),
+            DuplicateSection { tag } => write!(f, "section '{tag}' appears twice"),
+            SectionBounds { tag, offset, length, file_length } => write!(
+                f,
+                "section '{tag}' (offset {offset}, {length} bytes) extends past the end of the file ({file_length} bytes)"
+            ),
+            SectionLength { tag, expected, actual } => {
+                write!(f, "section '{tag}' has {actual} bytes, the dimensions need {expected}")
+            }
+            Dimension { what, value, reason } => write!(f, "{what} = {value}: {reason}"),
+            Length { what, expected, actual } => {
+                write!(f, "{what} has {actual} elements, expected {expected}")
+            }
+            NonFinite { what, index } => write!(f, "{what}[{index}] is not finite (NaN or Inf)"),
+            IndexOutOfRange { what, index, value, bound } => {
+                write!(f, "{what}[{index}] = {value} is out of range (must be in 0..{bound})")
+            }
+            ParentCycle { bone } => write!(f, "bone parents form a cycle through bone {bone}"),
+            BadWeights { vertex, sum } => write!(
+                f,
+                "vertex {vertex}: skinning weights must be >= 0 and sum to 1 (sum is {sum})"
+            ),
+            NotRotation { what, index, error } => {
+                write!(f, "{what}[{index}] is not a rotation matrix (error {error:.3e})")
+            }
+        }
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use Error::*;
+        match self {
+            Io { path, message } => write!(f, "{path}: {message}"),
+            BadModel { origin, problem } => write!(f, "model {origin}: {problem}"),
+            WrongLength { what, expected, actual } => {
+                write!(f, "{what}: expected {expected} elements, got {actual}")
+            }
+            OutOfRange { what, index, count } => {
+                write!(f, "{what} {index} is out of range (count {count})")
+            }
+            NonFinite { what, index } => write!(f, "{what}[{index}] is not finite (NaN or Inf)"),
+            Mismatch { what } => write!(f, "mismatch: {what}"),
+            Loader { message } => write!(f, "cannot load the Vulkan loader: {message}"),
+            Vulkan { call, result } => write!(f, "{call} failed: {result}"),
+            NoDevice { reason } => write!(f, "no usable Vulkan device: {reason}"),
+            MissingLayer { name } => write!(f, "Vulkan layer {name} is not installed"),
+            Allocation { what, message } => write!(f, "allocating {what}: {message}"),
+            DeviceLimit { what, needed, limit } => {
+                write!(f, "{what} needs {needed}, the device allows {limit}")
+            }
+            NotReady { what } => write!(f, "{what} is not ready yet"),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl Error {
+    pub(crate) fn vk(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
+        move |result| Error::Vulkan { call, result }
+    }
+}

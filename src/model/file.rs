@@ -1,0 +1,287 @@
+//! The `.rrs` model file: little-endian, self-describing, checksummed.
+//!
+//! ```text
+//! offset  size       field
+//! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
+//! 8       4          format version (u32) = FORMAT_VERSION
+//! 12      4          section count S (u32)
+//! 16      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
+//! ...                section payloads (8-byte aligned)
+//! end-4   4          CRC-32 (IEEE) of every byte before it
+//! ```
+//!
+//! Sections (unknown tags are skipped, so later versions may add optional ones):
+//!
+//! | tag  | payload                                              |
+//! |------|------------------------------------------------------|
+//! | DIMS | V, T, J, P, K as u32                                 |
+//! | REST | V x 3 f32                                            |
+//! | TRIS | T x 3 u32                                            |
+//! | PRNT | J i32 (-1: root)                                     |
+//! | SKIX | V x K u32 palette indices                            |
+//! | SKIW | V x K f32 weights                                    |
+//! | PRED | P records of 85 words: bone u32, second bone u32 (0xFFFFFFFF: none), u f32, u2 f32, W 9 f32, W2 9 f32, H 63 f32 |
+//! | C1   | 4P x 3P f32 (row-major)                              |
+//! | C2   | 4P x 4J f32 (row-major)                              |
+//!
+//! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
+//! checked by `validate` for files and in-memory parts alike.
+
+use super::{KeyPredictor, ModelParts, SecondBone};
+use crate::error::ModelProblem;
+
+pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
+pub const FORMAT_VERSION: u32 = 1;
+
+const HEADER_BYTES: usize = 16;
+const TABLE_ENTRY_BYTES: usize = 24;
+const CHECKSUM_BYTES: usize = 4;
+pub const PREDICTOR_WORDS: usize = 85;
+const NO_BONE: u32 = u32::MAX;
+const IDENTITY: [f32; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+
+const DIMS: [u8; 4] = *b"DIMS";
+const REST: [u8; 4] = *b"REST";
+const TRIS: [u8; 4] = *b"TRIS";
+const PRNT: [u8; 4] = *b"PRNT";
+const SKIX: [u8; 4] = *b"SKIX";
+const SKIW: [u8; 4] = *b"SKIW";
+const PRED: [u8; 4] = *b"PRED";
+const C1: [u8; 4] = *b"C1\0\0";
+const C2: [u8; 4] = *b"C2\0\0";
+
+pub fn encode(m: &ModelParts) -> Vec<u8> {
+    let (v, t, j, p) =
+        (m.rest_positions.len(), m.triangles.len(), m.bone_parents.len(), m.predictors.len());
+    let mut pred = Vec::with_capacity(p * PREDICTOR_WORDS * 4);
+    for k in &m.predictors {
+        push_u32s(&mut pred, &predictor_words(k));
+    }
+    let mut sections: Vec<([u8; 4], Vec<u8>)> = Vec::new();
+    let mut dims = Vec::new();
+    push_u32s(&mut dims, &[v as u32, t as u32, j as u32, p as u32, m.influences]);
+    sections.push((DIMS, dims));
+    let mut rest = Vec::new();
+    push_f32s(&mut rest, m.rest_positions.as_flattened());
+    sections.push((REST, rest));
+    let mut tris = Vec::new();
+    push_u32s(&mut tris, m.triangles.as_flattened());
+    sections.push((TRIS, tris));
+    let mut parents = Vec::new();
+    m.bone_parents.iter().for_each(|x| parents.extend_from_slice(&x.to_le_bytes()));
+    sections.push((PRNT, parents));
+    let mut skix = Vec::new();
+    push_u32s(&mut skix, &m.skin_indices);
+    sections.push((SKIX, skix));
+    let mut skiw = Vec::new();
+    push_f32s(&mut skiw, &m.skin_weights);
+    sections.push((SKIW, skiw));
+    sections.push((PRED, pred));
+    let mut c1 = Vec::new();
+    push_f32s(&mut c1, &m.c1);
+    sections.push((C1, c1));
+    let mut c2 = Vec::new();
+    push_f32s(&mut c2, &m.c2);
+    sections.push((C2, c2));
+
+    let mut out = Vec::new();
+    out.extend_from_slice(&MAGIC);
+    push_u32s(&mut out, &[FORMAT_VERSION, sections.len() as u32]);
+    let mut offset = align8(HEADER_BYTES + TABLE_ENTRY_BYTES * sections.len());
+    for (tag, payload) in &sections {
+        out.extend_from_slice(tag);
+        push_u32s(&mut out, &[0]);
+        out.extend_from_slice(&(offset as u64).to_le_bytes());
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        offset = align8(offset + payload.len());
+    }
+    for (_, payload) in &sections {
+        out.resize(align8(out.len()), 0);
+        out.extend_from_slice(payload);
+    }
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// A predictor as the 85 words of its PRED record; `glsl/predict.comp` reads the same layout.
+pub fn predictor_words(k: &KeyPredictor) -> [u32; PREDICTOR_WORDS] {
+    let (b2, u2, w2) = match &k.second {
+        Some(s) => (s.bone, s.u, s.w),
+        None => (NO_BONE, 0.0, IDENTITY),
+    };
+    let mut words = [0u32; PREDICTOR_WORDS];
+    let head = [k.u, u2];
+    let floats = head.iter().chain(&k.w).chain(&w2).chain(&k.h);
+    words[0] = k.bone;
+    words[1] = b2;
+    words[2..].iter_mut().zip(floats).for_each(|(w, f)| *w = f.to_bits());
+    words
+}
+
+pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
+    need(bytes.len(), 0, HEADER_BYTES, "the header")?;
+    if bytes[..8] != MAGIC {
+        return Err(ModelProblem::BadMagic);
+    }
+    let version = le_u32(bytes, 8);
+    if version != FORMAT_VERSION {
+        return Err(ModelProblem::UnsupportedVersion { found: version, supported: FORMAT_VERSION });
+    }
+    need(bytes.len(), HEADER_BYTES, CHECKSUM_BYTES, "the checksum")?;
+    let body = &bytes[..bytes.len() - CHECKSUM_BYTES];
+    let stored = le_u32(bytes, body.len());
+    let computed = crc32fast::hash(body);
+    if stored != computed {
+        return Err(ModelProblem::Checksum { stored, computed });
+    }
+    let table = SectionTable::read(body)?;
+
+    let dims = table.section(body, DIMS, 20)?;
+    let [v, t, j, p, k] = [0, 1, 2, 3, 4].map(|i| le_u32(dims, 4 * i) as u64);
+    // Expected byte lengths; products saturate, so absurd dimensions fail the length check.
+    let words = |factors: &[u64]| factors.iter().fold(4u64, |acc, &f| acc.saturating_mul(f));
+    let rest = table.section(body, REST, words(&[v, 3]))?;
+    let tris = table.section(body, TRIS, words(&[t, 3]))?;
+    let prnt = table.section(body, PRNT, words(&[j]))?;
+    let skix = table.section(body, SKIX, words(&[v, k]))?;
+    let skiw = table.section(body, SKIW, words(&[v, k]))?;
+    let pred = table.section(body, PRED, words(&[p, PREDICTOR_WORDS as u64]))?;
+    let c1 = table.section(body, C1, words(&[4, p, 3, p]))?;
+    let c2 = table.section(body, C2, words(&[4, p, 4, j]))?;
+
+    let predictors = pred
+        .chunks_exact(PREDICTOR_WORDS * 4)
+        .map(|r| {
+            let f = f32s(r);
+            let second_bone = le_u32(r, 4);
+            KeyPredictor {
+                bone: le_u32(r, 0),
+                u: f[2],
+                w: array(&f[4..13]),
+                second: (second_bone != NO_BONE).then(|| SecondBone {
+                    bone: second_bone,
+                    u: f[3],
+                    w: array(&f[13..22]),
+                }),
+                h: array(&f[22..85]),
+            }
+        })
+        .collect();
+    Ok(ModelParts {
+        rest_positions: f32s(rest).chunks_exact(3).map(array).collect(),
+        triangles: u32s(tris).chunks_exact(3).map(array).collect(),
+        bone_parents: prnt.chunks_exact(4).map(|b| i32::from_le_bytes(array(b))).collect(),
+        influences: k as u32,
+        skin_indices: u32s(skix),
+        skin_weights: f32s(skiw),
+        predictors,
+        c1: f32s(c1),
+        c2: f32s(c2),
+    })
+}
+
+struct SectionTable {
+    entries: Vec<([u8; 4], u64, u64)>,
+}
+
+impl SectionTable {
+    fn read(body: &[u8]) -> Result<Self, ModelProblem> {
+        let count = le_u32(body, 12) as usize;
+        need(body.len(), HEADER_BYTES, count.saturating_mul(TABLE_ENTRY_BYTES), "the section table")?;
+        let mut entries: Vec<([u8; 4], u64, u64)> = Vec::with_capacity(count);
+        for i in 0..count {
+            let e = HEADER_BYTES + i * TABLE_ENTRY_BYTES;
+            let tag: [u8; 4] = array(&body[e..e + 4]);
+            let offset = le_u64(body, e + 8);
+            let length = le_u64(body, e + 16);
+            if entries.iter().any(|(t, _, _)| *t == tag) {
+                return Err(ModelProblem::DuplicateSection { tag: tag_name(tag) });
+            }
+            let end = offset.checked_add(length);
+            if offset < (HEADER_BYTES + count * TABLE_ENTRY_BYTES) as u64
+                || end.is_none_or(|end| end > body.len() as u64)
+            {
+                return Err(ModelProblem::SectionBounds {
+                    tag: tag_name(tag),
+                    offset,
+                    length,
+                    file_length: (body.len() + CHECKSUM_BYTES) as u64,
+                });
+            }
+            entries.push((tag, offset, length));
+        }
+        Ok(SectionTable { entries })
+    }
+
+    /// The payload of a required section, checked against its expected length.
+    fn section<'a>(
+        &self,
+        body: &'a [u8],
+        tag: [u8; 4],
+        expected: u64,
+    ) -> Result<&'a [u8], ModelProblem> {
+        let &(_, offset, length) = self
+            .entries
+            .iter()
+            .find(|(t, _, _)| *t == tag)
+            .ok_or_else(|| ModelProblem::MissingSection { tag: tag_name(tag) })?;
+        if expected != length {
+            return Err(ModelProblem::SectionLength { tag: tag_name(tag), expected, actual: length });
+        }
+        Ok(&body[offset as usize..(offset + length) as usize])
+    }
+}
+
+fn need(len: usize, at: usize, count: usize, what: &str) -> Result<(), ModelProblem> {
+    let left = len.saturating_sub(at);
+    if left < count {
+        return Err(ModelProblem::Truncated {
+            what: what.to_string(),
+            expected: count as u64,
+            actual: left as u64,
+        });
+    }
+    Ok(())
+}
+
+fn tag_name(tag: [u8; 4]) -> String {
+    tag.iter()
+        .take_while(|&&b| b != 0)
+        .map(|&b| if b.is_ascii_graphic() { b as char } else { '?' })
+        .collect()
+}
+
+fn align8(x: usize) -> usize {
+    x.div_ceil(8) * 8
+}
+
+fn array<T: Copy + Default, const N: usize>(s: &[T]) -> [T; N] {
+    let mut a = [T::default(); N];
+    a.copy_from_slice(s);
+    a
+}
+
+fn le_u32(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(array(&b[at..at + 4]))
+}
+
+fn le_u64(b: &[u8], at: usize) -> u64 {
+    u64::from_le_bytes(array(&b[at..at + 8]))
+}
+
+fn u32s(b: &[u8]) -> Vec<u32> {
+    b.chunks_exact(4).map(|w| u32::from_le_bytes(array(w))).collect()
+}
+
+fn f32s(b: &[u8]) -> Vec<f32> {
+    b.chunks_exact(4).map(|w| f32::from_le_bytes(array(w))).collect()
+}
+
+fn push_u32s(out: &mut Vec<u8>, xs: &[u32]) {
+    xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+}
+
+fn push_f32s(out: &mut Vec<u8>, xs: &[f32]) {
+    xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+}

@@ -1,0 +1,224 @@
+//! The trained runtime model, as data, and its invariants.
+//!
+//! Letters: V vertices, T triangles, J bones, P key predictors (= proxy bones), K influences.
+//! All matrices are stored row-major in `f32`.
+//!
+//! | field              | shape            | meaning                                              |
+//! |--------------------|------------------|------------------------------------------------------|
+//! | `rest_positions`   | V x 3            | rest mesh ŷ                                          |
+//! | `triangles`        | T x 3            | corner indices into V (for normals)                  |
+//! | `bone_parents`     | J                | parent bone, -1 for a root                           |
+//! | `skin_indices`     | V x K            | palette entries: `< P` a proxy bone, `P + b` bone b  |
+//! | `skin_weights`     | V x K            | blend weights, >= 0, summing to 1 per vertex          |
+//! | `predictors`       | P                | key predictors d_ℓ(q) (METHOD.md §2–3, paper §3)      |
+//! | `c1`               | 4P x 3P          | t_c = C1 d_c + C2 q_c (METHOD.md §8, paper Eq. 5)    |
+//! | `c2`               | 4P x 4J          |                                                      |
+//!
+//! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
+//! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
+//! transform b, 3x4), `d_c[3ℓ + j] = D_ℓ[c][j]` (key gradient ℓ, 3x3).
+//! A model with P = 0 is plain linear blend skinning: every index points at a bone.
+
+mod file;
+mod validate;
+
+pub use file::{predictor_words, FORMAT_VERSION, MAGIC, PREDICTOR_WORDS};
+
+use crate::error::{Error, Result};
+
+/// Rows of a 3x3 matrix, row-major.
+pub type Mat3Rows = [f32; 9];
+
+/// A key predictor (paper §3): `D(q) = R(q) S(q)`.
+///
+/// Rotation (paper Eq. 3, METHOD.md §2), with p = parent(`bone`) and joint rotations
+/// `θ~_b = log(Q_p(b)ᵀ Q_b)` (roots: `log Q_b`):
+/// `R₁(q) = Q_p(q) · exp(u W θ~_bone(q))`, and with a second bone
+/// `R(q) = R₁(q) · exp(u₂ W₂ θ~_second(q))`.
+///
+/// Scale/shear (paper Eq. 4, METHOD.md §3): `vec(S) = H x`, `x = [θ~_bone; θ~_p; 1]`
+/// (θ~_p = 0 when `bone` is a root), vec stacking the rows of S.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KeyPredictor {
+    pub bone: u32,
+    pub u: f32,
+    pub w: Mat3Rows,
+    pub second: Option<SecondBone>,
+    /// H: 9 x 7, row-major.
+    pub h: [f32; 63],
+}
+
+/// The optional second bone of a rotation predictor (paper §3.2, last paragraph).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SecondBone {
+    pub bone: u32,
+    pub u: f32,
+    pub w: Mat3Rows,
+}
+
+/// Everything a model holds, unchecked. Turn it into a [`Model`] with [`Model::new`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelParts {
+    pub rest_positions: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    pub bone_parents: Vec<i32>,
+    /// K: influences per vertex, 4 or 8.
+    pub influences: u32,
+    pub skin_indices: Vec<u32>,
+    pub skin_weights: Vec<f32>,
+    pub predictors: Vec<KeyPredictor>,
+    pub c1: Vec<f32>,
+    pub c2: Vec<f32>,
+}
+
+/// A validated runtime model. Immutable: every invariant in the module docs holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    parts: ModelParts,
+    /// V + 1 offsets into `incident_triangles` (CSR): the triangles around each vertex, so
+    /// normals are a gather with no atomics.
+    incident_offsets: Vec<u32>,
+    incident_triangles: Vec<u32>,
+}
+
+/// The influence counts the runtime has shaders for.
+pub const SUPPORTED_INFLUENCES: [u32; 2] = [4, 8];
+
+impl Model {
+    /// Validates `parts` (dimensions, finite numbers, indices, weights, rotations, hierarchy).
+    pub fn new(parts: ModelParts) -> Result<Model> {
+        Self::with_origin(parts, "<parts>")
+    }
+
+    pub(crate) fn with_origin(parts: ModelParts, origin: &str) -> Result<Model> {
+        validate::check(&parts).map_err(|problem| Error::BadModel {
+            origin: origin.to_string(),
+            problem,
+        })?;
+        let (incident_offsets, incident_triangles) =
+            incidence(parts.rest_positions.len(), &parts.triangles);
+        Ok(Model { parts, incident_offsets, incident_triangles })
+    }
+
+    /// Reads and validates a `.rrs` file. Errors name the file.
+    pub fn load(path: impl AsRef<std::path::Path>) -> Result<Model> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|e| Error::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
+        Self::from_bytes_named(&bytes, &path.display().to_string())
+    }
+
+    /// Parses and validates a `.rrs` image held in memory.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Model> {
+        Self::from_bytes_named(bytes, "<memory>")
+    }
+
+    fn from_bytes_named(bytes: &[u8], origin: &str) -> Result<Model> {
+        let parts = file::decode(bytes)
+            .map_err(|problem| Error::BadModel { origin: origin.to_string(), problem })?;
+        Self::with_origin(parts, origin)
+    }
+
+    /// The `.rrs` image of this model.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        file::encode(&self.parts)
+    }
+
+    pub fn save(&self, path: impl AsRef<std::path::Path>) -> Result<()> {
+        let path = path.as_ref();
+        std::fs::write(path, self.to_bytes()).map_err(|e| Error::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })
+    }
+
+    pub fn parts(&self) -> &ModelParts {
+        &self.parts
+    }
+
+    pub fn into_parts(self) -> ModelParts {
+        self.parts
+    }
+
+    /// V
+    pub fn vertex_count(&self) -> usize {
+        self.parts.rest_positions.len()
+    }
+
+    /// T
+    pub fn triangle_count(&self) -> usize {
+        self.parts.triangles.len()
+    }
+
+    /// J
+    pub fn bone_count(&self) -> usize {
+        self.parts.bone_parents.len()
+    }
+
+    /// P (0: plain linear blend skinning)
+    pub fn proxy_count(&self) -> usize {
+        self.parts.predictors.len()
+    }
+
+    /// K
+    pub fn influences(&self) -> usize {
+        self.parts.influences as usize
+    }
+
+    /// The parent of bone `b`, if any.
+    pub fn parent(&self, b: usize) -> Option<usize> {
+        usize::try_from(self.parts.bone_parents[b]).ok()
+    }
+
+    /// CSR offsets (V + 1) and triangle ids of the triangles around each vertex.
+    pub fn incidence(&self) -> (&[u32], &[u32]) {
+        (&self.incident_offsets, &self.incident_triangles)
+    }
+
+    /// Row-major `[C1 | C2]`: 4P x (3P + 4J), the one matrix the GEMM pass multiplies by.
+    pub fn c1_c2(&self) -> Vec<f32> {
+        let (p, j) = (self.proxy_count(), self.bone_count());
+        let mut out = Vec::with_capacity(4 * p * (3 * p + 4 * j));
+        for r in 0..4 * p {
+            out.extend_from_slice(&self.parts.c1[r * 3 * p..(r + 1) * 3 * p]);
+            out.extend_from_slice(&self.parts.c2[r * 4 * j..(r + 1) * 4 * j]);
+        }
+        out
+    }
+}
+
+/// Per-vertex incident-triangle lists (CSR). Shape: offsets V + 1, triangles 3T.
+fn incidence(vertex_count: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
+    let mut offsets = vec![0u32; vertex_count + 1];
+    for tri in triangles {
+        for &v in tri {
+            offsets[v as usize + 1] += 1;
+        }
+    }
+    for a in 0..vertex_count {
+        offsets[a + 1] += offsets[a];
+    }
+    let mut fill = offsets.clone();
+    let mut list = vec![0u32; offsets[vertex_count] as usize];
+    for (k, tri) in triangles.iter().enumerate() {
+        for &v in tri {
+            list[fill[v as usize] as usize] = k as u32;
+            fill[v as usize] += 1;
+        }
+    }
+    (offsets, list)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn incidence_lists_every_corner_once() {
+        let (off, list) = incidence(4, &[[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(off, vec![0, 2, 3, 5, 6]);
+        assert_eq!(list, vec![0, 1, 0, 0, 1, 1]);
+    }
+}

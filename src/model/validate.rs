@@ -1,0 +1,163 @@
+//! The model invariants, checked on every construction (from parts or from a file).
+//! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
+
+use super::{KeyPredictor, Mat3Rows, ModelParts, SUPPORTED_INFLUENCES};
+use crate::error::ModelProblem;
+
+/// Largest vertex, triangle or bone count: indices and offsets must fit the shaders' u32/i32.
+const MAX_COUNT: usize = i32::MAX as usize / 8;
+/// Tolerance on |Σ w − 1| per vertex and on rotation matrices (orthonormality, determinant).
+pub const WEIGHT_SUM_TOLERANCE: f32 = 1e-3;
+pub const ROTATION_TOLERANCE: f32 = 1e-3;
+
+type Check = Result<(), ModelProblem>;
+
+pub fn check(m: &ModelParts) -> Check {
+    let v = m.rest_positions.len();
+    let j = m.bone_parents.len();
+    let p = m.predictors.len();
+    let k = m.influences as usize;
+    dimension("vertex count", v, 1)?;
+    dimension("bone count", j, 1)?;
+    dimension("triangle count", m.triangles.len(), 0)?;
+    dimension("predictor count", p, 0)?;
+    if !SUPPORTED_INFLUENCES.contains(&m.influences) {
+        return Err(ModelProblem::Dimension {
+            what: "influences per vertex (K)",
+            value: k as u64,
+            reason: "must be 4 or 8",
+        });
+    }
+    length("skin indices", v * k, m.skin_indices.len())?;
+    length("skin weights", v * k, m.skin_weights.len())?;
+    length("C1", 4 * p * 3 * p, m.c1.len())?;
+    length("C2", 4 * p * 4 * j, m.c2.len())?;
+
+    finite("rest positions", m.rest_positions.iter().flatten())?;
+    finite("skin weights", m.skin_weights.iter())?;
+    finite("C1", m.c1.iter())?;
+    finite("C2", m.c2.iter())?;
+
+    for (i, &parent) in m.bone_parents.iter().enumerate() {
+        if parent < -1 || parent >= j as i32 {
+            return Err(out_of_range("bone parents", i, parent as i64, j));
+        }
+    }
+    acyclic(&m.bone_parents)?;
+    for (t, tri) in m.triangles.iter().enumerate() {
+        for &c in tri {
+            if c as usize >= v {
+                return Err(out_of_range("triangles", 3 * t, c as i64, v));
+            }
+        }
+    }
+    for (i, &idx) in m.skin_indices.iter().enumerate() {
+        if idx as usize >= p + j {
+            return Err(out_of_range("skin indices", i, idx as i64, p + j));
+        }
+    }
+    for (a, w) in m.skin_weights.chunks_exact(k).enumerate() {
+        let sum: f32 = w.iter().sum();
+        if w.iter().any(|&x| x < 0.0) || (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
+            return Err(ModelProblem::BadWeights { vertex: a, sum });
+        }
+    }
+    for (l, pred) in m.predictors.iter().enumerate() {
+        predictor(l, pred, j)?;
+    }
+    Ok(())
+}
+
+fn predictor(l: usize, pred: &KeyPredictor, j: usize) -> Check {
+    if pred.bone as usize >= j {
+        return Err(out_of_range("predictor bone", l, pred.bone as i64, j));
+    }
+    finite("predictor u", [pred.u].iter()).map_err(|_| nonfinite("predictor u", l))?;
+    finite("predictor H", pred.h.iter()).map_err(|_| nonfinite("predictor H", l))?;
+    rotation("predictor W", l, &pred.w)?;
+    if let Some(second) = &pred.second {
+        if second.bone as usize >= j {
+            return Err(out_of_range("predictor second bone", l, second.bone as i64, j));
+        }
+        finite("predictor u2", [second.u].iter()).map_err(|_| nonfinite("predictor u2", l))?;
+        rotation("predictor W2", l, &second.w)?;
+    }
+    Ok(())
+}
+
+fn dimension(what: &'static str, value: usize, min: usize) -> Check {
+    if value < min {
+        return Err(ModelProblem::Dimension { what, value: value as u64, reason: "too small" });
+    }
+    if value > MAX_COUNT {
+        return Err(ModelProblem::Dimension { what, value: value as u64, reason: "too large" });
+    }
+    Ok(())
+}
+
+fn length(what: &'static str, expected: usize, actual: usize) -> Check {
+    if expected != actual {
+        return Err(ModelProblem::Length { what, expected, actual });
+    }
+    Ok(())
+}
+
+fn finite<'a>(what: &'static str, values: impl Iterator<Item = &'a f32>) -> Check {
+    for (index, x) in values.enumerate() {
+        if !x.is_finite() {
+            return Err(nonfinite(what, index));
+        }
+    }
+    Ok(())
+}
+
+fn nonfinite(what: &'static str, index: usize) -> ModelProblem {
+    ModelProblem::NonFinite { what, index }
+}
+
+fn out_of_range(what: &'static str, index: usize, value: i64, bound: usize) -> ModelProblem {
+    ModelProblem::IndexOutOfRange { what, index, value, bound }
+}
+
+/// Max deviation of `w` from a proper rotation: |WᵀW − I|∞ and |det W − 1|.
+pub fn rotation_error(w: &Mat3Rows) -> f32 {
+    let m = glam::Mat3::from_cols_array(w).transpose();
+    let gram = m.transpose() * m;
+    let mut err = (m.determinant() - 1.0).abs();
+    for c in 0..3 {
+        for r in 0..3 {
+            let target = if r == c { 1.0 } else { 0.0 };
+            err = err.max((gram.col(c)[r] - target).abs());
+        }
+    }
+    if err.is_finite() {
+        err
+    } else {
+        f32::INFINITY
+    }
+}
+
+fn rotation(what: &'static str, index: usize, w: &Mat3Rows) -> Check {
+    let error = rotation_error(w);
+    if error > ROTATION_TOLERANCE {
+        return Err(ModelProblem::NotRotation { what, index, error });
+    }
+    Ok(())
+}
+
+/// Every chain of parents must end at a root within J steps.
+fn acyclic(parents: &[i32]) -> Check {
+    for start in 0..parents.len() {
+        let mut b = start;
+        for _ in 0..=parents.len() {
+            match usize::try_from(parents[b]) {
+                Ok(p) => b = p,
+                Err(_) => break,
+            }
+        }
+        if parents[b] >= 0 {
+            return Err(ModelProblem::ParentCycle { bone: start });
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,143 @@
+//! Key-predictor evaluation `D_ℓ(q)` (paper §3, Eq. 3–4; METHOD.md §2–3) and the rotation
+//! math it needs, in `f64`. `glsl/predict.comp` mirrors these functions line for line in `f32`
+//! (same branch thresholds), so the two agree away from the rotation log's branch cut at π.
+
+use crate::model::{KeyPredictor, Mat3Rows, Model};
+use glam::{DMat3, DVec3};
+
+/// A bone transform relative to the rest pose, 3x4 row-major: `x ↦ Q x + d`.
+pub type Affine = [f32; 12];
+
+/// Below this `sin θ` with `cos θ < 0`, `log` takes the axis from the symmetric part of R
+/// (the antisymmetric part vanishes at π). Shared with `glsl/predict.comp`.
+pub const NEAR_PI_SIN: f64 = 1e-2;
+/// Below this angle, `log` and `exp` use Taylor series. Shared with `glsl/predict.comp`.
+pub const SMALL_ANGLE: f64 = 1e-4;
+
+/// The rotation part Q of a bone transform.
+pub fn rotation_of(t: &Affine) -> DMat3 {
+    DMat3::from_cols(
+        DVec3::new(t[0] as f64, t[4] as f64, t[8] as f64),
+        DVec3::new(t[1] as f64, t[5] as f64, t[9] as f64),
+        DVec3::new(t[2] as f64, t[6] as f64, t[10] as f64),
+    )
+}
+
+/// A row-major 3x3 as a glam matrix.
+pub fn mat3_of_rows(w: &Mat3Rows) -> DMat3 {
+    DMat3::from_cols_array(&w.map(|x| x as f64)).transpose()
+}
+
+/// `log: SO(3) → R³`, the axis-angle vector with angle in [0, π].
+pub fn log_rotation(r: DMat3) -> DVec3 {
+    let (c0, c1, c2) = (r.x_axis, r.y_axis, r.z_axis);
+    // vee(R − Rᵀ) = 2 sin θ · axis
+    let v = DVec3::new(c1.z - c2.y, c2.x - c0.z, c0.y - c1.x);
+    let s = 0.5 * v.length();
+    let c = 0.5 * (c0.x + c1.y + c2.z - 1.0);
+    let angle = s.atan2(c);
+    if angle < SMALL_ANGLE {
+        return v * (0.5 * (1.0 + angle * angle / 6.0));
+    }
+    if s < NEAR_PI_SIN && c < 0.0 {
+        // R ≈ 2aaᵀ − I: take the axis from the column of (R + I) with the largest diagonal,
+        // oriented like the (tiny) antisymmetric part.
+        let b = [c0 + DVec3::X, c1 + DVec3::Y, c2 + DVec3::Z];
+        let diag = [b[0].x, b[1].y, b[2].z];
+        let i = if diag[0] >= diag[1] && diag[0] >= diag[2] {
+            0
+        } else if diag[1] >= diag[2] {
+            1
+        } else {
+            2
+        };
+        let mut axis = b[i].normalize();
+        if axis.dot(v) < 0.0 {
+            axis = -axis;
+        }
+        return axis * angle;
+    }
+    v * (angle / (2.0 * s))
+}
+
+/// `exp: R³ → SO(3)` (Rodrigues).
+pub fn exp_rotation(w: DVec3) -> DMat3 {
+    let a2 = w.length_squared();
+    let a = a2.sqrt();
+    let (s, c) = if a < SMALL_ANGLE {
+        (1.0 - a2 / 6.0, 0.5 - a2 / 24.0)
+    } else {
+        (a.sin() / a, (1.0 - a.cos()) / a2)
+    };
+    let k = DMat3::from_cols(
+        DVec3::new(0.0, w.z, -w.y),
+        DVec3::new(-w.z, 0.0, w.x),
+        DVec3::new(w.y, -w.x, 0.0),
+    );
+    DMat3::IDENTITY + k * s + k * k * c
+}
+
+/// Joint rotation of bone b in rest-world coordinates: `θ~_b = log(Q_p(b)ᵀ Q_b)` (METHOD.md
+/// conventions), `log Q_b` for a root. `bones`: the J transforms of one character.
+pub fn joint_rotation(model: &Model, bones: &[Affine], b: usize) -> DVec3 {
+    let q = rotation_of(&bones[b]);
+    match model.parent(b) {
+        Some(p) => log_rotation(rotation_of(&bones[p]).transpose() * q),
+        None => log_rotation(q),
+    }
+}
+
+/// `D_ℓ(q) = R(q) S(q)` for one predictor and one character's J bone transforms.
+pub fn key_gradient(model: &Model, pred: &KeyPredictor, bones: &[Affine]) -> DMat3 {
+    let b = pred.bone as usize;
+    let theta_b = joint_rotation(model, bones, b);
+    let (q_parent, theta_parent) = match model.parent(b) {
+        Some(p) => (rotation_of(&bones[p]), joint_rotation(model, bones, p)),
+        None => (DMat3::IDENTITY, DVec3::ZERO),
+    };
+    let mut r = q_parent * exp_rotation(mat3_of_rows(&pred.w) * theta_b * pred.u as f64);
+    if let Some(second) = &pred.second {
+        let theta2 = joint_rotation(model, bones, second.bone as usize);
+        r *= exp_rotation(mat3_of_rows(&second.w) * theta2 * second.u as f64);
+    }
+    let x = [
+        theta_b.x,
+        theta_b.y,
+        theta_b.z,
+        theta_parent.x,
+        theta_parent.y,
+        theta_parent.z,
+        1.0,
+    ];
+    let mut s_rows = [0.0f64; 9];
+    for (i, s) in s_rows.iter_mut().enumerate() {
+        *s = (0..7).map(|j| pred.h[7 * i + j] as f64 * x[j]).sum();
+    }
+    r * DMat3::from_cols_array(&s_rows).transpose()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: DMat3, b: DMat3, tol: f64) -> bool {
+        (a - b).to_cols_array().iter().all(|x| x.abs() < tol)
+    }
+
+    #[test]
+    fn log_inverts_exp_across_the_angle_range() {
+        let axis = DVec3::new(0.3, -0.5, 0.8).normalize();
+        for &angle in &[0.0, 1e-7, 1e-3, 0.5, 2.0, 3.0, 3.1399, 3.14159] {
+            let w = axis * angle;
+            let back = log_rotation(exp_rotation(w));
+            assert!((back - w).length() < 1e-8, "angle {angle}: {back:?} vs {w:?}");
+        }
+    }
+
+    #[test]
+    fn exp_is_a_rotation() {
+        let r = exp_rotation(DVec3::new(1.0, 2.0, -0.5));
+        assert!(close(r.transpose() * r, DMat3::IDENTITY, 1e-12));
+        assert!((r.determinant() - 1.0).abs() < 1e-12);
+    }
+}

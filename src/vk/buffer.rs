@@ -1,0 +1,165 @@
+//! A VkBuffer with its gpu-allocator allocation, freed in Drop. Holds the context alive.
+
+use super::context::Shared;
+use crate::error::{Error, Result};
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+use std::sync::Arc;
+
+/// Vulkan forbids zero-sized buffers; empty arrays (P = 0, T = 0) get this many bytes, unread.
+const MIN_BYTES: u64 = 16;
+
+pub struct Buffer {
+    shared: Arc<Shared>,
+    pub handle: vk::Buffer,
+    allocation: Option<Allocation>,
+    pub size: u64,
+}
+
+impl Buffer {
+    pub fn new(
+        shared: &Arc<Shared>,
+        name: &'static str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Buffer> {
+        let size = size.max(MIN_BYTES);
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let device = &shared.device;
+        // SAFETY: valid device and create info.
+        let handle = unsafe { device.create_buffer(&info, None) }.map_err(Error::vk("vkCreateBuffer"))?;
+        let mut buffer = Buffer { shared: shared.clone(), handle, allocation: None, size };
+        // SAFETY: valid buffer.
+        let requirements = unsafe { device.get_buffer_memory_requirements(handle) };
+        let allocation = shared
+            .allocator()
+            .as_mut()
+            .ok_or(Error::Allocation { what: name, message: "the allocator is gone".into() })?
+            .allocate(&AllocationCreateDesc {
+                name,
+                requirements,
+                location,
+                linear: true,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            })
+            .map_err(|e| Error::Allocation { what: name, message: e.to_string() })?;
+        // SAFETY: fresh allocation satisfying the buffer's requirements.
+        unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) }
+            .map_err(Error::vk("vkBindBufferMemory"))?;
+        buffer.allocation = Some(allocation);
+        Ok(buffer)
+    }
+
+    /// The host-visible bytes of a buffer made with a CpuToGpu or GpuToCpu location.
+    pub fn mapped(&mut self) -> Result<&mut [u8]> {
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .ok_or(Error::Allocation { what: "a mapped buffer", message: "not host-visible".into() })
+    }
+
+    pub fn descriptor(&self, offset: u64, range: u64) -> vk::DescriptorBufferInfo {
+        vk::DescriptorBufferInfo { buffer: self.handle, offset, range }
+    }
+
+    /// The whole buffer as one descriptor.
+    pub fn whole(&self) -> vk::DescriptorBufferInfo {
+        self.descriptor(0, vk::WHOLE_SIZE)
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: the owner guarantees the GPU no longer uses the buffer (crate contract).
+        unsafe { self.shared.device.destroy_buffer(self.handle, None) };
+        if let Some(allocation) = self.allocation.take() {
+            if let Some(allocator) = self.shared.allocator().as_mut() {
+                // Freeing only fails for an allocation of another allocator: impossible here.
+                let _ = allocator.free(allocation);
+            }
+        }
+    }
+}
+
+/// Uploads `data` into new device-local buffers (one staging copy, then waits).
+pub fn upload(
+    shared: &Arc<Shared>,
+    items: &[(&'static str, &[u8])],
+    usage: vk::BufferUsageFlags,
+) -> Result<Vec<Buffer>> {
+    let total: u64 = items.iter().map(|(_, d)| d.len() as u64).sum();
+    let mut staging = Buffer::new(
+        shared,
+        "staging",
+        total,
+        vk::BufferUsageFlags::TRANSFER_SRC,
+        MemoryLocation::CpuToGpu,
+    )?;
+    let mut offsets = Vec::with_capacity(items.len());
+    {
+        let mapped = staging.mapped()?;
+        let mut at = 0usize;
+        for (_, data) in items {
+            mapped[at..at + data.len()].copy_from_slice(data);
+            offsets.push(at as u64);
+            at += data.len();
+        }
+    }
+    let buffers = items
+        .iter()
+        .map(|(name, data)| {
+            Buffer::new(
+                shared,
+                name,
+                data.len() as u64,
+                usage | vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuOnly,
+            )
+        })
+        .collect::<Result<Vec<_>>>()?;
+    shared.submit_and_wait(|cmd| {
+        for ((dst, (_, data)), &src_offset) in buffers.iter().zip(items).zip(&offsets) {
+            if data.is_empty() {
+                continue;
+            }
+            let region = [vk::BufferCopy { src_offset, dst_offset: 0, size: data.len() as u64 }];
+            // SAFETY: both buffers are alive and large enough; cmd is recording.
+            unsafe { shared.device.cmd_copy_buffer(cmd, staging.handle, dst.handle, &region) };
+        }
+        // Make the copies visible to every later compute read (submit-and-wait orders the
+        // submissions, but sync validation wants the memory dependency spelled out).
+        // SAFETY: cmd is recording.
+        unsafe {
+            memory_barrier(
+                &shared.device,
+                cmd,
+                (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ),
+            )
+        };
+        Ok(())
+    })?;
+    Ok(buffers)
+}
+
+/// A global memory barrier from (stages, accesses) to (stages, accesses).
+///
+/// # Safety
+/// `cmd` must be recording.
+pub(crate) unsafe fn memory_barrier(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    src: (vk::PipelineStageFlags, vk::AccessFlags),
+    dst: (vk::PipelineStageFlags, vk::AccessFlags),
+) {
+    let barrier = [vk::MemoryBarrier::default().src_access_mask(src.1).dst_access_mask(dst.1)];
+    // SAFETY: see the function's contract.
+    unsafe {
+        device.cmd_pipeline_barrier(cmd, src.0, dst.0, vk::DependencyFlags::empty(), &barrier, &[], &[])
+    };
+}

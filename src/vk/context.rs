@@ -1,0 +1,489 @@
+//! The Vulkan context: either its own headless instance and device, or an engine's borrowed ones.
+//!
+//! Everything made from a context (buffers, GPU models, crowds, batches) holds an
+//! `Arc<Shared>`, so the device, allocator and pipelines are destroyed only after the last of
+//! them is gone: nothing can outlive what it was allocated from.
+
+use super::pipelines::Pipelines;
+use crate::error::{Error, Result};
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use std::ffi::{c_void, CStr};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// Which physical device a headless context takes.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub enum DeviceChoice {
+    /// Discrete, then integrated, then virtual, then CPU (lavapipe) devices.
+    #[default]
+    Auto,
+    /// The first device whose name contains this text (case-insensitive).
+    NameContains(String),
+    /// The n-th device in enumeration order.
+    Index(usize),
+}
+
+/// How to create a headless context.
+#[derive(Debug, Clone, Default)]
+pub struct ContextDesc {
+    pub device: DeviceChoice,
+    /// Enable the Khronos validation layer with synchronization validation, and collect its
+    /// warnings and errors (see [`Context::validation_messages`]). Fails if the layer is absent.
+    pub validation: bool,
+}
+
+/// An engine's Vulkan objects, borrowed (never destroyed) by [`Context::from_engine`].
+#[derive(Clone, Copy)]
+pub struct EngineDevice {
+    pub get_instance_proc_addr: vk::PFN_vkGetInstanceProcAddr,
+    pub instance: vk::Instance,
+    pub physical_device: vk::PhysicalDevice,
+    pub device: vk::Device,
+    pub queue_family_index: u32,
+    pub queue: vk::Queue,
+}
+
+/// Device limits the runtime plans around.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    pub max_storage_buffer_range: u64,
+    pub min_storage_buffer_offset_alignment: u64,
+    pub max_workgroup_count: [u32; 3],
+    /// Nanoseconds per timestamp tick; `None` if the queue has no timestamps.
+    pub timestamp_period_ns: Option<f64>,
+}
+
+/// A shared handle to the Vulkan device the runtime uses.
+#[derive(Clone)]
+pub struct Context {
+    pub(crate) shared: Arc<Shared>,
+}
+
+pub(crate) struct Shared {
+    pub entry: ash::Entry,
+    pub instance: ash::Instance,
+    pub physical_device: vk::PhysicalDevice,
+    pub device: ash::Device,
+    pub queue_family_index: u32,
+    pub queue_has_graphics: bool,
+    queue: Mutex<vk::Queue>,
+    allocator: Mutex<Option<Allocator>>,
+    pub limits: Limits,
+    pub device_name: String,
+    pub pipelines: Pipelines,
+    /// Own instance/device (destroyed in Drop) or borrowed (left alone).
+    owned: Option<Owned>,
+    /// One-shot command pool for uploads and read-backs.
+    pub transient_pool: Mutex<vk::CommandPool>,
+}
+
+struct Owned {
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    /// Boxed so its address (the messenger's user data) is stable; freed after the messenger.
+    messages: Box<Mutex<Vec<String>>>,
+}
+
+impl Context {
+    /// Creates an instance and device of its own (headless: no surface).
+    pub fn headless(desc: &ContextDesc) -> Result<Context> {
+        // SAFETY: loading the system Vulkan loader; the Entry keeps the library alive.
+        let entry =
+            unsafe { ash::Entry::load() }.map_err(|e| Error::Loader { message: e.to_string() })?;
+        let messages: Box<Mutex<Vec<String>>> = Box::default();
+        let (instance, debug) = create_instance(&entry, desc.validation, &messages)?;
+        let owned = Owned { debug, messages };
+        let picked = (|| {
+            let physical_device = pick_device(&instance, &desc.device)?;
+            let queue_family_index = pick_queue_family(&instance, physical_device)?;
+            let priorities = [1.0f32];
+            let queue_info = [vk::DeviceQueueCreateInfo::default()
+                .queue_family_index(queue_family_index)
+                .queue_priorities(&priorities)];
+            let device_info = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info);
+            // SAFETY: valid physical device and create info.
+            let device = unsafe { instance.create_device(physical_device, &device_info, None) }
+                .map_err(Error::vk("vkCreateDevice"))?;
+            Ok((physical_device, queue_family_index, device))
+        })();
+        let (physical_device, queue_family_index, device) = match picked {
+            Ok(picked) => picked,
+            Err(e) => {
+                // SAFETY: no device was created from the instance.
+                unsafe { destroy_instance(&instance, owned) };
+                return Err(e);
+            }
+        };
+        // SAFETY: the queue family was created with one queue.
+        let queue = unsafe { device.get_device_queue(queue_family_index, 0) };
+        Self::finish(entry, instance, physical_device, device, queue_family_index, queue, Some(owned))
+    }
+
+    /// Wraps an engine's instance, physical device, device and queue.
+    ///
+    /// # Safety
+    /// The handles must be valid, belong together, and outlive the returned context and
+    /// everything made from it; `get_instance_proc_addr` must be the loader's (or a layer's)
+    /// `vkGetInstanceProcAddr` for `instance`. The queue must support compute. The runtime
+    /// submits to the queue only during uploads and read-backs and [`super::Batch::run`]; the
+    /// engine must not use the queue concurrently with those calls.
+    pub unsafe fn from_engine(engine: EngineDevice) -> Result<Context> {
+        let static_fn = ash::StaticFn { get_instance_proc_addr: engine.get_instance_proc_addr };
+        // SAFETY: the caller guarantees the handles and the function pointer are valid.
+        let entry = unsafe { ash::Entry::from_static_fn(static_fn.clone()) };
+        // SAFETY: as above.
+        let instance = unsafe { ash::Instance::load(&static_fn, engine.instance) };
+        // SAFETY: as above.
+        let device = unsafe { ash::Device::load(instance.fp_v1_0(), engine.device) };
+        // SAFETY: valid physical device.
+        let families = unsafe {
+            instance.get_physical_device_queue_family_properties(engine.physical_device)
+        };
+        let family = families.get(engine.queue_family_index as usize).ok_or(Error::OutOfRange {
+            what: "queue family index",
+            index: engine.queue_family_index as usize,
+            count: families.len(),
+        })?;
+        if !family.queue_flags.contains(vk::QueueFlags::COMPUTE) {
+            return Err(Error::NoDevice { reason: "the engine's queue family has no compute".into() });
+        }
+        Self::finish(
+            entry,
+            instance,
+            engine.physical_device,
+            device,
+            engine.queue_family_index,
+            engine.queue,
+            None,
+        )
+    }
+
+    fn finish(
+        entry: ash::Entry,
+        instance: ash::Instance,
+        physical_device: vk::PhysicalDevice,
+        device: ash::Device,
+        queue_family_index: u32,
+        queue: vk::Queue,
+        owned: Option<Owned>,
+    ) -> Result<Context> {
+        // SAFETY: valid physical device.
+        let props = unsafe { instance.get_physical_device_properties(physical_device) };
+        // SAFETY: valid physical device.
+        let family = unsafe {
+            instance.get_physical_device_queue_family_properties(physical_device)
+        }[queue_family_index as usize];
+        let limits = Limits {
+            max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
+            min_storage_buffer_offset_alignment: props.limits.min_storage_buffer_offset_alignment,
+            max_workgroup_count: props.limits.max_compute_work_group_count,
+            timestamp_period_ns: (family.timestamp_valid_bits > 0)
+                .then_some(props.limits.timestamp_period as f64),
+        };
+        let device_name = props
+            .device_name_as_c_str()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        // Build the shared state first so that Drop cleans up whatever follows if it fails.
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        });
+        let mut shared = Shared {
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family_index,
+            queue_has_graphics: family.queue_flags.contains(vk::QueueFlags::GRAPHICS),
+            queue: Mutex::new(queue),
+            allocator: Mutex::new(None),
+            limits,
+            device_name,
+            pipelines: Pipelines::default(),
+            owned,
+            transient_pool: Mutex::new(vk::CommandPool::null()),
+        };
+        let allocator = allocator.map_err(|e| Error::Allocation {
+            what: "the GPU allocator",
+            message: e.to_string(),
+        })?;
+        *lock(&shared.allocator) = Some(allocator);
+        let pool_info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(queue_family_index)
+            .flags(vk::CommandPoolCreateFlags::TRANSIENT);
+        // SAFETY: valid device.
+        let pool = unsafe { shared.device.create_command_pool(&pool_info, None) }
+            .map_err(Error::vk("vkCreateCommandPool"))?;
+        *lock(&shared.transient_pool) = pool;
+        shared.pipelines = Pipelines::new(&shared.device)?;
+        Ok(Context { shared: Arc::new(shared) })
+    }
+
+    pub fn device_name(&self) -> &str {
+        &self.shared.device_name
+    }
+
+    pub fn limits(&self) -> Limits {
+        self.shared.limits
+    }
+
+    pub fn device(&self) -> &ash::Device {
+        &self.shared.device
+    }
+
+    pub fn queue_family_index(&self) -> u32 {
+        self.shared.queue_family_index
+    }
+
+    /// Warnings and errors the validation layer reported so far (headless contexts created with
+    /// `validation: true`; empty otherwise).
+    pub fn validation_messages(&self) -> Vec<String> {
+        match &self.shared.owned {
+            Some(owned) => lock(&owned.messages).clone(),
+            None => Vec::new(),
+        }
+    }
+}
+
+impl Shared {
+    pub fn allocator(&self) -> MutexGuard<'_, Option<Allocator>> {
+        lock(&self.allocator)
+    }
+
+    /// Records with `record`, submits to the queue and waits for completion.
+    pub fn submit_and_wait(
+        &self,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
+    ) -> Result<()> {
+        let pool = lock(&self.transient_pool);
+        let info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(*pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: the pool is ours and externally synchronised by the mutex.
+        let cmd = unsafe { self.device.allocate_command_buffers(&info) }
+            .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
+        let result = self.record_submit_wait(cmd, record);
+        // SAFETY: the command buffer finished (or was never submitted).
+        unsafe { self.device.free_command_buffers(*pool, &[cmd]) };
+        result
+    }
+
+    fn record_submit_wait(
+        &self,
+        cmd: vk::CommandBuffer,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
+    ) -> Result<()> {
+        let begin = vk::CommandBufferBeginInfo::default()
+            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+        // SAFETY: fresh command buffer from our pool.
+        unsafe { self.device.begin_command_buffer(cmd, &begin) }
+            .map_err(Error::vk("vkBeginCommandBuffer"))?;
+        record(cmd)?;
+        // SAFETY: recording.
+        unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"))?;
+        self.submit_wait(cmd)
+    }
+
+    /// Submits one recorded command buffer and waits on a fence.
+    pub fn submit_wait(&self, cmd: vk::CommandBuffer) -> Result<()> {
+        // SAFETY: valid device.
+        let fence = unsafe { self.device.create_fence(&vk::FenceCreateInfo::default(), None) }
+            .map_err(Error::vk("vkCreateFence"))?;
+        let cmds = [cmd];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        let result = {
+            let queue = lock(&self.queue);
+            // SAFETY: the queue is externally synchronised by the mutex; cmd is executable.
+            unsafe { self.device.queue_submit(*queue, &submit, fence) }
+                .map_err(Error::vk("vkQueueSubmit"))
+        }
+        .and_then(|()| {
+            // SAFETY: the fence belongs to this device.
+            unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
+                .map_err(Error::vk("vkWaitForFences"))
+        });
+        // SAFETY: the fence is signalled or was never submitted.
+        unsafe { self.device.destroy_fence(fence, None) };
+        result
+    }
+}
+
+impl Drop for Shared {
+    fn drop(&mut self) {
+        // SAFETY: every object made from this context is gone (they hold the Arc); wait for the
+        // GPU, then destroy in reverse order of creation.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            self.pipelines.destroy(&self.device);
+            let pool = *lock(&self.transient_pool);
+            if pool != vk::CommandPool::null() {
+                self.device.destroy_command_pool(pool, None);
+            }
+        }
+        // The allocator frees its memory blocks through the device: before the device goes.
+        drop(lock(&self.allocator).take());
+        if let Some(owned) = self.owned.take() {
+            // SAFETY: we created device and instance; nothing else uses them any more.
+            unsafe {
+                self.device.destroy_device(None);
+                destroy_instance(&self.instance, owned);
+            }
+        }
+    }
+}
+
+/// # Safety
+/// Nothing created from `instance` may still exist, except the messenger in `owned`.
+unsafe fn destroy_instance(instance: &ash::Instance, owned: Owned) {
+    if let Some((debug, messenger)) = &owned.debug {
+        // SAFETY: the messenger was created from this instance.
+        unsafe { debug.destroy_debug_utils_messenger(*messenger, None) };
+    }
+    // SAFETY: see the function's contract.
+    unsafe { instance.destroy_instance(None) };
+    drop(owned);
+}
+
+type Debug = Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>;
+
+fn create_instance(
+    entry: &ash::Entry,
+    validation: bool,
+    messages: &Mutex<Vec<String>>,
+) -> Result<(ash::Instance, Debug)> {
+    let app = vk::ApplicationInfo::default()
+        .application_name(c"rrskin")
+        .engine_name(c"rrskin")
+        .api_version(vk::API_VERSION_1_2);
+    let mut layers = Vec::new();
+    let mut extensions = Vec::new();
+    if validation {
+        // SAFETY: plain query.
+        let available = unsafe { entry.enumerate_instance_layer_properties() }
+            .map_err(Error::vk("vkEnumerateInstanceLayerProperties"))?;
+        if !available.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
+            return Err(Error::MissingLayer { name: VALIDATION_LAYER.to_string_lossy().into() });
+        }
+        layers.push(VALIDATION_LAYER.as_ptr());
+        extensions.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
+    let enabled = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+    let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled);
+    let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
+        .message_severity(
+            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+        )
+        .message_type(
+            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+        )
+        .pfn_user_callback(Some(on_validation_message))
+        .user_data(messages as *const Mutex<Vec<String>> as *mut c_void);
+    let mut info = vk::InstanceCreateInfo::default()
+        .application_info(&app)
+        .enabled_layer_names(&layers)
+        .enabled_extension_names(&extensions);
+    if validation {
+        // Chained so that messages during vkCreateInstance/vkDestroyInstance are caught too.
+        info = info.push_next(&mut features).push_next(&mut messenger_info);
+    }
+    // SAFETY: valid create info; the pointers it holds live until the call returns.
+    let instance =
+        unsafe { entry.create_instance(&info, None) }.map_err(Error::vk("vkCreateInstance"))?;
+    if !validation {
+        return Ok((instance, None));
+    }
+    let debug = ash::ext::debug_utils::Instance::new(entry, &instance);
+    // SAFETY: the instance has the extension enabled; `messages` outlives the messenger.
+    match unsafe { debug.create_debug_utils_messenger(&messenger_info, None) } {
+        Ok(messenger) => Ok((instance, Some((debug, messenger)))),
+        Err(result) => {
+            // SAFETY: nothing else was created from the instance.
+            unsafe { instance.destroy_instance(None) };
+            Err(Error::Vulkan { call: "vkCreateDebugUtilsMessengerEXT", result })
+        }
+    }
+}
+
+unsafe extern "system" fn on_validation_message(
+    severity: vk::DebugUtilsMessageSeverityFlagsEXT,
+    _types: vk::DebugUtilsMessageTypeFlagsEXT,
+    data: *const vk::DebugUtilsMessengerCallbackDataEXT<'_>,
+    user: *mut c_void,
+) -> vk::Bool32 {
+    // SAFETY: the layer passes valid callback data; `user` is the `Mutex<Vec<String>>` boxed in
+    // `Owned`, which outlives the messenger.
+    let (data, messages) = unsafe { (&*data, &*(user as *const Mutex<Vec<String>>)) };
+    // SAFETY: as above; the message is a valid C string when non-null.
+    let text = unsafe { data.message_as_c_str() }
+        .map(|m| m.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    lock(messages).push(format!("{severity:?}: {text}"));
+    vk::FALSE
+}
+
+fn pick_device(instance: &ash::Instance, choice: &DeviceChoice) -> Result<vk::PhysicalDevice> {
+    // SAFETY: valid instance.
+    let devices = unsafe { instance.enumerate_physical_devices() }
+        .map_err(Error::vk("vkEnumeratePhysicalDevices"))?;
+    let usable: Vec<(usize, vk::PhysicalDevice, vk::PhysicalDeviceProperties)> = devices
+        .iter()
+        .enumerate()
+        .filter(|(_, &d)| pick_queue_family(instance, d).is_ok())
+        // SAFETY: valid physical device.
+        .map(|(i, &d)| (i, d, unsafe { instance.get_physical_device_properties(d) }))
+        .collect();
+    let name_of = |p: &vk::PhysicalDeviceProperties| {
+        p.device_name_as_c_str().map(|s| s.to_string_lossy().to_lowercase()).unwrap_or_default()
+    };
+    let rank = |t: vk::PhysicalDeviceType| match t {
+        vk::PhysicalDeviceType::DISCRETE_GPU => 0,
+        vk::PhysicalDeviceType::INTEGRATED_GPU => 1,
+        vk::PhysicalDeviceType::VIRTUAL_GPU => 2,
+        vk::PhysicalDeviceType::CPU => 3,
+        _ => 4,
+    };
+    let found = match choice {
+        DeviceChoice::Auto => usable.iter().min_by_key(|(_, _, p)| rank(p.device_type)),
+        DeviceChoice::NameContains(text) => {
+            usable.iter().find(|(_, _, p)| name_of(p).contains(&text.to_lowercase()))
+        }
+        DeviceChoice::Index(n) => usable.iter().find(|(i, _, _)| i == n),
+    };
+    found.map(|(_, d, _)| *d).ok_or_else(|| {
+        let names: Vec<String> = usable.iter().map(|(i, _, p)| format!("{i}: {}", name_of(p))).collect();
+        Error::NoDevice {
+            reason: format!("{choice:?} matches none of the devices with compute [{}]", names.join(", ")),
+        }
+    })
+}
+
+/// A queue family with compute; one with graphics too is preferred so that the crowd sample can
+/// draw from the outputs on the same queue.
+fn pick_queue_family(instance: &ash::Instance, device: vk::PhysicalDevice) -> Result<u32> {
+    // SAFETY: valid physical device.
+    let families = unsafe { instance.get_physical_device_queue_family_properties(device) };
+    let compute = |f: &vk::QueueFamilyProperties| f.queue_flags.contains(vk::QueueFlags::COMPUTE);
+    let both = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
+    families
+        .iter()
+        .position(|f| f.queue_flags.contains(both))
+        .or_else(|| families.iter().position(compute))
+        .map(|i| i as u32)
+        .ok_or(Error::NoDevice { reason: "no queue family with compute".into() })
+}
+
+/// A poisoned lock only means another thread panicked while holding it; the data (handles,
+/// message lists) stays consistent, so carry on rather than propagate the panic.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}

@@ -1,0 +1,369 @@
+//! C characters of one GPU model: per-frame bone input, intermediate gradients and proxy
+//! transforms, and the output positions and normals the engine draws from.
+//!
+//! Each per-character array is ONE buffer (so the engine binds one vertex buffer and offsets by
+//! character), but a storage descriptor may only cover `maxStorageBufferRange` bytes (128 MiB on
+//! lavapipe). The crowd is therefore split into chunks of characters; every chunk has its own
+//! descriptor sets whose ranges start at chunk offsets aligned to
+//! `minStorageBufferOffsetAlignment`, and the passes dispatch once per chunk.
+
+use super::blend_gemm;
+use super::buffer::{memory_barrier, Buffer};
+use super::context::Shared;
+use super::gpu_model::{GpuModel, Inner};
+use super::normals;
+use super::pipelines::PassPipeline;
+use super::predict;
+use super::skin;
+use crate::cpu::check_finite;
+use crate::error::{Error, Result};
+use crate::predict::Affine;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+use std::sync::Arc;
+
+const AFFINE_BYTES: u64 = 48;
+const GRADIENT_BYTES: u64 = 36;
+const XYZ_BYTES: u64 = 12;
+
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CrowdOptions {
+    /// Largest descriptor range to use, below the device's maxStorageBufferRange: forces smaller
+    /// chunks (tests use it to exercise chunking without gigabytes of output).
+    pub max_binding_bytes: Option<u64>,
+}
+
+/// Where the engine finds the outputs: character `c`, vertex `a` is at
+/// `offset + c * character_stride + a * vertex_stride` in each buffer (3 x f32: x, y, z).
+#[derive(Debug, Clone, Copy)]
+pub struct CrowdOutput {
+    pub positions: vk::Buffer,
+    pub normals: vk::Buffer,
+    pub offset: u64,
+    pub vertex_stride: u64,
+    pub character_stride: u64,
+}
+
+/// The descriptor ranges of one chunk in the crowd's per-character buffers.
+#[derive(Clone, Copy)]
+pub(crate) struct ChunkViews {
+    pub bones: vk::DescriptorBufferInfo,
+    pub gradients: vk::DescriptorBufferInfo,
+    pub proxies: vk::DescriptorBufferInfo,
+    pub positions: vk::DescriptorBufferInfo,
+    pub normals: vk::DescriptorBufferInfo,
+}
+
+pub(crate) struct Chunk {
+    pub characters: u32,
+    /// Descriptor sets of the four passes (predict and blend_gemm are null when P = 0).
+    pub predict: vk::DescriptorSet,
+    pub blend_gemm: vk::DescriptorSet,
+    pub skin: vk::DescriptorSet,
+    pub normals: vk::DescriptorSet,
+}
+
+pub struct Crowd {
+    pub(crate) model: GpuModel,
+    characters: u32,
+    /// C x J x 3x4 f32, host-visible (written by `set_bones`, read by passes 1–3).
+    bones: Buffer,
+    /// C x P x 3x3 f32 (pass 1 → pass 2)
+    gradients: Buffer,
+    /// C x P x 3x4 f32 (pass 2 → pass 3)
+    proxies: Buffer,
+    /// C x V x 3 f32 (pass 3 → pass 4, and the engine's vertex buffer)
+    positions: Buffer,
+    /// C x V x 3 f32
+    normals: Buffer,
+    pool: vk::DescriptorPool,
+    pub(crate) chunks: Vec<Chunk>,
+}
+
+impl Crowd {
+    /// A crowd of `characters` characters, all in the rest pose until `set_bones`.
+    pub fn new(model: &GpuModel, characters: usize) -> Result<Crowd> {
+        Self::with_options(model, characters, CrowdOptions::default())
+    }
+
+    pub fn with_options(model: &GpuModel, characters: usize, options: CrowdOptions) -> Result<Crowd> {
+        let m = &model.inner;
+        let shared = m.context.shared.clone();
+        if characters == 0 {
+            return Err(Error::OutOfRange { what: "crowd size", index: 0, count: 0 });
+        }
+        let c = characters as u64;
+        let per_character = [
+            m.bones as u64 * AFFINE_BYTES,
+            m.proxies as u64 * GRADIENT_BYTES,
+            m.proxies as u64 * AFFINE_BYTES,
+            m.vertices as u64 * XYZ_BYTES,
+        ];
+        let chunk_characters = chunk_size(&shared, &per_character, c, options)?;
+
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let output = storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
+        let gpu = MemoryLocation::GpuOnly;
+        let mut bones =
+            Buffer::new(&shared, "crowd bones", c * per_character[0], storage, MemoryLocation::CpuToGpu)?;
+        let gradients = Buffer::new(&shared, "crowd gradients", c * per_character[1], storage, gpu)?;
+        let proxies = Buffer::new(&shared, "crowd proxies", c * per_character[2], storage, gpu)?;
+        let positions = Buffer::new(&shared, "crowd positions", c * per_character[3], output, gpu)?;
+        let normals = Buffer::new(&shared, "crowd normals", c * per_character[3], output, gpu)?;
+        write_rest_pose(bones.mapped()?);
+
+        let chunk_count = characters.div_ceil(chunk_characters as usize);
+        let pool = create_pool(&shared.device, chunk_count as u32)?;
+        let mut crowd = Crowd {
+            model: model.clone(),
+            characters: characters as u32,
+            bones,
+            gradients: gradients,
+            proxies: proxies,
+            positions,
+            normals,
+            pool,
+            chunks: Vec::with_capacity(chunk_count),
+        };
+        for first in (0..c).step_by(chunk_characters as usize) {
+            let count = chunk_characters.min(c - first);
+            let view = |buffer: &Buffer, per: u64| {
+                if per == 0 {
+                    buffer.whole() // P = 0: an unread placeholder
+                } else {
+                    buffer.descriptor(first * per, count * per)
+                }
+            };
+            let views = ChunkViews {
+                bones: view(&crowd.bones, per_character[0]),
+                gradients: view(&crowd.gradients, per_character[1]),
+                proxies: view(&crowd.proxies, per_character[2]),
+                positions: view(&crowd.positions, per_character[3]),
+                normals: view(&crowd.normals, per_character[3]),
+            };
+            let chunk = crowd.make_chunk(&shared, m, &views, count as u32)?;
+            crowd.chunks.push(chunk);
+        }
+        Ok(crowd)
+    }
+
+    fn make_chunk(&self, shared: &Shared, m: &Inner, v: &ChunkViews, characters: u32) -> Result<Chunk> {
+        let p = &shared.pipelines;
+        let mut chunk = Chunk {
+            characters,
+            predict: vk::DescriptorSet::null(),
+            blend_gemm: vk::DescriptorSet::null(),
+            skin: write_set(shared, self.pool, p.skin(m.influences), &skin::bindings(m, v))?,
+            normals: write_set(shared, self.pool, &p.normals, &normals::bindings(m, v))?,
+        };
+        if m.proxies > 0 {
+            chunk.predict = write_set(shared, self.pool, &p.predict, &predict::bindings(m, v))?;
+            chunk.blend_gemm = write_set(shared, self.pool, &p.blend_gemm, &blend_gemm::bindings(m, v))?;
+        }
+        Ok(chunk)
+    }
+
+    pub fn character_count(&self) -> usize {
+        self.characters as usize
+    }
+
+    pub fn model(&self) -> &GpuModel {
+        &self.model
+    }
+
+    /// Number of dispatch chunks (1 unless the outputs exceed one descriptor's range).
+    pub fn chunk_count(&self) -> usize {
+        self.chunks.len()
+    }
+
+    /// Sets every character's bone transforms: C x J, character-major.
+    /// See the crate contract: no submitted work reading this crowd may still be executing.
+    pub fn set_bones(&mut self, bones: &[Affine]) -> Result<()> {
+        let expected = self.characters as usize * self.model.bone_count();
+        if bones.len() != expected {
+            return Err(Error::WrongLength { what: "crowd bone transforms", expected, actual: bones.len() });
+        }
+        check_finite(bones)?;
+        self.bones.mapped()?[..expected * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        Ok(())
+    }
+
+    /// Sets one character's J bone transforms.
+    pub fn set_character_bones(&mut self, character: usize, bones: &[Affine]) -> Result<()> {
+        let j = self.model.bone_count();
+        if character >= self.characters as usize {
+            return Err(Error::OutOfRange { what: "character", index: character, count: self.characters as usize });
+        }
+        if bones.len() != j {
+            return Err(Error::WrongLength { what: "character bone transforms", expected: j, actual: bones.len() });
+        }
+        check_finite(bones)?;
+        let at = character * j * 48;
+        self.bones.mapped()?[at..at + j * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        Ok(())
+    }
+
+    pub fn output(&self) -> CrowdOutput {
+        CrowdOutput {
+            positions: self.positions.handle,
+            normals: self.normals.handle,
+            offset: 0,
+            vertex_stride: XYZ_BYTES,
+            character_stride: self.model.vertex_count() as u64 * XYZ_BYTES,
+        }
+    }
+
+    /// Copies the outputs back to the host (C x V positions and normals). Submits and waits: for
+    /// tools and tests, not the per-frame path.
+    pub fn read_back(&self) -> Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+        let shared = &self.model.inner.context.shared;
+        let size = self.positions.size;
+        let mut staging = Buffer::new(
+            shared,
+            "read-back",
+            2 * size,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        shared.submit_and_wait(|cmd| {
+            let device = &shared.device;
+            // SAFETY: cmd is recording; the buffers are alive.
+            unsafe {
+                memory_barrier(
+                    device,
+                    cmd,
+                    (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_WRITE),
+                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_READ),
+                );
+                for (src, at) in [(&self.positions, 0), (&self.normals, size)] {
+                    let region = [vk::BufferCopy { src_offset: 0, dst_offset: at, size }];
+                    device.cmd_copy_buffer(cmd, src.handle, staging.handle, &region);
+                }
+                memory_barrier(
+                    device,
+                    cmd,
+                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
+                );
+            }
+            Ok(())
+        })?;
+        let n = self.characters as usize * self.model.vertex_count() * 3;
+        let mapped = staging.mapped()?;
+        let floats: Vec<f32> = mapped[..2 * n * 4]
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        let xyz = |s: &[f32]| s.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
+        Ok((xyz(&floats[..n]), xyz(&floats[n..])))
+    }
+
+    pub(crate) fn shared(&self) -> &Arc<Shared> {
+        &self.model.inner.context.shared
+    }
+}
+
+impl Drop for Crowd {
+    fn drop(&mut self) {
+        // SAFETY: the caller guarantees no submitted work uses the crowd (crate contract); the
+        // sets are freed with their pool.
+        unsafe { self.shared().device.destroy_descriptor_pool(self.pool, None) };
+    }
+}
+
+/// The characters per chunk: as many as fit the binding range, a multiple of the granularity
+/// that keeps every chunk offset aligned to minStorageBufferOffsetAlignment.
+fn chunk_size(shared: &Shared, per_character: &[u64], characters: u64, options: CrowdOptions) -> Result<u64> {
+    let limits = &shared.limits;
+    let mut range = limits.max_storage_buffer_range;
+    if let Some(cap) = options.max_binding_bytes {
+        range = range.min(cap);
+    }
+    let largest = per_character.iter().copied().max().unwrap_or(0).max(1);
+    if largest > range {
+        return Err(Error::DeviceLimit {
+            what: "one character's output (bytes) in one storage binding",
+            needed: largest,
+            limit: range,
+        });
+    }
+    let max_groups = limits.max_workgroup_count[1] as u64;
+    let fit = (range / largest).min(max_groups);
+    if characters <= fit {
+        return Ok(characters);
+    }
+    let align = limits.min_storage_buffer_offset_alignment.max(1);
+    let granularity = per_character
+        .iter()
+        .filter(|&&b| b > 0)
+        .map(|&b| align / gcd(b, align))
+        .max()
+        .unwrap_or(1);
+    let chunk = fit / granularity * granularity;
+    if chunk == 0 {
+        return Err(Error::DeviceLimit {
+            what: "characters per aligned storage binding",
+            needed: granularity,
+            limit: fit,
+        });
+    }
+    Ok(chunk)
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+/// Identity transforms: a new crowd renders the rest pose.
+fn write_rest_pose(bytes: &mut [u8]) {
+    let identity: Affine = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    for slot in bytes.chunks_exact_mut(48) {
+        slot.copy_from_slice(bytemuck::cast_slice(&identity));
+    }
+}
+
+fn create_pool(device: &ash::Device, chunks: u32) -> Result<vk::DescriptorPool> {
+    let per_chunk = (predict::BINDINGS.len()
+        + blend_gemm::BINDINGS.len()
+        + skin::BINDINGS.len()
+        + normals::BINDINGS.len()) as u32;
+    let sizes = [vk::DescriptorPoolSize {
+        ty: vk::DescriptorType::STORAGE_BUFFER,
+        descriptor_count: chunks * per_chunk,
+    }];
+    let info = vk::DescriptorPoolCreateInfo::default().max_sets(4 * chunks).pool_sizes(&sizes);
+    // SAFETY: valid device and create info.
+    unsafe { device.create_descriptor_pool(&info, None) }.map_err(Error::vk("vkCreateDescriptorPool"))
+}
+
+fn write_set(
+    shared: &Shared,
+    pool: vk::DescriptorPool,
+    pass: &PassPipeline,
+    buffers: &[vk::DescriptorBufferInfo],
+) -> Result<vk::DescriptorSet> {
+    debug_assert_eq!(buffers.len(), pass.bindings as usize);
+    let layouts = [pass.set_layout];
+    let info = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
+    // SAFETY: the pool was sized for every set of every chunk.
+    let set = unsafe { shared.device.allocate_descriptor_sets(&info) }
+        .map_err(Error::vk("vkAllocateDescriptorSets"))?[0];
+    let writes: Vec<vk::WriteDescriptorSet> = buffers
+        .iter()
+        .enumerate()
+        .map(|(b, info)| {
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(b as u32)
+                .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                .buffer_info(std::slice::from_ref(info))
+        })
+        .collect();
+    // SAFETY: the set is not in use; the buffers are alive.
+    unsafe { shared.device.update_descriptor_sets(&writes, &[]) };
+    Ok(set)
+}

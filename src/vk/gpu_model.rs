@@ -1,0 +1,108 @@
+//! A model uploaded once into device-local, read-only storage buffers, shared by every crowd
+//! of that model.
+
+use super::buffer::{upload, Buffer};
+use super::context::Context;
+use crate::error::Result;
+use crate::model::{predictor_words, Model};
+use ash::vk;
+use std::sync::Arc;
+
+/// Cheap to clone; the buffers are freed when the last clone and the last crowd using it drop.
+#[derive(Clone)]
+pub struct GpuModel {
+    pub(crate) inner: Arc<Inner>,
+}
+
+pub(crate) struct Inner {
+    pub context: Context,
+    pub vertices: u32,
+    pub bones: u32,
+    pub proxies: u32,
+    pub influences: usize,
+    /// V x 3 f32
+    pub rest: Buffer,
+    /// V x K u32
+    pub skin_index: Buffer,
+    /// V x K f32
+    pub skin_weight: Buffer,
+    /// J i32
+    pub parents: Buffer,
+    /// P x 85 words (the PRED record layout)
+    pub predictors: Buffer,
+    /// [C1 | C2]: 4P x (3P + 4J) f32, row-major
+    pub blend_matrix: Buffer,
+    /// V + 1 u32 (CSR offsets)
+    pub incident_offsets: Buffer,
+    /// 3T u32 (triangle ids)
+    pub incident_triangles: Buffer,
+    /// T x 3 u32
+    pub triangles: Buffer,
+}
+
+impl GpuModel {
+    /// Uploads `model` (submits a copy on the context's queue and waits).
+    pub fn new(context: &Context, model: &Model) -> Result<GpuModel> {
+        let parts = model.parts();
+        let predictors: Vec<u32> = parts.predictors.iter().flat_map(predictor_words).collect();
+        let blend = model.c1_c2();
+        let (offsets, incident) = model.incidence();
+        let bytes = bytemuck::cast_slice::<f32, u8>;
+        let items: [(&'static str, &[u8]); 9] = [
+            ("rest positions", bytes(parts.rest_positions.as_flattened())),
+            ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
+            ("skin weights", bytes(&parts.skin_weights)),
+            ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
+            ("predictors", bytemuck::cast_slice(&predictors)),
+            ("C1|C2", bytes(&blend)),
+            ("incident offsets", bytemuck::cast_slice(offsets)),
+            ("incident triangles", bytemuck::cast_slice(incident)),
+            ("triangles", bytemuck::cast_slice(parts.triangles.as_flattened())),
+        ];
+        let limit = context.limits().max_storage_buffer_range;
+        for (what, data) in &items {
+            if data.len() as u64 > limit {
+                return Err(crate::Error::DeviceLimit {
+                    what,
+                    needed: data.len() as u64,
+                    limit,
+                });
+            }
+        }
+        let buffers = upload(&context.shared, &items, vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, incident_offsets, incident_triangles, triangles] =
+            <[Buffer; 9]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
+                what: "uploaded buffer count",
+            })?;
+        Ok(GpuModel {
+            inner: Arc::new(Inner {
+                context: context.clone(),
+                vertices: model.vertex_count() as u32,
+                bones: model.bone_count() as u32,
+                proxies: model.proxy_count() as u32,
+                influences: model.influences(),
+                rest,
+                skin_index,
+                skin_weight,
+                parents,
+                predictors,
+                blend_matrix,
+                incident_offsets,
+                incident_triangles,
+                triangles,
+            }),
+        })
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.inner.vertices as usize
+    }
+
+    pub fn bone_count(&self) -> usize {
+        self.inner.bones as usize
+    }
+
+    pub fn proxy_count(&self) -> usize {
+        self.inner.proxies as usize
+    }
+}

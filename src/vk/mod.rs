@@ -1,0 +1,28 @@
+//! The Vulkan runtime (ash + gpu-allocator): four compute passes per frame for many characters.
+//!
+//! - [`Context`]: headless (own instance/device) or wrapping an engine's objects.
+//! - [`GpuModel`]: a [`crate::Model`] uploaded once (device-local, read-only).
+//! - [`Crowd`]: C characters of one GPU model: bone input, palette, output positions/normals.
+//! - [`Batch`]: records the passes of any number of crowds into ONE command buffer, pass-major
+//!   (all predictors, barrier, all GEMMs, barrier, all skinning, barrier, all normals), with GPU
+//!   timestamps per pass; `run` submits and waits, `record` writes into the caller's buffer.
+//!
+//! One file per pass (`predict.rs`, `blend_gemm.rs`, `skin.rs`, `normals.rs`) lists the bindings
+//! in the order of its shader in `glsl/`.
+
+mod batch;
+mod blend_gemm;
+mod buffer;
+mod context;
+mod crowd;
+mod gpu_model;
+mod normals;
+mod pipelines;
+mod predict;
+mod skin;
+
+pub use batch::{Batch, PassTimings};
+pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits};
+pub use crowd::{Crowd, CrowdOptions, CrowdOutput};
+pub use gpu_model::GpuModel;
+pub use ash;
