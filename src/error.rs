@@ -46,6 +46,8 @@ pub enum Error {
 pub enum ModelProblem {
     /// The data ends before `what` (needed `expected` bytes, `actual` left).
     Truncated { what: String, expected: u64, actual: u64 },
+    /// The data is longer than the length its header declares.
+    TrailingBytes { declared: u64, actual: u64 },
     /// The file does not start with the `.rrs` magic.
     BadMagic,
     /// The format version is not one this build reads.
@@ -82,6 +84,9 @@ impl fmt::Display for ModelProblem {
         match self {
             Truncated { what, expected, actual } => {
                 write!(f, "truncated at {what}: needs {expected} bytes, only {actual} left")
+            }
+            TrailingBytes { declared, actual } => {
+                write!(f, "{actual} bytes, but the header declares {declared}")
             }
             BadMagic => write!(f, "not an rrskin model (bad magic)"),
             UnsupportedVersion { found, supported } => {

@@ -5,7 +5,8 @@
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
 //! 8       4          format version (u32) = FORMAT_VERSION
 //! 12      4          section count S (u32)
-//! 16      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
+//! 16      8          total file length in bytes (u64): truncation is reported as such
+//! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
 //! ...                section payloads (8-byte aligned)
 //! end-4   4          CRC-32 (IEEE) of every byte before it
 //! ```
@@ -33,7 +34,7 @@ use crate::error::ModelProblem;
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 pub const FORMAT_VERSION: u32 = 1;
 
-const HEADER_BYTES: usize = 16;
+const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
 const CHECKSUM_BYTES: usize = 4;
 pub const PREDICTOR_WORDS: usize = 85;
@@ -87,6 +88,7 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     push_u32s(&mut out, &[FORMAT_VERSION, sections.len() as u32]);
+    out.extend_from_slice(&[0; 8]); // total length, patched below
     let mut offset = align8(HEADER_BYTES + TABLE_ENTRY_BYTES * sections.len());
     for (tag, payload) in &sections {
         out.extend_from_slice(tag);
@@ -99,6 +101,8 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
         out.resize(align8(out.len()), 0);
         out.extend_from_slice(payload);
     }
+    let total = (out.len() + CHECKSUM_BYTES) as u64;
+    out[16..24].copy_from_slice(&total.to_le_bytes());
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
     out
@@ -127,6 +131,17 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
     let version = le_u32(bytes, 8);
     if version != FORMAT_VERSION {
         return Err(ModelProblem::UnsupportedVersion { found: version, supported: FORMAT_VERSION });
+    }
+    let declared = le_u64(bytes, 16);
+    if declared != bytes.len() as u64 {
+        if declared > bytes.len() as u64 {
+            return Err(ModelProblem::Truncated {
+                what: "the file".into(),
+                expected: declared,
+                actual: bytes.len() as u64,
+            });
+        }
+        return Err(ModelProblem::TrailingBytes { declared, actual: bytes.len() as u64 });
     }
     need(bytes.len(), HEADER_BYTES, CHECKSUM_BYTES, "the checksum")?;
     let body = &bytes[..bytes.len() - CHECKSUM_BYTES];

@@ -62,7 +62,8 @@ pub struct Context {
 }
 
 pub(crate) struct Shared {
-    pub entry: ash::Entry,
+    /// Keeps the Vulkan loader loaded for as long as the device is used.
+    _entry: ash::Entry,
     pub instance: ash::Instance,
     pub physical_device: vk::PhysicalDevice,
     pub device: ash::Device,
@@ -195,7 +196,7 @@ impl Context {
             allocation_sizes: Default::default(),
         });
         let mut shared = Shared {
-            entry,
+            _entry: entry,
             instance,
             physical_device,
             device,
@@ -231,6 +232,14 @@ impl Context {
 
     pub fn limits(&self) -> Limits {
         self.shared.limits
+    }
+
+    pub fn instance(&self) -> &ash::Instance {
+        &self.shared.instance
+    }
+
+    pub fn physical_device(&self) -> vk::PhysicalDevice {
+        self.shared.physical_device
     }
 
     pub fn device(&self) -> &ash::Device {
@@ -376,25 +385,28 @@ fn create_instance(
     }
     let enabled = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
     let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enabled);
-    let mut messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-        .message_severity(
-            vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
-                | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
-        )
-        .message_type(
-            vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
-                | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
-                | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
-        )
-        .pfn_user_callback(Some(on_validation_message))
-        .user_data(messages as *const Mutex<Vec<String>> as *mut c_void);
+    let messenger_info = || {
+        vk::DebugUtilsMessengerCreateInfoEXT::default()
+            .message_severity(
+                vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                    | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+            )
+            .message_type(
+                vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                    | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION
+                    | vk::DebugUtilsMessageTypeFlagsEXT::PERFORMANCE,
+            )
+            .pfn_user_callback(Some(on_validation_message))
+            .user_data(messages as *const Mutex<Vec<String>> as *mut c_void)
+    };
+    // Chained into the instance info so that vkCreateInstance/vkDestroyInstance are covered.
+    let mut instance_messenger = messenger_info();
     let mut info = vk::InstanceCreateInfo::default()
         .application_info(&app)
         .enabled_layer_names(&layers)
         .enabled_extension_names(&extensions);
     if validation {
-        // Chained so that messages during vkCreateInstance/vkDestroyInstance are caught too.
-        info = info.push_next(&mut features).push_next(&mut messenger_info);
+        info = info.push_next(&mut features).push_next(&mut instance_messenger);
     }
     // SAFETY: valid create info; the pointers it holds live until the call returns.
     let instance =
@@ -404,7 +416,7 @@ fn create_instance(
     }
     let debug = ash::ext::debug_utils::Instance::new(entry, &instance);
     // SAFETY: the instance has the extension enabled; `messages` outlives the messenger.
-    match unsafe { debug.create_debug_utils_messenger(&messenger_info, None) } {
+    match unsafe { debug.create_debug_utils_messenger(&messenger_info(), None) } {
         Ok(messenger) => Ok((instance, Some((debug, messenger)))),
         Err(result) => {
             // SAFETY: nothing else was created from the instance.
