@@ -41,6 +41,7 @@ pub mod cpu;
 pub mod error;
 pub mod model;
 pub mod predict;
+pub mod synthetic;
 pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};

@@ -1,0 +1,196 @@
+//! Synthetic models and poses: valid models of any size without training, for tests,
+//! benchmarks and profiling the runtime at chosen V, J, P and K.
+//!
+//! The mesh is a bumpy grid; bones form a random tree whose parents precede their children;
+//! skinning weights fall off smoothly with distance to random palette "centres" (so the deformed
+//! mesh stays well-conditioned and normals are comparable between f32 and f64); each proxy
+//! follows one bone through C2 plus a small key-gradient correction through C1; predictors have
+//! random bones, scales, rotations, second bones and scale/shear matrices near identity.
+
+use crate::model::{KeyPredictor, Model, ModelParts, SecondBone};
+use crate::predict::{exp_rotation, Affine};
+use crate::{Error, ModelProblem, Result};
+use glam::{DMat3, DVec3};
+
+/// xorshift64*: deterministic, no dependency.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+    pub fn vec3(&mut self, scale: f64) -> DVec3 {
+        DVec3::new(self.range(-scale, scale), self.range(-scale, scale), self.range(-scale, scale))
+    }
+    /// A rotation of angle at most `max_angle`.
+    pub fn rotation(&mut self, max_angle: f64) -> DMat3 {
+        let axis = loop {
+            let v = self.vec3(1.0);
+            if v.length() > 0.1 {
+                break v.normalize();
+            }
+        };
+        exp_rotation(axis * self.range(0.0, max_angle))
+    }
+}
+
+/// A rotation as the row-major array a model stores.
+pub fn rows(m: DMat3) -> [f32; 9] {
+    m.transpose().to_cols_array().map(|x| x as f32)
+}
+
+/// What to generate.
+#[derive(Debug, Clone, Copy)]
+pub struct Spec {
+    /// Vertices = grid x grid, triangles = 2 (grid - 1)².
+    pub grid: usize,
+    pub bones: usize,
+    pub proxies: usize,
+    pub influences: u32,
+}
+
+/// A random valid model (see the module docs). Errors only for impossible specs (e.g. K not
+/// 4 or 8, grid < 2).
+pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
+    for (what, value, min) in [("grid", spec.grid, 2), ("bones", spec.bones, 1)] {
+        if value < min {
+            let problem = ModelProblem::Dimension { what, value: value as u64, reason: "too small" };
+            return Err(Error::BadModel { origin: "<synthetic>".into(), problem });
+        }
+    }
+    let mut rng = Rng::new(seed);
+    let (n, j, p) = (spec.grid, spec.bones, spec.proxies);
+    let k = spec.influences as usize;
+    let mut rest = Vec::with_capacity(n * n);
+    for y in 0..n {
+        for x in 0..n {
+            let (u, v) = (x as f64 / (n - 1) as f64, y as f64 / (n - 1) as f64);
+            rest.push([u as f32, v as f32, (0.1 * (6.0 * u).sin() * (4.0 * v).cos()) as f32]);
+        }
+    }
+    let mut triangles = Vec::new();
+    for y in 0..n - 1 {
+        for x in 0..n - 1 {
+            let a = (y * n + x) as u32;
+            let (b, c, d) = (a + 1, a + n as u32, a + n as u32 + 1);
+            triangles.push([a, b, d]);
+            triangles.push([a, d, c]);
+        }
+    }
+    let bone_parents: Vec<i32> =
+        (0..j).map(|b| if b == 0 { -1 } else { rng.below(b) as i32 }).collect();
+    // Palette entries live at random centres; weights fall off with distance.
+    let entries = p + j;
+    let centres: Vec<[f64; 2]> = (0..entries).map(|_| [rng.unit(), rng.unit()]).collect();
+    let mut skin_indices = Vec::with_capacity(n * n * k);
+    let mut skin_weights = Vec::with_capacity(n * n * k);
+    for r in &rest {
+        let mut by_distance: Vec<(f64, usize)> = centres
+            .iter()
+            .enumerate()
+            .map(|(i, c)| ((c[0] - r[0] as f64).powi(2) + (c[1] - r[1] as f64).powi(2), i))
+            .collect();
+        by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let used = k.min(entries);
+        let raw: Vec<f64> = by_distance[..used].iter().map(|(d2, _)| 1.0 / (d2 + 0.02)).collect();
+        let total: f64 = raw.iter().sum();
+        for i in 0..k {
+            if i < used {
+                skin_indices.push(by_distance[i].1 as u32);
+                skin_weights.push((raw[i] / total) as f32);
+            } else {
+                skin_indices.push(0);
+                skin_weights.push(0.0);
+            }
+        }
+    }
+    let predictors: Vec<KeyPredictor> = (0..p)
+        .map(|_| {
+            let mut h = [0.0f32; 63];
+            for (i, x) in h.iter_mut().enumerate() {
+                *x = rng.range(-0.1, 0.1) as f32;
+                if i % 7 == 6 && [0, 4, 8].contains(&(i / 7)) {
+                    *x += 1.0; // bias column ≈ vec(I)
+                }
+            }
+            let second = (rng.unit() < 0.5).then(|| SecondBone {
+                bone: rng.below(j) as u32,
+                u: rng.range(-1.0, 1.0) as f32,
+                w: rows(rng.rotation(3.0)),
+            });
+            KeyPredictor {
+                bone: rng.below(j) as u32,
+                u: rng.range(-1.5, 1.5) as f32,
+                w: rows(rng.rotation(3.0)),
+                second,
+                h,
+            }
+        })
+        .collect();
+    let mut c1 = vec![0.0f32; 4 * p * 3 * p];
+    for x in c1.iter_mut() {
+        *x = rng.range(-0.05, 0.05) as f32;
+    }
+    let mut c2 = vec![0.0f32; 4 * p * 4 * j];
+    for b in 0..p {
+        let follow = rng.below(j);
+        for r in 0..4 {
+            c2[(4 * b + r) * 4 * j + 4 * follow + r] = 1.0;
+        }
+    }
+    let parts = ModelParts {
+        rest_positions: rest,
+        triangles,
+        bone_parents,
+        influences: spec.influences,
+        skin_indices,
+        skin_weights,
+        predictors,
+        c1,
+        c2,
+    };
+    Model::new(parts)
+}
+
+/// C random poses: per bone a local rotation of at most 2 rad (joint rotations stay away from
+/// the log's branch cut at π) composed down the hierarchy, and a random translation.
+pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> {
+    let mut rng = Rng::new(seed ^ 0xB0E5);
+    let j = model.bone_count();
+    let mut out = Vec::with_capacity(characters * j);
+    for _ in 0..characters {
+        let mut world: Vec<DMat3> = Vec::with_capacity(j);
+        for b in 0..j {
+            let local = rng.rotation(2.0);
+            // The generator's parents precede their children.
+            let q = match model.parent(b) {
+                Some(p) => world[p] * local,
+                None => local,
+            };
+            world.push(q);
+            let d = rng.vec3(0.5);
+            let r = rows(q);
+            out.push([
+                r[0], r[1], r[2], d.x as f32, r[3], r[4], r[5], d.y as f32, r[6], r[7], r[8], d.z as f32,
+            ]);
+        }
+    }
+    out
+}
+

@@ -1,0 +1,254 @@
+//! The `.rrs` loader: exact round trips, and every kind of bad file rejected with the error that
+//! names the problem (never a panic, never a silently wrong model).
+
+use proptest::prelude::*;
+use rrskin::model::{FORMAT_VERSION, MAGIC};
+use rrskin::synthetic::{random_model, Spec};
+use rrskin::{Error, Model, ModelProblem};
+
+fn model(proxies: usize, influences: u32) -> Model {
+    random_model(Spec { grid: 5, bones: 4, proxies, influences }, 42).expect("valid")
+}
+
+fn problem(result: rrskin::Result<Model>) -> ModelProblem {
+    match result {
+        Err(Error::BadModel { problem, .. }) => problem,
+        other => panic!("expected a BadModel error, got {other:?}"),
+    }
+}
+
+/// Byte offset of a section's payload, read from the documented section table.
+fn section(bytes: &[u8], tag: &[u8; 4]) -> usize {
+    let count = u32::from_le_bytes(bytes[12..16].try_into().expect("4 bytes")) as usize;
+    (0..count)
+        .map(|i| 24 + 24 * i)
+        .find(|&e| &bytes[e..e + 4] == tag)
+        .map(|e| u64::from_le_bytes(bytes[e + 8..e + 16].try_into().expect("8 bytes")) as usize)
+        .expect("section present")
+}
+
+/// Recomputes the trailing CRC so that a deliberate edit passes the corruption check.
+fn reseal(bytes: &mut [u8]) {
+    let n = bytes.len() - 4;
+    let crc = crc32fast::hash(&bytes[..n]);
+    bytes[n..].copy_from_slice(&crc.to_le_bytes());
+}
+
+fn put_u32(bytes: &mut [u8], at: usize, value: u32) {
+    bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
+}
+
+#[test]
+fn valid_models_round_trip_exactly() {
+    for (p, k) in [(0, 4), (0, 8), (3, 4), (6, 8)] {
+        let m = model(p, k);
+        let bytes = m.to_bytes();
+        assert_eq!(&bytes[..8], &MAGIC);
+        let back = Model::from_bytes(&bytes).expect("round trip");
+        assert_eq!(back, m);
+        assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
+    }
+    let dir = std::env::temp_dir().join(format!("rrskin-roundtrip-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("m.rrs");
+    let m = model(2, 4);
+    m.save(&path).expect("save");
+    assert_eq!(Model::load(&path).expect("load"), m);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn truncated_files_are_reported_as_truncated() {
+    let bytes = model(3, 4).to_bytes();
+    for cut in [0, 7, 20] {
+        assert!(matches!(
+            problem(Model::from_bytes(&bytes[..cut])),
+            ModelProblem::Truncated { ref what, .. } if what == "the header"
+        ));
+    }
+    for cut in [24, bytes.len() / 2, bytes.len() - 1] {
+        assert_eq!(
+            problem(Model::from_bytes(&bytes[..cut])),
+            ModelProblem::Truncated {
+                what: "the file".into(),
+                expected: bytes.len() as u64,
+                actual: cut as u64
+            }
+        );
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(matches!(problem(Model::from_bytes(&longer)), ModelProblem::TrailingBytes { .. }));
+}
+
+#[test]
+fn bit_flips_are_caught_by_the_checksum() {
+    let bytes = model(3, 8).to_bytes();
+    // Every bit after the header's fixed fields (magic, version, length) is covered by the CRC.
+    for at in (24..bytes.len()).step_by(7) {
+        let mut bad = bytes.clone();
+        bad[at] ^= 1 << (at % 8);
+        let p = problem(Model::from_bytes(&bad));
+        assert!(matches!(p, ModelProblem::Checksum { .. }), "flip at {at}: {p:?}");
+    }
+    let mut bad = bytes.clone();
+    bad[1] ^= 0x20;
+    assert_eq!(problem(Model::from_bytes(&bad)), ModelProblem::BadMagic);
+}
+
+#[test]
+fn other_versions_are_refused_by_number() {
+    let mut bytes = model(1, 4).to_bytes();
+    put_u32(&mut bytes, 8, FORMAT_VERSION + 1);
+    assert_eq!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::UnsupportedVersion { found: FORMAT_VERSION + 1, supported: FORMAT_VERSION }
+    );
+}
+
+#[test]
+fn nan_and_infinity_are_refused_where_they_are() {
+    let good = model(3, 4).to_bytes();
+    for (tag, what, index) in [
+        (b"REST", "rest positions", 5usize),
+        (b"SKIW", "skin weights", 2),
+        (b"C1\0\0", "C1", 7),
+        (b"C2\0\0", "C2", 0),
+    ] {
+        let mut bytes = good.clone();
+        let at = section(&bytes, tag) + 4 * index;
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        reseal(&mut bytes);
+        assert_eq!(problem(Model::from_bytes(&bytes)), ModelProblem::NonFinite { what, index });
+    }
+    let mut bytes = good.clone();
+    let at = section(&bytes, b"PRED") + 4 * (85 + 30); // predictor 1, an element of H
+    bytes[at..at + 4].copy_from_slice(&f32::INFINITY.to_le_bytes());
+    reseal(&mut bytes);
+    assert_eq!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::NonFinite { what: "predictor H", index: 1 }
+    );
+}
+
+#[test]
+fn out_of_range_indices_are_refused_with_the_bound() {
+    let m = model(3, 4);
+    let (v, j, p) = (m.vertex_count(), m.bone_count(), m.proxy_count());
+    let good = m.to_bytes();
+    let cases: [(&[u8; 4], usize, u32, &str, usize); 4] = [
+        (b"TRIS", 4, v as u32, "triangles", v),
+        (b"SKIX", 6, (p + j) as u32, "skin indices", p + j),
+        (b"PRNT", 2, j as u32, "bone parents", j),
+        (b"PRED", 85, j as u32, "predictor bone", j),
+    ];
+    for (tag, word, value, what, bound) in cases {
+        let mut bytes = good.clone();
+        let at = section(&bytes, tag) + 4 * word;
+    put_u32(&mut bytes, at, value);
+        reseal(&mut bytes);
+        let p = problem(Model::from_bytes(&bytes));
+        match p {
+            ModelProblem::IndexOutOfRange { what: w, value: x, bound: b, .. } => {
+                assert_eq!((w, x, b), (what, value as i64, bound))
+            }
+            other => panic!("{what}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn inconsistent_content_is_refused() {
+    let good = model(2, 4).to_bytes();
+    // A dimension that disagrees with a section's length.
+    let mut bytes = good.clone();
+    let at = section(&bytes, b"DIMS");
+    put_u32(&mut bytes, at, 1000);
+    reseal(&mut bytes);
+    assert!(matches!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::SectionLength { ref tag, .. } if tag == "REST"
+    ));
+    // A W that is not a rotation.
+    let mut bytes = good.clone();
+    let at = section(&bytes, b"PRED") + 4 * 4;
+    bytes[at..at + 4].copy_from_slice(&2.0f32.to_le_bytes());
+    reseal(&mut bytes);
+    assert!(matches!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::NotRotation { what: "predictor W", index: 0, .. }
+    ));
+    // Weights that do not sum to one.
+    let mut bytes = good.clone();
+    let at = section(&bytes, b"SKIW");
+    bytes[at..at + 4].copy_from_slice(&5.0f32.to_le_bytes());
+    reseal(&mut bytes);
+    assert!(matches!(problem(Model::from_bytes(&bytes)), ModelProblem::BadWeights { vertex: 0, .. }));
+    // A cycle in the bone hierarchy.
+    let mut bytes = good.clone();
+    let at = section(&bytes, b"PRNT");
+    put_u32(&mut bytes, at, 1);
+    let at = section(&bytes, b"PRNT") + 4;
+    put_u32(&mut bytes, at, 0);
+    reseal(&mut bytes);
+    assert!(matches!(problem(Model::from_bytes(&bytes)), ModelProblem::ParentCycle { .. }));
+    // A missing section.
+    let mut bytes = good.clone();
+    let e = (0..9).map(|i| 24 + 24 * i).find(|&e| &bytes[e..e + 4] == b"C2\0\0").expect("C2");
+    bytes[e..e + 4].copy_from_slice(b"XXXX");
+    reseal(&mut bytes);
+    assert_eq!(problem(Model::from_bytes(&bytes)), ModelProblem::MissingSection { tag: "C2".into() });
+}
+
+#[test]
+fn file_errors_name_the_file() {
+    let dir = std::env::temp_dir().join(format!("rrskin-badfile-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("broken.rrs");
+    std::fs::write(&path, b"not a model at all, just some text").expect("write");
+    let err = Model::load(&path).expect_err("not a model");
+    let text = err.to_string();
+    assert!(text.contains("broken.rrs") && text.contains("bad magic"), "{text}");
+    let missing = Model::load(dir.join("absent.rrs")).expect_err("absent");
+    assert!(matches!(missing, Error::Io { ref path, .. } if path.ends_with("absent.rrs")));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// Arbitrary edits (overwrite a run of bytes, then cut anywhere) never panic, and never
+    /// yield a model unless the file is unchanged.
+    #[test]
+    fn corrupted_files_never_panic(at in 0usize..4000, junk in proptest::collection::vec(any::<u8>(), 1..16), cut in 0usize..4000) {
+        let good = model(2, 4).to_bytes();
+        let mut bytes = good.clone();
+        let at = at % bytes.len();
+        for (i, b) in junk.iter().enumerate() {
+            if at + i < bytes.len() {
+                bytes[at + i] = *b;
+            }
+        }
+        bytes.truncate(cut.max(1).min(bytes.len()));
+        match Model::from_bytes(&bytes) {
+            Ok(m) => prop_assert_eq!(bytes, good, "accepted a changed file: {:?}", m.vertex_count()),
+            Err(Error::BadModel { .. }) => {}
+            Err(other) => prop_assert!(false, "unexpected error kind {:?}", other),
+        }
+    }
+
+    /// Random bytes behind a valid header never panic either.
+    #[test]
+    fn random_bodies_never_panic(body in proptest::collection::vec(any::<u8>(), 0..600)) {
+        let mut bytes = MAGIC.to_vec();
+        bytes.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        bytes.extend_from_slice(&body);
+        let _ = Model::from_bytes(&bytes);
+        if bytes.len() >= 28 {
+            let n = bytes.len() as u64;
+            bytes[16..24].copy_from_slice(&n.to_le_bytes());
+            reseal(&mut bytes);
+            prop_assert!(Model::from_bytes(&bytes).is_err());
+        }
+    }
+}
