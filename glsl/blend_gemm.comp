@@ -3,77 +3,78 @@
 // (paper Eq. 5 in the separable form of METHOD.md §8), as ONE matrix product:
 //
 //     T (4P x 3C) = A (4P x (3P + 4J)) * B ((3P + 4J) x 3C),    A = [C1 | C2],
-//     B column n = 3 ch + c holds [d_c; q_c] of character ch.
 //
-// B is never materialised: rows < 3P read pass 1's gradients, the others read the input bones.
-// Tiled: each 16 x 16 workgroup stages a 16 x 16 tile of A and of B in shared memory per step;
-// each invocation accumulates TN = 4 outputs along n (one A value reused four times).
-layout(local_size_x = 16, local_size_y = 16) in;
+// B column n = 3 ch + c holds [d_c; q_c] of character ch; pass 1 writes it row-major, so the
+// invocations of a workgroup (consecutive n) read consecutive B addresses.
+//
+// Tiling: a workgroup owns 16 rows of T (4 proxies) x 64 columns. Per k-tile it stages the
+// 16 x 128 block of A in shared memory (transposed into vec4s of 4 rows), then every invocation
+// accumulates its column: per k one B load and 4 vec4 FMAs. Rows 4b..4b+3 of T are proxy b's
+// row c, so each accumulator is stored as one vec4 of the 3x4 proxy transform.
+layout(local_size_x = 64) in;
 
-const uint TILE = 16u;
-const uint TN = 4u;               // columns per invocation: the workgroup covers 16 x 64 of T
+const uint ROWS = 16u;     // rows of T per workgroup (4 proxies)
+const uint KT = 128u;      // depth of one staged tile of A
+const uint WG = 64u;
 
-layout(std430, set = 0, binding = 0) readonly buffer Matrix { float a[]; };       // 4P x (3P+4J)
-layout(std430, set = 0, binding = 1) readonly buffer Gradients { float d[]; };    // chars x P x 9
-layout(std430, set = 0, binding = 2) readonly buffer Bones { float bones[]; };    // chars x J x 12
-layout(std430, set = 0, binding = 3) buffer Proxies { float proxies[]; };         // chars x P x 12
+layout(std430, set = 0, binding = 0) readonly buffer Matrix { float a[]; };      // 4P x (3P+4J)
+layout(std430, set = 0, binding = 1) readonly buffer Rhs { float bmat[]; };      // (3P+4J) x 3 chars
+layout(std430, set = 0, binding = 2) buffer Proxies { vec4 proxies[]; };         // chars x P x 3 rows
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
-shared float tile_a[TILE * TILE];          // [row][k]
-shared float tile_b[TILE * TILE * TN];     // [k][column]
-
-// Element (k, n) of B.
-float b_at(uint k, uint n) {
-    uint ch = n / 3u;
-    uint c = n - 3u * ch;
-    if (k < 3u * pc.P) {
-        uint l = k / 3u;
-        return d[(ch * pc.P + l) * 9u + 3u * c + (k - 3u * l)];
-    }
-    uint kb = k - 3u * pc.P;
-    uint b = kb / 4u;
-    return bones[(ch * pc.J + b) * 12u + 4u * c + (kb - 4u * b)];
-}
+shared vec4 tile_a[KT * 4u];   // tile_a[4k + q] = A rows row0 + 4q .. + 3 at column k0 + k
 
 void main() {
     uint m_rows = 4u * pc.P;
     uint depth = 3u * pc.P + 4u * pc.J;
     uint n_cols = 3u * pc.chars;
+    uint n = gl_GlobalInvocationID.x;
     uint lx = gl_LocalInvocationID.x;
-    uint ly = gl_LocalInvocationID.y;
-    uint row = gl_WorkGroupID.y * TILE + ly;
-    uint col0 = gl_WorkGroupID.x * TILE * TN;
+    uint row0 = gl_WorkGroupID.y * ROWS;
 
-    float acc[TN] = float[TN](0.0, 0.0, 0.0, 0.0);
-    for (uint k0 = 0u; k0 < depth; k0 += TILE) {
-        uint ka = k0 + lx;
-        tile_a[ly * TILE + lx] = (row < m_rows && ka < depth) ? a[row * depth + ka] : 0.0;
-        uint kb = k0 + ly;
-        for (uint t = 0u; t < TN; t++) {
-            uint n = col0 + t * TILE + lx;
-            tile_b[ly * TILE * TN + t * TILE + lx] = (kb < depth && n < n_cols) ? b_at(kb, n) : 0.0;
+    vec4 acc0 = vec4(0.0);
+    vec4 acc1 = vec4(0.0);
+    vec4 acc2 = vec4(0.0);
+    vec4 acc3 = vec4(0.0);
+    for (uint k0 = 0u; k0 < depth; k0 += KT) {
+        // Stage A: 4 x KT vec4s, each gathering 4 rows of one column.
+        for (uint i = lx; i < 4u * KT; i += WG) {
+            uint k = i / 4u;
+            uint q = i - 4u * k;
+            uint col = k0 + k;
+            uint r = row0 + 4u * q;
+            vec4 v = vec4(0.0);
+            if (col < depth) {
+                if (r < m_rows) { v.x = a[r * depth + col]; }
+                if (r + 1u < m_rows) { v.y = a[(r + 1u) * depth + col]; }
+                if (r + 2u < m_rows) { v.z = a[(r + 2u) * depth + col]; }
+                if (r + 3u < m_rows) { v.w = a[(r + 3u) * depth + col]; }
+            }
+            tile_a[i] = v;
         }
         barrier();
-        for (uint k = 0u; k < TILE; k++) {
-            float av = tile_a[ly * TILE + k];
-            for (uint t = 0u; t < TN; t++) {
-                acc[t] += av * tile_b[k * TILE * TN + t * TILE + lx];
+        if (n < n_cols) {
+            uint kend = min(KT, depth - k0);
+            for (uint k = 0u; k < kend; k++) {
+                float b = bmat[(k0 + k) * n_cols + n];
+                acc0 += tile_a[4u * k] * b;
+                acc1 += tile_a[4u * k + 1u] * b;
+                acc2 += tile_a[4u * k + 2u] * b;
+                acc3 += tile_a[4u * k + 3u] * b;
             }
         }
         barrier();
     }
-    if (row >= m_rows) {
+    if (n >= n_cols) {
         return;
     }
-    uint b = row / 4u;
-    uint j = row - 4u * b;
-    for (uint t = 0u; t < TN; t++) {
-        uint n = col0 + t * TILE + lx;
-        if (n < n_cols) {
-            uint ch = n / 3u;
-            uint c = n - 3u * ch;
-            proxies[(ch * pc.P + b) * 12u + 4u * c + j] = acc[t];
-        }
-    }
+    uint ch = n / 3u;
+    uint c = n - 3u * ch;
+    uint b0 = row0 / 4u;
+    // acc_q = rows 4(b0 + q) .. + 3 = proxy b0 + q, row c, columns 0..3.
+    if (b0 < pc.P) { proxies[(ch * pc.P + b0) * 3u + c] = acc0; }
+    if (b0 + 1u < pc.P) { proxies[(ch * pc.P + b0 + 1u) * 3u + c] = acc1; }
+    if (b0 + 2u < pc.P) { proxies[(ch * pc.P + b0 + 2u) * 3u + c] = acc2; }
+    if (b0 + 3u < pc.P) { proxies[(ch * pc.P + b0 + 3u) * 3u + c] = acc3; }
 }

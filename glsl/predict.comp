@@ -1,7 +1,10 @@
 #version 450
-// Pass 1: key predictors D_l(q) = R(q) S(q) (paper §3, Eq. 3-4; METHOD.md §2-3).
-// One invocation per (predictor l = x, character = y). Mirrors src/predict.rs in f32, with the
-// same branch thresholds, so CPU and GPU agree away from the log's branch cut at pi.
+// Pass 1: key predictors D_l(q) = R(q) S(q) (paper §3, Eq. 3-4; METHOD.md §2-3), written with
+// the bone transforms into B = [d; q], the right-hand side of pass 2's product:
+// B[(3l + j), 3ch + c] = D_l[c][j] and B[3P + 4b + j, 3ch + c] = Q_b[c][j], row-major.
+// One invocation per (l = x < P + J, character = y): l < P evaluates predictor l, otherwise
+// copies bone l - P. Mirrors src/predict.rs in f32 with the same branch thresholds, so CPU and
+// GPU agree away from the log's branch cut at pi.
 layout(local_size_x = 64) in;
 
 struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major bone transform
@@ -17,7 +20,7 @@ struct Predictor {
 layout(std430, set = 0, binding = 0) readonly buffer Bones { Affine bones[]; };           // chars x J
 layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };          // J
 layout(std430, set = 0, binding = 2) readonly buffer Predictors { Predictor preds[]; };   // P
-layout(std430, set = 0, binding = 3) buffer Gradients { float d[]; };   // chars x P x 3x3 row-major
+layout(std430, set = 0, binding = 3) buffer Rhs { float bmat[]; };      // (3P + 4J) x 3 chars
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
@@ -108,10 +111,23 @@ mat3 scale_shear(uint l, vec3 theta_b, vec3 theta_p) {
 void main() {
     uint l = gl_GlobalInvocationID.x;
     uint ch = gl_GlobalInvocationID.y;
-    if (l >= pc.P || ch >= pc.chars) {
+    if (l >= pc.P + pc.J || ch >= pc.chars) {
         return;
     }
+    uint n_cols = 3u * pc.chars;
     uint base = ch * pc.J;
+    if (l >= pc.P) {
+        uint b = l - pc.P;
+        Affine t = bones[base + b];
+        uint row = 3u * pc.P + 4u * b;
+        for (uint j = 0u; j < 4u; j++) {
+            uint o = (row + j) * n_cols + 3u * ch;
+            bmat[o] = t.r0[j];
+            bmat[o + 1u] = t.r1[j];
+            bmat[o + 2u] = t.r2[j];
+        }
+        return;
+    }
     uint bone = preds[l].bone;
     uint second = preds[l].second;
     vec3 theta_b = joint_rotation(base, bone);
@@ -127,10 +143,10 @@ void main() {
         r = r * exp_rotation(w2_of(l) * joint_rotation(base, second) * preds[l].u2);
     }
     mat3 dmat = r * scale_shear(l, theta_b, theta_p);
-    uint o = (ch * pc.P + l) * 9u;
-    for (uint c = 0u; c < 3u; c++) {
-        for (uint j = 0u; j < 3u; j++) {
-            d[o + 3u * c + j] = dmat[j][c];   // row c, column j
-        }
+    for (uint j = 0u; j < 3u; j++) {
+        uint o = (3u * l + j) * n_cols + 3u * ch;
+        bmat[o] = dmat[j][0];       // D[0][j]: GLSL indexes [column][row]
+        bmat[o + 1u] = dmat[j][1];
+        bmat[o + 2u] = dmat[j][2];
     }
 }

@@ -6,7 +6,7 @@ use super::gpu_model::Inner;
 use ash::vk::DescriptorBufferInfo;
 
 /// Bindings in shader order.
-pub const BINDINGS: [&str; 4] = ["C1|C2", "gradients", "bones", "proxies"];
+pub const BINDINGS: [&str; 3] = ["C1|C2", "rhs", "proxies"];
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -16,12 +16,12 @@ pub struct Push {
     pub chars: u32,
 }
 
-/// Output tile of one workgroup: 16 rows x (16 x 4) columns (see the shader).
+/// Output tile of one workgroup: 16 rows (4 proxies) x 64 columns (see the shader).
 const TILE_ROWS: u32 = 16;
 const TILE_COLUMNS: u32 = 64;
 
-pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 4] {
-    [m.blend_matrix.whole(), v.gradients, v.bones, v.proxies]
+pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 3] {
+    [m.blend_matrix.whole(), v.rhs, v.proxies]
 }
 
 pub fn push(m: &Inner, chars: u32) -> Push {

@@ -1,4 +1,4 @@
-//! C characters of one GPU model: per-frame bone input, intermediate gradients and proxy
+//! C characters of one GPU model: per-frame bone input, the right-hand side B = [d; q] and proxy
 //! transforms, and the output positions and normals the engine draws from.
 //!
 //! Each per-character array is ONE buffer (so the engine binds one vertex buffer and offsets by
@@ -23,7 +23,6 @@ use gpu_allocator::MemoryLocation;
 use std::sync::Arc;
 
 const AFFINE_BYTES: u64 = 48;
-const GRADIENT_BYTES: u64 = 36;
 const XYZ_BYTES: u64 = 12;
 
 #[derive(Debug, Clone, Copy, Default)]
@@ -48,7 +47,7 @@ pub struct CrowdOutput {
 #[derive(Clone, Copy)]
 pub(crate) struct ChunkViews {
     pub bones: vk::DescriptorBufferInfo,
-    pub gradients: vk::DescriptorBufferInfo,
+    pub rhs: vk::DescriptorBufferInfo,
     pub proxies: vk::DescriptorBufferInfo,
     pub positions: vk::DescriptorBufferInfo,
     pub normals: vk::DescriptorBufferInfo,
@@ -68,8 +67,8 @@ pub struct Crowd {
     characters: u32,
     /// C x J x 3x4 f32, host-visible (written by `set_bones`, read by passes 1–3).
     bones: Buffer,
-    /// C x P x 3x3 f32 (pass 1 → pass 2)
-    gradients: Buffer,
+    /// B = [d; q] of pass 2's product, (3P + 4J) x 3C f32 per chunk (pass 1 → pass 2)
+    rhs: Buffer,
     /// C x P x 3x4 f32 (pass 2 → pass 3)
     proxies: Buffer,
     /// C x V x 3 f32 (pass 3 → pass 4, and the engine's vertex buffer)
@@ -95,7 +94,8 @@ impl Crowd {
         let c = characters as u64;
         let per_character = [
             m.bones as u64 * AFFINE_BYTES,
-            m.proxies as u64 * GRADIENT_BYTES,
+            // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
+            if m.proxies > 0 { (3 * m.proxies + 4 * m.bones) as u64 * 12 } else { 0 },
             m.proxies as u64 * AFFINE_BYTES,
             m.vertices as u64 * XYZ_BYTES,
         ];
@@ -106,7 +106,7 @@ impl Crowd {
         let gpu = MemoryLocation::GpuOnly;
         let mut bones =
             Buffer::new(&shared, "crowd bones", c * per_character[0], storage, MemoryLocation::CpuToGpu)?;
-        let gradients = Buffer::new(&shared, "crowd gradients", c * per_character[1], storage, gpu)?;
+        let rhs = Buffer::new(&shared, "crowd rhs", c * per_character[1], storage, gpu)?;
         let proxies = Buffer::new(&shared, "crowd proxies", c * per_character[2], storage, gpu)?;
         let positions = Buffer::new(&shared, "crowd positions", c * per_character[3], output, gpu)?;
         let normals = Buffer::new(&shared, "crowd normals", c * per_character[3], output, gpu)?;
@@ -118,7 +118,7 @@ impl Crowd {
             model: model.clone(),
             characters: characters as u32,
             bones,
-            gradients: gradients,
+            rhs,
             proxies: proxies,
             positions,
             normals,
@@ -136,7 +136,7 @@ impl Crowd {
             };
             let views = ChunkViews {
                 bones: view(&crowd.bones, per_character[0]),
-                gradients: view(&crowd.gradients, per_character[1]),
+                rhs: view(&crowd.rhs, per_character[1]),
                 proxies: view(&crowd.proxies, per_character[2]),
                 positions: view(&crowd.positions, per_character[3]),
                 normals: view(&crowd.normals, per_character[3]),

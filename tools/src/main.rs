@@ -1,1 +1,126 @@
-fn main(){}
+//! The `rrskin` command line (contract: ../shared/ARCHITECTURE.md, "Command-line contract").
+
+use clap::{Parser, Subcommand};
+use rrskin::synthetic::{random_model, Spec};
+use rrskin::vk::DeviceChoice;
+use rrskin::Model;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "rrskin", version, about = "Real-time enveloping with rotational regression")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print a model file's dimensions (validates it fully).
+    Info {
+        model: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a synthetic model (random, valid, untrained) of chosen size, for profiling.
+    Synth {
+        /// Vertices = grid x grid.
+        #[arg(long, default_value_t = 48)]
+        grid: usize,
+        #[arg(long, default_value_t = 19)]
+        bones: usize,
+        /// Proxy bones / key predictors (0: plain linear blend skinning).
+        #[arg(long, default_value_t = 60)]
+        proxies: usize,
+        /// Influences per vertex: 4 or 8.
+        #[arg(long, default_value_t = 4)]
+        influences: u32,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
+    Profile {
+        model: PathBuf,
+        #[arg(long, default_value_t = 256)]
+        characters: usize,
+        #[arg(long, default_value_t = 20)]
+        frames: usize,
+        /// Use the first Vulkan device whose name contains this text.
+        #[arg(long)]
+        device: Option<String>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("rrskin: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
+    match cli.command {
+        Command::Info { model, json } => {
+            let m = Model::load(&model)?;
+            let dims = serde_json::json!({
+                "vertices": m.vertex_count(), "triangles": m.triangle_count(),
+                "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
+            });
+            if json {
+                println!("{dims}");
+            } else {
+                println!(
+                    "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}",
+                    model.display(),
+                    m.vertex_count(),
+                    m.triangle_count(),
+                    m.bone_count(),
+                    m.proxy_count(),
+                    m.influences(),
+                    if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" }
+                );
+            }
+        }
+        Command::Synth { grid, bones, proxies, influences, seed, output } => {
+            let m = random_model(Spec { grid, bones, proxies, influences }, seed)?;
+            m.save(&output)?;
+            eprintln!("wrote {} ({} vertices)", output.display(), m.vertex_count());
+        }
+        Command::Profile { model, characters, frames, device, json } => {
+            let m = Model::load(&model)?;
+            let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
+            let p = rrskin_tools::profile::run(&m, characters, frames.max(1), choice, json)?;
+            if json {
+                println!("{}", p.to_json());
+            } else {
+                let t = &p.median;
+                println!(
+                    "{}: {} characters x {} vertices (J = {}, P = {}, K = {}), median of {} frames",
+                    p.device, p.characters, p.vertices, p.bones, p.proxies, p.influences, p.frames
+                );
+                for (name, ms) in [
+                    ("predictors", t.predict_ms),
+                    ("C1/C2 GEMM", t.blend_ms),
+                    ("skinning", t.skin_ms),
+                    ("normals", t.normals_ms),
+                ] {
+                    println!("  {name:<11} {ms:>9.3} ms  {:>5.1} %", 100.0 * ms / t.total_ms());
+                }
+                println!("  {:<11} {:>9.3} ms", "frame", p.total_ms);
+                println!(
+                    "  skinning alone {:.1} M vertices/s, whole pipeline {:.1} M vertices/s",
+                    p.skin_mverts_per_s(),
+                    p.pipeline_mverts_per_s()
+                );
+            }
+        }
+    }
+    Ok(())
+}
