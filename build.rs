@@ -5,7 +5,12 @@
 use std::path::Path;
 
 /// (source file, output name, defines)
-const SHADERS: &[(&str, &str, &[(&str, &str)])] = &[
+type Shader = (
+    &'static str,
+    &'static str,
+    &'static [(&'static str, &'static str)],
+);
+const SHADERS: &[Shader] = &[
     ("predict.comp", "predict", &[]),
     ("blend_gemm.comp", "blend_gemm", &[]),
     ("skin.comp", "skin_k4", &[("K", "4")]),

@@ -41,9 +41,11 @@ vec3 log_rotation(mat3 r) {
         return v * (0.5 * (1.0 + angle * angle / 6.0));
     }
     if (s < NEAR_PI_SIN && c < 0.0) {
-        vec3 b0 = r[0] + vec3(1.0, 0.0, 0.0);
-        vec3 b1 = r[1] + vec3(0.0, 1.0, 0.0);
-        vec3 b2 = r[2] + vec3(0.0, 0.0, 1.0);
+        // (R + R^T)/2 - cos(theta) I = (1 - cos(theta)) a a^T
+        mat3 sym = 0.5 * (r + transpose(r)) - mat3(c);
+        vec3 b0 = sym[0];
+        vec3 b1 = sym[1];
+        vec3 b2 = sym[2];
         vec3 axis = b2;
         if (b0.x >= b1.y && b0.x >= b2.z) {
             axis = b0;

@@ -56,7 +56,11 @@ impl<'m> CpuEvaluator<'m> {
         check_finite(bones)?;
         for (what, out) in [("positions", &*positions), ("normals", &*normals)] {
             if out.len() != c * v {
-                return Err(Error::WrongLength { what, expected: c * v, actual: out.len() });
+                return Err(Error::WrongLength {
+                    what,
+                    expected: c * v,
+                    actual: out.len(),
+                });
             }
         }
         for ch in 0..c {
@@ -64,7 +68,10 @@ impl<'m> CpuEvaluator<'m> {
             self.palette_of(q);
             self.skin();
             self.normals_into(&mut normals[ch * v..(ch + 1) * v]);
-            for (out, p) in positions[ch * v..(ch + 1) * v].iter_mut().zip(&self.positions) {
+            for (out, p) in positions[ch * v..(ch + 1) * v]
+                .iter_mut()
+                .zip(&self.positions)
+            {
                 *out = p.as_vec3().to_array();
             }
         }
@@ -91,7 +98,8 @@ impl<'m> CpuEvaluator<'m> {
             }
             for r in 0..4 * p {
                 let a = &self.c1_c2[r * width..(r + 1) * width];
-                self.palette[r / 4][4 * c + r % 4] = a.iter().zip(&self.rhs).map(|(x, y)| x * y).sum();
+                self.palette[r / 4][4 * c + r % 4] =
+                    a.iter().zip(&self.rhs).map(|(x, y)| x * y).sum();
             }
         }
         for (slot, t) in self.palette[p..].iter_mut().zip(q) {
@@ -128,7 +136,11 @@ impl<'m> CpuEvaluator<'m> {
                 sum += (j - i).cross(l - i);
             }
             let len = sum.length();
-            *n = if len > 0.0 { (sum / len).as_vec3().to_array() } else { [0.0; 3] };
+            *n = if len > 0.0 {
+                (sum / len).as_vec3().to_array()
+            } else {
+                [0.0; 3]
+            };
         }
     }
 }
@@ -136,7 +148,10 @@ impl<'m> CpuEvaluator<'m> {
 /// Per-frame input must be finite: one NaN would spread through C1/C2 to a whole character.
 pub(crate) fn check_finite(bones: &[Affine]) -> Result<()> {
     match bones.as_flattened().iter().position(|x| !x.is_finite()) {
-        Some(index) => Err(Error::NonFinite { what: "bone transforms", index }),
+        Some(index) => Err(Error::NonFinite {
+            what: "bone transforms",
+            index,
+        }),
         None => Ok(()),
     }
 }

@@ -15,11 +15,22 @@ pub enum Error {
     Io { path: String, message: String },
     /// A model (from a file, from memory, or from parts) is malformed. `origin` is the file path,
     /// `<memory>` or `<parts>`.
-    BadModel { origin: String, problem: ModelProblem },
+    BadModel {
+        origin: String,
+        problem: ModelProblem,
+    },
     /// The caller passed data of the wrong size (e.g. bone transforms for the wrong bone count).
-    WrongLength { what: &'static str, expected: usize, actual: usize },
+    WrongLength {
+        what: &'static str,
+        expected: usize,
+        actual: usize,
+    },
     /// The caller passed an index past the end (e.g. a character index past a crowd's capacity).
-    OutOfRange { what: &'static str, index: usize, count: usize },
+    OutOfRange {
+        what: &'static str,
+        index: usize,
+        count: usize,
+    },
     /// The caller passed a non-finite number (NaN or infinity) in per-frame input.
     NonFinite { what: &'static str, index: usize },
     /// Two objects that must belong together do not (e.g. a crowd of another context).
@@ -27,7 +38,10 @@ pub enum Error {
     /// The Vulkan loader could not be found or loaded.
     Loader { message: String },
     /// A Vulkan call failed.
-    Vulkan { call: &'static str, result: vk::Result },
+    Vulkan {
+        call: &'static str,
+        result: vk::Result,
+    },
     /// No usable Vulkan device (or the requested one is not there).
     NoDevice { reason: String },
     /// A requested instance layer is missing (e.g. the validation layer in tests).
@@ -36,7 +50,11 @@ pub enum Error {
     Allocation { what: &'static str, message: String },
     /// The work does not fit a device limit (e.g. one character's output beyond
     /// maxStorageBufferRange, or a crowd larger than maxMemoryAllocationSize).
-    DeviceLimit { what: &'static str, needed: u64, limit: u64 },
+    DeviceLimit {
+        what: &'static str,
+        needed: u64,
+        limit: u64,
+    },
     /// Results were asked for before the GPU produced them (timestamps of unfinished work).
     NotReady { what: &'static str },
 }
@@ -45,7 +63,11 @@ pub enum Error {
 #[derive(Debug, Clone, PartialEq)]
 pub enum ModelProblem {
     /// The data ends before `what` (needed `expected` bytes, `actual` left).
-    Truncated { what: String, expected: u64, actual: u64 },
+    Truncated {
+        what: String,
+        expected: u64,
+        actual: u64,
+    },
     /// The data is longer than the length its header declares.
     TrailingBytes { declared: u64, actual: u64 },
     /// The file does not start with the `.rrs` magic.
@@ -59,23 +81,49 @@ pub enum ModelProblem {
     /// A section appears twice.
     DuplicateSection { tag: String },
     /// A section's byte range leaves the file.
-    SectionBounds { tag: String, offset: u64, length: u64, file_length: u64 },
+    SectionBounds {
+        tag: String,
+        offset: u64,
+        length: u64,
+        file_length: u64,
+    },
     /// A section's length disagrees with the model's dimensions.
-    SectionLength { tag: String, expected: u64, actual: u64 },
+    SectionLength {
+        tag: String,
+        expected: u64,
+        actual: u64,
+    },
     /// A dimension is invalid (e.g. zero vertices, K not 4 or 8).
-    Dimension { what: &'static str, value: u64, reason: &'static str },
+    Dimension {
+        what: &'static str,
+        value: u64,
+        reason: &'static str,
+    },
     /// Two arrays that must agree in length do not.
-    Length { what: &'static str, expected: usize, actual: usize },
+    Length {
+        what: &'static str,
+        expected: usize,
+        actual: usize,
+    },
     /// A NaN or infinity in `what` at element `index`.
     NonFinite { what: &'static str, index: usize },
     /// An index in `what` at element `index` is `value`, not below `bound`.
-    IndexOutOfRange { what: &'static str, index: usize, value: i64, bound: usize },
+    IndexOutOfRange {
+        what: &'static str,
+        index: usize,
+        value: i64,
+        bound: usize,
+    },
     /// The bone hierarchy has a cycle through `bone`.
     ParentCycle { bone: usize },
     /// A vertex's skinning weights are negative or do not sum to one.
     BadWeights { vertex: usize, sum: f32 },
     /// A matrix that must be a rotation is not (orthonormality or determinant off by `error`).
-    NotRotation { what: &'static str, index: usize, error: f32 },
+    NotRotation {
+        what: &'static str,
+        index: usize,
+        error: f32,
+    },
 }
 
 impl fmt::Display for ModelProblem {
@@ -131,7 +179,11 @@ impl fmt::Display for Error {
         match self {
             Io { path, message } => write!(f, "{path}: {message}"),
             BadModel { origin, problem } => write!(f, "model {origin}: {problem}"),
-            WrongLength { what, expected, actual } => {
+            WrongLength {
+                what,
+                expected,
+                actual,
+            } => {
                 write!(f, "{what}: expected {expected} elements, got {actual}")
             }
             OutOfRange { what, index, count } => {
@@ -144,7 +196,11 @@ impl fmt::Display for Error {
             NoDevice { reason } => write!(f, "no usable Vulkan device: {reason}"),
             MissingLayer { name } => write!(f, "Vulkan layer {name} is not installed"),
             Allocation { what, message } => write!(f, "allocating {what}: {message}"),
-            DeviceLimit { what, needed, limit } => {
+            DeviceLimit {
+                what,
+                needed,
+                limit,
+            } => {
                 write!(f, "{what} needs {needed}, the device allows {limit}")
             }
             NotReady { what } => write!(f, "{what} is not ready yet"),

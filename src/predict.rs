@@ -40,9 +40,10 @@ pub fn log_rotation(r: DMat3) -> DVec3 {
         return v * (0.5 * (1.0 + angle * angle / 6.0));
     }
     if s < NEAR_PI_SIN && c < 0.0 {
-        // R ≈ 2aaᵀ − I: take the axis from the column of (R + I) with the largest diagonal,
-        // oriented like the (tiny) antisymmetric part.
-        let b = [c0 + DVec3::X, c1 + DVec3::Y, c2 + DVec3::Z];
+        // (R + Rᵀ)/2 − cos θ I = (1 − cos θ) a aᵀ: take the axis from its column with the largest
+        // diagonal, oriented like the (tiny) antisymmetric part.
+        let sym = (r + r.transpose()) * 0.5 - DMat3::from_diagonal(DVec3::splat(c));
+        let b = [sym.x_axis, sym.y_axis, sym.z_axis];
         let diag = [b[0].x, b[1].y, b[2].z];
         let i = if diag[0] >= diag[1] && diag[0] >= diag[2] {
             0
@@ -127,10 +128,14 @@ mod tests {
     #[test]
     fn log_inverts_exp_across_the_angle_range() {
         let axis = DVec3::new(0.3, -0.5, 0.8).normalize();
-        for &angle in &[0.0, 1e-7, 1e-3, 0.5, 2.0, 3.0, 3.1399, 3.14159] {
+        let pi = std::f64::consts::PI;
+        for &angle in &[0.0, 1e-7, 1e-3, 0.5, 2.0, 3.0, pi - 2e-3, pi - 3e-6] {
             let w = axis * angle;
             let back = log_rotation(exp_rotation(w));
-            assert!((back - w).length() < 1e-8, "angle {angle}: {back:?} vs {w:?}");
+            assert!(
+                (back - w).length() < 1e-8,
+                "angle {angle}: {back:?} vs {w:?}"
+            );
         }
     }
 

@@ -36,7 +36,11 @@ impl Rng {
         (self.next_u64() % n as u64) as usize
     }
     pub fn vec3(&mut self, scale: f64) -> DVec3 {
-        DVec3::new(self.range(-scale, scale), self.range(-scale, scale), self.range(-scale, scale))
+        DVec3::new(
+            self.range(-scale, scale),
+            self.range(-scale, scale),
+            self.range(-scale, scale),
+        )
     }
     /// A rotation of angle at most `max_angle`.
     pub fn rotation(&mut self, max_angle: f64) -> DMat3 {
@@ -70,8 +74,15 @@ pub struct Spec {
 pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
     for (what, value, min) in [("grid", spec.grid, 2), ("bones", spec.bones, 1)] {
         if value < min {
-            let problem = ModelProblem::Dimension { what, value: value as u64, reason: "too small" };
-            return Err(Error::BadModel { origin: "<synthetic>".into(), problem });
+            let problem = ModelProblem::Dimension {
+                what,
+                value: value as u64,
+                reason: "too small",
+            };
+            return Err(Error::BadModel {
+                origin: "<synthetic>".into(),
+                problem,
+            });
         }
     }
     let mut rng = Rng::new(seed);
@@ -81,7 +92,11 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
     for y in 0..n {
         for x in 0..n {
             let (u, v) = (x as f64 / (n - 1) as f64, y as f64 / (n - 1) as f64);
-            rest.push([u as f32, v as f32, (0.1 * (6.0 * u).sin() * (4.0 * v).cos()) as f32]);
+            rest.push([
+                u as f32,
+                v as f32,
+                (0.1 * (6.0 * u).sin() * (4.0 * v).cos()) as f32,
+            ]);
         }
     }
     let mut triangles = Vec::new();
@@ -93,8 +108,9 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
             triangles.push([a, d, c]);
         }
     }
-    let bone_parents: Vec<i32> =
-        (0..j).map(|b| if b == 0 { -1 } else { rng.below(b) as i32 }).collect();
+    let bone_parents: Vec<i32> = (0..j)
+        .map(|b| if b == 0 { -1 } else { rng.below(b) as i32 })
+        .collect();
     // Palette entries live at random centres; weights fall off with distance.
     let entries = p + j;
     let centres: Vec<[f64; 2]> = (0..entries).map(|_| [rng.unit(), rng.unit()]).collect();
@@ -104,11 +120,19 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         let mut by_distance: Vec<(f64, usize)> = centres
             .iter()
             .enumerate()
-            .map(|(i, c)| ((c[0] - r[0] as f64).powi(2) + (c[1] - r[1] as f64).powi(2), i))
+            .map(|(i, c)| {
+                (
+                    (c[0] - r[0] as f64).powi(2) + (c[1] - r[1] as f64).powi(2),
+                    i,
+                )
+            })
             .collect();
         by_distance.sort_by(|a, b| a.0.total_cmp(&b.0));
         let used = k.min(entries);
-        let raw: Vec<f64> = by_distance[..used].iter().map(|(d2, _)| 1.0 / (d2 + 0.02)).collect();
+        let raw: Vec<f64> = by_distance[..used]
+            .iter()
+            .map(|(d2, _)| 1.0 / (d2 + 0.02))
+            .collect();
         let total: f64 = raw.iter().sum();
         for i in 0..k {
             if i < used {
@@ -187,10 +211,10 @@ pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> 
             let d = rng.vec3(0.5);
             let r = rows(q);
             out.push([
-                r[0], r[1], r[2], d.x as f32, r[3], r[4], r[5], d.y as f32, r[6], r[7], r[8], d.z as f32,
+                r[0], r[1], r[2], d.x as f32, r[3], r[4], r[5], d.y as f32, r[6], r[7], r[8],
+                d.z as f32,
             ]);
         }
     }
     out
 }
-

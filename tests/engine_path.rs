@@ -21,7 +21,10 @@ unsafe extern "system" fn collect(
     let (data, messages) = unsafe { (&*data, &*(user as *const Mutex<Vec<String>>)) };
     // SAFETY: as above.
     let text = unsafe { data.message_as_c_str() }.map(|m| m.to_string_lossy().into_owned());
-    messages.lock().expect("not poisoned").push(format!("{severity:?}: {text:?}"));
+    messages
+        .lock()
+        .expect("not poisoned")
+        .push(format!("{severity:?}: {text:?}"));
     vk::FALSE
 }
 
@@ -46,24 +49,31 @@ impl Engine {
             let layers = [c"VK_LAYER_KHRONOS_validation".as_ptr()];
             let exts = [ash::ext::debug_utils::NAME.as_ptr()];
             let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
-            let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+            let mut features =
+                vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
             let info = vk::InstanceCreateInfo::default()
                 .application_info(&app)
                 .enabled_layer_names(&layers)
                 .enabled_extension_names(&exts)
                 .push_next(&mut features);
-            let instance = entry.create_instance(&info, None).expect("instance with validation");
+            let instance = entry
+                .create_instance(&info, None)
+                .expect("instance with validation");
             let debug = ash::ext::debug_utils::Instance::new(&entry, &instance);
             let messenger_info = vk::DebugUtilsMessengerCreateInfoEXT::default()
                 .message_severity(
-                    vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+                    vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+                        | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
                 )
                 .message_type(
-                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION,
+                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL
+                        | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION,
                 )
                 .pfn_user_callback(Some(collect))
                 .user_data(messages as *const _ as *mut c_void);
-            let messenger = debug.create_debug_utils_messenger(&messenger_info, None).expect("messenger");
+            let messenger = debug
+                .create_debug_utils_messenger(&messenger_info, None)
+                .expect("messenger");
             let physical = instance.enumerate_physical_devices().expect("devices")[0];
             let family = instance
                 .get_physical_device_queue_family_properties(physical)
@@ -71,12 +81,27 @@ impl Engine {
                 .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
                 .expect("compute queue") as u32;
             let prio = [1.0];
-            let queues = [vk::DeviceQueueCreateInfo::default().queue_family_index(family).queue_priorities(&prio)];
+            let queues = [vk::DeviceQueueCreateInfo::default()
+                .queue_family_index(family)
+                .queue_priorities(&prio)];
             let device = instance
-                .create_device(physical, &vk::DeviceCreateInfo::default().queue_create_infos(&queues), None)
+                .create_device(
+                    physical,
+                    &vk::DeviceCreateInfo::default().queue_create_infos(&queues),
+                    None,
+                )
                 .expect("device");
             let queue = device.get_device_queue(family, 0);
-            Engine { entry, instance, debug, messenger, physical, device, family, queue }
+            Engine {
+                entry,
+                instance,
+                debug,
+                messenger,
+                physical,
+                device,
+                family,
+                queue,
+            }
         }
     }
 
@@ -95,7 +120,8 @@ impl Engine {
         // SAFETY: the context and everything made from it are gone; the GPU is idle.
         unsafe {
             self.device.destroy_device(None);
-            self.debug.destroy_debug_utils_messenger(self.messenger, None);
+            self.debug
+                .destroy_debug_utils_messenger(self.messenger, None);
             self.instance.destroy_instance(None);
         }
     }
@@ -105,11 +131,20 @@ impl Engine {
 fn records_into_the_engines_command_buffer_on_the_engines_device() {
     let messages = Mutex::new(Vec::new());
     let engine = Engine::new(&messages);
-    let model = random_model(Spec { grid: 10, bones: 7, proxies: 5, influences: 8 }, 31);
+    let model = random_model(
+        Spec {
+            grid: 10,
+            bones: 7,
+            proxies: 5,
+            influences: 8,
+        },
+        31,
+    );
     let characters = 64;
     {
         // SAFETY: the engine's handles are valid and outlive the context (dropped in this block).
-        let ctx = unsafe { Context::from_engine(engine.handles()) }.expect("wrap the engine's device");
+        let ctx =
+            unsafe { Context::from_engine(engine.handles()) }.expect("wrap the engine's device");
         let gpu_model = GpuModel::new(&ctx, &model).expect("upload");
         let mut crowd = Crowd::new(&gpu_model, characters).expect("crowd");
         let mut batch = Batch::new(&ctx).expect("batch");
@@ -126,30 +161,50 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
                 .expect("pool");
             let cmd = d
                 .allocate_command_buffers(
-                    &vk::CommandBufferAllocateInfo::default().command_pool(pool).command_buffer_count(1),
+                    &vk::CommandBufferAllocateInfo::default()
+                        .command_pool(pool)
+                        .command_buffer_count(1),
                 )
                 .expect("cmd")[0];
-            let fence = d.create_fence(&vk::FenceCreateInfo::default(), None).expect("fence");
+            let fence = d
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+                .expect("fence");
             for frame in 0..3u64 {
                 let poses = random_poses(&model, characters, frame);
                 crowd.set_bones(&poses).expect("bones");
-                d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default()).expect("begin");
+                d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+                    .expect("begin");
                 batch.record(cmd, &[&crowd]).expect("record");
                 d.end_command_buffer(cmd).expect("end");
                 let cmds = [cmd];
-                d.queue_submit(engine.queue, &[vk::SubmitInfo::default().command_buffers(&cmds)], fence)
-                    .expect("submit");
+                d.queue_submit(
+                    engine.queue,
+                    &[vk::SubmitInfo::default().command_buffers(&cmds)],
+                    fence,
+                )
+                .expect("submit");
                 d.wait_for_fences(&[fence], true, u64::MAX).expect("wait");
                 d.reset_fences(&[fence]).expect("reset");
                 let v = model.vertex_count();
-                let (mut p, mut n) = (vec![[0.0; 3]; characters * v], vec![[0.0; 3]; characters * v]);
-                CpuEvaluator::new(&model).evaluate(&poses, &mut p, &mut n).expect("cpu");
-                let (gp, gn) = crowd.read_back().expect("read back");
+                let (mut p, mut n) = (
+                    vec![[0.0; 3]; characters * v],
+                    vec![[0.0; 3]; characters * v],
+                );
+                CpuEvaluator::new(&model)
+                    .evaluate(&poses, &mut p, &mut n)
+                    .expect("cpu");
+                let rrskin::vk::HostOutput {
+                    positions: gp,
+                    normals: gn,
+                } = crowd.read_back().expect("read back");
                 compare(&model, (&p, &n), (&gp, &gn));
                 assert!(batch.timings().expect("timings").total_ms() > 0.0);
             }
             let out = crowd.output();
-            assert_eq!((out.vertex_stride, out.character_stride), (12, 12 * model.vertex_count() as u64));
+            assert_eq!(
+                (out.vertex_stride, out.character_stride),
+                (12, 12 * model.vertex_count() as u64)
+            );
             d.destroy_fence(fence, None);
             d.destroy_command_pool(pool, None);
         }

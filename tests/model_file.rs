@@ -7,7 +7,16 @@ use rrskin::synthetic::{random_model, Spec};
 use rrskin::{Error, Model, ModelProblem};
 
 fn model(proxies: usize, influences: u32) -> Model {
-    random_model(Spec { grid: 5, bones: 4, proxies, influences }, 42).expect("valid")
+    random_model(
+        Spec {
+            grid: 5,
+            bones: 4,
+            proxies,
+            influences,
+        },
+        42,
+    )
+    .expect("valid")
 }
 
 fn problem(result: rrskin::Result<Model>) -> ModelProblem {
@@ -78,7 +87,10 @@ fn truncated_files_are_reported_as_truncated() {
     }
     let mut longer = bytes.clone();
     longer.push(0);
-    assert!(matches!(problem(Model::from_bytes(&longer)), ModelProblem::TrailingBytes { .. }));
+    assert!(matches!(
+        problem(Model::from_bytes(&longer)),
+        ModelProblem::TrailingBytes { .. }
+    ));
 }
 
 #[test]
@@ -89,7 +101,10 @@ fn bit_flips_are_caught_by_the_checksum() {
         let mut bad = bytes.clone();
         bad[at] ^= 1 << (at % 8);
         let p = problem(Model::from_bytes(&bad));
-        assert!(matches!(p, ModelProblem::Checksum { .. }), "flip at {at}: {p:?}");
+        assert!(
+            matches!(p, ModelProblem::Checksum { .. }),
+            "flip at {at}: {p:?}"
+        );
     }
     let mut bad = bytes.clone();
     bad[1] ^= 0x20;
@@ -102,7 +117,10 @@ fn other_versions_are_refused_by_number() {
     put_u32(&mut bytes, 8, FORMAT_VERSION + 1);
     assert_eq!(
         problem(Model::from_bytes(&bytes)),
-        ModelProblem::UnsupportedVersion { found: FORMAT_VERSION + 1, supported: FORMAT_VERSION }
+        ModelProblem::UnsupportedVersion {
+            found: FORMAT_VERSION + 1,
+            supported: FORMAT_VERSION
+        }
     );
 }
 
@@ -119,7 +137,10 @@ fn nan_and_infinity_are_refused_where_they_are() {
         let at = section(&bytes, tag) + 4 * index;
         bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         reseal(&mut bytes);
-        assert_eq!(problem(Model::from_bytes(&bytes)), ModelProblem::NonFinite { what, index });
+        assert_eq!(
+            problem(Model::from_bytes(&bytes)),
+            ModelProblem::NonFinite { what, index }
+        );
     }
     let mut bytes = good.clone();
     let at = section(&bytes, b"PRED") + 4 * (85 + 30); // predictor 1, an element of H
@@ -127,7 +148,10 @@ fn nan_and_infinity_are_refused_where_they_are() {
     reseal(&mut bytes);
     assert_eq!(
         problem(Model::from_bytes(&bytes)),
-        ModelProblem::NonFinite { what: "predictor H", index: 1 }
+        ModelProblem::NonFinite {
+            what: "predictor H",
+            index: 1
+        }
     );
 }
 
@@ -145,11 +169,16 @@ fn out_of_range_indices_are_refused_with_the_bound() {
     for (tag, word, value, what, bound) in cases {
         let mut bytes = good.clone();
         let at = section(&bytes, tag) + 4 * word;
-    put_u32(&mut bytes, at, value);
+        put_u32(&mut bytes, at, value);
         reseal(&mut bytes);
         let p = problem(Model::from_bytes(&bytes));
         match p {
-            ModelProblem::IndexOutOfRange { what: w, value: x, bound: b, .. } => {
+            ModelProblem::IndexOutOfRange {
+                what: w,
+                value: x,
+                bound: b,
+                ..
+            } => {
                 assert_eq!((w, x, b), (what, value as i64, bound))
             }
             other => panic!("{what}: {other:?}"),
@@ -176,14 +205,21 @@ fn inconsistent_content_is_refused() {
     reseal(&mut bytes);
     assert!(matches!(
         problem(Model::from_bytes(&bytes)),
-        ModelProblem::NotRotation { what: "predictor W", index: 0, .. }
+        ModelProblem::NotRotation {
+            what: "predictor W",
+            index: 0,
+            ..
+        }
     ));
     // Weights that do not sum to one.
     let mut bytes = good.clone();
     let at = section(&bytes, b"SKIW");
     bytes[at..at + 4].copy_from_slice(&5.0f32.to_le_bytes());
     reseal(&mut bytes);
-    assert!(matches!(problem(Model::from_bytes(&bytes)), ModelProblem::BadWeights { vertex: 0, .. }));
+    assert!(matches!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::BadWeights { vertex: 0, .. }
+    ));
     // A cycle in the bone hierarchy.
     let mut bytes = good.clone();
     let at = section(&bytes, b"PRNT");
@@ -191,13 +227,22 @@ fn inconsistent_content_is_refused() {
     let at = section(&bytes, b"PRNT") + 4;
     put_u32(&mut bytes, at, 0);
     reseal(&mut bytes);
-    assert!(matches!(problem(Model::from_bytes(&bytes)), ModelProblem::ParentCycle { .. }));
+    assert!(matches!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::ParentCycle { .. }
+    ));
     // A missing section.
     let mut bytes = good.clone();
-    let e = (0..9).map(|i| 24 + 24 * i).find(|&e| &bytes[e..e + 4] == b"C2\0\0").expect("C2");
+    let e = (0..9)
+        .map(|i| 24 + 24 * i)
+        .find(|&e| &bytes[e..e + 4] == b"C2\0\0")
+        .expect("C2");
     bytes[e..e + 4].copy_from_slice(b"XXXX");
     reseal(&mut bytes);
-    assert_eq!(problem(Model::from_bytes(&bytes)), ModelProblem::MissingSection { tag: "C2".into() });
+    assert_eq!(
+        problem(Model::from_bytes(&bytes)),
+        ModelProblem::MissingSection { tag: "C2".into() }
+    );
 }
 
 #[test]
@@ -208,7 +253,10 @@ fn file_errors_name_the_file() {
     std::fs::write(&path, b"not a model at all, just some text").expect("write");
     let err = Model::load(&path).expect_err("not a model");
     let text = err.to_string();
-    assert!(text.contains("broken.rrs") && text.contains("bad magic"), "{text}");
+    assert!(
+        text.contains("broken.rrs") && text.contains("bad magic"),
+        "{text}"
+    );
     let missing = Model::load(dir.join("absent.rrs")).expect_err("absent");
     assert!(matches!(missing, Error::Io { ref path, .. } if path.ends_with("absent.rrs")));
     std::fs::remove_dir_all(&dir).ok();

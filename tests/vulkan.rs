@@ -11,34 +11,67 @@ use rrskin::{Error, Model};
 
 /// Evaluates `characters` random poses on the CPU and in `crowds` crowds on the GPU (one batch,
 /// one command buffer) and compares every vertex.
-fn check(ctx: &Context, model: &Model, characters: usize, options: CrowdOptions, seed: u64) -> Crowd {
+fn check(
+    ctx: &Context,
+    model: &Model,
+    characters: usize,
+    options: CrowdOptions,
+    seed: u64,
+) -> Crowd {
     let poses = random_poses(model, characters, seed);
     let v = model.vertex_count();
     let mut cpu_pos = vec![[0.0; 3]; characters * v];
     let mut cpu_nrm = vec![[0.0; 3]; characters * v];
-    CpuEvaluator::new(model).evaluate(&poses, &mut cpu_pos, &mut cpu_nrm).expect("CPU evaluation");
+    CpuEvaluator::new(model)
+        .evaluate(&poses, &mut cpu_pos, &mut cpu_nrm)
+        .expect("CPU evaluation");
 
     let gpu_model = GpuModel::new(ctx, model).expect("upload");
     let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
     crowd.set_bones(&poses).expect("bones");
     let mut batch = Batch::new(ctx).expect("batch");
     batch.run(&[&crowd]).expect("run");
-    let (pos, nrm) = crowd.read_back().expect("read back");
+    let rrskin::vk::HostOutput {
+        positions: pos,
+        normals: nrm,
+    } = crowd.read_back().expect("read back");
     compare(model, (&cpu_pos, &cpu_nrm), (&pos, &nrm));
     assert_no_validation_messages(ctx);
     crowd
 }
 
-const LBS: Spec = Spec { grid: 12, bones: 9, proxies: 0, influences: 4 };
-const RR: Spec = Spec { grid: 12, bones: 9, proxies: 7, influences: 4 };
+const LBS: Spec = Spec {
+    grid: 12,
+    bones: 9,
+    proxies: 0,
+    influences: 4,
+};
+const RR: Spec = Spec {
+    grid: 12,
+    bones: 9,
+    proxies: 7,
+    influences: 4,
+};
 
 #[test]
 fn plain_lbs_matches_cpu_for_1_7_and_1000_characters() {
     let ctx = validated_context();
     for (k, seed) in [(4, 1), (8, 2)] {
-        let model = random_model(Spec { influences: k, ..LBS }, seed);
+        let model = random_model(
+            Spec {
+                influences: k,
+                ..LBS
+            },
+            seed,
+        );
         for c in [1, 7, 1000] {
-            check(&ctx, &model, c, CrowdOptions::default(), seed * 10 + c as u64);
+            check(
+                &ctx,
+                &model,
+                c,
+                CrowdOptions::default(),
+                seed * 10 + c as u64,
+            );
         }
     }
 }
@@ -47,9 +80,21 @@ fn plain_lbs_matches_cpu_for_1_7_and_1000_characters() {
 fn rotational_regression_matches_cpu_for_1_7_and_1000_characters() {
     let ctx = validated_context();
     for (k, seed) in [(4, 3), (8, 4)] {
-        let model = random_model(Spec { influences: k, ..RR }, seed);
+        let model = random_model(
+            Spec {
+                influences: k,
+                ..RR
+            },
+            seed,
+        );
         for c in [1, 7, 1000] {
-            check(&ctx, &model, c, CrowdOptions::default(), seed * 10 + c as u64);
+            check(
+                &ctx,
+                &model,
+                c,
+                CrowdOptions::default(),
+                seed * 10 + c as u64,
+            );
         }
     }
 }
@@ -59,7 +104,15 @@ fn gemm_tiles_cover_odd_sizes() {
     // P and 3C not multiples of the 16 x 64 output tile, depth 3P + 4J not a multiple of 16.
     let ctx = validated_context();
     for (p, j, c) in [(1, 1, 1), (17, 5, 23), (33, 3, 22)] {
-        let model = random_model(Spec { grid: 6, bones: j, proxies: p, influences: 8 }, p as u64);
+        let model = random_model(
+            Spec {
+                grid: 6,
+                bones: j,
+                proxies: p,
+                influences: 8,
+            },
+            p as u64,
+        );
         check(&ctx, &model, c, CrowdOptions::default(), 77);
     }
 }
@@ -70,7 +123,9 @@ fn crowds_split_into_chunks_when_a_binding_would_be_too_large() {
     let model = random_model(RR, 5);
     // 144 vertices x 12 bytes = 1728 bytes per character; 64 KiB bindings hold 37 characters,
     // rounded down to the offset alignment's granularity.
-    let options = CrowdOptions { max_binding_bytes: Some(64 * 1024) };
+    let options = CrowdOptions {
+        max_binding_bytes: Some(64 * 1024),
+    };
     let crowd = check(&ctx, &model, 300, options, 9);
     assert!(crowd.chunk_count() >= 8, "{} chunks", crowd.chunk_count());
 }
@@ -80,7 +135,15 @@ fn ten_thousand_characters_beyond_the_device_storage_range() {
     let ctx = validated_context();
     // 35 x 35 = 1225 vertices: 10,000 characters of positions are 147 MB, beyond lavapipe's
     // 128 MiB maxStorageBufferRange (on devices with a larger range this is one chunk).
-    let model = random_model(Spec { grid: 35, bones: 6, proxies: 5, influences: 4 }, 6);
+    let model = random_model(
+        Spec {
+            grid: 35,
+            bones: 6,
+            proxies: 5,
+            influences: 4,
+        },
+        6,
+    );
     let crowd = check(&ctx, &model, 10_000, CrowdOptions::default(), 11);
     let bytes = 10_000 * model.vertex_count() as u64 * 12;
     if bytes > ctx.limits().max_storage_buffer_range {
@@ -93,10 +156,27 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
     let ctx = validated_context();
     let models = [
         random_model(LBS, 21),
-        random_model(Spec { influences: 8, ..RR }, 22),
-        random_model(Spec { grid: 7, bones: 4, proxies: 3, influences: 4 }, 23),
+        random_model(
+            Spec {
+                influences: 8,
+                ..RR
+            },
+            22,
+        ),
+        random_model(
+            Spec {
+                grid: 7,
+                bones: 4,
+                proxies: 3,
+                influences: 4,
+            },
+            23,
+        ),
     ];
-    let gpu: Vec<GpuModel> = models.iter().map(|m| GpuModel::new(&ctx, m).expect("upload")).collect();
+    let gpu: Vec<GpuModel> = models
+        .iter()
+        .map(|m| GpuModel::new(&ctx, m).expect("upload"))
+        .collect();
     let counts = [5, 9, 3];
     let mut crowds = Vec::new();
     let mut expected = Vec::new();
@@ -106,7 +186,9 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
         crowd.set_bones(&poses).expect("bones");
         let v = model.vertex_count();
         let (mut p, mut n) = (vec![[0.0; 3]; c * v], vec![[0.0; 3]; c * v]);
-        CpuEvaluator::new(model).evaluate(&poses, &mut p, &mut n).expect("cpu");
+        CpuEvaluator::new(model)
+            .evaluate(&poses, &mut p, &mut n)
+            .expect("cpu");
         crowds.push(crowd);
         expected.push((p, n));
     }
@@ -116,11 +198,17 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
         batch.run(&refs).expect("run");
     }
     for ((model, crowd), (p, n)) in models.iter().zip(&crowds).zip(&expected) {
-        let (gp, gn) = crowd.read_back().expect("read back");
+        let rrskin::vk::HostOutput {
+            positions: gp,
+            normals: gn,
+        } = crowd.read_back().expect("read back");
         compare(model, (p, n), (&gp, &gn));
     }
     let t = batch.timings().expect("timestamps on lavapipe");
-    assert!(t.skin_ms > 0.0 && t.normals_ms > 0.0 && t.predict_ms > 0.0 && t.blend_ms > 0.0, "{t:?}");
+    assert!(
+        t.skin_ms > 0.0 && t.normals_ms > 0.0 && t.predict_ms > 0.0 && t.blend_ms > 0.0,
+        "{t:?}"
+    );
     assert_no_validation_messages(&ctx);
 }
 
@@ -131,11 +219,17 @@ fn a_new_crowd_renders_the_rest_pose() {
     let crowd = Crowd::new(&GpuModel::new(&ctx, &model).expect("upload"), 2).expect("crowd");
     let mut batch = Batch::new(&ctx).expect("batch");
     batch.run(&[&crowd]).expect("run");
-    let (pos, nrm) = crowd.read_back().expect("read back");
-    let identity = vec![[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]; 2 * model.bone_count()];
+    let rrskin::vk::HostOutput {
+        positions: pos,
+        normals: nrm,
+    } = crowd.read_back().expect("read back");
+    let identity =
+        vec![[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]; 2 * model.bone_count()];
     let v = model.vertex_count();
     let (mut p, mut n) = (vec![[0.0; 3]; 2 * v], vec![[0.0; 3]; 2 * v]);
-    CpuEvaluator::new(&model).evaluate(&identity, &mut p, &mut n).expect("cpu");
+    CpuEvaluator::new(&model)
+        .evaluate(&identity, &mut p, &mut n)
+        .expect("cpu");
     compare(&model, (&p, &n), (&pos, &nrm));
     assert_no_validation_messages(&ctx);
 }
@@ -149,17 +243,31 @@ fn bad_per_frame_input_is_an_error() {
     let mut poses = random_poses(&model, 3, 1);
     assert_eq!(
         crowd.set_bones(&poses[..3 * j - 1]),
-        Err(Error::WrongLength { what: "crowd bone transforms", expected: 3 * j, actual: 3 * j - 1 })
+        Err(Error::WrongLength {
+            what: "crowd bone transforms",
+            expected: 3 * j,
+            actual: 3 * j - 1
+        })
     );
     assert_eq!(
         crowd.set_character_bones(3, &poses[..j]),
-        Err(Error::OutOfRange { what: "character", index: 3, count: 3 })
+        Err(Error::OutOfRange {
+            what: "character",
+            index: 3,
+            count: 3
+        })
     );
     poses[j + 1][5] = f32::NAN;
     assert_eq!(
         crowd.set_bones(&poses),
-        Err(Error::NonFinite { what: "bone transforms", index: 12 * (j + 1) + 5 })
+        Err(Error::NonFinite {
+            what: "bone transforms",
+            index: 12 * (j + 1) + 5
+        })
     );
-    assert!(matches!(Crowd::new(crowd.model(), 0), Err(Error::OutOfRange { .. })));
+    assert!(matches!(
+        Crowd::new(crowd.model(), 0),
+        Err(Error::OutOfRange { .. })
+    ));
     assert_no_validation_messages(&ctx);
 }

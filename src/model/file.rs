@@ -52,15 +52,22 @@ const C1: [u8; 4] = *b"C1\0\0";
 const C2: [u8; 4] = *b"C2\0\0";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
-    let (v, t, j, p) =
-        (m.rest_positions.len(), m.triangles.len(), m.bone_parents.len(), m.predictors.len());
+    let (v, t, j, p) = (
+        m.rest_positions.len(),
+        m.triangles.len(),
+        m.bone_parents.len(),
+        m.predictors.len(),
+    );
     let mut pred = Vec::with_capacity(p * PREDICTOR_WORDS * 4);
     for k in &m.predictors {
         push_u32s(&mut pred, &predictor_words(k));
     }
     let mut sections: Vec<([u8; 4], Vec<u8>)> = Vec::new();
     let mut dims = Vec::new();
-    push_u32s(&mut dims, &[v as u32, t as u32, j as u32, p as u32, m.influences]);
+    push_u32s(
+        &mut dims,
+        &[v as u32, t as u32, j as u32, p as u32, m.influences],
+    );
     sections.push((DIMS, dims));
     let mut rest = Vec::new();
     push_f32s(&mut rest, m.rest_positions.as_flattened());
@@ -69,7 +76,9 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
     push_u32s(&mut tris, m.triangles.as_flattened());
     sections.push((TRIS, tris));
     let mut parents = Vec::new();
-    m.bone_parents.iter().for_each(|x| parents.extend_from_slice(&x.to_le_bytes()));
+    m.bone_parents
+        .iter()
+        .for_each(|x| parents.extend_from_slice(&x.to_le_bytes()));
     sections.push((PRNT, parents));
     let mut skix = Vec::new();
     push_u32s(&mut skix, &m.skin_indices);
@@ -119,7 +128,10 @@ pub fn predictor_words(k: &KeyPredictor) -> [u32; PREDICTOR_WORDS] {
     let floats = head.iter().chain(&k.w).chain(&w2).chain(&k.h);
     words[0] = k.bone;
     words[1] = b2;
-    words[2..].iter_mut().zip(floats).for_each(|(w, f)| *w = f.to_bits());
+    words[2..]
+        .iter_mut()
+        .zip(floats)
+        .for_each(|(w, f)| *w = f.to_bits());
     words
 }
 
@@ -130,7 +142,10 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
     }
     let version = le_u32(bytes, 8);
     if version != FORMAT_VERSION {
-        return Err(ModelProblem::UnsupportedVersion { found: version, supported: FORMAT_VERSION });
+        return Err(ModelProblem::UnsupportedVersion {
+            found: version,
+            supported: FORMAT_VERSION,
+        });
     }
     let declared = le_u64(bytes, 16);
     if declared != bytes.len() as u64 {
@@ -141,7 +156,10 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
                 actual: bytes.len() as u64,
             });
         }
-        return Err(ModelProblem::TrailingBytes { declared, actual: bytes.len() as u64 });
+        return Err(ModelProblem::TrailingBytes {
+            declared,
+            actual: bytes.len() as u64,
+        });
     }
     need(bytes.len(), HEADER_BYTES, CHECKSUM_BYTES, "the checksum")?;
     let body = &bytes[..bytes.len() - CHECKSUM_BYTES];
@@ -186,7 +204,10 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
     Ok(ModelParts {
         rest_positions: f32s(rest).chunks_exact(3).map(array).collect(),
         triangles: u32s(tris).chunks_exact(3).map(array).collect(),
-        bone_parents: prnt.chunks_exact(4).map(|b| i32::from_le_bytes(array(b))).collect(),
+        bone_parents: prnt
+            .chunks_exact(4)
+            .map(|b| i32::from_le_bytes(array(b)))
+            .collect(),
         influences: k as u32,
         skin_indices: u32s(skix),
         skin_weights: f32s(skiw),
@@ -203,7 +224,12 @@ struct SectionTable {
 impl SectionTable {
     fn read(body: &[u8]) -> Result<Self, ModelProblem> {
         let count = le_u32(body, 12) as usize;
-        need(body.len(), HEADER_BYTES, count.saturating_mul(TABLE_ENTRY_BYTES), "the section table")?;
+        need(
+            body.len(),
+            HEADER_BYTES,
+            count.saturating_mul(TABLE_ENTRY_BYTES),
+            "the section table",
+        )?;
         let mut entries: Vec<([u8; 4], u64, u64)> = Vec::with_capacity(count);
         for i in 0..count {
             let e = HEADER_BYTES + i * TABLE_ENTRY_BYTES;
@@ -242,7 +268,11 @@ impl SectionTable {
             .find(|(t, _, _)| *t == tag)
             .ok_or_else(|| ModelProblem::MissingSection { tag: tag_name(tag) })?;
         if expected != length {
-            return Err(ModelProblem::SectionLength { tag: tag_name(tag), expected, actual: length });
+            return Err(ModelProblem::SectionLength {
+                tag: tag_name(tag),
+                expected,
+                actual: length,
+            });
         }
         Ok(&body[offset as usize..(offset + length) as usize])
     }
@@ -286,17 +316,23 @@ fn le_u64(b: &[u8], at: usize) -> u64 {
 }
 
 fn u32s(b: &[u8]) -> Vec<u32> {
-    b.chunks_exact(4).map(|w| u32::from_le_bytes(array(w))).collect()
+    b.chunks_exact(4)
+        .map(|w| u32::from_le_bytes(array(w)))
+        .collect()
 }
 
 fn f32s(b: &[u8]) -> Vec<f32> {
-    b.chunks_exact(4).map(|w| f32::from_le_bytes(array(w))).collect()
+    b.chunks_exact(4)
+        .map(|w| f32::from_le_bytes(array(w)))
+        .collect()
 }
 
 fn push_u32s(out: &mut Vec<u8>, xs: &[u32]) {
-    xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+    xs.iter()
+        .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
 }
 
 fn push_f32s(out: &mut Vec<u8>, xs: &[f32]) {
-    xs.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+    xs.iter()
+        .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
 }

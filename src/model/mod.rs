@@ -97,7 +97,11 @@ impl Model {
         })?;
         let (incident_offsets, incident_triangles) =
             incidence(parts.rest_positions.len(), &parts.triangles);
-        Ok(Model { parts, incident_offsets, incident_triangles })
+        Ok(Model {
+            parts,
+            incident_offsets,
+            incident_triangles,
+        })
     }
 
     /// Reads and validates a `.rrs` file. Errors name the file.
@@ -116,8 +120,10 @@ impl Model {
     }
 
     fn from_bytes_named(bytes: &[u8], origin: &str) -> Result<Model> {
-        let parts = file::decode(bytes)
-            .map_err(|problem| Error::BadModel { origin: origin.to_string(), problem })?;
+        let parts = file::decode(bytes).map_err(|problem| Error::BadModel {
+            origin: origin.to_string(),
+            problem,
+        })?;
         Self::with_origin(parts, origin)
     }
 

@@ -77,7 +77,12 @@ fn predictor(l: usize, pred: &KeyPredictor, j: usize) -> Check {
     rotation("predictor W", l, &pred.w)?;
     if let Some(second) = &pred.second {
         if second.bone as usize >= j {
-            return Err(out_of_range("predictor second bone", l, second.bone as i64, j));
+            return Err(out_of_range(
+                "predictor second bone",
+                l,
+                second.bone as i64,
+                j,
+            ));
         }
         finite("predictor u2", [second.u].iter()).map_err(|_| nonfinite("predictor u2", l))?;
         rotation("predictor W2", l, &second.w)?;
@@ -87,17 +92,29 @@ fn predictor(l: usize, pred: &KeyPredictor, j: usize) -> Check {
 
 fn dimension(what: &'static str, value: usize, min: usize) -> Check {
     if value < min {
-        return Err(ModelProblem::Dimension { what, value: value as u64, reason: "too small" });
+        return Err(ModelProblem::Dimension {
+            what,
+            value: value as u64,
+            reason: "too small",
+        });
     }
     if value > MAX_COUNT {
-        return Err(ModelProblem::Dimension { what, value: value as u64, reason: "too large" });
+        return Err(ModelProblem::Dimension {
+            what,
+            value: value as u64,
+            reason: "too large",
+        });
     }
     Ok(())
 }
 
 fn length(what: &'static str, expected: usize, actual: usize) -> Check {
     if expected != actual {
-        return Err(ModelProblem::Length { what, expected, actual });
+        return Err(ModelProblem::Length {
+            what,
+            expected,
+            actual,
+        });
     }
     Ok(())
 }
@@ -116,7 +133,12 @@ fn nonfinite(what: &'static str, index: usize) -> ModelProblem {
 }
 
 fn out_of_range(what: &'static str, index: usize, value: i64, bound: usize) -> ModelProblem {
-    ModelProblem::IndexOutOfRange { what, index, value, bound }
+    ModelProblem::IndexOutOfRange {
+        what,
+        index,
+        value,
+        bound,
+    }
 }
 
 /// Max deviation of `w` from a proper rotation: |WᵀW − I|∞ and |det W − 1|.

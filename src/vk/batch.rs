@@ -57,7 +57,13 @@ impl Batch {
         // SAFETY: valid device and create info.
         let pool = unsafe { device.create_command_pool(&info, None) }
             .map_err(Error::vk("vkCreateCommandPool"))?;
-        let mut batch = Batch { shared: shared.clone(), queries: None, pool, cmd: vk::CommandBuffer::null(), recorded: false };
+        let mut batch = Batch {
+            shared: shared.clone(),
+            queries: None,
+            pool,
+            cmd: vk::CommandBuffer::null(),
+            recorded: false,
+        };
         let info = vk::CommandBufferAllocateInfo::default()
             .command_pool(pool)
             .level(vk::CommandBufferLevel::PRIMARY)
@@ -71,7 +77,8 @@ impl Batch {
                 .query_count(TIMESTAMPS);
             // SAFETY: valid device and create info.
             batch.queries = Some(
-                unsafe { device.create_query_pool(&info, None) }.map_err(Error::vk("vkCreateQueryPool"))?,
+                unsafe { device.create_query_pool(&info, None) }
+                    .map_err(Error::vk("vkCreateQueryPool"))?,
             );
         }
         Ok(batch)
@@ -82,7 +89,9 @@ impl Batch {
     pub fn record(&mut self, cmd: vk::CommandBuffer, crowds: &[&Crowd]) -> Result<()> {
         for crowd in crowds {
             if !Arc::ptr_eq(crowd.shared(), &self.shared) {
-                return Err(Error::Mismatch { what: "a crowd of another context" });
+                return Err(Error::Mismatch {
+                    what: "a crowd of another context",
+                });
             }
         }
         let s = &*self.shared;
@@ -96,9 +105,16 @@ impl Batch {
             readers |= vk::PipelineStageFlags::VERTEX_INPUT;
             reads |= vk::AccessFlags::VERTEX_ATTRIBUTE_READ;
         }
-        let to_compute = (compute, vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+        let to_compute = (
+            compute,
+            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+        );
         let after_compute = (compute, vk::AccessFlags::SHADER_WRITE);
-        let reduced: Vec<&Crowd> = crowds.iter().copied().filter(|c| c.model.proxy_count() > 0).collect();
+        let reduced: Vec<&Crowd> = crowds
+            .iter()
+            .copied()
+            .filter(|c| c.model.proxy_count() > 0)
+            .collect();
         let p = &s.pipelines;
         // SAFETY: cmd is recording (caller's contract); every handle belongs to this device and
         // lives as long as the crowds.
@@ -108,16 +124,37 @@ impl Batch {
             }
             self.timestamp(cmd, 0);
             // WAR against last frame's readers (vertex fetch, copies) and WAW against its writes.
-            memory_barrier(device, cmd, (readers, vk::AccessFlags::SHADER_WRITE), to_compute);
+            memory_barrier(
+                device,
+                cmd,
+                (readers, vk::AccessFlags::SHADER_WRITE),
+                to_compute,
+            );
             for crowd in &reduced {
-                dispatch_chunks(device, cmd, &p.predict, crowd, |c| c.predict, predict::push, predict::groups);
+                dispatch_chunks(
+                    device,
+                    cmd,
+                    &p.predict,
+                    crowd,
+                    |c| c.predict,
+                    predict::push,
+                    predict::groups,
+                );
             }
             self.timestamp(cmd, 1);
             if !reduced.is_empty() {
                 memory_barrier(device, cmd, after_compute, to_compute);
             }
             for crowd in &reduced {
-                dispatch_chunks(device, cmd, &p.blend_gemm, crowd, |c| c.blend_gemm, blend_gemm::push, blend_gemm::groups);
+                dispatch_chunks(
+                    device,
+                    cmd,
+                    &p.blend_gemm,
+                    crowd,
+                    |c| c.blend_gemm,
+                    blend_gemm::push,
+                    blend_gemm::groups,
+                );
             }
             self.timestamp(cmd, 2);
             if !reduced.is_empty() {
@@ -125,12 +162,28 @@ impl Batch {
             }
             for crowd in crowds {
                 let pass = p.skin(crowd.model.inner.influences);
-                dispatch_chunks(device, cmd, pass, crowd, |c| c.skin, skin::push, skin::groups);
+                dispatch_chunks(
+                    device,
+                    cmd,
+                    pass,
+                    crowd,
+                    |c| c.skin,
+                    skin::push,
+                    skin::groups,
+                );
             }
             self.timestamp(cmd, 3);
             memory_barrier(device, cmd, after_compute, to_compute);
             for crowd in crowds {
-                dispatch_chunks(device, cmd, &p.normals, crowd, |c| c.normals, normals::push, normals::groups);
+                dispatch_chunks(
+                    device,
+                    cmd,
+                    &p.normals,
+                    crowd,
+                    |c| c.normals,
+                    normals::push,
+                    normals::groups,
+                );
             }
             self.timestamp(cmd, 4);
             memory_barrier(device, cmd, after_compute, (readers, reads));
@@ -149,12 +202,16 @@ impl Batch {
             device
                 .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
                 .map_err(Error::vk("vkResetCommandBuffer"))?;
-            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            device.begin_command_buffer(cmd, &begin).map_err(Error::vk("vkBeginCommandBuffer"))?;
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            device
+                .begin_command_buffer(cmd, &begin)
+                .map_err(Error::vk("vkBeginCommandBuffer"))?;
         }
         let recorded = self.record(cmd, crowds);
         // SAFETY: cmd is recording.
-        let ended = unsafe { device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
+        let ended =
+            unsafe { device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
         recorded?;
         ended?;
         shared.submit_wait(cmd)
@@ -164,20 +221,39 @@ impl Batch {
     /// engine's command buffer has completed; `NotReady` if the results are not there yet.
     pub fn timings(&self) -> Result<PassTimings> {
         let (Some(q), Some(period)) = (self.queries, self.shared.limits.timestamp_period_ns) else {
-            return Err(Error::NotReady { what: "timestamps (the queue has no timestamp support)" });
+            return Err(Error::NotReady {
+                what: "timestamps (the queue has no timestamp support)",
+            });
         };
         if !self.recorded {
-            return Err(Error::NotReady { what: "timestamps (nothing recorded yet)" });
+            return Err(Error::NotReady {
+                what: "timestamps (nothing recorded yet)",
+            });
         }
         let mut ticks = [0u64; TIMESTAMPS as usize];
         // SAFETY: our query pool; the queries were reset and written by recorded work.
-        unsafe { self.shared.device.get_query_pool_results(q, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
-            .map_err(|result| match result {
-                vk::Result::NOT_READY => Error::NotReady { what: "timestamps" },
-                result => Error::Vulkan { call: "vkGetQueryPoolResults", result },
-            })?;
+        unsafe {
+            self.shared.device.get_query_pool_results(
+                q,
+                0,
+                &mut ticks,
+                vk::QueryResultFlags::TYPE_64,
+            )
+        }
+        .map_err(|result| match result {
+            vk::Result::NOT_READY => Error::NotReady { what: "timestamps" },
+            result => Error::Vulkan {
+                call: "vkGetQueryPoolResults",
+                result,
+            },
+        })?;
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
-        Ok(PassTimings { predict_ms: ms(0), blend_ms: ms(1), skin_ms: ms(2), normals_ms: ms(3) })
+        Ok(PassTimings {
+            predict_ms: ms(0),
+            blend_ms: ms(1),
+            skin_ms: ms(2),
+            normals_ms: ms(3),
+        })
     }
 
     /// # Safety
@@ -186,7 +262,12 @@ impl Batch {
         if let Some(q) = self.queries {
             // SAFETY: see the function's contract; the query was reset in this command buffer.
             unsafe {
-                self.shared.device.cmd_write_timestamp(cmd, vk::PipelineStageFlags::COMPUTE_SHADER, q, index)
+                self.shared.device.cmd_write_timestamp(
+                    cmd,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    q,
+                    index,
+                )
             };
         }
     }
@@ -223,9 +304,22 @@ unsafe fn dispatch_chunks<P: bytemuck::Pod>(
     unsafe {
         device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pass.pipeline);
         for chunk in &crowd.chunks {
-            device.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, pass.layout, 0, &[set_of(chunk)], &[]);
+            device.cmd_bind_descriptor_sets(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                pass.layout,
+                0,
+                &[set_of(chunk)],
+                &[],
+            );
             let constants = push(m, chunk.characters);
-            device.cmd_push_constants(cmd, pass.layout, vk::ShaderStageFlags::COMPUTE, 0, bytemuck::bytes_of(&constants));
+            device.cmd_push_constants(
+                cmd,
+                pass.layout,
+                vk::ShaderStageFlags::COMPUTE,
+                0,
+                bytemuck::bytes_of(&constants),
+            );
             let [x, y, z] = groups(m, chunk.characters);
             device.cmd_dispatch(cmd, x, y, z);
         }

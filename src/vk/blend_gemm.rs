@@ -25,9 +25,17 @@ pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 3] {
 }
 
 pub fn push(m: &Inner, chars: u32) -> Push {
-    Push { proxies: m.proxies, bones: m.bones, chars }
+    Push {
+        proxies: m.proxies,
+        bones: m.bones,
+        chars,
+    }
 }
 
 pub fn groups(m: &Inner, chars: u32) -> [u32; 3] {
-    [(3 * chars).div_ceil(TILE_COLUMNS), (4 * m.proxies).div_ceil(TILE_ROWS), 1]
+    [
+        (3 * chars).div_ceil(TILE_COLUMNS),
+        (4 * m.proxies).div_ceil(TILE_ROWS),
+        1,
+    ]
 }

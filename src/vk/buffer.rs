@@ -32,14 +32,23 @@ impl Buffer {
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
         let device = &shared.device;
         // SAFETY: valid device and create info.
-        let handle = unsafe { device.create_buffer(&info, None) }.map_err(Error::vk("vkCreateBuffer"))?;
-        let mut buffer = Buffer { shared: shared.clone(), handle, allocation: None, size };
+        let handle =
+            unsafe { device.create_buffer(&info, None) }.map_err(Error::vk("vkCreateBuffer"))?;
+        let mut buffer = Buffer {
+            shared: shared.clone(),
+            handle,
+            allocation: None,
+            size,
+        };
         // SAFETY: valid buffer.
         let requirements = unsafe { device.get_buffer_memory_requirements(handle) };
         let allocation = shared
             .allocator()
             .as_mut()
-            .ok_or(Error::Allocation { what: name, message: "the allocator is gone".into() })?
+            .ok_or(Error::Allocation {
+                what: name,
+                message: "the allocator is gone".into(),
+            })?
             .allocate(&AllocationCreateDesc {
                 name,
                 requirements,
@@ -47,7 +56,10 @@ impl Buffer {
                 linear: true,
                 allocation_scheme: AllocationScheme::GpuAllocatorManaged,
             })
-            .map_err(|e| Error::Allocation { what: name, message: e.to_string() })?;
+            .map_err(|e| Error::Allocation {
+                what: name,
+                message: e.to_string(),
+            })?;
         // SAFETY: fresh allocation satisfying the buffer's requirements.
         unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) }
             .map_err(Error::vk("vkBindBufferMemory"))?;
@@ -60,11 +72,18 @@ impl Buffer {
         self.allocation
             .as_mut()
             .and_then(|a| a.mapped_slice_mut())
-            .ok_or(Error::Allocation { what: "a mapped buffer", message: "not host-visible".into() })
+            .ok_or(Error::Allocation {
+                what: "a mapped buffer",
+                message: "not host-visible".into(),
+            })
     }
 
     pub fn descriptor(&self, offset: u64, range: u64) -> vk::DescriptorBufferInfo {
-        vk::DescriptorBufferInfo { buffer: self.handle, offset, range }
+        vk::DescriptorBufferInfo {
+            buffer: self.handle,
+            offset,
+            range,
+        }
     }
 
     /// The whole buffer as one descriptor.
@@ -127,9 +146,17 @@ pub fn upload(
             if data.is_empty() {
                 continue;
             }
-            let region = [vk::BufferCopy { src_offset, dst_offset: 0, size: data.len() as u64 }];
+            let region = [vk::BufferCopy {
+                src_offset,
+                dst_offset: 0,
+                size: data.len() as u64,
+            }];
             // SAFETY: both buffers are alive and large enough; cmd is recording.
-            unsafe { shared.device.cmd_copy_buffer(cmd, staging.handle, dst.handle, &region) };
+            unsafe {
+                shared
+                    .device
+                    .cmd_copy_buffer(cmd, staging.handle, dst.handle, &region)
+            };
         }
         // Make the copies visible to every later compute read (submit-and-wait orders the
         // submissions, but sync validation wants the memory dependency spelled out).
@@ -138,8 +165,14 @@ pub fn upload(
             memory_barrier(
                 &shared.device,
                 cmd,
-                (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
-                (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_READ),
+                (
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                ),
+                (
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::AccessFlags::SHADER_READ,
+                ),
             )
         };
         Ok(())
@@ -157,9 +190,19 @@ pub(crate) unsafe fn memory_barrier(
     src: (vk::PipelineStageFlags, vk::AccessFlags),
     dst: (vk::PipelineStageFlags, vk::AccessFlags),
 ) {
-    let barrier = [vk::MemoryBarrier::default().src_access_mask(src.1).dst_access_mask(dst.1)];
+    let barrier = [vk::MemoryBarrier::default()
+        .src_access_mask(src.1)
+        .dst_access_mask(dst.1)];
     // SAFETY: see the function's contract.
     unsafe {
-        device.cmd_pipeline_barrier(cmd, src.0, dst.0, vk::DependencyFlags::empty(), &barrier, &[], &[])
+        device.cmd_pipeline_barrier(
+            cmd,
+            src.0,
+            dst.0,
+            vk::DependencyFlags::empty(),
+            &barrier,
+            &[],
+            &[],
+        )
     };
 }

@@ -90,8 +90,9 @@ impl Context {
     /// Creates an instance and device of its own (headless: no surface).
     pub fn headless(desc: &ContextDesc) -> Result<Context> {
         // SAFETY: loading the system Vulkan loader; the Entry keeps the library alive.
-        let entry =
-            unsafe { ash::Entry::load() }.map_err(|e| Error::Loader { message: e.to_string() })?;
+        let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader {
+            message: e.to_string(),
+        })?;
         let messages: Box<Mutex<Vec<String>>> = Box::default();
         let (instance, debug) = create_instance(&entry, desc.validation, &messages)?;
         let owned = Owned { debug, messages };
@@ -118,7 +119,15 @@ impl Context {
         };
         // SAFETY: the queue family was created with one queue.
         let queue = unsafe { device.get_device_queue(queue_family_index, 0) };
-        Self::finish(entry, instance, physical_device, device, queue_family_index, queue, Some(owned))
+        Self::finish(
+            entry,
+            instance,
+            physical_device,
+            device,
+            queue_family_index,
+            queue,
+            Some(owned),
+        )
     }
 
     /// Wraps an engine's instance, physical device, device and queue.
@@ -130,7 +139,9 @@ impl Context {
     /// submits to the queue only during uploads and read-backs and [`super::Batch::run`]; the
     /// engine must not use the queue concurrently with those calls.
     pub unsafe fn from_engine(engine: EngineDevice) -> Result<Context> {
-        let static_fn = ash::StaticFn { get_instance_proc_addr: engine.get_instance_proc_addr };
+        let static_fn = ash::StaticFn {
+            get_instance_proc_addr: engine.get_instance_proc_addr,
+        };
         // SAFETY: the caller guarantees the handles and the function pointer are valid.
         let entry = unsafe { ash::Entry::from_static_fn(static_fn.clone()) };
         // SAFETY: as above.
@@ -138,16 +149,19 @@ impl Context {
         // SAFETY: as above.
         let device = unsafe { ash::Device::load(instance.fp_v1_0(), engine.device) };
         // SAFETY: valid physical device.
-        let families = unsafe {
-            instance.get_physical_device_queue_family_properties(engine.physical_device)
-        };
-        let family = families.get(engine.queue_family_index as usize).ok_or(Error::OutOfRange {
-            what: "queue family index",
-            index: engine.queue_family_index as usize,
-            count: families.len(),
-        })?;
+        let families =
+            unsafe { instance.get_physical_device_queue_family_properties(engine.physical_device) };
+        let family = families
+            .get(engine.queue_family_index as usize)
+            .ok_or(Error::OutOfRange {
+                what: "queue family index",
+                index: engine.queue_family_index as usize,
+                count: families.len(),
+            })?;
         if !family.queue_flags.contains(vk::QueueFlags::COMPUTE) {
-            return Err(Error::NoDevice { reason: "the engine's queue family has no compute".into() });
+            return Err(Error::NoDevice {
+                reason: "the engine's queue family has no compute".into(),
+            });
         }
         Self::finish(
             entry,
@@ -172,9 +186,9 @@ impl Context {
         // SAFETY: valid physical device.
         let props = unsafe { instance.get_physical_device_properties(physical_device) };
         // SAFETY: valid physical device.
-        let family = unsafe {
-            instance.get_physical_device_queue_family_properties(physical_device)
-        }[queue_family_index as usize];
+        let family =
+            unsafe { instance.get_physical_device_queue_family_properties(physical_device) }
+                [queue_family_index as usize];
         let limits = Limits {
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
             min_storage_buffer_offset_alignment: props.limits.min_storage_buffer_offset_alignment,
@@ -223,7 +237,9 @@ impl Context {
             .map_err(Error::vk("vkCreateCommandPool"))?;
         *lock(&shared.transient_pool) = pool;
         shared.pipelines = Pipelines::new(&shared.device)?;
-        Ok(Context { shared: Arc::new(shared) })
+        Ok(Context {
+            shared: Arc::new(shared),
+        })
     }
 
     pub fn device_name(&self) -> &str {
@@ -303,8 +319,11 @@ impl Shared {
     /// Submits one recorded command buffer and waits on a fence.
     pub fn submit_wait(&self, cmd: vk::CommandBuffer) -> Result<()> {
         // SAFETY: valid device.
-        let fence = unsafe { self.device.create_fence(&vk::FenceCreateInfo::default(), None) }
-            .map_err(Error::vk("vkCreateFence"))?;
+        let fence = unsafe {
+            self.device
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+        }
+        .map_err(Error::vk("vkCreateFence"))?;
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         let result = {
@@ -377,8 +396,13 @@ fn create_instance(
         // SAFETY: plain query.
         let available = unsafe { entry.enumerate_instance_layer_properties() }
             .map_err(Error::vk("vkEnumerateInstanceLayerProperties"))?;
-        if !available.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)) {
-            return Err(Error::MissingLayer { name: VALIDATION_LAYER.to_string_lossy().into() });
+        if !available
+            .iter()
+            .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER))
+        {
+            return Err(Error::MissingLayer {
+                name: VALIDATION_LAYER.to_string_lossy().into(),
+            });
         }
         layers.push(VALIDATION_LAYER.as_ptr());
         extensions.push(ash::ext::debug_utils::NAME.as_ptr());
@@ -406,7 +430,9 @@ fn create_instance(
         .enabled_layer_names(&layers)
         .enabled_extension_names(&extensions);
     if validation {
-        info = info.push_next(&mut features).push_next(&mut instance_messenger);
+        info = info
+            .push_next(&mut features)
+            .push_next(&mut instance_messenger);
     }
     // SAFETY: valid create info; the pointers it holds live until the call returns.
     let instance =
@@ -421,7 +447,10 @@ fn create_instance(
         Err(result) => {
             // SAFETY: nothing else was created from the instance.
             unsafe { instance.destroy_instance(None) };
-            Err(Error::Vulkan { call: "vkCreateDebugUtilsMessengerEXT", result })
+            Err(Error::Vulkan {
+                call: "vkCreateDebugUtilsMessengerEXT",
+                result,
+            })
         }
     }
 }
@@ -455,7 +484,9 @@ fn pick_device(instance: &ash::Instance, choice: &DeviceChoice) -> Result<vk::Ph
         .map(|(i, &d)| (i, d, unsafe { instance.get_physical_device_properties(d) }))
         .collect();
     let name_of = |p: &vk::PhysicalDeviceProperties| {
-        p.device_name_as_c_str().map(|s| s.to_string_lossy().to_lowercase()).unwrap_or_default()
+        p.device_name_as_c_str()
+            .map(|s| s.to_string_lossy().to_lowercase())
+            .unwrap_or_default()
     };
     let rank = |t: vk::PhysicalDeviceType| match t {
         vk::PhysicalDeviceType::DISCRETE_GPU => 0,
@@ -466,15 +497,21 @@ fn pick_device(instance: &ash::Instance, choice: &DeviceChoice) -> Result<vk::Ph
     };
     let found = match choice {
         DeviceChoice::Auto => usable.iter().min_by_key(|(_, _, p)| rank(p.device_type)),
-        DeviceChoice::NameContains(text) => {
-            usable.iter().find(|(_, _, p)| name_of(p).contains(&text.to_lowercase()))
-        }
+        DeviceChoice::NameContains(text) => usable
+            .iter()
+            .find(|(_, _, p)| name_of(p).contains(&text.to_lowercase())),
         DeviceChoice::Index(n) => usable.iter().find(|(i, _, _)| i == n),
     };
     found.map(|(_, d, _)| *d).ok_or_else(|| {
-        let names: Vec<String> = usable.iter().map(|(i, _, p)| format!("{i}: {}", name_of(p))).collect();
+        let names: Vec<String> = usable
+            .iter()
+            .map(|(i, _, p)| format!("{i}: {}", name_of(p)))
+            .collect();
         Error::NoDevice {
-            reason: format!("{choice:?} matches none of the devices with compute [{}]", names.join(", ")),
+            reason: format!(
+                "{choice:?} matches none of the devices with compute [{}]",
+                names.join(", ")
+            ),
         }
     })
 }
@@ -491,7 +528,9 @@ fn pick_queue_family(instance: &ash::Instance, device: vk::PhysicalDevice) -> Re
         .position(|f| f.queue_flags.contains(both))
         .or_else(|| families.iter().position(compute))
         .map(|i| i as u32)
-        .ok_or(Error::NoDevice { reason: "no queue family with compute".into() })
+        .ok_or(Error::NoDevice {
+            reason: "no queue family with compute".into(),
+        })
 }
 
 /// A poisoned lock only means another thread panicked while holding it; the data (handles,

@@ -43,6 +43,13 @@ pub struct CrowdOutput {
     pub character_stride: u64,
 }
 
+/// Outputs copied to the host: C x V each, character-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HostOutput {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+}
+
 /// The descriptor ranges of one chunk in the crowd's per-character buffers.
 #[derive(Clone, Copy)]
 pub(crate) struct ChunkViews {
@@ -85,30 +92,54 @@ impl Crowd {
         Self::with_options(model, characters, CrowdOptions::default())
     }
 
-    pub fn with_options(model: &GpuModel, characters: usize, options: CrowdOptions) -> Result<Crowd> {
+    pub fn with_options(
+        model: &GpuModel,
+        characters: usize,
+        options: CrowdOptions,
+    ) -> Result<Crowd> {
         let m = &model.inner;
         let shared = m.context.shared.clone();
         if characters == 0 {
-            return Err(Error::OutOfRange { what: "crowd size", index: 0, count: 0 });
+            return Err(Error::OutOfRange {
+                what: "crowd size",
+                index: 0,
+                count: 0,
+            });
         }
         let c = characters as u64;
         let per_character = [
             m.bones as u64 * AFFINE_BYTES,
             // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
-            if m.proxies > 0 { (3 * m.proxies + 4 * m.bones) as u64 * 12 } else { 0 },
+            if m.proxies > 0 {
+                (3 * m.proxies + 4 * m.bones) as u64 * 12
+            } else {
+                0
+            },
             m.proxies as u64 * AFFINE_BYTES,
             m.vertices as u64 * XYZ_BYTES,
         ];
         let chunk_characters = chunk_size(&shared, &per_character, c, options)?;
 
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let output = storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
+        let output =
+            storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
         let gpu = MemoryLocation::GpuOnly;
-        let mut bones =
-            Buffer::new(&shared, "crowd bones", c * per_character[0], storage, MemoryLocation::CpuToGpu)?;
+        let mut bones = Buffer::new(
+            &shared,
+            "crowd bones",
+            c * per_character[0],
+            storage,
+            MemoryLocation::CpuToGpu,
+        )?;
         let rhs = Buffer::new(&shared, "crowd rhs", c * per_character[1], storage, gpu)?;
         let proxies = Buffer::new(&shared, "crowd proxies", c * per_character[2], storage, gpu)?;
-        let positions = Buffer::new(&shared, "crowd positions", c * per_character[3], output, gpu)?;
+        let positions = Buffer::new(
+            &shared,
+            "crowd positions",
+            c * per_character[3],
+            output,
+            gpu,
+        )?;
         let normals = Buffer::new(&shared, "crowd normals", c * per_character[3], output, gpu)?;
         write_rest_pose(bones.mapped()?);
 
@@ -119,7 +150,7 @@ impl Crowd {
             characters: characters as u32,
             bones,
             rhs,
-            proxies: proxies,
+            proxies,
             positions,
             normals,
             pool,
@@ -147,18 +178,34 @@ impl Crowd {
         Ok(crowd)
     }
 
-    fn make_chunk(&self, shared: &Shared, m: &Inner, v: &ChunkViews, characters: u32) -> Result<Chunk> {
+    fn make_chunk(
+        &self,
+        shared: &Shared,
+        m: &Inner,
+        v: &ChunkViews,
+        characters: u32,
+    ) -> Result<Chunk> {
         let p = &shared.pipelines;
         let mut chunk = Chunk {
             characters,
             predict: vk::DescriptorSet::null(),
             blend_gemm: vk::DescriptorSet::null(),
-            skin: write_set(shared, self.pool, p.skin(m.influences), &skin::bindings(m, v))?,
+            skin: write_set(
+                shared,
+                self.pool,
+                p.skin(m.influences),
+                &skin::bindings(m, v),
+            )?,
             normals: write_set(shared, self.pool, &p.normals, &normals::bindings(m, v))?,
         };
         if m.proxies > 0 {
             chunk.predict = write_set(shared, self.pool, &p.predict, &predict::bindings(m, v))?;
-            chunk.blend_gemm = write_set(shared, self.pool, &p.blend_gemm, &blend_gemm::bindings(m, v))?;
+            chunk.blend_gemm = write_set(
+                shared,
+                self.pool,
+                &p.blend_gemm,
+                &blend_gemm::bindings(m, v),
+            )?;
         }
         Ok(chunk)
     }
@@ -181,7 +228,11 @@ impl Crowd {
     pub fn set_bones(&mut self, bones: &[Affine]) -> Result<()> {
         let expected = self.characters as usize * self.model.bone_count();
         if bones.len() != expected {
-            return Err(Error::WrongLength { what: "crowd bone transforms", expected, actual: bones.len() });
+            return Err(Error::WrongLength {
+                what: "crowd bone transforms",
+                expected,
+                actual: bones.len(),
+            });
         }
         check_finite(bones)?;
         self.bones.mapped()?[..expected * 48].copy_from_slice(bytemuck::cast_slice(bones));
@@ -192,10 +243,18 @@ impl Crowd {
     pub fn set_character_bones(&mut self, character: usize, bones: &[Affine]) -> Result<()> {
         let j = self.model.bone_count();
         if character >= self.characters as usize {
-            return Err(Error::OutOfRange { what: "character", index: character, count: self.characters as usize });
+            return Err(Error::OutOfRange {
+                what: "character",
+                index: character,
+                count: self.characters as usize,
+            });
         }
         if bones.len() != j {
-            return Err(Error::WrongLength { what: "character bone transforms", expected: j, actual: bones.len() });
+            return Err(Error::WrongLength {
+                what: "character bone transforms",
+                expected: j,
+                actual: bones.len(),
+            });
         }
         check_finite(bones)?;
         let at = character * j * 48;
@@ -213,9 +272,9 @@ impl Crowd {
         }
     }
 
-    /// Copies the outputs back to the host (C x V positions and normals). Submits and waits: for
-    /// tools and tests, not the per-frame path.
-    pub fn read_back(&self) -> Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+    /// Copies the outputs back to the host. Submits and waits: for tools and tests, not the
+    /// per-frame path.
+    pub fn read_back(&self) -> Result<HostOutput> {
         let shared = &self.model.inner.context.shared;
         let size = self.positions.size;
         let mut staging = Buffer::new(
@@ -232,17 +291,30 @@ impl Crowd {
                 memory_barrier(
                     device,
                     cmd,
-                    (vk::PipelineStageFlags::COMPUTE_SHADER, vk::AccessFlags::SHADER_WRITE),
-                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_READ),
+                    (
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::SHADER_WRITE,
+                    ),
+                    (
+                        vk::PipelineStageFlags::TRANSFER,
+                        vk::AccessFlags::TRANSFER_READ,
+                    ),
                 );
                 for (src, at) in [(&self.positions, 0), (&self.normals, size)] {
-                    let region = [vk::BufferCopy { src_offset: 0, dst_offset: at, size }];
+                    let region = [vk::BufferCopy {
+                        src_offset: 0,
+                        dst_offset: at,
+                        size,
+                    }];
                     device.cmd_copy_buffer(cmd, src.handle, staging.handle, &region);
                 }
                 memory_barrier(
                     device,
                     cmd,
-                    (vk::PipelineStageFlags::TRANSFER, vk::AccessFlags::TRANSFER_WRITE),
+                    (
+                        vk::PipelineStageFlags::TRANSFER,
+                        vk::AccessFlags::TRANSFER_WRITE,
+                    ),
                     (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
                 );
             }
@@ -254,8 +326,15 @@ impl Crowd {
             .chunks_exact(4)
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
-        let xyz = |s: &[f32]| s.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect::<Vec<_>>();
-        Ok((xyz(&floats[..n]), xyz(&floats[n..])))
+        let xyz = |s: &[f32]| {
+            s.chunks_exact(3)
+                .map(|p| [p[0], p[1], p[2]])
+                .collect::<Vec<_>>()
+        };
+        Ok(HostOutput {
+            positions: xyz(&floats[..n]),
+            normals: xyz(&floats[n..]),
+        })
     }
 
     pub(crate) fn shared(&self) -> &Arc<Shared> {
@@ -267,13 +346,22 @@ impl Drop for Crowd {
     fn drop(&mut self) {
         // SAFETY: the caller guarantees no submitted work uses the crowd (crate contract); the
         // sets are freed with their pool.
-        unsafe { self.shared().device.destroy_descriptor_pool(self.pool, None) };
+        unsafe {
+            self.shared()
+                .device
+                .destroy_descriptor_pool(self.pool, None)
+        };
     }
 }
 
 /// The characters per chunk: as many as fit the binding range, a multiple of the granularity
 /// that keeps every chunk offset aligned to minStorageBufferOffsetAlignment.
-fn chunk_size(shared: &Shared, per_character: &[u64], characters: u64, options: CrowdOptions) -> Result<u64> {
+fn chunk_size(
+    shared: &Shared,
+    per_character: &[u64],
+    characters: u64,
+    options: CrowdOptions,
+) -> Result<u64> {
     let limits = &shared.limits;
     let mut range = limits.max_storage_buffer_range;
     if let Some(cap) = options.max_binding_bytes {
@@ -335,9 +423,12 @@ fn create_pool(device: &ash::Device, chunks: u32) -> Result<vk::DescriptorPool> 
         ty: vk::DescriptorType::STORAGE_BUFFER,
         descriptor_count: chunks * per_chunk,
     }];
-    let info = vk::DescriptorPoolCreateInfo::default().max_sets(4 * chunks).pool_sizes(&sizes);
+    let info = vk::DescriptorPoolCreateInfo::default()
+        .max_sets(4 * chunks)
+        .pool_sizes(&sizes);
     // SAFETY: valid device and create info.
-    unsafe { device.create_descriptor_pool(&info, None) }.map_err(Error::vk("vkCreateDescriptorPool"))
+    unsafe { device.create_descriptor_pool(&info, None) }
+        .map_err(Error::vk("vkCreateDescriptorPool"))
 }
 
 fn write_set(
@@ -348,7 +439,9 @@ fn write_set(
 ) -> Result<vk::DescriptorSet> {
     debug_assert_eq!(buffers.len(), pass.bindings as usize);
     let layouts = [pass.set_layout];
-    let info = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
+    let info = vk::DescriptorSetAllocateInfo::default()
+        .descriptor_pool(pool)
+        .set_layouts(&layouts);
     // SAFETY: the pool was sized for every set of every chunk.
     let set = unsafe { shared.device.allocate_descriptor_sets(&info) }
         .map_err(Error::vk("vkAllocateDescriptorSets"))?[0];

@@ -57,7 +57,10 @@ impl GpuModel {
             ("C1|C2", bytes(&blend)),
             ("incident offsets", bytemuck::cast_slice(offsets)),
             ("incident triangles", bytemuck::cast_slice(incident)),
-            ("triangles", bytemuck::cast_slice(parts.triangles.as_flattened())),
+            (
+                "triangles",
+                bytemuck::cast_slice(parts.triangles.as_flattened()),
+            ),
         ];
         let limit = context.limits().max_storage_buffer_range;
         for (what, data) in &items {
@@ -69,7 +72,11 @@ impl GpuModel {
                 });
             }
         }
-        let buffers = upload(&context.shared, &items, vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        let buffers = upload(
+            &context.shared,
+            &items,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?;
         let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, incident_offsets, incident_triangles, triangles] =
             <[Buffer; 9]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
                 what: "uploaded buffer count",

@@ -21,8 +21,8 @@ mod pipelines;
 mod predict;
 mod skin;
 
+pub use ash;
 pub use batch::{Batch, PassTimings};
 pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits};
-pub use crowd::{Crowd, CrowdOptions, CrowdOutput};
+pub use crowd::{Crowd, CrowdOptions, CrowdOutput, HostOutput};
 pub use gpu_model::GpuModel;
-pub use ash;

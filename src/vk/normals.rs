@@ -5,8 +5,13 @@ use super::gpu_model::Inner;
 use ash::vk::DescriptorBufferInfo;
 
 /// Bindings in shader order.
-pub const BINDINGS: [&str; 5] =
-    ["positions", "incident offsets", "incident triangles", "triangles", "normals"];
+pub const BINDINGS: [&str; 5] = [
+    "positions",
+    "incident offsets",
+    "incident triangles",
+    "triangles",
+    "normals",
+];
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -26,7 +31,10 @@ pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 5] {
 }
 
 pub fn push(m: &Inner, chars: u32) -> Push {
-    Push { vertices: m.vertices, chars }
+    Push {
+        vertices: m.vertices,
+        chars,
+    }
 }
 
 /// local_size_x = 64 over vertices, one row of groups per character.

@@ -85,7 +85,13 @@ impl Pipelines {
     /// # Safety
     /// No pipeline may be in use by the GPU; null handles are skipped.
     pub unsafe fn destroy(&self, device: &ash::Device) {
-        for p in [&self.predict, &self.blend_gemm, &self.skin_k4, &self.skin_k8, &self.normals] {
+        for p in [
+            &self.predict,
+            &self.blend_gemm,
+            &self.skin_k4,
+            &self.skin_k8,
+            &self.normals,
+        ] {
             // SAFETY: see the function's contract; destroying null handles is a no-op.
             unsafe {
                 device.destroy_pipeline(p.pipeline, None);
@@ -98,7 +104,10 @@ impl Pipelines {
 
 impl PassPipeline {
     fn new(device: &ash::Device, code: &[u8], bindings: usize, push_bytes: usize) -> Result<Self> {
-        let mut pass = PassPipeline { bindings: bindings as u32, ..Default::default() };
+        let mut pass = PassPipeline {
+            bindings: bindings as u32,
+            ..Default::default()
+        };
         let layout_bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..bindings as u32)
             .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
@@ -123,8 +132,10 @@ impl PassPipeline {
             // SAFETY: valid device and create info.
             pass.layout = unsafe { device.create_pipeline_layout(&info, None) }
                 .map_err(Error::vk("vkCreatePipelineLayout"))?;
-            let words: Vec<u32> =
-                code.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
+            let words: Vec<u32> = code
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+                .collect();
             let module_info = vk::ShaderModuleCreateInfo::default().code(&words);
             // SAFETY: SPIR-V produced and validated by naga in build.rs.
             let module = unsafe { device.create_shader_module(&module_info, None) }
@@ -133,15 +144,19 @@ impl PassPipeline {
                 .stage(vk::ShaderStageFlags::COMPUTE)
                 .module(module)
                 .name(c"main");
-            let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(pass.layout)];
+            let info = [vk::ComputePipelineCreateInfo::default()
+                .stage(stage)
+                .layout(pass.layout)];
             // SAFETY: valid create info; the module may be destroyed once the pipeline exists.
             let pipelines = unsafe {
                 let r = device.create_compute_pipelines(vk::PipelineCache::null(), &info, None);
                 device.destroy_shader_module(module, None);
                 r
             };
-            pass.pipeline = pipelines
-                .map_err(|(_, result)| Error::Vulkan { call: "vkCreateComputePipelines", result })?[0];
+            pass.pipeline = pipelines.map_err(|(_, result)| Error::Vulkan {
+                call: "vkCreateComputePipelines",
+                result,
+            })?[0];
             Ok(())
         })();
         match made {

@@ -21,7 +21,11 @@ pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 4] {
 }
 
 pub fn push(m: &Inner, chars: u32) -> Push {
-    Push { proxies: m.proxies, bones: m.bones, chars }
+    Push {
+        proxies: m.proxies,
+        bones: m.bones,
+        chars,
+    }
 }
 
 /// local_size_x = 64 over predictors then bones, one row of groups per character.

@@ -6,8 +6,14 @@ use super::gpu_model::Inner;
 use ash::vk::DescriptorBufferInfo;
 
 /// Bindings in shader order.
-pub const BINDINGS: [&str; 6] =
-    ["rest positions", "skin indices", "skin weights", "proxies", "bones", "positions"];
+pub const BINDINGS: [&str; 6] = [
+    "rest positions",
+    "skin indices",
+    "skin weights",
+    "proxies",
+    "bones",
+    "positions",
+];
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -19,11 +25,23 @@ pub struct Push {
 }
 
 pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 6] {
-    [m.rest.whole(), m.skin_index.whole(), m.skin_weight.whole(), v.proxies, v.bones, v.positions]
+    [
+        m.rest.whole(),
+        m.skin_index.whole(),
+        m.skin_weight.whole(),
+        v.proxies,
+        v.bones,
+        v.positions,
+    ]
 }
 
 pub fn push(m: &Inner, chars: u32) -> Push {
-    Push { vertices: m.vertices, proxies: m.proxies, bones: m.bones, chars }
+    Push {
+        vertices: m.vertices,
+        proxies: m.proxies,
+        bones: m.bones,
+        chars,
+    }
 }
 
 /// local_size_x = 64 over vertices, one row of groups per character.

@@ -12,13 +12,21 @@ pub fn random_model(spec: Spec, seed: u64) -> Model {
 
 /// A headless context on the default device with validation + synchronization validation.
 pub fn validated_context() -> Context {
-    Context::headless(&ContextDesc { validation: true, ..Default::default() })
-        .expect("a Vulkan device with the validation layer (lavapipe in CI)")
+    Context::headless(&ContextDesc {
+        validation: true,
+        ..Default::default()
+    })
+    .expect("a Vulkan device with the validation layer (lavapipe in CI)")
 }
 
 pub fn assert_no_validation_messages(ctx: &Context) {
     let messages = ctx.validation_messages();
-    assert!(messages.is_empty(), "{} validation messages:\n{}", messages.len(), messages.join("\n"));
+    assert!(
+        messages.is_empty(),
+        "{} validation messages:\n{}",
+        messages.len(),
+        messages.join("\n")
+    );
 }
 
 /// Tolerances of GPU (f32) against the CPU reference (f64): positions within
@@ -27,11 +35,7 @@ pub fn assert_no_validation_messages(ctx: &Context) {
 pub const POSITION_TOLERANCE: f32 = 2e-4;
 pub const NORMAL_TOLERANCE: f32 = 2e-3;
 
-pub fn compare(
-    model: &Model,
-    cpu: (&[[f32; 3]], &[[f32; 3]]),
-    gpu: (&[[f32; 3]], &[[f32; 3]]),
-) {
+pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]], &[[f32; 3]])) {
     assert_eq!(cpu.0.len(), gpu.0.len());
     assert_eq!(cpu.1.len(), gpu.1.len());
     let mut worst = (0.0f32, 0usize);
@@ -81,7 +85,11 @@ pub fn compare(
         cpu.1[worst.1],
         gpu.1[worst.1]
     );
-    assert!(skipped * 100 <= cpu.1.len(), "{skipped} of {} normals ill-conditioned", cpu.1.len());
+    assert!(
+        skipped * 100 <= cpu.1.len(),
+        "{skipped} of {} normals ill-conditioned",
+        cpu.1.len()
+    );
 }
 
 fn dist(a: &[f32; 3], b: &[f32; 3]) -> f32 {

@@ -8,7 +8,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "rrskin", version, about = "Real-time enveloping with rotational regression")]
+#[command(
+    name = "rrskin",
+    version,
+    about = "Real-time enveloping with rotational regression"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -88,12 +92,33 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
         }
-        Command::Synth { grid, bones, proxies, influences, seed, output } => {
-            let m = random_model(Spec { grid, bones, proxies, influences }, seed)?;
+        Command::Synth {
+            grid,
+            bones,
+            proxies,
+            influences,
+            seed,
+            output,
+        } => {
+            let m = random_model(
+                Spec {
+                    grid,
+                    bones,
+                    proxies,
+                    influences,
+                },
+                seed,
+            )?;
             m.save(&output)?;
             eprintln!("wrote {} ({} vertices)", output.display(), m.vertex_count());
         }
-        Command::Profile { model, characters, frames, device, json } => {
+        Command::Profile {
+            model,
+            characters,
+            frames,
+            device,
+            json,
+        } => {
             let m = Model::load(&model)?;
             let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
             let p = rrskin_tools::profile::run(&m, characters, frames.max(1), choice, json)?;
@@ -111,7 +136,10 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     ("skinning", t.skin_ms),
                     ("normals", t.normals_ms),
                 ] {
-                    println!("  {name:<11} {ms:>9.3} ms  {:>5.1} %", 100.0 * ms / t.total_ms());
+                    println!(
+                        "  {name:<11} {ms:>9.3} ms  {:>5.1} %",
+                        100.0 * ms / t.total_ms()
+                    );
                 }
                 println!("  {:<11} {:>9.3} ms", "frame", p.total_ms);
                 println!(

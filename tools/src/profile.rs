@@ -63,7 +63,10 @@ pub fn run(
     device: DeviceChoice,
     quiet: bool,
 ) -> rrskin::Result<Profile> {
-    let ctx = Context::headless(&ContextDesc { device, validation: false })?;
+    let ctx = Context::headless(&ContextDesc {
+        device,
+        validation: false,
+    })?;
     let gpu_model = GpuModel::new(&ctx, model)?;
     let mut crowd = Crowd::new(&gpu_model, characters)?;
     let mut batch = Batch::new(&ctx)?;

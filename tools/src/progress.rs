@@ -11,7 +11,11 @@ pub struct Progress {
 impl Progress {
     /// Shows progress on stderr only if it is a terminal and `quiet` is false.
     pub fn new(label: &'static str, total: usize, quiet: bool) -> Progress {
-        Progress { label, total, enabled: !quiet && std::io::stderr().is_terminal() }
+        Progress {
+            label,
+            total,
+            enabled: !quiet && std::io::stderr().is_terminal(),
+        }
     }
 
     pub fn set(&self, done: usize) {
