@@ -43,6 +43,8 @@ pub struct Batch {
     queries: Option<vk::QueryPool>,
     pool: vk::CommandPool,
     cmd: vk::CommandBuffer,
+    /// Signalled by `run`'s submission; reused every frame (the per-frame path allocates nothing).
+    fence: vk::Fence,
     /// Whether queries were recorded (asking for unrecorded ones is a validation error).
     recorded: bool,
 }
@@ -62,8 +64,12 @@ impl Batch {
             queries: None,
             pool,
             cmd: vk::CommandBuffer::null(),
+            fence: vk::Fence::null(),
             recorded: false,
         };
+        // SAFETY: valid device.
+        batch.fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
+            .map_err(Error::vk("vkCreateFence"))?;
         let info = vk::CommandBufferAllocateInfo::default()
             .command_pool(pool)
             .level(vk::CommandBufferLevel::PRIMARY)
@@ -110,11 +116,9 @@ impl Batch {
             vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
         );
         let after_compute = (compute, vk::AccessFlags::SHADER_WRITE);
-        let reduced: Vec<&Crowd> = crowds
-            .iter()
-            .copied()
-            .filter(|c| c.model.proxy_count() > 0)
-            .collect();
+        // Crowds of reduced models (P > 0) run passes 1–2; plain LBS crowds only 3–4.
+        let reduced = || crowds.iter().filter(|c| c.model.proxy_count() > 0);
+        let any_reduced = reduced().next().is_some();
         let p = &s.pipelines;
         // SAFETY: cmd is recording (caller's contract); every handle belongs to this device and
         // lives as long as the crowds.
@@ -130,7 +134,7 @@ impl Batch {
                 (readers, vk::AccessFlags::SHADER_WRITE),
                 to_compute,
             );
-            for crowd in &reduced {
+            for crowd in reduced() {
                 dispatch_chunks(
                     device,
                     cmd,
@@ -142,10 +146,10 @@ impl Batch {
                 );
             }
             self.timestamp(cmd, 1);
-            if !reduced.is_empty() {
+            if any_reduced {
                 memory_barrier(device, cmd, after_compute, to_compute);
             }
-            for crowd in &reduced {
+            for crowd in reduced() {
                 dispatch_chunks(
                     device,
                     cmd,
@@ -157,7 +161,7 @@ impl Batch {
                 );
             }
             self.timestamp(cmd, 2);
-            if !reduced.is_empty() {
+            if any_reduced {
                 memory_barrier(device, cmd, after_compute, to_compute);
             }
             for crowd in crowds {
@@ -214,7 +218,7 @@ impl Batch {
             unsafe { device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
         recorded?;
         ended?;
-        shared.submit_wait(cmd)
+        shared.submit_wait(cmd, self.fence)
     }
 
     /// Per-pass GPU time of the last recorded frame. After `record`, call it only once the
@@ -282,6 +286,7 @@ impl Drop for Batch {
                 self.shared.device.destroy_query_pool(q, None);
             }
             self.shared.device.destroy_command_pool(self.pool, None);
+            self.shared.device.destroy_fence(self.fence, None);
         }
     }
 }

@@ -313,33 +313,36 @@ impl Shared {
         record(cmd)?;
         // SAFETY: recording.
         unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"))?;
-        self.submit_wait(cmd)
-    }
-
-    /// Submits one recorded command buffer and waits on a fence.
-    pub fn submit_wait(&self, cmd: vk::CommandBuffer) -> Result<()> {
         // SAFETY: valid device.
         let fence = unsafe {
             self.device
                 .create_fence(&vk::FenceCreateInfo::default(), None)
         }
         .map_err(Error::vk("vkCreateFence"))?;
-        let cmds = [cmd];
-        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
-        let result = {
-            let queue = lock(&self.queue);
-            // SAFETY: the queue is externally synchronised by the mutex; cmd is executable.
-            unsafe { self.device.queue_submit(*queue, &submit, fence) }
-                .map_err(Error::vk("vkQueueSubmit"))
-        }
-        .and_then(|()| {
-            // SAFETY: the fence belongs to this device.
-            unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
-                .map_err(Error::vk("vkWaitForFences"))
-        });
+        let result = self.submit_wait(cmd, fence);
         // SAFETY: the fence is signalled or was never submitted.
         unsafe { self.device.destroy_fence(fence, None) };
         result
+    }
+
+    /// Submits one recorded command buffer, waits on `fence` (unsignalled) and resets it.
+    pub fn submit_wait(&self, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
+        let cmds = [cmd];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        let queue = lock(&self.queue);
+        // SAFETY: the queue is externally synchronised by the mutex; cmd is executable; the
+        // fence belongs to this device and is unsignalled.
+        unsafe {
+            self.device
+                .queue_submit(*queue, &submit, fence)
+                .map_err(Error::vk("vkQueueSubmit"))?;
+            self.device
+                .wait_for_fences(&[fence], true, u64::MAX)
+                .map_err(Error::vk("vkWaitForFences"))?;
+            self.device
+                .reset_fences(&[fence])
+                .map_err(Error::vk("vkResetFences"))
+        }
     }
 }
 

@@ -72,6 +72,31 @@ impl GpuModel {
                 });
             }
         }
+        // Dispatch sizes that do not depend on the crowd: x over vertices (skin, normals) and
+        // over predictors + bones (predict), y over 4-proxy row blocks (GEMM).
+        let groups = context.limits().max_workgroup_count;
+        let (v, p, j) = (
+            model.vertex_count() as u64,
+            model.proxy_count() as u64,
+            model.bone_count() as u64,
+        );
+        for (what, needed, limit) in [
+            ("workgroups over vertices", v.div_ceil(64), groups[0]),
+            (
+                "workgroups over predictors and bones",
+                (p + j).div_ceil(64),
+                groups[0],
+            ),
+            ("workgroups over proxy row blocks", p.div_ceil(4), groups[1]),
+        ] {
+            if needed > limit as u64 {
+                return Err(crate::Error::DeviceLimit {
+                    what,
+                    needed,
+                    limit: limit as u64,
+                });
+            }
+        }
         let buffers = upload(
             &context.shared,
             &items,
