@@ -38,58 +38,63 @@ pub const NORMAL_TOLERANCE: f32 = 2e-3;
 pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]], &[[f32; 3]])) {
     assert_eq!(cpu.0.len(), gpu.0.len());
     assert_eq!(cpu.1.len(), gpu.1.len());
-    let mut worst = (0.0f32, 0usize);
-    for (i, (c, g)) in cpu.0.iter().zip(gpu.0).enumerate() {
-        let err = dist(c, g) / norm(c).max(1.0);
-        if err > worst.0 || err.is_nan() {
-            worst = (err, i);
-        }
-    }
+    let errors = cpu
+        .0
+        .iter()
+        .zip(gpu.0)
+        .map(|(c, g)| dist(c, g) / norm(c).max(1.0));
+    let (i, err) = worst(errors.enumerate());
     assert!(
-        worst.0 <= POSITION_TOLERANCE,
-        "position {} differs by {} (relative): cpu {:?} gpu {:?}",
-        worst.1,
-        worst.0,
-        cpu.0[worst.1],
-        gpu.0[worst.1]
+        err <= POSITION_TOLERANCE,
+        "position {i} differs by {err} (relative): cpu {:?} gpu {:?}",
+        cpu.0[i],
+        gpu.0[i]
     );
     let v = model.vertex_count();
     let (offsets, incident) = model.incidence();
     let tris = &model.parts().triangles;
-    let (mut skipped, mut worst) = (0usize, (0.0f32, 0usize));
-    for (i, (c, g)) in cpu.1.iter().zip(gpu.1).enumerate() {
-        let (base, a) = (i / v * v, i % v);
-        let p = |x: u32| DVec3::from(cpu.0[base + x as usize].map(f64::from));
-        let mut sum = DVec3::ZERO;
-        let mut area = 0.0;
-        for &t in &incident[offsets[a] as usize..offsets[a + 1] as usize] {
-            let [x, y, z] = tris[t as usize];
-            let cross = (p(y) - p(x)).cross(p(z) - p(x));
-            sum += cross;
-            area += cross.length();
-        }
-        if sum.length() < 0.05 * area {
-            skipped += 1;
-            continue;
-        }
-        let err = dist(c, g);
-        if err > worst.0 || err.is_nan() {
-            worst = (err, i);
-        }
-    }
+    let mut skipped = 0usize;
+    let errors = cpu
+        .1
+        .iter()
+        .zip(gpu.1)
+        .enumerate()
+        .filter_map(|(i, (c, g))| {
+            let (base, a) = (i / v * v, i % v);
+            let p = |x: u32| DVec3::from(cpu.0[base + x as usize].map(f64::from));
+            let (mut sum, mut area) = (DVec3::ZERO, 0.0);
+            for &t in &incident[offsets[a] as usize..offsets[a + 1] as usize] {
+                let [x, y, z] = tris[t as usize];
+                let cross = (p(y) - p(x)).cross(p(z) - p(x));
+                sum += cross;
+                area += cross.length();
+            }
+            if sum.length() < 0.05 * area {
+                skipped += 1;
+                return None;
+            }
+            Some((i, dist(c, g)))
+        });
+    let (i, err) = worst(errors);
     assert!(
-        worst.0 <= NORMAL_TOLERANCE,
-        "normal {} differs by {}: cpu {:?} gpu {:?}",
-        worst.1,
-        worst.0,
-        cpu.1[worst.1],
-        gpu.1[worst.1]
+        err <= NORMAL_TOLERANCE,
+        "normal {i} differs by {err}: cpu {:?} gpu {:?}",
+        cpu.1[i],
+        gpu.1[i]
     );
     assert!(
         skipped * 100 <= cpu.1.len(),
         "{skipped} of {} normals ill-conditioned",
         cpu.1.len()
     );
+}
+
+/// The largest error and its index; NaN counts as worst.
+fn worst(errors: impl Iterator<Item = (usize, f32)>) -> (usize, f32) {
+    errors.fold(
+        (0, 0.0),
+        |w, (i, e)| if e > w.1 || e.is_nan() { (i, e) } else { w },
+    )
 }
 
 fn dist(a: &[f32; 3], b: &[f32; 3]) -> f32 {
