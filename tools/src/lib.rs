@@ -1,6 +1,18 @@
-//! rrskin's offline tools: model inspection, synthetic models and runtime profiling (and, as
-//! the project grows, import, training and evaluation). The `rrskin` binary is a thin CLI over
-//! these modules.
+//! rrskin's offline tools: example sets, training (SSD, rotational regression, Poisson
+//! reconstruction), evaluation, model inspection, synthetic models and runtime profiling. The
+//! `rrskin` binary is a thin CLI over these modules.
+//!
+//! Letters as everywhere in the project: V vertices, T triangles, J bones, N example poses,
+//! K influences per vertex; i indexes poses, a vertices, k triangles, b bones.
 
+pub mod eval;
+pub mod example_set;
+pub mod full_model;
+pub mod gradients;
+pub mod linalg;
+pub mod poisson;
 pub mod profile;
 pub mod progress;
+pub mod rotreg;
+pub mod scale_shear;
+pub mod ssd;

@@ -20,6 +20,20 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Train every method on the training poses of SET and report the enveloping error.
+    Eval {
+        /// An example-set folder (NumPy layout).
+        set: PathBuf,
+        /// One JSON object on stdout (the contract of ARCHITECTURE.md), no progress.
+        #[arg(long)]
+        json: bool,
+        /// Report leave-one-out error over the training poses as the test error.
+        #[arg(long)]
+        loocv: bool,
+        /// Influences per vertex for SSD.
+        #[arg(long, default_value_t = 4)]
+        influences: usize,
+    },
     /// Print a model file's dimensions (validates it fully).
     Info {
         model: PathBuf,
@@ -71,6 +85,31 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
+        Command::Eval {
+            set,
+            json,
+            loocv,
+            influences,
+        } => {
+            let examples = rrskin_tools::example_set::ExampleSet::load(&set)?;
+            if !json {
+                examples
+                    .warnings
+                    .iter()
+                    .for_each(|w| eprintln!("warning: {w}"));
+            }
+            let options = rrskin_tools::eval::Options {
+                influences,
+                loocv,
+                quiet: json,
+            };
+            let report = rrskin_tools::eval::run(&examples, &options)?;
+            if json {
+                println!("{}", report.to_json());
+            } else {
+                println!("{}", report.table(&set.display().to_string()));
+            }
+        }
         Command::Info { model, json } => {
             let m = Model::load(&model)?;
             let dims = serde_json::json!({

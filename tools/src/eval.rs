@@ -1,0 +1,336 @@
+//! `rrskin eval`: trains every method on the training poses and reports the enveloping error
+//! (paper §7.1, METHOD.md §10) on training and test poses.
+//!
+//! `EE = sqrt(Σ_i Σ_a |y_a(q_i) − y_a^i|² / Σ_i Σ_a |r_a(q_i) − y_a^i|²)` in percent, r the best
+//! rigid predictor (one bone per vertex, chosen on the training poses). The full model's two
+//! choices — the near-rigid set F (percentile of SSD training error) and the scale/shear ridge —
+//! are made by k-fold cross-validation inside the training poses; test poses are never looked at.
+
+use crate::example_set::ExampleSet;
+use crate::full_model::{self, FullModel, Prepared};
+use crate::progress::Progress;
+use crate::ssd::{self, Skinning};
+use glam::DVec3;
+use std::time::Instant;
+
+/// Folds of the training-pose cross-validation.
+pub const FOLDS: usize = 4;
+/// Candidate F percentiles and scale/shear ridges (per pose) the cross-validation picks from.
+pub const PERCENTILES: [f64; 5] = [50.0, 70.0, 80.0, 90.0, 95.0];
+pub const RIDGES: [f64; 4] = [1e-3, 1e-2, 1e-1, 1.0];
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Errors {
+    pub train: f64,
+    pub test: Option<f64>,
+}
+
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub bones: usize,
+    pub train_poses: usize,
+    pub test_poses: usize,
+    pub rigid: Errors,
+    pub ssd: Errors,
+    pub rr_full: Errors,
+    pub ssd_seconds: f64,
+    pub rr_full_seconds: f64,
+    /// F percentile and ridge chosen by cross-validation.
+    pub percentile: f64,
+    pub ridge: f64,
+    /// Wall time per stage, in order.
+    pub stages: Vec<(&'static str, f64)>,
+    /// Whether "test" is the leave-one-out error over the training poses.
+    pub loocv: bool,
+}
+
+impl Report {
+    pub fn to_json(&self) -> serde_json::Value {
+        let errors = |e: &Errors| serde_json::json!({"train": e.train, "test": e.test});
+        serde_json::json!({
+            "vertices": self.vertices, "triangles": self.triangles, "bones": self.bones,
+            "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": null,
+            "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "rr_full": errors(&self.rr_full),
+            "rr_reduced": null,
+            "seconds": {"ssd": self.ssd_seconds, "rr_full": self.rr_full_seconds, "rr_reduced": null},
+        })
+    }
+
+    pub fn table(&self, name: &str) -> String {
+        let pct = |x: Option<f64>| x.map_or("     –".to_string(), |x| format!("{x:6.1}"));
+        let test_label = if self.loocv {
+            "LOOCV EE %"
+        } else {
+            "test EE %"
+        };
+        let mut s = format!(
+            "{name}: V = {}, T = {}, J = {}; {} training poses, {} test poses\n\
+             {:<26} {:>10} {:>10} {:>9}\n",
+            self.vertices,
+            self.triangles,
+            self.bones,
+            self.train_poses,
+            self.test_poses,
+            "method",
+            "train EE %",
+            test_label,
+            "seconds"
+        );
+        for (label, e, secs) in [
+            ("rigid", &self.rigid, None),
+            ("SSD", &self.ssd, Some(self.ssd_seconds)),
+            (
+                "rotational regression",
+                &self.rr_full,
+                Some(self.rr_full_seconds),
+            ),
+        ] {
+            s += &format!(
+                "{label:<26} {:>10} {:>10} {:>9}\n",
+                pct(Some(e.train)),
+                pct(e.test),
+                secs.map_or(String::new(), |t| format!("{t:.2}"))
+            );
+        }
+        s += &format!(
+            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e} (chosen by {FOLDS}-fold cross-validation on the training poses)\nstages:",
+            self.percentile, self.ridge
+        );
+        for (stage, t) in &self.stages {
+            s += &format!(" {stage} {t:.2} s;");
+        }
+        s
+    }
+}
+
+/// Σ squared distance between predicted and true meshes of `poses`.
+fn squared_error(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]) -> f64 {
+    poses
+        .iter()
+        .zip(predicted)
+        .map(|(&i, y)| {
+            y.iter()
+                .zip(&set.poses[i].vertices)
+                .map(|(a, b)| (*a - *b).length_squared())
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+fn deform_all(set: &ExampleSet, skin: &Skinning, poses: &[usize]) -> Vec<Vec<DVec3>> {
+    poses
+        .iter()
+        .map(|&i| skin.deform(&set.rest, &set.poses[i].bones))
+        .collect()
+}
+
+/// EE in percent of `predicted` against the rigid predictor on the same poses.
+pub fn enveloping_error(
+    set: &ExampleSet,
+    poses: &[usize],
+    predicted: &[Vec<DVec3>],
+    rigid: &Skinning,
+) -> f64 {
+    let reference = squared_error(set, poses, &deform_all(set, rigid, poses));
+    100.0 * (squared_error(set, poses, predicted) / reference).sqrt()
+}
+
+/// What a training run on some poses produces, for every (percentile, ridge) candidate.
+struct FoldFit {
+    ssd: Skinning,
+    ssd_error: Vec<f64>,
+    rotations: full_model::Rotations,
+}
+
+fn fit_fold(set: &ExampleSet, prep: &Prepared, train: &[usize], k: usize) -> FoldFit {
+    let errors = ssd::rigid_errors(set, train);
+    let ssd = ssd::fit(set, train, &errors, k);
+    let ssd_error = per_vertex_error(set, train, &ssd);
+    let nearby = full_model::nearby_bones(set, &ssd);
+    let rotations = full_model::fit_rotations(set, prep, train, &nearby);
+    FoldFit {
+        ssd,
+        ssd_error,
+        rotations,
+    }
+}
+
+/// RMS over `poses` of each vertex's error under `skin`.
+fn per_vertex_error(set: &ExampleSet, poses: &[usize], skin: &Skinning) -> Vec<f64> {
+    let mut sum = vec![0.0; set.vertex_count()];
+    for y in poses
+        .iter()
+        .map(|&i| (i, skin.deform(&set.rest, &set.poses[i].bones)))
+    {
+        for (a, p) in y.1.iter().enumerate() {
+            sum[a] += (*p - set.poses[y.0].vertices[a]).length_squared();
+        }
+    }
+    sum.iter()
+        .map(|s| (s / poses.len().max(1) as f64).sqrt())
+        .collect()
+}
+
+/// Cross-validated squared error of every (percentile, ridge) pair, summed over folds.
+fn choose(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    k: usize,
+    progress: &Progress,
+    step: &mut usize,
+) -> Result<(f64, f64), Box<dyn std::error::Error>> {
+    let mut score = vec![0.0; PERCENTILES.len() * RIDGES.len()];
+    let folds = FOLDS.min(train.len());
+    if folds < 2 {
+        return Ok((90.0, 1e-2)); // too few poses to cross-validate: a middle choice
+    }
+    for fold in 0..folds {
+        let inner: Vec<usize> = train
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| n % folds != fold)
+            .map(|(_, &i)| i)
+            .collect();
+        let held: Vec<usize> = train
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| n % folds == fold)
+            .map(|(_, &i)| i)
+            .collect();
+        let fit = fit_fold(set, prep, &inner, k);
+        for (r, &ridge) in RIDGES.iter().enumerate() {
+            let stretches = full_model::fit_stretches(set, prep, &inner, &fit.rotations, ridge);
+            for (p, &percentile) in PERCENTILES.iter().enumerate() {
+                let fixed = full_model::near_rigid(set, &fit.ssd_error, percentile);
+                let model = FullModel::new(set, fit.rotations.clone(), stretches.clone(), fixed)?;
+                let predicted = model.predict(set, prep, &fit.ssd, &held);
+                score[p * RIDGES.len() + r] += squared_error(set, &held, &predicted);
+            }
+        }
+        *step += 1;
+        progress.set(*step);
+    }
+    let best = (0..score.len())
+        .min_by(|&a, &b| score[a].total_cmp(&score[b]))
+        .unwrap_or(0);
+    Ok((
+        PERCENTILES[best / RIDGES.len()],
+        RIDGES[best % RIDGES.len()],
+    ))
+}
+
+pub struct Options {
+    /// K for SSD.
+    pub influences: usize,
+    /// Replace the test error by leave-one-out over the training poses.
+    pub loocv: bool,
+    /// No progress output (for --json).
+    pub quiet: bool,
+}
+
+pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::error::Error>> {
+    let k = options.influences;
+    let (train, test) = (set.train(), set.test());
+    let mut stages = Vec::new();
+    let mut clock = Instant::now();
+    let mut lap = |name: &'static str, stages: &mut Vec<(&'static str, f64)>| {
+        stages.push((name, clock.elapsed().as_secs_f64()));
+        clock = Instant::now();
+    };
+    let total_steps = FOLDS + 2 + if options.loocv { train.len() } else { 0 };
+    let progress = Progress::new("training", total_steps, options.quiet);
+    let mut step = 0;
+
+    let prep = Prepared::new(set);
+    lap("gradients", &mut stages);
+
+    let ssd_start = Instant::now();
+    let rigid_errors = ssd::rigid_errors(set, &train);
+    let rigid = Skinning::rigid(&ssd::rigid_bones(&rigid_errors));
+    let ssd = ssd::fit(set, &train, &rigid_errors, k);
+    let ssd_seconds = ssd_start.elapsed().as_secs_f64();
+    lap("ssd", &mut stages);
+    step += 1;
+    progress.set(step);
+
+    let rr_start = Instant::now();
+    let (percentile, ridge) = choose(set, &prep, &train, k, &progress, &mut step)?;
+    lap("cross-validation", &mut stages);
+    let fit = FoldFit {
+        ssd_error: per_vertex_error(set, &train, &ssd),
+        rotations: full_model::fit_rotations(
+            set,
+            &prep,
+            &train,
+            &full_model::nearby_bones(set, &ssd),
+        ),
+        ssd: ssd.clone(),
+    };
+    lap("rotations", &mut stages);
+    let stretches = full_model::fit_stretches(set, &prep, &train, &fit.rotations, ridge);
+    let fixed = full_model::near_rigid(set, &fit.ssd_error, percentile);
+    let model = FullModel::new(set, fit.rotations.clone(), stretches, fixed)?;
+    let rr_full_seconds = rr_start.elapsed().as_secs_f64();
+    lap("scale/shear + Poisson factor", &mut stages);
+    step += 1;
+    progress.set(step);
+
+    let ee =
+        |poses: &[usize], predicted: &[Vec<DVec3>]| enveloping_error(set, poses, predicted, &rigid);
+    let errors = |model_ee: &dyn Fn(&[usize]) -> f64| Errors {
+        train: model_ee(&train),
+        test: (!test.is_empty()).then(|| model_ee(&test)),
+    };
+    let rigid_e = errors(&|p| ee(p, &deform_all(set, &rigid, p)));
+    let ssd_e = errors(&|p| ee(p, &deform_all(set, &ssd, p)));
+    let mut rr_e = errors(&|p| ee(p, &model.predict(set, &prep, &ssd, p)));
+    lap("evaluation", &mut stages);
+
+    let (mut rigid_e, mut ssd_e) = (rigid_e, ssd_e);
+    if options.loocv {
+        let (mut pred_ssd, mut pred_rr, mut pred_rigid) = (Vec::new(), Vec::new(), Vec::new());
+        for (n, &i) in train.iter().enumerate() {
+            let others: Vec<usize> = train.iter().copied().filter(|&t| t != i).collect();
+            let fold = fit_fold(set, &prep, &others, k);
+            let stretches = full_model::fit_stretches(set, &prep, &others, &fold.rotations, ridge);
+            let fixed = full_model::near_rigid(set, &fold.ssd_error, percentile);
+            let m = FullModel::new(set, fold.rotations, stretches, fixed)?;
+            pred_rr.extend(m.predict(set, &prep, &fold.ssd, &[i]));
+            pred_ssd.extend(deform_all(set, &fold.ssd, &[i]));
+            pred_rigid.extend(deform_all(
+                set,
+                &Skinning::rigid(&ssd::rigid_bones(&ssd::rigid_errors(set, &others))),
+                &[i],
+            ));
+            progress.set(step + n + 1);
+        }
+        let reference = squared_error(set, &train, &pred_rigid);
+        let loo = |pred: &[Vec<DVec3>]| {
+            Some(100.0 * (squared_error(set, &train, pred) / reference).sqrt())
+        };
+        rigid_e.test = Some(100.0);
+        ssd_e.test = loo(&pred_ssd);
+        rr_e.test = loo(&pred_rr);
+        lap("leave-one-out", &mut stages);
+    }
+    progress.finish();
+    Ok(Report {
+        vertices: set.vertex_count(),
+        triangles: set.faces.len(),
+        bones: set.bone_count(),
+        train_poses: train.len(),
+        test_poses: test.len(),
+        rigid: rigid_e,
+        ssd: ssd_e,
+        rr_full: rr_e,
+        ssd_seconds,
+        rr_full_seconds,
+        percentile,
+        ridge,
+        stages,
+        loocv: options.loocv,
+    })
+}

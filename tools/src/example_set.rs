@@ -1,0 +1,435 @@
+//! Example sets: N pairs (skeleton pose q_i, deformed mesh y_i) from a black-box rig, read from
+//! the NumPy folder layout of ../shared/data/README.md and validated. Errors name the file and
+//! the index of what is wrong; oddities that do not stop training (degenerate triangles,
+//! unreferenced vertices) are collected as warnings.
+
+use glam::{DMat3, DVec3};
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Tolerance on the rotation part of a pose transform: |QᵀQ − I|∞ and |det Q − 1|.
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// A bone transform relative to the rest pose: x ↦ q x + d.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bone {
+    pub q: DMat3,
+    pub d: DVec3,
+}
+
+impl Bone {
+    pub fn apply(&self, x: DVec3) -> DVec3 {
+        self.q * x + self.d
+    }
+
+    /// The 3x4 row-major form the runtime takes.
+    pub fn to_affine(&self) -> rrskin::predict::Affine {
+        let (q, d) = (self.q, self.d);
+        [
+            q.x_axis.x, q.y_axis.x, q.z_axis.x, d.x, q.x_axis.y, q.y_axis.y, q.z_axis.y, d.y,
+            q.x_axis.z, q.y_axis.z, q.z_axis.z, d.z,
+        ]
+        .map(|x| x as f32)
+    }
+}
+
+/// One example: bone transforms (J) and the rig's vertex positions (V).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pose {
+    pub bones: Vec<Bone>,
+    pub vertices: Vec<DVec3>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExampleSet {
+    /// V rest positions ŷ.
+    pub rest: Vec<DVec3>,
+    /// T triangles.
+    pub faces: Vec<[usize; 3]>,
+    /// J parents (None for roots); every chain ends at a root.
+    pub parents: Vec<Option<usize>>,
+    /// N examples.
+    pub poses: Vec<Pose>,
+    /// N flags: true for a held-out test pose (split.npy = 1).
+    pub is_test: Vec<bool>,
+    pub bone_names: Option<Vec<String>>,
+    pub warnings: Vec<String>,
+}
+
+/// A bad input file: which file, and what is wrong with it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputError {
+    pub file: PathBuf,
+    pub message: String,
+}
+
+impl fmt::Display for InputError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.file.display(), self.message)
+    }
+}
+
+impl std::error::Error for InputError {}
+
+fn bad(file: &Path, message: impl Into<String>) -> InputError {
+    InputError {
+        file: file.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// An NPY array read as f64 (from f4/f8) or i64 (from i4/i8), C order.
+struct Array<T> {
+    shape: Vec<u64>,
+    data: Vec<T>,
+}
+
+fn open(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>, InputError> {
+    let file = std::fs::File::open(path).map_err(|e| bad(path, format!("cannot open: {e}")))?;
+    let npy = npyz::NpyFile::new(std::io::BufReader::new(file))
+        .map_err(|e| bad(path, format!("not a valid .npy file: {e}")))?;
+    if npy.order() == npyz::Order::Fortran {
+        return Err(bad(path, "Fortran-ordered array; save it in C order"));
+    }
+    Ok(npy)
+}
+
+fn read_floats(path: &Path) -> Result<Array<f64>, InputError> {
+    let npy = open(path)?;
+    let shape = npy.shape().to_vec();
+    let read = |e: std::io::Error| bad(path, format!("truncated or unreadable data: {e}"));
+    let data = match npy.try_data::<f32>() {
+        Ok(r) => r
+            .map(|x| x.map(f64::from))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(read)?,
+        Err(npy) => match npy.try_data::<f64>() {
+            Ok(r) => r.collect::<Result<Vec<_>, _>>().map_err(read)?,
+            Err(npy) => {
+                return Err(bad(
+                    path,
+                    format!("dtype {} is not a float32/float64", npy.dtype().descr()),
+                ))
+            }
+        },
+    };
+    if let Some(i) = data.iter().position(|x| !x.is_finite()) {
+        return Err(bad(
+            path,
+            format!("element {i} ({}) is not finite", index_text(&shape, i)),
+        ));
+    }
+    Ok(Array { shape, data })
+}
+
+fn read_ints(path: &Path) -> Result<Array<i64>, InputError> {
+    let npy = open(path)?;
+    let shape = npy.shape().to_vec();
+    let read = |e: std::io::Error| bad(path, format!("truncated or unreadable data: {e}"));
+    let data = match npy.try_data::<i32>() {
+        Ok(r) => r
+            .map(|x| x.map(i64::from))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(read)?,
+        Err(npy) => match npy.try_data::<i64>() {
+            Ok(r) => r.collect::<Result<Vec<_>, _>>().map_err(read)?,
+            Err(npy) => {
+                return Err(bad(
+                    path,
+                    format!("dtype {} is not an int32/int64", npy.dtype().descr()),
+                ))
+            }
+        },
+    };
+    Ok(Array { shape, data })
+}
+
+/// "[i, j, k]" of flat index `flat` in an array of `shape`.
+fn index_text(shape: &[u64], mut flat: usize) -> String {
+    let mut idx = vec![0u64; shape.len()];
+    for (d, &n) in shape.iter().enumerate().rev() {
+        if n > 0 {
+            idx[d] = flat as u64 % n;
+            flat /= n as usize;
+        }
+    }
+    format!("{idx:?}")
+}
+
+fn expect_shape(
+    path: &Path,
+    shape: &[u64],
+    expected: &[Option<u64>],
+    names: &str,
+) -> Result<(), InputError> {
+    let ok = shape.len() == expected.len()
+        && shape
+            .iter()
+            .zip(expected)
+            .all(|(s, e)| e.is_none_or(|e| e == *s));
+    if !ok {
+        return Err(bad(path, format!("shape {shape:?}, expected {names}")));
+    }
+    Ok(())
+}
+
+impl ExampleSet {
+    /// Reads and validates a NumPy example-set folder.
+    pub fn load(dir: impl AsRef<Path>) -> Result<ExampleSet, InputError> {
+        let dir = dir.as_ref();
+        if !dir.is_dir() {
+            return Err(bad(dir, "not a folder (expected a NumPy example set)"));
+        }
+        let f = |name: &str| dir.join(name);
+
+        let rest_path = f("rest_vertices.npy");
+        let rest = read_floats(&rest_path)?;
+        expect_shape(&rest_path, &rest.shape, &[None, Some(3)], "(V, 3)")?;
+        let v = rest.shape[0] as usize;
+        if v == 0 {
+            return Err(bad(&rest_path, "no vertices"));
+        }
+
+        let faces_path = f("faces.npy");
+        let faces = read_ints(&faces_path)?;
+        expect_shape(&faces_path, &faces.shape, &[None, Some(3)], "(T, 3)")?;
+        if let Some(i) = faces.data.iter().position(|&x| x < 0 || x >= v as i64) {
+            return Err(bad(
+                &faces_path,
+                format!(
+                    "face {} has vertex index {} outside 0..{v}",
+                    i / 3,
+                    faces.data[i]
+                ),
+            ));
+        }
+
+        let parents_path = f("bone_parents.npy");
+        let parents = read_ints(&parents_path)?;
+        expect_shape(&parents_path, &parents.shape, &[None], "(J,)")?;
+        let j = parents.shape[0] as usize;
+        if j == 0 {
+            return Err(bad(&parents_path, "no bones"));
+        }
+        if let Some(b) = parents.data.iter().position(|&p| p < -1 || p >= j as i64) {
+            return Err(bad(
+                &parents_path,
+                format!("bone {b} has parent {} outside -1..{j}", parents.data[b]),
+            ));
+        }
+        let parents: Vec<Option<usize>> = parents
+            .data
+            .iter()
+            .map(|&p| usize::try_from(p).ok())
+            .collect();
+        if let Some(b) = cycle(&parents) {
+            return Err(bad(
+                &parents_path,
+                format!("the parents of bone {b} form a cycle"),
+            ));
+        }
+
+        let transforms_path = f("pose_transforms.npy");
+        let transforms = read_floats(&transforms_path)?;
+        expect_shape(
+            &transforms_path,
+            &transforms.shape,
+            &[None, Some(j as u64), Some(3), Some(4)],
+            &format!("(N, J = {j}, 3, 4)"),
+        )?;
+        let n = transforms.shape[0] as usize;
+        if n == 0 {
+            return Err(bad(&transforms_path, "no poses"));
+        }
+
+        let vertices_path = f("pose_vertices.npy");
+        let vertices = read_floats(&vertices_path)?;
+        expect_shape(
+            &vertices_path,
+            &vertices.shape,
+            &[Some(n as u64), Some(v as u64), Some(3)],
+            &format!("(N = {n}, V = {v}, 3)"),
+        )?;
+
+        let split_path = f("split.npy");
+        let is_test = if split_path.exists() {
+            let split = read_ints(&split_path)?;
+            expect_shape(
+                &split_path,
+                &split.shape,
+                &[Some(n as u64)],
+                &format!("(N = {n},)"),
+            )?;
+            if let Some(i) = split.data.iter().position(|&s| s != 0 && s != 1) {
+                return Err(bad(
+                    &split_path,
+                    format!(
+                        "pose {i} has split {} (must be 0 = train or 1 = test)",
+                        split.data[i]
+                    ),
+                ));
+            }
+            split.data.iter().map(|&s| s == 1).collect()
+        } else {
+            vec![false; n]
+        };
+        if is_test.iter().all(|&t| t) {
+            return Err(bad(
+                &split_path,
+                "every pose is a test pose: nothing to train on",
+            ));
+        }
+
+        let names_path = f("bone_names.json");
+        let bone_names = if names_path.exists() {
+            let text = std::fs::read_to_string(&names_path)
+                .map_err(|e| bad(&names_path, e.to_string()))?;
+            let names: Vec<String> = serde_json::from_str(&text)
+                .map_err(|e| bad(&names_path, format!("not a JSON list of strings: {e}")))?;
+            if names.len() != j {
+                return Err(bad(
+                    &names_path,
+                    format!("{} names for {j} bones", names.len()),
+                ));
+            }
+            Some(names)
+        } else {
+            None
+        };
+
+        let mut poses = Vec::with_capacity(n);
+        for i in 0..n {
+            let mut bones = Vec::with_capacity(j);
+            for b in 0..j {
+                let t = &transforms.data[(i * j + b) * 12..(i * j + b + 1) * 12];
+                let q = DMat3::from_cols(
+                    DVec3::new(t[0], t[4], t[8]),
+                    DVec3::new(t[1], t[5], t[9]),
+                    DVec3::new(t[2], t[6], t[10]),
+                );
+                let error = rotation_error(q);
+                if error > ROTATION_TOLERANCE {
+                    return Err(bad(
+                        &transforms_path,
+                        format!(
+                            "pose {i}, bone {b}: the 3x3 part is not a rotation (error {error:.2e} > {ROTATION_TOLERANCE:e}); transforms must be rigid"
+                        ),
+                    ));
+                }
+                bones.push(Bone {
+                    q,
+                    d: DVec3::new(t[3], t[7], t[11]),
+                });
+            }
+            let y = &vertices.data[i * v * 3..(i + 1) * v * 3];
+            poses.push(Pose {
+                bones,
+                vertices: y
+                    .chunks_exact(3)
+                    .map(|p| DVec3::new(p[0], p[1], p[2]))
+                    .collect(),
+            });
+        }
+
+        let mut set = ExampleSet {
+            rest: rest
+                .data
+                .chunks_exact(3)
+                .map(|p| DVec3::new(p[0], p[1], p[2]))
+                .collect(),
+            faces: faces
+                .data
+                .chunks_exact(3)
+                .map(|t| [t[0] as usize, t[1] as usize, t[2] as usize])
+                .collect(),
+            parents,
+            poses,
+            is_test,
+            bone_names,
+            warnings: Vec::new(),
+        };
+        set.warnings = set.mesh_warnings(&faces_path);
+        Ok(set)
+    }
+
+    /// Degenerate triangles and unreferenced vertices (training continues: degenerate triangles
+    /// get an identity gradient, unreferenced vertices follow SSD).
+    fn mesh_warnings(&self, faces_path: &Path) -> Vec<String> {
+        let mut warnings = Vec::new();
+        let scale = self
+            .rest
+            .iter()
+            .fold(0.0f64, |m, p| m.max(p.length()))
+            .max(1e-12);
+        let degenerate: Vec<usize> = self
+            .faces
+            .iter()
+            .enumerate()
+            .filter(|(_, [a, b, c])| {
+                let (a, b, c) = (self.rest[*a], self.rest[*b], self.rest[*c]);
+                (b - a).cross(c - a).length() <= 1e-12 * scale * scale
+            })
+            .map(|(k, _)| k)
+            .collect();
+        if !degenerate.is_empty() {
+            warnings.push(format!(
+                "{}: {} degenerate (zero-area) triangles, first {:?}",
+                faces_path.display(),
+                degenerate.len(),
+                &degenerate[..degenerate.len().min(5)]
+            ));
+        }
+        let mut used = vec![false; self.rest.len()];
+        self.faces.iter().flatten().for_each(|&a| used[a] = true);
+        let unused: Vec<usize> = (0..used.len()).filter(|&a| !used[a]).collect();
+        if !unused.is_empty() {
+            warnings.push(format!(
+                "{}: {} vertices belong to no triangle, first {:?}",
+                faces_path.display(),
+                unused.len(),
+                &unused[..unused.len().min(5)]
+            ));
+        }
+        warnings
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    pub fn bone_count(&self) -> usize {
+        self.parents.len()
+    }
+
+    /// Indices of the training poses (split 0).
+    pub fn train(&self) -> Vec<usize> {
+        (0..self.poses.len())
+            .filter(|&i| !self.is_test[i])
+            .collect()
+    }
+
+    /// Indices of the held-out test poses (split 1).
+    pub fn test(&self) -> Vec<usize> {
+        (0..self.poses.len()).filter(|&i| self.is_test[i]).collect()
+    }
+}
+
+/// |QᵀQ − I|∞ and |det Q − 1|, whichever is larger.
+pub fn rotation_error(q: DMat3) -> f64 {
+    let g = q.transpose() * q - DMat3::IDENTITY;
+    let worst = g.to_cols_array().iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    worst.max((q.determinant() - 1.0).abs())
+}
+
+fn cycle(parents: &[Option<usize>]) -> Option<usize> {
+    (0..parents.len()).find(|&start| {
+        let mut b = start;
+        for _ in 0..=parents.len() {
+            match parents[b] {
+                Some(p) => b = p,
+                None => return false,
+            }
+        }
+        true
+    })
+}

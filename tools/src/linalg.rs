@@ -1,0 +1,322 @@
+//! Small dense linear algebra for training: 3x3 SVD / polar decomposition / Procrustes (called
+//! hundreds of thousands of times, so closed-form Jacobi rather than a general solver), and
+//! non-negative least squares on normal equations (Lawson–Hanson active set).
+
+use glam::{DMat3, DVec3};
+
+/// Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations.
+/// Returns (eigenvalues descending, eigenvectors as the columns of a rotation).
+pub fn sym_eigen3(a: DMat3) -> (DVec3, DMat3) {
+    let mut m = [[0.0f64; 3]; 3];
+    for (c, col) in [a.x_axis, a.y_axis, a.z_axis].iter().enumerate() {
+        m[0][c] = col.x;
+        m[1][c] = col.y;
+        m[2][c] = col.z;
+    }
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _sweep in 0..32 {
+        let off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
+        let diag = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
+        if off <= 1e-30 * diag.max(1e-300) {
+            break;
+        }
+        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            if m[p][q].abs() < 1e-300 {
+                continue;
+            }
+            let theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let t = if theta == 0.0 { 1.0 } else { t };
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            for k in 0..3 {
+                let (mkp, mkq) = (m[k][p], m[k][q]);
+                m[k][p] = c * mkp - s * mkq;
+                m[k][q] = s * mkp + c * mkq;
+            }
+            for k in 0..3 {
+                let (mpk, mqk) = (m[p][k], m[q][k]);
+                m[p][k] = c * mpk - s * mqk;
+                m[q][k] = s * mpk + c * mqk;
+            }
+            for row in v.iter_mut() {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| m[j][j].total_cmp(&m[i][i]));
+    let values = DVec3::new(
+        m[order[0]][order[0]],
+        m[order[1]][order[1]],
+        m[order[2]][order[2]],
+    );
+    let col = |i: usize| DVec3::new(v[0][i], v[1][i], v[2][i]);
+    let mut vectors = DMat3::from_cols(col(order[0]), col(order[1]), col(order[2]));
+    if vectors.determinant() < 0.0 {
+        vectors.z_axis = -vectors.z_axis;
+    }
+    (values, vectors)
+}
+
+/// SVD `a = U diag(σ) Vᵀ` with U, V rotations and σ sorted by magnitude, the last one carrying
+/// the sign of det(a) (a "signed" SVD: U Vᵀ is always a proper rotation).
+pub fn svd3(a: DMat3) -> (DMat3, DVec3, DMat3) {
+    let (lambda, v) = sym_eigen3(a.transpose() * a);
+    let sigma = lambda.max(DVec3::ZERO).to_array().map(f64::sqrt);
+    let av = [a * v.x_axis, a * v.y_axis, a * v.z_axis];
+    let scale = sigma[0].max(1e-300);
+    // Columns of U from A v_i / σ_i where well-conditioned; complete to an orthonormal frame.
+    let mut u0 = if sigma[0] > 1e-12 * scale {
+        av[0] / sigma[0]
+    } else {
+        DVec3::X
+    };
+    u0 = u0.normalize_or(DVec3::X);
+    let mut u1 = av[1] - u0 * u0.dot(av[1]);
+    if u1.length() <= 1e-9 * scale {
+        u1 = u0.any_orthonormal_vector();
+    }
+    u1 = u1.normalize();
+    let u2 = u0.cross(u1);
+    let u = DMat3::from_cols(u0, u1, u2);
+    // σ₂ = u₂ · A v₂ is negative when det(A) < 0: U and V stay rotations.
+    let s2 = u2.dot(av[2]);
+    (u, DVec3::new(sigma[0], u1.dot(av[1]), s2), v)
+}
+
+/// Polar decomposition `d = R S`, R a proper rotation, S symmetric (METHOD.md §1).
+pub fn polar(d: DMat3) -> (DMat3, DMat3) {
+    let (u, sigma, v) = svd3(d);
+    let r = u * v.transpose();
+    let s = v * DMat3::from_diagonal(sigma) * v.transpose();
+    (r, s)
+}
+
+/// The rotation nearest to `m` (orthogonal Procrustes): argmax tr(Wᵀ m) over SO(3).
+pub fn procrustes(m: DMat3) -> DMat3 {
+    let (u, _, v) = svd3(m);
+    u * v.transpose()
+}
+
+/// Geodesic angle between two rotations.
+pub fn rotation_angle(a: DMat3, b: DMat3) -> f64 {
+    let r = a.transpose() * b;
+    let c = ((r.x_axis.x + r.y_axis.y + r.z_axis.z - 1.0) * 0.5).clamp(-1.0, 1.0);
+    let v = DVec3::new(
+        r.y_axis.z - r.z_axis.y,
+        r.z_axis.x - r.x_axis.z,
+        r.x_axis.y - r.y_axis.x,
+    );
+    (0.5 * v.length()).atan2(c)
+}
+
+/// min |A w − b|² subject to w ≥ 0, given the normal equations G = AᵀA (n x n, row-major,
+/// symmetric positive semi-definite) and h = Aᵀb. Lawson–Hanson active set; n is small (≤ 16).
+pub fn nnls(g: &[f64], h: &[f64]) -> Vec<f64> {
+    let n = h.len();
+    assert_eq!(g.len(), n * n, "nnls: G must be n x n");
+    let mut w = vec![0.0; n];
+    let mut passive = vec![false; n];
+    for _outer in 0..3 * n + 10 {
+        // Gradient of ½|Aw − b|²: −(h − G w); pick the most negative among the active set.
+        let grad: Vec<f64> = (0..n)
+            .map(|i| h[i] - (0..n).map(|j| g[i * n + j] * w[j]).sum::<f64>())
+            .collect();
+        let Some(best) = (0..n)
+            .filter(|&i| !passive[i] && grad[i] > 1e-12 * (1.0 + h[i].abs()))
+            .max_by(|&a, &b| grad[a].total_cmp(&grad[b]))
+        else {
+            break;
+        };
+        passive[best] = true;
+        loop {
+            let z = solve_subset(g, h, &passive);
+            if (0..n).all(|i| !passive[i] || z[i] > 0.0) {
+                w = z;
+                break;
+            }
+            // Step toward z until a passive variable hits zero; move it back to the active set.
+            let mut alpha = 1.0f64;
+            for i in 0..n {
+                if passive[i] && z[i] <= 0.0 {
+                    alpha = alpha.min(w[i] / (w[i] - z[i]));
+                }
+            }
+            for i in 0..n {
+                w[i] += alpha * (z[i] - w[i]);
+                if passive[i] && w[i] <= 1e-14 {
+                    passive[i] = false;
+                    w[i] = 0.0;
+                }
+            }
+            if !passive.iter().any(|&p| p) {
+                break;
+            }
+        }
+    }
+    w
+}
+
+/// Solves G_PP z_P = h_P on the passive set P (z = 0 elsewhere) by Cholesky with a tiny ridge.
+fn solve_subset(g: &[f64], h: &[f64], passive: &[bool]) -> Vec<f64> {
+    let n = h.len();
+    let idx: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
+    let m = idx.len();
+    let mut a = vec![0.0; m * m];
+    let mut b: Vec<f64> = idx.iter().map(|&i| h[i]).collect();
+    let ridge = 1e-12
+        * idx
+            .iter()
+            .map(|&i| g[i * n + i])
+            .fold(0.0, f64::max)
+            .max(1e-300);
+    for (r, &i) in idx.iter().enumerate() {
+        for (c, &j) in idx.iter().enumerate() {
+            a[r * m + c] = g[i * n + j] + if r == c { ridge } else { 0.0 };
+        }
+    }
+    cholesky_solve(&mut a, &mut b, m);
+    let mut z = vec![0.0; n];
+    for (r, &i) in idx.iter().enumerate() {
+        z[i] = b[r];
+    }
+    z
+}
+
+/// In-place Cholesky solve of a small SPD system (a: m x m row-major, overwritten).
+pub fn cholesky_solve(a: &mut [f64], b: &mut [f64], m: usize) {
+    for j in 0..m {
+        let mut d = a[j * m + j];
+        for k in 0..j {
+            d -= a[j * m + k] * a[j * m + k];
+        }
+        let d = d.max(1e-300).sqrt();
+        a[j * m + j] = d;
+        for i in j + 1..m {
+            let mut s = a[i * m + j];
+            for k in 0..j {
+                s -= a[i * m + k] * a[j * m + k];
+            }
+            a[i * m + j] = s / d;
+        }
+    }
+    for i in 0..m {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[i * m + k] * b[k];
+        }
+        b[i] = s / a[i * m + i];
+    }
+    for i in (0..m).rev() {
+        let mut s = b[i];
+        for k in i + 1..m {
+            s -= a[k * m + i] * b[k];
+        }
+        b[i] = s / a[i * m + i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: DMat3, b: DMat3, tol: f64) -> bool {
+        (a - b).to_cols_array().iter().all(|x| x.abs() < tol)
+    }
+
+    fn sample_matrices() -> Vec<DMat3> {
+        let mut out = vec![
+            DMat3::IDENTITY,
+            DMat3::from_diagonal(DVec3::new(2.0, -1.0, 0.5)),
+            DMat3::from_cols(
+                DVec3::new(1.0, 2.0, 3.0),
+                DVec3::new(4.0, 5.0, 6.0),
+                DVec3::new(7.0, 8.0, 10.0),
+            ),
+            DMat3::from_cols(
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::ZERO,
+            ), // rank 2
+        ];
+        let mut s = 1u64;
+        for _ in 0..200 {
+            let mut next = || {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            };
+            out.push(DMat3::from_cols_array(&[(); 9].map(|_| next())));
+        }
+        out
+    }
+
+    #[test]
+    fn polar_gives_a_proper_rotation_times_a_symmetric_matrix() {
+        for d in sample_matrices() {
+            let (r, s) = polar(d);
+            assert!(close(r.transpose() * r, DMat3::IDENTITY, 1e-9), "{d:?}");
+            assert!((r.determinant() - 1.0).abs() < 1e-9, "{d:?}");
+            assert!(close(s, s.transpose(), 1e-9), "{d:?}");
+            assert!(close(r * s, d, 1e-9), "R S != D for {d:?}");
+        }
+    }
+
+    #[test]
+    fn procrustes_returns_the_rotation_itself() {
+        let r = rrskin::predict::exp_rotation(DVec3::new(0.3, -1.2, 2.0));
+        assert!(close(procrustes(r * 3.0), r, 1e-12));
+        assert!(rotation_angle(r, r) < 1e-7);
+    }
+
+    #[test]
+    fn nnls_matches_brute_force_on_small_problems() {
+        let mut s = 7u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for trial in 0..200 {
+            let (rows, n) = (8, 1 + trial % 5);
+            let a: Vec<f64> = (0..rows * n).map(|_| next()).collect();
+            let b: Vec<f64> = (0..rows).map(|_| next()).collect();
+            let mut g = vec![0.0; n * n];
+            let mut h = vec![0.0; n];
+            for r in 0..rows {
+                for i in 0..n {
+                    h[i] += a[r * n + i] * b[r];
+                    for j in 0..n {
+                        g[i * n + j] += a[r * n + i] * a[r * n + j];
+                    }
+                }
+            }
+            let cost = |w: &[f64]| -> f64 {
+                (0..rows)
+                    .map(|r| ((0..n).map(|i| a[r * n + i] * w[i]).sum::<f64>() - b[r]).powi(2))
+                    .sum()
+            };
+            // Brute force: the unconstrained solution on every support set, kept if feasible.
+            let mut best = cost(&vec![0.0; n]);
+            for mask in 1u32..(1 << n) {
+                let passive: Vec<bool> = (0..n).map(|i| mask & (1 << i) != 0).collect();
+                let z = solve_subset(&g, &h, &passive);
+                if z.iter().all(|&x| x >= 0.0) {
+                    best = best.min(cost(&z));
+                }
+            }
+            let w = nnls(&g, &h);
+            assert!(w.iter().all(|&x| x >= 0.0));
+            assert!(
+                (cost(&w) - best).abs() <= 1e-9 * (1.0 + best),
+                "trial {trial}: {} vs {best}",
+                cost(&w)
+            );
+        }
+    }
+}
