@@ -37,9 +37,10 @@ pub struct Report {
     pub rr_full: Errors,
     pub ssd_seconds: f64,
     pub rr_full_seconds: f64,
-    /// F percentile and ridge chosen by cross-validation.
-    pub percentile: f64,
-    pub ridge: f64,
+    /// F percentile, ridge and fallback chosen by cross-validation.
+    pub choice: Choice,
+    /// Mean weight of the regression in the triangles' blended gradients (1: the paper).
+    pub mean_alpha: f64,
     /// Wall time per stage, in order.
     pub stages: Vec<(&'static str, f64)>,
     /// Whether "test" is the leave-one-out error over the training poses.
@@ -95,8 +96,8 @@ impl Report {
             );
         }
         s += &format!(
-            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e} (chosen by {FOLDS}-fold cross-validation on the training poses)\nstages:",
-            self.percentile, self.ridge
+            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {:.2}) (chosen by {FOLDS}-fold cross-validation on the training poses)\nstages:",
+            self.choice.percentile, self.choice.ridge, self.choice.blend, self.mean_alpha
         );
         for (stage, t) in &self.stages {
             s += &format!(" {stage} {t:.2} s;");
@@ -173,7 +174,60 @@ fn per_vertex_error(set: &ExampleSet, poses: &[usize], skin: &Skinning) -> Vec<f
         .collect()
 }
 
-/// Cross-validated squared error of every (percentile, ridge) pair, summed over folds.
+/// What the cross-validation chose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Choice {
+    pub percentile: f64,
+    pub ridge: f64,
+    pub blend: Blend,
+}
+
+/// How each triangle's Poisson target combines the regression with SSD's gradient.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Blend {
+    /// The regression alone (the paper).
+    Regression,
+    /// SSD's gradient where it generalised better on the held-out folds, else the regression.
+    Switch,
+    /// α D_rr + (1 − α) D_ssd with α minimising the held-out edge error.
+    Weighted,
+}
+
+fn dot(a: &[DVec3; 2], b: &[DVec3; 2]) -> f64 {
+    a[0].dot(b[0]) + a[1].dot(b[1])
+}
+
+/// Per ridge, per triangle, over the held-out poses of all folds: the edge residuals of the
+/// regression (e_r) and of SSD's gradient (e_s), as Σ|e_r|², Σ|e_s|² and Σ e_r·e_s.
+struct TriangleScores {
+    regression: Vec<Vec<f64>>,
+    cross: Vec<Vec<f64>>,
+    ssd: Vec<f64>,
+}
+
+impl TriangleScores {
+    /// Per triangle, the weight α of the regression in D = α D_rr + (1 − α) D_ssd, for ridge
+    /// index r. Weighted: α minimises the held-out edge error |α e_r + (1 − α) e_s|², clamped
+    /// to [0, 1]; Switch: α ∈ {0, 1}, whichever erred less.
+    fn alpha(&self, r: usize, blend: Blend) -> Vec<f64> {
+        (0..self.ssd.len())
+            .map(|k| {
+                let (rr, ss, rs) = (self.regression[r][k], self.ssd[k], self.cross[r][k]);
+                let denom = rr + ss - 2.0 * rs;
+                match blend {
+                    Blend::Regression => 1.0,
+                    Blend::Switch => f64::from(u8::from(rr <= ss)),
+                    Blend::Weighted if denom > 0.0 => ((ss - rs) / denom).clamp(0.0, 1.0),
+                    Blend::Weighted => 1.0,
+                }
+            })
+            .collect()
+    }
+}
+
+/// k-fold cross-validation over the training poses: first the per-triangle held-out gradient
+/// errors (which triangles fall back to SSD), then the held-out vertex error of every
+/// (percentile, ridge, fallback) candidate; returns the best and the triangle scores.
 fn choose(
     set: &ExampleSet,
     prep: &Prepared,
@@ -181,45 +235,108 @@ fn choose(
     k: usize,
     progress: &Progress,
     step: &mut usize,
-) -> Result<(f64, f64), Box<dyn std::error::Error>> {
-    let mut score = vec![0.0; PERCENTILES.len() * RIDGES.len()];
+) -> Result<(Choice, Option<TriangleScores>), Box<dyn std::error::Error>> {
     let folds = FOLDS.min(train.len());
     if folds < 2 {
-        return Ok((90.0, 1e-2)); // too few poses to cross-validate: a middle choice
+        // Too few poses to cross-validate: a middle choice.
+        return Ok((
+            Choice {
+                percentile: 90.0,
+                ridge: 1e-2,
+                blend: Blend::Regression,
+            },
+            None,
+        ));
     }
-    for fold in 0..folds {
-        let inner: Vec<usize> = train
+    let edges = full_model::rest_edges(set);
+    let inverses = crate::gradients::rest_inverses(&set.rest, &set.faces);
+    let t = set.faces.len();
+    let mut scores = TriangleScores {
+        regression: vec![vec![0.0; t]; RIDGES.len()],
+        cross: vec![vec![0.0; t]; RIDGES.len()],
+        ssd: vec![0.0; t],
+    };
+    let split = |fold: usize| -> (Vec<usize>, Vec<usize>) {
+        let inner = train
             .iter()
             .enumerate()
             .filter(|(n, _)| n % folds != fold)
             .map(|(_, &i)| i)
             .collect();
-        let held: Vec<usize> = train
+        let held = train
             .iter()
             .enumerate()
             .filter(|(n, _)| n % folds == fold)
             .map(|(_, &i)| i)
             .collect();
+        (inner, held)
+    };
+    let mut fits = Vec::with_capacity(folds);
+    for fold in 0..folds {
+        let (inner, held) = split(fold);
         let fit = fit_fold(set, prep, &inner, k);
-        for (r, &ridge) in RIDGES.iter().enumerate() {
-            let stretches = full_model::fit_stretches(set, prep, &inner, &fit.rotations, ridge);
-            for (p, &percentile) in PERCENTILES.iter().enumerate() {
-                let fixed = full_model::near_rigid(set, &fit.ssd_error, percentile);
-                let model = FullModel::new(set, fit.rotations.clone(), stretches.clone(), fixed)?;
-                let predicted = model.predict(set, prep, &fit.ssd, &held);
-                score[p * RIDGES.len() + r] += squared_error(set, &held, &predicted);
+        let stretches: Vec<_> = RIDGES
+            .iter()
+            .map(|&ridge| full_model::fit_stretches(set, prep, &inner, &fit.rotations, ridge))
+            .collect();
+        for &i in &held {
+            let skinned = fit.ssd.deform(&set.rest, &set.poses[i].bones);
+            let ssd_grads = crate::gradients::gradients(&skinned, &set.faces, &inverses);
+            for kk in 0..t {
+                let (r, sv) = prep.polar[i][kk];
+                let truth = r * sv;
+                let e_ssd = full_model::edge_residuals(ssd_grads[kk], truth, &edges[kk]);
+                scores.ssd[kk] += dot(&e_ssd, &e_ssd);
+                for (ri, h) in stretches.iter().enumerate() {
+                    let d = full_model::predict_gradient(
+                        set,
+                        &prep.feats[i],
+                        &fit.rotations.0[kk],
+                        &h[kk],
+                    );
+                    let e = full_model::edge_residuals(d, truth, &edges[kk]);
+                    scores.regression[ri][kk] += dot(&e, &e);
+                    scores.cross[ri][kk] += dot(&e, &e_ssd);
+                }
             }
         }
+        fits.push((fit, stretches));
         *step += 1;
         progress.set(*step);
+    }
+    let mut candidates = Vec::new();
+    for blend in [Blend::Regression, Blend::Switch, Blend::Weighted] {
+        for &ridge in &RIDGES {
+            for &percentile in &PERCENTILES {
+                candidates.push(Choice {
+                    percentile,
+                    ridge,
+                    blend,
+                });
+            }
+        }
+    }
+    let mut score = vec![0.0; candidates.len()];
+    for (fold, (fit, stretches)) in fits.into_iter().enumerate() {
+        let (_, held) = split(fold);
+        for (c, choice) in candidates.iter().enumerate() {
+            let r = RIDGES.iter().position(|&x| x == choice.ridge).unwrap_or(0);
+            let fixed = full_model::near_rigid(set, &fit.ssd_error, choice.percentile);
+            let alpha = scores.alpha(r, choice.blend);
+            let model = FullModel::new(
+                set,
+                fit.rotations.clone(),
+                stretches[r].clone(),
+                fixed,
+                alpha,
+            )?;
+            score[c] += squared_error(set, &held, &model.predict(set, prep, &fit.ssd, &held));
+        }
     }
     let best = (0..score.len())
         .min_by(|&a, &b| score[a].total_cmp(&score[b]))
         .unwrap_or(0);
-    Ok((
-        PERCENTILES[best / RIDGES.len()],
-        RIDGES[best % RIDGES.len()],
-    ))
+    Ok((candidates[best], Some(scores)))
 }
 
 pub struct Options {
@@ -257,7 +374,12 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
     progress.set(step);
 
     let rr_start = Instant::now();
-    let (percentile, ridge) = choose(set, &prep, &train, k, &progress, &mut step)?;
+    let (choice, scores) = choose(set, &prep, &train, k, &progress, &mut step)?;
+    let ridge_index = RIDGES.iter().position(|&r| r == choice.ridge).unwrap_or(0);
+    let alpha = match &scores {
+        Some(scores) => scores.alpha(ridge_index, choice.blend),
+        None => vec![1.0; set.faces.len()],
+    };
     lap("cross-validation", &mut stages);
     let fit = FoldFit {
         ssd_error: per_vertex_error(set, &train, &ssd),
@@ -270,9 +392,9 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
         ssd: ssd.clone(),
     };
     lap("rotations", &mut stages);
-    let stretches = full_model::fit_stretches(set, &prep, &train, &fit.rotations, ridge);
-    let fixed = full_model::near_rigid(set, &fit.ssd_error, percentile);
-    let model = FullModel::new(set, fit.rotations.clone(), stretches, fixed)?;
+    let stretches = full_model::fit_stretches(set, &prep, &train, &fit.rotations, choice.ridge);
+    let fixed = full_model::near_rigid(set, &fit.ssd_error, choice.percentile);
+    let model = FullModel::new(set, fit.rotations.clone(), stretches, fixed, alpha.clone())?;
     let rr_full_seconds = rr_start.elapsed().as_secs_f64();
     lap("scale/shear + Poisson factor", &mut stages);
     step += 1;
@@ -295,9 +417,11 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
         for (n, &i) in train.iter().enumerate() {
             let others: Vec<usize> = train.iter().copied().filter(|&t| t != i).collect();
             let fold = fit_fold(set, &prep, &others, k);
-            let stretches = full_model::fit_stretches(set, &prep, &others, &fold.rotations, ridge);
-            let fixed = full_model::near_rigid(set, &fold.ssd_error, percentile);
-            let m = FullModel::new(set, fold.rotations, stretches, fixed)?;
+            // The choices (F, ridge, blend weights) stay those made on all training poses.
+            let stretches =
+                full_model::fit_stretches(set, &prep, &others, &fold.rotations, choice.ridge);
+            let fixed = full_model::near_rigid(set, &fold.ssd_error, choice.percentile);
+            let m = FullModel::new(set, fold.rotations, stretches, fixed, alpha.clone())?;
             pred_rr.extend(m.predict(set, &prep, &fold.ssd, &[i]));
             pred_ssd.extend(deform_all(set, &fold.ssd, &[i]));
             pred_rigid.extend(deform_all(
@@ -328,8 +452,8 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
         rr_full: rr_e,
         ssd_seconds,
         rr_full_seconds,
-        percentile,
-        ridge,
+        choice,
+        mean_alpha: alpha.iter().sum::<f64>() / alpha.len().max(1) as f64,
         stages,
         loocv: options.loocv,
     })

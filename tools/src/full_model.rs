@@ -130,31 +130,46 @@ pub fn near_rigid(set: &ExampleSet, ssd_error: &[f64], percentile: f64) -> Vec<b
     fixed
 }
 
-/// Predicted gradients D_k(q) = R_k(q) S_k(q) of every triangle for one pose.
-pub fn predict_gradients(
+/// Predicted gradient D_k(q) = R_k(q) S_k(q) of triangle k for one pose.
+pub fn predict_gradient(
     set: &ExampleSet,
     f: &PoseFeatures,
-    rot: &Rotations,
-    stretch: &[ScaleShear],
-) -> Vec<DMat3> {
-    rot.0
+    rot: &Option<RotationPredictor>,
+    h: &ScaleShear,
+) -> DMat3 {
+    match rot {
+        Some(r) => {
+            let x = scale_shear::features(f, &set.parents, r.first.bone);
+            r.predict(f, &set.parents) * scale_shear::predict(h, &x)
+        }
+        None => DMat3::IDENTITY,
+    }
+}
+
+/// The error of gradient `d` on the two rest edges of a triangle: what the Poisson solve sees.
+pub fn edge_residuals(d: DMat3, truth: DMat3, edges: &[DVec3; 2]) -> [DVec3; 2] {
+    let diff = d - truth;
+    [diff * edges[0], diff * edges[1]]
+}
+
+/// Rest edges v̂2, v̂3 of every triangle.
+pub fn rest_edges(set: &ExampleSet) -> Vec<[DVec3; 2]> {
+    set.faces
         .iter()
-        .zip(stretch)
-        .map(|(r, h)| match r {
-            Some(r) => {
-                let x = scale_shear::features(f, &set.parents, r.first.bone);
-                r.predict(f, &set.parents) * scale_shear::predict(h, &x)
-            }
-            None => DMat3::IDENTITY,
-        })
+        .map(|&[a, b, c]| [set.rest[b] - set.rest[a], set.rest[c] - set.rest[a]])
         .collect()
 }
 
-/// The trained full model for one choice of F and ridge.
+/// The trained full model for one choice of F, ridge and blend weights.
 pub struct FullModel {
     pub rotations: Rotations,
     pub stretches: Vec<ScaleShear>,
     pub fixed: Vec<bool>,
+    /// Per triangle, the weight α of the regression in its Poisson target
+    /// `α D_rr(q) + (1 − α) D_ssd(q)`, D_ssd the gradient of the SSD mesh (α from held-out
+    /// errors; 1 is the paper). D_ssd is linear in q, so the reduced C1/C2 form still holds.
+    pub alpha: Vec<f64>,
+    inverses: Vec<Option<DMat3>>,
     poisson: Poisson,
 }
 
@@ -164,12 +179,16 @@ impl FullModel {
         rotations: Rotations,
         stretches: Vec<ScaleShear>,
         fixed: Vec<bool>,
+        alpha: Vec<f64>,
     ) -> Result<FullModel, PoissonError> {
         let poisson = Poisson::new(&set.rest, &set.faces, &fixed)?;
+        let inverses = rest_inverses(&set.rest, &set.faces);
         Ok(FullModel {
             rotations,
             stretches,
             fixed,
+            alpha,
+            inverses,
             poisson,
         })
     }
@@ -185,9 +204,23 @@ impl FullModel {
         let inputs: Vec<(Vec<DMat3>, Vec<DVec3>)> = poses
             .par_iter()
             .map(|&i| {
-                let grads =
-                    predict_gradients(set, &prep.feats[i], &self.rotations, &self.stretches);
-                (grads, ssd.deform(&set.rest, &set.poses[i].bones))
+                let skinned = ssd.deform(&set.rest, &set.poses[i].bones);
+                let ssd_grads = gradients(&skinned, &set.faces, &self.inverses);
+                let grads = (0..set.faces.len())
+                    .map(|k| match self.alpha[k] {
+                        a if a <= 0.0 => ssd_grads[k],
+                        a => {
+                            let d = predict_gradient(
+                                set,
+                                &prep.feats[i],
+                                &self.rotations.0[k],
+                                &self.stretches[k],
+                            );
+                            d * a + ssd_grads[k] * (1.0 - a)
+                        }
+                    })
+                    .collect();
+                (grads, skinned)
             })
             .collect();
         self.poisson.solve(&inputs)

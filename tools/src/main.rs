@@ -73,6 +73,14 @@ enum Command {
     },
 }
 
+/// Prints to stdout; a closed pipe (`rrskin eval … | head`) ends output quietly, not in a panic.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+
 fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
@@ -105,9 +113,9 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             };
             let report = rrskin_tools::eval::run(&examples, &options)?;
             if json {
-                println!("{}", report.to_json());
+                out!("{}", report.to_json());
             } else {
-                println!("{}", report.table(&set.display().to_string()));
+                out!("{}", report.table(&set.display().to_string()));
             }
         }
         Command::Info { model, json } => {
@@ -117,9 +125,9 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
             });
             if json {
-                println!("{dims}");
+                out!("{dims}");
             } else {
-                println!(
+                out!(
                     "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}",
                     model.display(),
                     m.vertex_count(),
@@ -162,12 +170,18 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
             let p = rrskin_tools::profile::run(&m, characters, frames.max(1), choice, json)?;
             if json {
-                println!("{}", p.to_json());
+                out!("{}", p.to_json());
             } else {
                 let t = &p.median;
-                println!(
+                out!(
                     "{}: {} characters x {} vertices (J = {}, P = {}, K = {}), median of {} frames",
-                    p.device, p.characters, p.vertices, p.bones, p.proxies, p.influences, p.frames
+                    p.device,
+                    p.characters,
+                    p.vertices,
+                    p.bones,
+                    p.proxies,
+                    p.influences,
+                    p.frames
                 );
                 for (name, ms) in [
                     ("predictors", t.predict_ms),
@@ -175,13 +189,13 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     ("skinning", t.skin_ms),
                     ("normals", t.normals_ms),
                 ] {
-                    println!(
+                    out!(
                         "  {name:<11} {ms:>9.3} ms  {:>5.1} %",
                         100.0 * ms / t.total_ms()
                     );
                 }
-                println!("  {:<11} {:>9.3} ms", "frame", p.total_ms);
-                println!(
+                out!("  {:<11} {:>9.3} ms", "frame", p.total_ms);
+                out!(
                     "  skinning alone {:.1} M vertices/s, whole pipeline {:.1} M vertices/s",
                     p.skin_mverts_per_s(),
                     p.pipeline_mverts_per_s()

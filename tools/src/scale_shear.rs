@@ -26,37 +26,36 @@ pub fn identity() -> ScaleShear {
     h
 }
 
-/// argmin_H Σ_i |vec(S_i) − H x_i|² + λ N |H − H₀|²  (λ per pose, so it means the same for
-/// any number of poses).
+/// argmin_H Σ_i |vec(S_i) − H x_i|² + λ N |H − H₀|² with the bias column pinned to vec(I):
+/// at the rest pose (θ = 0) the gradient is the identity whatever the training poses were, so
+/// wide training poses cannot leave an average bulge on gentle ones. λ is per pose.
 pub fn fit(stretches: &[DMat3], xs: &[[f64; 7]], lambda: f64) -> ScaleShear {
     let h0 = identity();
     let n = xs.len() as f64;
-    let mut gram = [0.0; 49];
-    let mut rhs = [[0.0; 7]; 9]; // per output row: Σ s x + λ N h0
+    let mut gram = [0.0; 36];
+    let mut rhs = [[0.0; 6]; 9];
     for (s, x) in stretches.iter().zip(xs) {
-        let s_rows = s.transpose().to_cols_array();
-        for r in 0..7 {
-            for c in 0..7 {
-                gram[r * 7 + c] += x[r] * x[c];
+        let s_rows = (*s - DMat3::IDENTITY).transpose().to_cols_array();
+        for r in 0..6 {
+            for c in 0..6 {
+                gram[r * 6 + c] += x[r] * x[c];
             }
         }
         for (o, row) in rhs.iter_mut().enumerate() {
-            for c in 0..7 {
+            for c in 0..6 {
                 row[c] += s_rows[o] * x[c];
             }
         }
     }
-    for r in 0..7 {
-        gram[r * 7 + r] += lambda * n + 1e-12;
+    for r in 0..6 {
+        gram[r * 6 + r] += lambda * n + 1e-12;
     }
-    let mut h = [0.0; 63];
+    let mut h = h0;
     for (o, row) in rhs.iter().enumerate() {
-        let mut b: Vec<f64> = (0..7)
-            .map(|c| row[c] + lambda * n * h0[7 * o + c])
-            .collect();
+        let mut b = row.to_vec();
         let mut a = gram.to_vec();
-        cholesky_solve(&mut a, &mut b, 7);
-        h[7 * o..7 * o + 7].copy_from_slice(&b);
+        cholesky_solve(&mut a, &mut b, 6);
+        h[7 * o..7 * o + 6].copy_from_slice(&b);
     }
     h
 }
