@@ -16,7 +16,7 @@ use std::time::Instant;
 /// Folds of the training-pose cross-validation.
 pub const FOLDS: usize = 4;
 /// Candidate F percentiles and scale/shear ridges (per pose) the cross-validation picks from.
-pub const PERCENTILES: [f64; 5] = [50.0, 70.0, 80.0, 90.0, 95.0];
+pub const PERCENTILES: [f64; 7] = [10.0, 25.0, 50.0, 70.0, 80.0, 90.0, 95.0];
 pub const RIDGES: [f64; 4] = [1e-3, 1e-2, 1e-1, 1.0];
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -29,15 +29,16 @@ pub fn sym_eigen3(a: DMat3) -> (DVec3, DMat3) {
             let t = if theta == 0.0 { 1.0 } else { t };
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
-            for k in 0..3 {
-                let (mkp, mkq) = (m[k][p], m[k][q]);
-                m[k][p] = c * mkp - s * mkq;
-                m[k][q] = s * mkp + c * mkq;
+            // M ← Jᵀ M J for the Givens rotation J in the (p, q) plane.
+            for row in m.iter_mut() {
+                let (mkp, mkq) = (row[p], row[q]);
+                row[p] = c * mkp - s * mkq;
+                row[q] = s * mkp + c * mkq;
             }
+            let (mp, mq) = (m[p], m[q]);
             for k in 0..3 {
-                let (mpk, mqk) = (m[p][k], m[q][k]);
-                m[p][k] = c * mpk - s * mqk;
-                m[q][k] = s * mpk + c * mqk;
+                m[p][k] = c * mp[k] - s * mq[k];
+                m[q][k] = s * mp[k] + c * mq[k];
             }
             for row in v.iter_mut() {
                 let (vp, vq) = (row[p], row[q]);

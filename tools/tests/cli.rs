@@ -113,3 +113,67 @@ fn bad_model_files_fail_with_the_file_and_the_problem() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("must be 4 or 8"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `rrskin eval --json` on CesiumMan: the JSON contract of ARCHITECTURE.md and the figures of
+/// METHOD.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good as the reference's best
+/// row, 35.1 / 49.3), with every choice made on the training poses.
+#[test]
+fn eval_on_cesiumman_meets_the_reference_figures() {
+    let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/cesiumman");
+    assert!(
+        set.is_dir(),
+        "the example data must be at {}",
+        set.display()
+    );
+    let e = json(&rrskin(&["eval", set.to_str().expect("utf-8"), "--json"]));
+    let keys: Vec<&str> = e
+        .as_object()
+        .expect("an object")
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    for key in [
+        "vertices",
+        "triangles",
+        "bones",
+        "train_poses",
+        "test_poses",
+        "proxies",
+        "rigid",
+        "ssd",
+        "rr_full",
+        "rr_reduced",
+        "seconds",
+    ] {
+        assert!(keys.contains(&key), "missing {key} in {e}");
+    }
+    assert_eq!(keys.len(), 11, "{e}");
+    let n = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    assert_eq!(
+        (n(&e["vertices"]), n(&e["triangles"]), n(&e["bones"])),
+        (2338.0, 4672.0, 19.0)
+    );
+    assert_eq!((n(&e["train_poses"]), n(&e["test_poses"])), (41.0, 20.0));
+    assert!(
+        e["proxies"].is_null() && e["rr_reduced"].is_null() && e["seconds"]["rr_reduced"].is_null()
+    );
+    assert!(
+        (n(&e["rigid"]["train"]) - 100.0).abs() < 1e-9
+            && (n(&e["rigid"]["test"]) - 100.0).abs() < 1e-9
+    );
+    let (ssd_train, ssd_test) = (n(&e["ssd"]["train"]), n(&e["ssd"]["test"]));
+    assert!(
+        (ssd_train - 37.4).abs() <= 1.0 && (ssd_test - 41.0).abs() <= 1.0,
+        "SSD {ssd_train} / {ssd_test}"
+    );
+    let (rr_train, rr_test) = (n(&e["rr_full"]["train"]), n(&e["rr_full"]["test"]));
+    assert!(
+        rr_train <= 35.1 && rr_test <= 49.3,
+        "rr_full {rr_train} / {rr_test}"
+    );
+    assert!(
+        rr_test < ssd_test,
+        "rr_full must beat SSD on held-out poses: {rr_test} vs {ssd_test}"
+    );
+    assert!(n(&e["seconds"]["ssd"]) > 0.0 && n(&e["seconds"]["rr_full"]) > 0.0);
+}

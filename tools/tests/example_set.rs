@@ -1,0 +1,186 @@
+//! The NumPy example-set loader: a valid set loads; every kind of bad file is refused with an
+//! error naming the file and what is wrong with it.
+
+mod support;
+
+use rrskin_tools::example_set::ExampleSet;
+use std::path::Path;
+use support::{temp_dir, write_f32, write_i32};
+
+const V: usize = 4;
+const N: usize = 3;
+
+/// 4 vertices, 2 triangles, 2 bones (1 child of 0), 3 poses (the last a test pose).
+fn write_valid(dir: &Path) {
+    let rest = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+    write_f32(&dir.join("rest_vertices.npy"), &[V, 3], &rest);
+    write_i32(&dir.join("faces.npy"), &[2, 3], &[0, 1, 2, 0, 2, 3]);
+    write_i32(&dir.join("bone_parents.npy"), &[2], &[-1, 0]);
+    let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let moved = [0.0, -1.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]; // 90° about z
+    let transforms: Vec<f32> = [identity, identity, identity, moved, moved, identity].concat();
+    write_f32(&dir.join("pose_transforms.npy"), &[N, 2, 3, 4], &transforms);
+    let vertices: Vec<f32> = rest.iter().cycle().take(N * V * 3).copied().collect();
+    write_f32(&dir.join("pose_vertices.npy"), &[N, V, 3], &vertices);
+    write_i32(&dir.join("split.npy"), &[N], &[0, 0, 1]);
+}
+
+/// Loads a valid set with one file broken by `breaking`; returns the error text.
+fn error_after(name: &str, breaking: impl FnOnce(&Path)) -> String {
+    let dir = temp_dir(&format!("set-{name}"));
+    write_valid(&dir);
+    breaking(&dir);
+    let err = ExampleSet::load(&dir).expect_err("a broken set must be refused");
+    std::fs::remove_dir_all(&dir).ok();
+    err.to_string()
+}
+
+fn assert_names(err: &str, file: &str, what: &str) {
+    assert!(err.contains(file), "error does not name {file}: {err}");
+    assert!(err.contains(what), "error does not say '{what}': {err}");
+}
+
+#[test]
+fn a_valid_set_loads_with_its_split() {
+    let dir = temp_dir("set-valid");
+    write_valid(&dir);
+    let set = ExampleSet::load(&dir).expect("valid");
+    assert_eq!(
+        (set.vertex_count(), set.bone_count(), set.poses.len()),
+        (V, 2, N)
+    );
+    assert_eq!((set.train(), set.test()), (vec![0, 1], vec![2]));
+    assert_eq!(set.parents, vec![None, Some(0)]);
+    assert!(set.warnings.is_empty(), "{:?}", set.warnings);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn missing_and_unreadable_files() {
+    let e = error_after("missing", |d| {
+        std::fs::remove_file(d.join("pose_vertices.npy")).expect("rm")
+    });
+    assert_names(&e, "pose_vertices.npy", "cannot open");
+    let e = error_after("notnpy", |d| {
+        std::fs::write(d.join("faces.npy"), b"hello").expect("write")
+    });
+    assert_names(&e, "faces.npy", "not a valid .npy file");
+    let e = error_after("truncated", |d| {
+        let p = d.join("pose_vertices.npy");
+        let bytes = std::fs::read(&p).expect("read");
+        std::fs::write(&p, &bytes[..bytes.len() - 10]).expect("write");
+    });
+    assert_names(&e, "pose_vertices.npy", "truncated");
+    let e = error_after("dtype", |d| {
+        write_f32(&d.join("faces.npy"), &[2, 3], &[0.0; 6])
+    });
+    assert_names(&e, "faces.npy", "is not an int32/int64");
+    let e = ExampleSet::load("/nonexistent/rrskin-set")
+        .expect_err("absent")
+        .to_string();
+    assert_names(&e, "rrskin-set", "not a folder");
+}
+
+#[test]
+fn mismatched_shapes_name_the_expected_shape() {
+    let e = error_after("vcount", |d| {
+        write_f32(
+            &d.join("pose_vertices.npy"),
+            &[N, V + 1, 3],
+            &[0.0; N * (V + 1) * 3],
+        )
+    });
+    assert_names(&e, "pose_vertices.npy", "expected (N = 3, V = 4, 3)");
+    let e = error_after("bones", |d| {
+        write_f32(
+            &d.join("pose_transforms.npy"),
+            &[N, 3, 3, 4],
+            &vec![0.0; N * 36],
+        )
+    });
+    assert_names(&e, "pose_transforms.npy", "expected (N, J = 2, 3, 4)");
+    let e = error_after("split", |d| {
+        write_i32(&d.join("split.npy"), &[N + 1], &[0; N + 1])
+    });
+    assert_names(&e, "split.npy", "expected (N = 3,)");
+}
+
+#[test]
+fn bad_values_name_the_index() {
+    let e = error_after("nan", |d| {
+        let mut rest = [0.0f32; 12];
+        rest[5] = f32::NAN;
+        write_f32(&d.join("rest_vertices.npy"), &[V, 3], &rest);
+    });
+    assert_names(&e, "rest_vertices.npy", "element 5 ([1, 2]) is not finite");
+    let e = error_after("face", |d| {
+        write_i32(&d.join("faces.npy"), &[2, 3], &[0, 1, 2, 0, 7, 3])
+    });
+    assert_names(&e, "faces.npy", "face 1 has vertex index 7 outside 0..4");
+    let e = error_after("parent", |d| {
+        write_i32(&d.join("bone_parents.npy"), &[2], &[-1, 5])
+    });
+    assert_names(&e, "bone_parents.npy", "bone 1 has parent 5 outside -1..2");
+    let e = error_after("cycle", |d| {
+        write_i32(&d.join("bone_parents.npy"), &[2], &[1, 0])
+    });
+    assert_names(&e, "bone_parents.npy", "form a cycle");
+    let e = error_after("splitval", |d| {
+        write_i32(&d.join("split.npy"), &[N], &[0, 2, 1])
+    });
+    assert_names(&e, "split.npy", "pose 1 has split 2");
+    let e = error_after("alltest", |d| {
+        write_i32(&d.join("split.npy"), &[N], &[1, 1, 1])
+    });
+    assert_names(&e, "split.npy", "nothing to train on");
+}
+
+#[test]
+fn non_rigid_pose_transforms_are_refused() {
+    let e = error_after("scaled", |d| {
+        let mut t = vec![0.0f32; N * 24];
+        for (m, s) in t.chunks_exact_mut(12).zip([1.0, 1.0, 1.0, 1.1, 1.0, 1.0]) {
+            m[0] = s;
+            m[5] = 1.0;
+            m[10] = 1.0;
+        }
+        write_f32(&d.join("pose_transforms.npy"), &[N, 2, 3, 4], &t);
+    });
+    assert_names(
+        &e,
+        "pose_transforms.npy",
+        "pose 1, bone 1: the 3x3 part is not a rotation",
+    );
+}
+
+#[test]
+fn bone_names_must_match_the_bones() {
+    let e = error_after("names", |d| {
+        std::fs::write(d.join("bone_names.json"), r#"["root"]"#).expect("write")
+    });
+    assert_names(&e, "bone_names.json", "1 names for 2 bones");
+    let e = error_after("namesjson", |d| {
+        std::fs::write(d.join("bone_names.json"), "{").expect("write")
+    });
+    assert_names(&e, "bone_names.json", "not a JSON list of strings");
+}
+
+#[test]
+fn degenerate_triangles_and_loose_vertices_are_warnings() {
+    let dir = temp_dir("set-warn");
+    write_valid(&dir);
+    write_i32(&dir.join("faces.npy"), &[2, 3], &[0, 1, 2, 0, 0, 1]);
+    let set = ExampleSet::load(&dir).expect("warnings do not stop loading");
+    assert_eq!(set.warnings.len(), 2, "{:?}", set.warnings);
+    assert!(
+        set.warnings[0].contains("1 degenerate (zero-area) triangles, first [1]"),
+        "{:?}",
+        set.warnings
+    );
+    assert!(
+        set.warnings[1].contains("1 vertices belong to no triangle, first [3]"),
+        "{:?}",
+        set.warnings
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
