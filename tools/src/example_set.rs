@@ -94,54 +94,52 @@ fn open(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>,
     Ok(npy)
 }
 
-fn read_floats(path: &Path) -> Result<Array<f64>, InputError> {
+/// Reads the array as `T`, from either of two stored dtypes (the narrow one first).
+fn read_array<T, Narrow, Wide>(path: &Path, kinds: &str) -> Result<Array<T>, InputError>
+where
+    Narrow: npyz::Deserialize + Into<T>,
+    Wide: npyz::Deserialize + Into<T>,
+{
     let npy = open(path)?;
     let shape = npy.shape().to_vec();
     let read = |e: std::io::Error| bad(path, format!("truncated or unreadable data: {e}"));
-    let data = match npy.try_data::<f32>() {
+    let data = match npy.try_data::<Narrow>() {
         Ok(r) => r
-            .map(|x| x.map(f64::from))
-            .collect::<Result<Vec<_>, _>>()
+            .map(|x| x.map(Into::into))
+            .collect::<Result<Vec<T>, _>>()
             .map_err(read)?,
-        Err(npy) => match npy.try_data::<f64>() {
-            Ok(r) => r.collect::<Result<Vec<_>, _>>().map_err(read)?,
+        Err(npy) => match npy.try_data::<Wide>() {
+            Ok(r) => r
+                .map(|x| x.map(Into::into))
+                .collect::<Result<Vec<T>, _>>()
+                .map_err(read)?,
             Err(npy) => {
                 return Err(bad(
                     path,
-                    format!("dtype {} is not a float32/float64", npy.dtype().descr()),
+                    format!("dtype {} is not {kinds}", npy.dtype().descr()),
                 ))
             }
         },
     };
-    if let Some(i) = data.iter().position(|x| !x.is_finite()) {
-        return Err(bad(
-            path,
-            format!("element {i} ({}) is not finite", index_text(&shape, i)),
-        ));
-    }
     Ok(Array { shape, data })
 }
 
+fn read_floats(path: &Path) -> Result<Array<f64>, InputError> {
+    let array = read_array::<f64, f32, f64>(path, "a float32/float64")?;
+    if let Some(i) = array.data.iter().position(|x| !x.is_finite()) {
+        return Err(bad(
+            path,
+            format!(
+                "element {i} ({}) is not finite",
+                index_text(&array.shape, i)
+            ),
+        ));
+    }
+    Ok(array)
+}
+
 fn read_ints(path: &Path) -> Result<Array<i64>, InputError> {
-    let npy = open(path)?;
-    let shape = npy.shape().to_vec();
-    let read = |e: std::io::Error| bad(path, format!("truncated or unreadable data: {e}"));
-    let data = match npy.try_data::<i32>() {
-        Ok(r) => r
-            .map(|x| x.map(i64::from))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(read)?,
-        Err(npy) => match npy.try_data::<i64>() {
-            Ok(r) => r.collect::<Result<Vec<_>, _>>().map_err(read)?,
-            Err(npy) => {
-                return Err(bad(
-                    path,
-                    format!("dtype {} is not an int32/int64", npy.dtype().descr()),
-                ))
-            }
-        },
-    };
-    Ok(Array { shape, data })
+    read_array::<i64, i32, i64>(path, "an int32/int64")
 }
 
 /// "[i, j, k]" of flat index `flat` in an array of `shape`.
