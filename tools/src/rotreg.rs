@@ -291,5 +291,6 @@ mod tests {
                 "W for u = {u_true}"
             );
         }
+        assert!(wrapped >= 2, "only {wrapped} sequences pass π");
     }
 }
