@@ -35,6 +35,12 @@ pub struct Report {
     pub rigid: Errors,
     pub ssd: Errors,
     pub rr_full: Errors,
+    /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
+    pub rr_reduced: Option<Errors>,
+    pub rr_reduced_seconds: Option<f64>,
+    pub reduced_proxies: Option<usize>,
+    /// The runtime model trained here (None with `Options::model` or P = 0).
+    pub model: Option<rrskin::Model>,
     pub ssd_seconds: f64,
     pub rr_full_seconds: f64,
     /// F percentile, ridge and fallback chosen by cross-validation.
@@ -52,10 +58,10 @@ impl Report {
         let errors = |e: &Errors| serde_json::json!({"train": e.train, "test": e.test});
         serde_json::json!({
             "vertices": self.vertices, "triangles": self.triangles, "bones": self.bones,
-            "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": null,
+            "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": self.reduced_proxies,
             "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "rr_full": errors(&self.rr_full),
-            "rr_reduced": null,
-            "seconds": {"ssd": self.ssd_seconds, "rr_full": self.rr_full_seconds, "rr_reduced": null},
+            "rr_reduced": self.rr_reduced.as_ref().map(errors),
+            "seconds": {"ssd": self.ssd_seconds, "rr_full": self.rr_full_seconds, "rr_reduced": self.rr_reduced_seconds},
         })
     }
 
@@ -87,7 +93,13 @@ impl Report {
                 &self.rr_full,
                 Some(self.rr_full_seconds),
             ),
-        ] {
+        ]
+        .into_iter()
+        .chain(
+            self.rr_reduced
+                .as_ref()
+                .map(|e| ("reduced (runtime model)", e, self.rr_reduced_seconds)),
+        ) {
             s += &format!(
                 "{label:<26} {:>10} {:>10} {:>9}\n",
                 pct(Some(e.train)),
@@ -340,8 +352,12 @@ fn choose(
 }
 
 pub struct Options {
-    /// K for SSD.
+    /// K for SSD and for the runtime model.
     pub influences: usize,
+    /// P for the reduced model (0: no reduction).
+    pub proxies: usize,
+    /// Evaluate this runtime model as "rr_reduced" instead of training a reduction.
+    pub model: Option<rrskin::Model>,
     /// Replace the test error by leave-one-out over the training poses.
     pub loocv: bool,
     /// No progress output (for --json).
@@ -411,6 +427,34 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
     let mut rr_e = errors(&|p| ee(p, &model.predict(set, &prep, &ssd, p)));
     lap("evaluation", &mut stages);
 
+    let reduce_start = Instant::now();
+    let trained = match (&options.model, options.proxies) {
+        (Some(_), _) | (None, 0) => None,
+        (None, p) => Some(reduce(
+            set,
+            &prep,
+            &train,
+            &ssd,
+            &model.fixed,
+            &model.alpha,
+            p,
+            k,
+            choice.ridge,
+        )?),
+    };
+    let runtime = options.model.as_ref().or(trained.as_ref());
+    let rr_reduced = match runtime {
+        Some(m) => Some(runtime_errors(set, m, &train, &test, &rigid)?),
+        None => None,
+    };
+    let rr_reduced_seconds = trained
+        .as_ref()
+        .map(|_| reduce_start.elapsed().as_secs_f64());
+    if runtime.is_some() {
+        lap("reduction", &mut stages);
+    }
+    let reduced_proxies = runtime.map(|m| m.proxy_count());
+
     let (mut rigid_e, mut ssd_e) = (rigid_e, ssd_e);
     if options.loocv {
         let (mut pred_ssd, mut pred_rr, mut pred_rigid) = (Vec::new(), Vec::new(), Vec::new());
@@ -450,11 +494,88 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
         rigid: rigid_e,
         ssd: ssd_e,
         rr_full: rr_e,
+        rr_reduced,
+        rr_reduced_seconds,
+        reduced_proxies,
+        model: trained,
         ssd_seconds,
         rr_full_seconds,
         choice,
         mean_alpha: alpha.iter().sum::<f64>() / alpha.len().max(1) as f64,
         stages,
         loocv: options.loocv,
+    })
+}
+
+/// Vertex reduction, predictor reduction and C1/C2: the runtime model (paper §5, §4.3).
+#[allow(clippy::too_many_arguments)]
+fn reduce(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    ssd: &Skinning,
+    fixed: &[bool],
+    blend: &[f64],
+    proxies: usize,
+    influences: usize,
+    ridge: f64,
+) -> Result<rrskin::Model, Box<dyn std::error::Error>> {
+    let groups = crate::vertex_reduction::reduce(set, train, fixed, proxies, influences);
+    let keys = crate::predictor_reduction::reduce(set, prep, train, &groups);
+    let nearby = full_model::nearby_bones(set, ssd);
+    let mut key_bones = vec![Vec::<usize>::new(); groups.count()];
+    for (k, &g) in groups.triangle_group.iter().enumerate() {
+        for &b in &nearby[k] {
+            if !key_bones[g].contains(&b) {
+                key_bones[g].push(b);
+            }
+        }
+    }
+    let predictors =
+        crate::predictor_reduction::train_predictors(set, prep, train, &keys, &key_bones, ridge);
+    let reduced = crate::reduced::assemble(set, ssd, fixed, blend, &groups, &keys, predictors);
+    Ok(reduced.to_runtime(set, influences)?)
+}
+
+/// EE of a runtime model evaluated by the runtime's CPU evaluator.
+fn runtime_errors(
+    set: &ExampleSet,
+    model: &rrskin::Model,
+    train: &[usize],
+    test: &[usize],
+    rigid: &Skinning,
+) -> Result<Errors, Box<dyn std::error::Error>> {
+    if model.vertex_count() != set.vertex_count() || model.bone_count() != set.bone_count() {
+        return Err(format!(
+            "the model has {} vertices and {} bones, the example set {} and {}",
+            model.vertex_count(),
+            model.bone_count(),
+            set.vertex_count(),
+            set.bone_count()
+        )
+        .into());
+    }
+    let predict = |poses: &[usize]| -> rrskin::Result<Vec<Vec<DVec3>>> {
+        let mut evaluator = rrskin::cpu::CpuEvaluator::new(model);
+        let v = set.vertex_count();
+        let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+        poses
+            .iter()
+            .map(|&i| {
+                let bones: Vec<rrskin::predict::Affine> =
+                    set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+                evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
+                Ok(pos.iter().map(|p| DVec3::from(p.map(f64::from))).collect())
+            })
+            .collect()
+    };
+    let train_e = enveloping_error(set, train, &predict(train)?, rigid);
+    let test_e = match test.is_empty() {
+        true => None,
+        false => Some(enveloping_error(set, test, &predict(test)?, rigid)),
+    };
+    Ok(Errors {
+        train: train_e,
+        test: test_e,
     })
 }

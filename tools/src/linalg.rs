@@ -179,7 +179,7 @@ fn solve_subset(g: &[f64], h: &[f64], passive: &[bool]) -> Vec<f64> {
             a[r * m + c] = g[i * n + j] + if r == c { ridge } else { 0.0 };
         }
     }
-    cholesky_solve(&mut a, &mut b, m);
+    cholesky_solve(&a, &mut b, m);
     let mut z = vec![0.0; n];
     for (r, &i) in idx.iter().enumerate() {
         z[i] = b[r];
@@ -187,37 +187,59 @@ fn solve_subset(g: &[f64], h: &[f64], passive: &[bool]) -> Vec<f64> {
     z
 }
 
-/// In-place Cholesky solve of a small SPD system (a: m x m row-major, overwritten).
-pub fn cholesky_solve(a: &mut [f64], b: &mut [f64], m: usize) {
-    for j in 0..m {
-        let mut d = a[j * m + j];
-        for k in 0..j {
-            d -= a[j * m + k] * a[j * m + k];
-        }
-        let d = d.max(1e-300).sqrt();
-        a[j * m + j] = d;
-        for i in j + 1..m {
-            let mut s = a[i * m + j];
+/// A dense Cholesky factor (row-major lower triangle), factored once, solved many times.
+pub struct DenseCholesky {
+    l: Vec<f64>,
+    n: usize,
+}
+
+impl DenseCholesky {
+    /// Factors the SPD matrix `a` (n x n, row-major); pivots are clamped at 1e-300.
+    pub fn new(a: &[f64], n: usize) -> DenseCholesky {
+        assert_eq!(a.len(), n * n, "DenseCholesky: a must be n x n");
+        let mut l = a.to_vec();
+        for j in 0..n {
+            let mut d = l[j * n + j];
             for k in 0..j {
-                s -= a[i * m + k] * a[j * m + k];
+                d -= l[j * n + k] * l[j * n + k];
             }
-            a[i * m + j] = s / d;
+            let d = d.max(1e-300).sqrt();
+            l[j * n + j] = d;
+            for i in j + 1..n {
+                let mut s = l[i * n + j];
+                for k in 0..j {
+                    s -= l[i * n + k] * l[j * n + k];
+                }
+                l[i * n + j] = s / d;
+            }
+        }
+        DenseCholesky { l, n }
+    }
+
+    /// Solves A x = b in place.
+    pub fn solve(&self, b: &mut [f64]) {
+        let (l, n) = (&self.l, self.n);
+        assert_eq!(b.len(), n, "DenseCholesky: b must have n rows");
+        for i in 0..n {
+            let mut s = b[i];
+            for k in 0..i {
+                s -= l[i * n + k] * b[k];
+            }
+            b[i] = s / l[i * n + i];
+        }
+        for i in (0..n).rev() {
+            let mut s = b[i];
+            for k in i + 1..n {
+                s -= l[k * n + i] * b[k];
+            }
+            b[i] = s / l[i * n + i];
         }
     }
-    for i in 0..m {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= a[i * m + k] * b[k];
-        }
-        b[i] = s / a[i * m + i];
-    }
-    for i in (0..m).rev() {
-        let mut s = b[i];
-        for k in i + 1..m {
-            s -= a[k * m + i] * b[k];
-        }
-        b[i] = s / a[i * m + i];
-    }
+}
+
+/// Cholesky solve of a small SPD system (a: m x m row-major; b overwritten with x).
+pub fn cholesky_solve(a: &[f64], b: &mut [f64], m: usize) {
+    DenseCholesky::new(a, m).solve(b);
 }
 
 #[cfg(test)]

@@ -4,7 +4,9 @@ use clap::{Parser, Subcommand};
 use rrskin::synthetic::{random_model, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
-use std::path::PathBuf;
+use rrskin_tools::eval::{Options, Report};
+use rrskin_tools::example_set::ExampleSet;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -30,9 +32,31 @@ enum Command {
         /// Report leave-one-out error over the training poses as the test error.
         #[arg(long)]
         loocv: bool,
-        /// Influences per vertex for SSD.
+        /// Influences per vertex (SSD and the runtime model): 4 or 8.
         #[arg(long, default_value_t = 4)]
         influences: usize,
+        /// Proxy bones of the reduced model (0: no reduction).
+        #[arg(long, default_value_t = DEFAULT_PROXIES)]
+        proxies: usize,
+        /// Evaluate this trained model (runtime CPU evaluator) as rr_reduced.
+        #[arg(long)]
+        model: Option<PathBuf>,
+    },
+    /// Train the runtime model on the training poses of SET and write it.
+    Train {
+        /// An example-set folder (NumPy layout).
+        set: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Proxy bones P (the model's size and per-frame cost grow with it).
+        #[arg(long, default_value_t = DEFAULT_PROXIES)]
+        proxies: usize,
+        /// Influences per vertex: 4 or 8.
+        #[arg(long, default_value_t = 4)]
+        influences: usize,
+        /// One JSON object (the eval contract) on stdout, no progress.
+        #[arg(long)]
+        json: bool,
     },
     /// Print a model file's dimensions (validates it fully).
     Info {
@@ -91,6 +115,38 @@ fn main() -> ExitCode {
     }
 }
 
+const DEFAULT_PROXIES: usize = 60;
+
+fn evaluate(
+    set: &Path,
+    json: bool,
+    options: Options,
+) -> Result<Report, Box<dyn std::error::Error>> {
+    if !matches!(options.influences, 4 | 8) {
+        return Err(format!(
+            "--influences {}: the runtime supports 4 or 8",
+            options.influences
+        )
+        .into());
+    }
+    let examples = ExampleSet::load(set)?;
+    if !json {
+        examples
+            .warnings
+            .iter()
+            .for_each(|w| eprintln!("warning: {w}"));
+    }
+    rrskin_tools::eval::run(&examples, &options)
+}
+
+fn print_report(report: &Report, set: &Path, json: bool) {
+    if json {
+        out!("{}", report.to_json());
+    } else {
+        out!("{}", report.table(&set.display().to_string()));
+    }
+}
+
 fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         Command::Eval {
@@ -98,24 +154,53 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             json,
             loocv,
             influences,
+            proxies,
+            model,
         } => {
-            let examples = rrskin_tools::example_set::ExampleSet::load(&set)?;
-            if !json {
-                examples
-                    .warnings
-                    .iter()
-                    .for_each(|w| eprintln!("warning: {w}"));
+            let model = model.map(Model::load).transpose()?;
+            let report = evaluate(
+                &set,
+                json,
+                Options {
+                    influences,
+                    proxies,
+                    model,
+                    loocv,
+                    quiet: json,
+                },
+            )?;
+            print_report(&report, &set, json);
+        }
+        Command::Train {
+            set,
+            output,
+            proxies,
+            influences,
+            json,
+        } => {
+            if proxies == 0 {
+                return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }
-            let options = rrskin_tools::eval::Options {
-                influences,
-                loocv,
-                quiet: json,
-            };
-            let report = rrskin_tools::eval::run(&examples, &options)?;
-            if json {
-                out!("{}", report.to_json());
-            } else {
-                out!("{}", report.table(&set.display().to_string()));
+            let report = evaluate(
+                &set,
+                json,
+                Options {
+                    influences,
+                    proxies,
+                    model: None,
+                    loocv: false,
+                    quiet: json,
+                },
+            )?;
+            let model = report.model.as_ref().ok_or("training produced no model")?;
+            model.save(&output)?;
+            print_report(&report, &set, json);
+            if !json {
+                eprintln!(
+                    "wrote {} ({} bytes)",
+                    output.display(),
+                    model.to_bytes().len()
+                );
             }
         }
         Command::Info { model, json } => {

@@ -53,8 +53,8 @@ pub fn fit(stretches: &[DMat3], xs: &[[f64; 7]], lambda: f64) -> ScaleShear {
     let mut h = h0;
     for (o, row) in rhs.iter().enumerate() {
         let mut b = row.to_vec();
-        let mut a = gram.to_vec();
-        cholesky_solve(&mut a, &mut b, 6);
+        let a = gram.to_vec();
+        cholesky_solve(&a, &mut b, 6);
         h[7 * o..7 * o + 6].copy_from_slice(&b);
     }
     h

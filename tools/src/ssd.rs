@@ -76,50 +76,65 @@ pub fn fit(set: &ExampleSet, poses: &[usize], errors: &[Vec<f64>], k: usize) -> 
             let mut order: Vec<usize> = (0..set.bone_count()).collect();
             order.sort_by(|&x, &y| errors[a][x].total_cmp(&errors[a][y]));
             order.truncate(CANDIDATES);
-            let w = fit_vertex(set, poses, a, &order);
-            let mut support: Vec<(usize, f64)> = order
-                .iter()
-                .zip(&w)
-                .filter(|(_, &w)| w > 0.0)
-                .map(|(&b, &w)| (b, w))
-                .collect();
-            if support.len() > k {
-                // Keep the k largest and refit on them.
-                support.sort_by(|x, y| y.1.total_cmp(&x.1));
-                let kept: Vec<usize> = support[..k].iter().map(|&(b, _)| b).collect();
-                let w = fit_vertex(set, poses, a, &kept);
-                support = kept
-                    .iter()
-                    .zip(&w)
-                    .filter(|(_, &w)| w > 0.0)
-                    .map(|(&b, &w)| (b, w))
-                    .collect();
-            }
-            let total: f64 = support.iter().map(|&(_, w)| w).sum();
-            if support.is_empty() || total <= 0.0 {
-                return vec![(order[0], 1.0)];
-            }
-            support.iter().map(|&(b, w)| (b, w / total)).collect()
+            let moved = |n: usize, b: usize| set.poses[poses[n]].bones[b].apply(set.rest[a]);
+            fit_weights(poses.len(), &order, k, moved, |n| {
+                set.poses[poses[n]].vertices[a]
+            })
         })
         .collect();
     Skinning { influences }
 }
 
-/// NNLS for one vertex over `bones`, with a heavily weighted Σw = 1 row.
-fn fit_vertex(set: &ExampleSet, poses: &[usize], a: usize, bones: &[usize]) -> Vec<f64> {
-    let n = bones.len();
+/// Blend weights of one vertex over `candidates` (best first): NNLS over `poses` samples with
+/// a heavily weighted Σw = 1 row; if more than `k` are non-zero, the `k` largest are refitted.
+/// `moved(n, c)`: the vertex moved by candidate c in sample n; `target(n)`: where it should be.
+/// Shared by SSD (candidates = bones) and the vertex reduction (candidates = proxy bones).
+pub fn fit_weights(
+    poses: usize,
+    candidates: &[usize],
+    k: usize,
+    moved: impl Fn(usize, usize) -> DVec3,
+    target: impl Fn(usize) -> DVec3,
+) -> Vec<(usize, f64)> {
+    let solve = |set: &[usize]| -> Vec<(usize, f64)> {
+        let w = nnls_sum_to_one(poses, set, &moved, &target);
+        set.iter()
+            .zip(&w)
+            .filter(|(_, &w)| w > 0.0)
+            .map(|(&c, &w)| (c, w))
+            .collect()
+    };
+    let mut support = solve(candidates);
+    if support.len() > k {
+        support.sort_by(|x, y| y.1.total_cmp(&x.1));
+        let kept: Vec<usize> = support[..k].iter().map(|&(c, _)| c).collect();
+        support = solve(&kept);
+    }
+    let total: f64 = support.iter().map(|&(_, w)| w).sum();
+    if support.is_empty() || total <= 0.0 {
+        return vec![(candidates[0], 1.0)];
+    }
+    support.iter().map(|&(c, w)| (c, w / total)).collect()
+}
+
+fn nnls_sum_to_one(
+    poses: usize,
+    candidates: &[usize],
+    moved: &impl Fn(usize, usize) -> DVec3,
+    target: &impl Fn(usize) -> DVec3,
+) -> Vec<f64> {
+    let n = candidates.len();
     let (mut g, mut h) = (vec![0.0; n * n], vec![0.0; n]);
-    let mut moved = vec![DVec3::ZERO; n];
-    for &i in poses {
-        let pose = &set.poses[i];
-        for (m, &b) in moved.iter_mut().zip(bones) {
-            *m = pose.bones[b].apply(set.rest[a]);
+    let mut m = vec![DVec3::ZERO; n];
+    for s in 0..poses {
+        for (slot, &c) in m.iter_mut().zip(candidates) {
+            *slot = moved(s, c);
         }
-        let y = pose.vertices[a];
+        let y = target(s);
         for r in 0..n {
-            h[r] += moved[r].dot(y);
+            h[r] += m[r].dot(y);
             for c in 0..n {
-                g[r * n + c] += moved[r].dot(moved[c]);
+                g[r * n + c] += m[r].dot(m[c]);
             }
         }
     }

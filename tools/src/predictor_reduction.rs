@@ -1,0 +1,204 @@
+//! Predictor reduction (paper §5.2, METHOD.md §7): P key gradient sequences D_ℓ^i and sparse
+//! blend weights β (T x P) with `Σ_i Σ_k Σ_j=2,3 |Σ_ℓ β_kℓ D_ℓ^i v̂_kj − v_kj^i|²` small, by
+//! coordinate descent from D_ℓ^i = the 3x3 part of proxy ℓ's transforms; then a predictor
+//! (rotation §3.2 + scale/shear §3.3) is trained on each key sequence.
+
+use crate::example_set::ExampleSet;
+use crate::full_model::{rest_edges, Prepared};
+use crate::linalg::{cholesky_solve, polar, DenseCholesky};
+use crate::rotreg::{self, PoseFeatures, RotationPredictor};
+use crate::scale_shear::{self, ScaleShear};
+use crate::vertex_reduction::Proxies;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+/// Coordinate-descent rounds (the paper converges in three or fewer).
+pub const ROUNDS: usize = 3;
+
+#[derive(Debug, Clone)]
+pub struct KeySequences {
+    /// Per triangle: (key ℓ, β).
+    pub beta: Vec<Vec<(usize, f64)>>,
+    /// [pose (train order)][key]
+    pub d: Vec<Vec<DMat3>>,
+}
+
+/// Keys a triangle may blend: its group's and those weighting its vertices.
+fn candidates(set: &ExampleSet, proxies: &Proxies, k: usize) -> Vec<usize> {
+    let mut c = vec![proxies.triangle_group[k]];
+    for &a in &set.faces[k] {
+        for &(b, _) in &proxies.weights[a] {
+            if !c.contains(&b) {
+                c.push(b);
+            }
+        }
+    }
+    c
+}
+
+pub fn reduce(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    proxies: &Proxies,
+) -> KeySequences {
+    let p = proxies.count();
+    let edges = rest_edges(set);
+    let cands: Vec<Vec<usize>> = (0..set.faces.len())
+        .map(|k| candidates(set, proxies, k))
+        .collect();
+    // True edges v_kj^i = D_k^i v̂_kj.
+    let target = |n: usize, k: usize, j: usize| {
+        let (r, s) = prep.polar[train[n]][k];
+        r * s * edges[k][j]
+    };
+    let mut d: Vec<Vec<DMat3>> = proxies
+        .transforms
+        .iter()
+        .map(|ts| ts.iter().map(|t| t.m).collect())
+        .collect();
+    let mut beta: Vec<Vec<(usize, f64)>> = Vec::new();
+    for _ in 0..ROUNDS {
+        // β-step: one small least-squares problem per triangle.
+        beta = (0..set.faces.len())
+            .into_par_iter()
+            .map(|k| {
+                let c = &cands[k];
+                let m = c.len();
+                let (mut g, mut h) = (vec![0.0; m * m], vec![0.0; m]);
+                for n in 0..train.len() {
+                    for j in 0..2 {
+                        let cols: Vec<DVec3> = c.iter().map(|&l| d[n][l] * edges[k][j]).collect();
+                        let v = target(n, k, j);
+                        for r in 0..m {
+                            h[r] += cols[r].dot(v);
+                            for s in 0..m {
+                                g[r * m + s] += cols[r].dot(cols[s]);
+                            }
+                        }
+                    }
+                }
+                let ridge = 1e-9 * (0..m).map(|r| g[r * m + r]).sum::<f64>().max(1e-300);
+                for r in 0..m {
+                    g[r * m + r] += ridge;
+                }
+                cholesky_solve(&g, &mut h, m);
+                c.iter().copied().zip(h).collect()
+            })
+            .collect();
+        // D-step: per pose and row c, the 3P unknowns (row c of every D_ℓ) share one normal
+        // matrix; a weak pull toward the current keys keeps unused keys determined.
+        let n3 = 3 * p;
+        let mut gram = vec![0.0; n3 * n3];
+        for (k, bk) in beta.iter().enumerate() {
+            for j in 0..2 {
+                let e = edges[k][j].to_array();
+                for &(l1, b1) in bk {
+                    for &(l2, b2) in bk {
+                        for r in 0..3 {
+                            for s in 0..3 {
+                                gram[(3 * l1 + r) * n3 + 3 * l2 + s] += b1 * b2 * e[r] * e[s];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let ridge = 1e-6 * (0..n3).map(|x| gram[x * n3 + x]).sum::<f64>() / n3.max(1) as f64;
+        (0..n3).for_each(|x| gram[x * n3 + x] += ridge.max(1e-12));
+        let factor = DenseCholesky::new(&gram, n3);
+        d = (0..train.len())
+            .into_par_iter()
+            .map(|n| {
+                let mut rows = [vec![0.0; n3], vec![0.0; n3], vec![0.0; n3]];
+                for (k, bk) in beta.iter().enumerate() {
+                    for j in 0..2 {
+                        let (e, v) = (edges[k][j].to_array(), target(n, k, j));
+                        for &(l, b) in bk {
+                            for c in 0..3 {
+                                for r in 0..3 {
+                                    rows[c][3 * l + r] += b * e[r] * v[c];
+                                }
+                            }
+                        }
+                    }
+                }
+                for (l, dl) in d[n].iter().enumerate() {
+                    for c in 0..3 {
+                        let row = dl.row(c).to_array();
+                        for r in 0..3 {
+                            rows[c][3 * l + r] += ridge.max(1e-12) * row[r];
+                        }
+                    }
+                }
+                rows.iter_mut().for_each(|x| factor.solve(x));
+                (0..p)
+                    .map(|l| {
+                        DMat3::from_cols_array(&[
+                            rows[0][3 * l],
+                            rows[1][3 * l],
+                            rows[2][3 * l],
+                            rows[0][3 * l + 1],
+                            rows[1][3 * l + 1],
+                            rows[2][3 * l + 1],
+                            rows[0][3 * l + 2],
+                            rows[1][3 * l + 2],
+                            rows[2][3 * l + 2],
+                        ])
+                    })
+                    .collect()
+            })
+            .collect();
+    }
+    KeySequences { beta, d }
+}
+
+/// A trained key predictor: rotation (None when no nearby bone moves: then R = I) and H.
+#[derive(Debug, Clone)]
+pub struct KeyPredictor {
+    pub rotation: Option<RotationPredictor>,
+    pub stretch: ScaleShear,
+}
+
+impl KeyPredictor {
+    pub fn predict(&self, f: &PoseFeatures, parents: &[Option<usize>]) -> DMat3 {
+        match &self.rotation {
+            Some(r) => {
+                let x = scale_shear::features(f, parents, r.first.bone);
+                r.predict(f, parents) * scale_shear::predict(&self.stretch, &x)
+            }
+            None => DMat3::IDENTITY,
+        }
+    }
+}
+
+/// Trains a predictor on each key sequence; candidate bones are those near the key's proxy
+/// (the bones skinning its group's vertices in SSD, their parents and children).
+pub fn train_predictors(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    keys: &KeySequences,
+    key_bones: &[Vec<usize>],
+    ridge: f64,
+) -> Vec<KeyPredictor> {
+    let feats: Vec<&PoseFeatures> = train.iter().map(|&i| &prep.feats[i]).collect();
+    (0..key_bones.len())
+        .into_par_iter()
+        .map(|l| {
+            let (rs, ss): (Vec<DMat3>, Vec<DMat3>) = keys.d.iter().map(|dn| polar(dn[l])).unzip();
+            let rotation = rotreg::fit(&rs, &feats, &set.parents, &key_bones[l]);
+            let stretch = match &rotation {
+                Some(r) => {
+                    let xs: Vec<[f64; 7]> = feats
+                        .iter()
+                        .map(|f| scale_shear::features(f, &set.parents, r.first.bone))
+                        .collect();
+                    scale_shear::fit(&ss, &xs, ridge)
+                }
+                None => scale_shear::identity(),
+            };
+            KeyPredictor { rotation, stretch }
+        })
+        .collect()
+}

@@ -1,0 +1,290 @@
+//! The reduced reconstruction (paper §4.3, Eq. 5–6; METHOD.md §8) and the runtime model file.
+//!
+//! Per coordinate c the residual of every edge row e = (k, j) is
+//! `G t_c + K q_c − B d_c − L q_c` with
+//!
+//! | matrix | shape   | row e                                                            |
+//! |--------|---------|------------------------------------------------------------------|
+//! | G      | 2T x 4P | φ_kj − φ_k1 over free endpoints, φ_a = α_ab ŷh_a in block b       |
+//! | K      | 2T x 4J | ψ_kj − ψ_k1 over fixed endpoints, ψ_a = w_ab ŷh_a (SSD) in block b |
+//! | B      | 2T x 3P | a_k β_kℓ v̂_kj in block ℓ (a_k: the triangle's regression weight)  |
+//! | L      | 2T x 4J | (1 − a_k)(ψ_kj − ψ_k1) over all endpoints: SSD's edge            |
+//!
+//! so `t_c = C1 d_c + C2 q_c` with `C1 = (GᵀG + μI)⁻¹ GᵀB` (4P x 3P) and
+//! `C2 = (GᵀG + μI)⁻¹ (Gᵀ(L − K) + μE)` (4P x 4J). The weak rows μ |t_b − q_bone(b)|² pull each
+//! proxy toward its best-matching bone, which keeps proxies touching only fixed vertices
+//! determined while staying linear in q.
+
+use crate::example_set::{Bone, ExampleSet};
+use crate::linalg::DenseCholesky;
+use crate::predictor_reduction::{KeyPredictor, KeySequences};
+use crate::rotreg::PoseFeatures;
+use crate::ssd::Skinning;
+use crate::vertex_reduction::Proxies;
+use glam::{DMat3, DVec3, DVec4};
+
+/// The reduced model in f64, as trained: what the runtime model stores in f32.
+pub struct Reduced {
+    pub proxies: usize,
+    pub bones: usize,
+    /// 4P x 3P, row-major.
+    pub c1: Vec<f64>,
+    /// 4P x 4J, row-major.
+    pub c2: Vec<f64>,
+    pub predictors: Vec<KeyPredictor>,
+    /// Per vertex: (palette entry, weight); entries < P are proxies, P + b bone b.
+    pub skin: Vec<Vec<(usize, f64)>>,
+}
+
+/// Relative strength of the rows pulling each proxy toward its bone.
+const PROXY_PULL: f64 = 1e-6;
+
+/// Assembles C1 and C2 from the reductions. `blend`: per triangle, the regression's weight a_k.
+pub fn assemble(
+    set: &ExampleSet,
+    ssd: &Skinning,
+    fixed: &[bool],
+    blend: &[f64],
+    proxies: &Proxies,
+    keys: &KeySequences,
+    predictors: Vec<KeyPredictor>,
+) -> Reduced {
+    let (p, j) = (proxies.count(), set.bone_count());
+    let (n4p, n3p, n4j) = (4 * p, 3 * p, 4 * j);
+    let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
+    // Sparse rows of φ (free), ψ (fixed) and ψ over all vertices.
+    let phi = |a: usize| -> Vec<(usize, f64)> {
+        if fixed[a] {
+            return Vec::new();
+        }
+        proxies.weights[a]
+            .iter()
+            .flat_map(|&(b, w)| (0..4).map(move |r| (4 * b + r, w * h(a)[r])))
+            .collect()
+    };
+    let psi_all = |a: usize| -> Vec<(usize, f64)> {
+        ssd.influences[a]
+            .iter()
+            .flat_map(|&(b, w)| (0..4).map(move |r| (4 * b + r, w * h(a)[r])))
+            .collect()
+    };
+    let psi = |a: usize| if fixed[a] { psi_all(a) } else { Vec::new() };
+    let mut gtg = vec![0.0; n4p * n4p];
+    let mut gtb = vec![0.0; n4p * n3p];
+    let mut gtlk = vec![0.0; n4p * n4j];
+    for (k, &[k1, k2, k3]) in set.faces.iter().enumerate() {
+        for kj in [k2, k3] {
+            let edge = set.rest[kj] - set.rest[k1];
+            let g_row = combine(&phi(kj), &phi(k1));
+            if g_row.is_empty() {
+                continue;
+            }
+            let mut b_row = Vec::new();
+            for &(l, beta) in &keys.beta[k] {
+                for r in 0..3 {
+                    b_row.push((3 * l + r, blend[k] * beta * edge[r]));
+                }
+            }
+            let mut lk_row: Vec<(usize, f64)> = combine(&psi_all(kj), &psi_all(k1))
+                .into_iter()
+                .map(|(c, v)| (c, (1.0 - blend[k]) * v))
+                .collect();
+            lk_row.extend(
+                combine(&psi(kj), &psi(k1))
+                    .into_iter()
+                    .map(|(c, v)| (c, -v)),
+            );
+            for &(r, gv) in &g_row {
+                for &(c, v) in &g_row {
+                    gtg[r * n4p + c] += gv * v;
+                }
+                for &(c, v) in &b_row {
+                    gtb[r * n3p + c] += gv * v;
+                }
+                for &(c, v) in &lk_row {
+                    gtlk[r * n4j + c] += gv * v;
+                }
+            }
+        }
+    }
+    let mu = PROXY_PULL * (0..n4p).map(|d| gtg[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
+    let mu = mu.max(1e-12);
+    for (b, bone) in proxy_bones(set, ssd, proxies).into_iter().enumerate() {
+        for r in 0..4 {
+            gtg[(4 * b + r) * n4p + 4 * b + r] += mu;
+            gtlk[(4 * b + r) * n4j + 4 * bone + r] += mu;
+        }
+    }
+    let factor = DenseCholesky::new(&gtg, n4p);
+    let solve_columns = |rhs: &[f64], cols: usize| -> Vec<f64> {
+        let mut out = vec![0.0; n4p * cols];
+        let mut col = vec![0.0; n4p];
+        for c in 0..cols {
+            (0..n4p).for_each(|r| col[r] = rhs[r * cols + c]);
+            factor.solve(&mut col);
+            (0..n4p).for_each(|r| out[r * cols + c] = col[r]);
+        }
+        out
+    };
+    let c1 = solve_columns(&gtb, n3p);
+    let c2 = solve_columns(&gtlk, n4j);
+    let skin = (0..set.vertex_count())
+        .map(|a| match fixed[a] {
+            true => ssd.influences[a].iter().map(|&(b, w)| (p + b, w)).collect(),
+            false => proxies.weights[a].clone(),
+        })
+        .collect();
+    Reduced {
+        proxies: p,
+        bones: j,
+        c1,
+        c2,
+        predictors,
+        skin,
+    }
+}
+
+/// Sparse row difference x − y.
+fn combine(x: &[(usize, f64)], y: &[(usize, f64)]) -> Vec<(usize, f64)> {
+    let mut out: Vec<(usize, f64)> = x.to_vec();
+    for &(c, v) in y {
+        match out.iter_mut().find(|(d, _)| *d == c) {
+            Some(slot) => slot.1 -= v,
+            None => out.push((c, -v)),
+        }
+    }
+    out
+}
+
+/// Each proxy's best-matching bone: the largest total SSD weight over its vertices.
+fn proxy_bones(set: &ExampleSet, ssd: &Skinning, proxies: &Proxies) -> Vec<usize> {
+    let mut score = vec![vec![0.0; set.bone_count()]; proxies.count()];
+    for (k, tri) in set.faces.iter().enumerate() {
+        for &a in tri {
+            for &(b, w) in &ssd.influences[a] {
+                score[proxies.triangle_group[k]][b] += w;
+            }
+        }
+    }
+    score
+        .iter()
+        .map(|s| {
+            (0..s.len())
+                .max_by(|&x, &y| s[x].total_cmp(&s[y]))
+                .unwrap_or(0)
+        })
+        .collect()
+}
+
+impl Reduced {
+    /// The mesh in one pose, in f64: predictors, t = C1 d + C2 q, palette skinning.
+    pub fn predict(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<DVec3> {
+        let (p, j) = (self.proxies, self.bones);
+        let d: Vec<DMat3> = self
+            .predictors
+            .iter()
+            .map(|k| k.predict(f, &set.parents))
+            .collect();
+        let mut palette = vec![[DVec4::ZERO; 3]; p];
+        for c in 0..3 {
+            for r in 0..4 * p {
+                let mut v = 0.0;
+                for (l, dl) in d.iter().enumerate() {
+                    let row = dl.row(c);
+                    for x in 0..3 {
+                        v += self.c1[r * 3 * p + 3 * l + x] * row[x];
+                    }
+                }
+                for (b, bone) in bones.iter().enumerate() {
+                    let q = [
+                        bone.q.x_axis[c],
+                        bone.q.y_axis[c],
+                        bone.q.z_axis[c],
+                        bone.d[c],
+                    ];
+                    for x in 0..4 {
+                        v += self.c2[r * 4 * j + 4 * b + x] * q[x];
+                    }
+                }
+                palette[r / 4][c][r % 4] = v;
+            }
+        }
+        set.rest
+            .iter()
+            .zip(&self.skin)
+            .map(|(&y, inf)| {
+                let h = DVec4::from((y, 1.0));
+                inf.iter()
+                    .map(|&(e, w)| {
+                        let moved = if e < p {
+                            DVec3::new(
+                                palette[e][0].dot(h),
+                                palette[e][1].dot(h),
+                                palette[e][2].dot(h),
+                            )
+                        } else {
+                            bones[e - p].apply(y)
+                        };
+                        moved * w
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// The runtime model (f32), validated by `rrskin::Model::new`.
+    pub fn to_runtime(&self, set: &ExampleSet, influences: usize) -> rrskin::Result<rrskin::Model> {
+        let root = set.parents.iter().position(|p| p.is_none()).unwrap_or(0);
+        let rows = |m: DMat3| m.transpose().to_cols_array().map(|x| x as f32);
+        let predictors = self
+            .predictors
+            .iter()
+            .map(|k| match &k.rotation {
+                Some(r) => rrskin::KeyPredictor {
+                    bone: r.first.bone as u32,
+                    u: r.first.u as f32,
+                    w: rows(r.first.w),
+                    second: r.second.map(|s| rrskin::SecondBone {
+                        bone: s.bone as u32,
+                        u: s.u as f32,
+                        w: rows(s.w),
+                    }),
+                    h: k.stretch.map(|x| x as f32),
+                },
+                // No moving bone: R = I from a root with u = 0, and S = H₀.
+                None => rrskin::KeyPredictor {
+                    bone: root as u32,
+                    u: 0.0,
+                    w: rows(DMat3::IDENTITY),
+                    second: None,
+                    h: crate::scale_shear::identity().map(|x| x as f32),
+                },
+            })
+            .collect();
+        let mut skin_indices = Vec::with_capacity(set.vertex_count() * influences);
+        let mut skin_weights = Vec::with_capacity(set.vertex_count() * influences);
+        for inf in &self.skin {
+            let total: f64 = inf.iter().map(|&(_, w)| w).sum();
+            for s in 0..influences {
+                let (e, w) = inf.get(s).copied().unwrap_or((0, 0.0));
+                skin_indices.push(e as u32);
+                skin_weights.push((w / total) as f32);
+            }
+        }
+        rrskin::Model::new(rrskin::ModelParts {
+            rest_positions: set.rest.iter().map(|p| p.as_vec3().to_array()).collect(),
+            triangles: set.faces.iter().map(|t| t.map(|a| a as u32)).collect(),
+            bone_parents: set
+                .parents
+                .iter()
+                .map(|p| p.map_or(-1, |p| p as i32))
+                .collect(),
+            influences: influences as u32,
+            skin_indices,
+            skin_weights,
+            predictors,
+            c1: self.c1.iter().map(|&x| x as f32).collect(),
+            c2: self.c2.iter().map(|&x| x as f32).collect(),
+        })
+    }
+}

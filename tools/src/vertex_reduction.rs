@@ -1,0 +1,445 @@
+//! Vertex reduction to P proxy bones (paper §5.1, METHOD.md §6).
+//!
+//! 1. Greedy merging: every triangle starts as a group whose transform maps it (with a
+//!    normal-offset fourth point, so the affine fit is determined) from rest to each pose; the
+//!    join A → B of contiguous groups with the smallest error
+//!    `E_A→B = Σ_i s_A^i − 2 tr(T_B^i N_A^iᵀ) + tr(T_B^i M_A T_B^iᵀ)` is performed next. All a
+//!    cost needs is in per-group moments (M 4x4, N^i 3x4, s^i), so a join costs O(N) whatever the
+//!    group sizes; a binary heap with per-group versions skips stale entries.
+//! 2. Alternation (paper steps 3–4): per free vertex, NNLS weights α over the proxies of its own
+//!    group and the adjacent groups (at most K, Σα = 1); then all proxy transforms by least
+//!    squares, one (4P x 4P) normal matrix shared by every pose and coordinate.
+//!
+//! Index letters: b, g proxies (groups), i poses (in `train` order), a vertices, k triangles.
+
+use crate::example_set::ExampleSet;
+use glam::{DMat3, DMat4, DVec3, DVec4};
+use rayon::prelude::*;
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashSet};
+
+/// An affine map x ↦ m x + t, 3x4.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Affine {
+    pub m: DMat3,
+    pub t: DVec3,
+}
+
+impl Affine {
+    pub fn apply(&self, x: DVec3) -> DVec3 {
+        self.m * x + self.t
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Proxies {
+    /// Per vertex: (proxy, α) for free vertices, empty for fixed ones.
+    pub weights: Vec<Vec<(usize, f64)>>,
+    /// [pose (train order)][proxy]
+    pub transforms: Vec<Vec<Affine>>,
+    /// Per triangle: the proxy of its group.
+    pub triangle_group: Vec<usize>,
+    /// Per proxy: the contiguous proxies.
+    pub adjacency: Vec<Vec<usize>>,
+}
+
+impl Proxies {
+    pub fn count(&self) -> usize {
+        self.adjacency.len()
+    }
+}
+
+/// Moments of a group over its sample points (METHOD.md §6).
+#[derive(Clone)]
+struct Moments {
+    m: DMat4,
+    /// Per pose: Σ y ŷhᵀ as 3 rows of 4.
+    n: Vec<[DVec4; 3]>,
+    s: Vec<f64>,
+}
+
+impl Moments {
+    fn add(&mut self, other: &Moments) {
+        self.m += other.m;
+        for (a, b) in self.n.iter_mut().zip(&other.n) {
+            for r in 0..3 {
+                a[r] += b[r];
+            }
+        }
+        self.s.iter_mut().zip(&other.s).for_each(|(a, b)| *a += b);
+    }
+
+    /// Best affine fit per pose: T = N M⁻¹ (rows).
+    fn fit(&self) -> Vec<[DVec4; 3]> {
+        let inv = self.m.inverse();
+        self.n
+            .iter()
+            .map(|rows| rows.map(|r| inv.transpose() * r))
+            .collect()
+    }
+
+    /// Error of mapping this group's samples with `t`.
+    fn error_with(&self, t: &[[DVec4; 3]]) -> f64 {
+        self.n
+            .iter()
+            .zip(&self.s)
+            .zip(t)
+            .map(|((n, s), rows)| {
+                let mut e = *s;
+                for r in 0..3 {
+                    e += -2.0 * rows[r].dot(n[r]) + rows[r].dot(self.m * rows[r]);
+                }
+                e
+            })
+            .sum::<f64>()
+            .max(0.0)
+    }
+}
+
+fn homogeneous(p: DVec3) -> DVec4 {
+    p.extend(1.0)
+}
+
+/// The triangle's fourth point: its centroid plus the unit normal times sqrt(area), so the
+/// affine fit of one triangle is determined and scale-consistent.
+fn fourth_point(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let cross = (b - a).cross(c - a);
+    let len = cross.length();
+    let n = if len > 0.0 {
+        cross / len.sqrt()
+    } else {
+        DVec3::ZERO
+    };
+    (a + b + c) / 3.0 + n
+}
+
+fn triangle_moments(set: &ExampleSet, train: &[usize], k: usize) -> Moments {
+    let [a, b, c] = set.faces[k];
+    let rest = [set.rest[a], set.rest[b], set.rest[c]];
+    let rest4 = fourth_point(rest[0], rest[1], rest[2]);
+    let points: Vec<DVec4> = rest
+        .iter()
+        .chain([&rest4])
+        .map(|&p| homogeneous(p))
+        .collect();
+    let mut m = DMat4::ZERO;
+    for p in &points {
+        m += DMat4::from_cols(*p * p.x, *p * p.y, *p * p.z, *p * p.w);
+    }
+    let (mut n, mut s) = (
+        Vec::with_capacity(train.len()),
+        Vec::with_capacity(train.len()),
+    );
+    for &i in train {
+        let y = &set.poses[i].vertices;
+        let posed = [y[a], y[b], y[c]];
+        let posed4 = fourth_point(posed[0], posed[1], posed[2]);
+        let mut rows = [DVec4::ZERO; 3];
+        let mut sum = 0.0;
+        for (q, p) in posed.iter().chain([&posed4]).zip(&points) {
+            for r in 0..3 {
+                rows[r] += *p * q[r];
+            }
+            sum += q.length_squared();
+        }
+        n.push(rows);
+        s.push(sum);
+    }
+    // A tiny ridge keeps degenerate triangles invertible.
+    Moments {
+        m: m + DMat4::IDENTITY * 1e-12,
+        n,
+        s,
+    }
+}
+
+#[derive(PartialEq)]
+struct Join {
+    cost: f64,
+    from: usize,
+    into: usize,
+    versions: (u32, u32),
+}
+
+impl Eq for Join {}
+
+impl Ord for Join {
+    fn cmp(&self, other: &Self) -> Ordering {
+        other.cost.total_cmp(&self.cost) // min-heap
+    }
+}
+
+impl PartialOrd for Join {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Greedy merging of contiguous triangle groups down to `proxies` groups. Returns each
+/// triangle's group (0..proxies) and the group adjacency.
+pub fn merge_groups(
+    set: &ExampleSet,
+    train: &[usize],
+    proxies: usize,
+) -> (Vec<usize>, Vec<Vec<usize>>) {
+    let t = set.faces.len();
+    let mut moments: Vec<Option<Moments>> = (0..t)
+        .into_par_iter()
+        .map(|k| Some(triangle_moments(set, train, k)))
+        .collect();
+    let mut fits: Vec<Vec<[DVec4; 3]>> = moments
+        .par_iter()
+        .map(|m| m.as_ref().map_or(Vec::new(), |m| m.fit()))
+        .collect();
+    let mut neighbours: Vec<HashSet<usize>> = triangle_adjacency(set);
+    let mut version = vec![0u32; t];
+    let mut owner: Vec<usize> = (0..t).collect(); // union-find parent
+    let mut heap = BinaryHeap::new();
+    let push = |heap: &mut BinaryHeap<Join>,
+                moments: &[Option<Moments>],
+                fits: &[Vec<[DVec4; 3]>],
+                version: &[u32],
+                a: usize,
+                b: usize| {
+        if let Some(ma) = &moments[a] {
+            heap.push(Join {
+                cost: ma.error_with(&fits[b]),
+                from: a,
+                into: b,
+                versions: (version[a], version[b]),
+            });
+        }
+    };
+    for a in 0..t {
+        for &b in &neighbours[a] {
+            push(&mut heap, &moments, &fits, &version, a, b);
+        }
+    }
+    let mut groups = t;
+    while groups > proxies.max(1) {
+        let Some(join) = heap.pop() else { break };
+        let (a, b) = (join.from, join.into);
+        if moments[a].is_none() || moments[b].is_none() || join.versions != (version[a], version[b])
+        {
+            continue; // stale
+        }
+        let ma = moments[a].take().expect("checked above");
+        if let Some(mb) = moments[b].as_mut() {
+            mb.add(&ma);
+            fits[b] = mb.fit();
+        }
+        fits[a] = Vec::new();
+        owner[a] = b;
+        version[b] += 1;
+        version[a] += 1;
+        let moved: Vec<usize> = neighbours[a].drain().collect();
+        for x in moved {
+            neighbours[x].remove(&a);
+            if x != b {
+                neighbours[x].insert(b);
+                neighbours[b].insert(x);
+            }
+        }
+        neighbours[b].remove(&b);
+        groups -= 1;
+        let around: Vec<usize> = neighbours[b].iter().copied().collect();
+        for x in around {
+            push(&mut heap, &moments, &fits, &version, b, x);
+            push(&mut heap, &moments, &fits, &version, x, b);
+        }
+    }
+    // Renumber surviving groups 0..P and map every triangle to its group.
+    let roots: Vec<usize> = (0..t).filter(|&g| moments[g].is_some()).collect();
+    let mut index = vec![usize::MAX; t];
+    roots.iter().enumerate().for_each(|(n, &g)| index[g] = n);
+    let find = |mut x: usize| {
+        while owner[x] != x {
+            x = owner[x];
+        }
+        x
+    };
+    let triangle_group: Vec<usize> = (0..t).map(|k| index[find(k)]).collect();
+    let adjacency = roots
+        .iter()
+        .map(|&g| neighbours[g].iter().map(|&x| index[x]).collect())
+        .collect();
+    (triangle_group, adjacency)
+}
+
+/// Triangles sharing an edge.
+fn triangle_adjacency(set: &ExampleSet) -> Vec<HashSet<usize>> {
+    let mut by_edge: std::collections::HashMap<(usize, usize), Vec<usize>> = Default::default();
+    for (k, &[a, b, c]) in set.faces.iter().enumerate() {
+        for (x, y) in [(a, b), (b, c), (c, a)] {
+            by_edge.entry((x.min(y), x.max(y))).or_default().push(k);
+        }
+    }
+    let mut adj = vec![HashSet::new(); set.faces.len()];
+    for tris in by_edge.values() {
+        for &p in tris {
+            for &q in tris {
+                if p != q {
+                    adj[p].insert(q);
+                }
+            }
+        }
+    }
+    adj
+}
+
+/// Rounds of the α / transform alternation after merging.
+pub const ALTERNATIONS: usize = 3;
+
+/// The whole vertex reduction: merging, then alternating α and transforms over free vertices.
+pub fn reduce(
+    set: &ExampleSet,
+    train: &[usize],
+    fixed: &[bool],
+    proxies: usize,
+    influences: usize,
+) -> Proxies {
+    let (triangle_group, adjacency) = merge_groups(set, train, proxies);
+    let p = adjacency.len();
+    // Initial transforms: the least-squares fit of each group's triangles.
+    let mut group_moments: Vec<Option<Moments>> = vec![None; p];
+    for (k, &g) in triangle_group.iter().enumerate() {
+        let m = triangle_moments(set, train, k);
+        match &mut group_moments[g] {
+            Some(acc) => acc.add(&m),
+            slot => *slot = Some(m),
+        }
+    }
+    let mut transforms: Vec<Vec<Affine>> = vec![Vec::with_capacity(p); train.len()];
+    for m in &group_moments {
+        let fit = m.as_ref().map_or_else(
+            || vec![[DVec4::X, DVec4::Y, DVec4::Z]; train.len()],
+            |m| m.fit(),
+        );
+        for (i, rows) in fit.iter().enumerate() {
+            transforms[i].push(affine_of_rows(rows));
+        }
+    }
+    // Each vertex's home group: the group of an incident triangle fitting it best.
+    let mut incident: Vec<Vec<usize>> = vec![Vec::new(); set.vertex_count()];
+    for (k, tri) in set.faces.iter().enumerate() {
+        tri.iter()
+            .for_each(|&a| incident[a].push(triangle_group[k]));
+    }
+    let mut weights = vec![Vec::new(); set.vertex_count()];
+    for _ in 0..ALTERNATIONS {
+        weights = (0..set.vertex_count())
+            .into_par_iter()
+            .map(|a| {
+                if fixed[a] || incident[a].is_empty() {
+                    return Vec::new();
+                }
+                let error = |g: usize| -> f64 {
+                    train
+                        .iter()
+                        .enumerate()
+                        .map(|(n, &i)| {
+                            (transforms[n][g].apply(set.rest[a]) - set.poses[i].vertices[a])
+                                .length_squared()
+                        })
+                        .sum()
+                };
+                let home = *incident[a]
+                    .iter()
+                    .min_by(|&&x, &&y| error(x).total_cmp(&error(y)))
+                    .unwrap_or(&incident[a][0]);
+                let mut candidates: Vec<usize> = std::iter::once(home)
+                    .chain(adjacency[home].iter().copied())
+                    .collect();
+                candidates.sort_by(|&x, &y| error(x).total_cmp(&error(y)));
+                candidates.truncate(crate::ssd::CANDIDATES);
+                let moved = |n: usize, g: usize| transforms[n][g].apply(set.rest[a]);
+                crate::ssd::fit_weights(train.len(), &candidates, influences, moved, |n| {
+                    set.poses[train[n]].vertices[a]
+                })
+            })
+            .collect();
+        transforms = fit_transforms(set, train, &weights, &transforms);
+    }
+    Proxies {
+        weights,
+        transforms,
+        triangle_group,
+        adjacency,
+    }
+}
+
+fn affine_of_rows(rows: &[DVec4; 3]) -> Affine {
+    Affine {
+        m: DMat3::from_cols(
+            DVec3::new(rows[0].x, rows[1].x, rows[2].x),
+            DVec3::new(rows[0].y, rows[1].y, rows[2].y),
+            DVec3::new(rows[0].z, rows[1].z, rows[2].z),
+        ),
+        t: DVec3::new(rows[0].w, rows[1].w, rows[2].w),
+    }
+}
+
+/// Least-squares proxy transforms given α: per coordinate c and pose, the unknowns are row c of
+/// every proxy transform (4P); the normal matrix ΦᵀΦ is shared by all. A weak pull toward the
+/// current transforms keeps proxies without free vertices determined.
+fn fit_transforms(
+    set: &ExampleSet,
+    train: &[usize],
+    weights: &[Vec<(usize, f64)>],
+    current: &[Vec<Affine>],
+) -> Vec<Vec<Affine>> {
+    let p = current.first().map_or(0, |t| t.len());
+    let n4 = 4 * p;
+    let mut gram = vec![0.0; n4 * n4];
+    for (a, w) in weights.iter().enumerate() {
+        let h = homogeneous(set.rest[a]).to_array();
+        for &(b1, w1) in w {
+            for &(b2, w2) in w {
+                for r in 0..4 {
+                    for c in 0..4 {
+                        gram[(4 * b1 + r) * n4 + 4 * b2 + c] += w1 * w2 * h[r] * h[c];
+                    }
+                }
+            }
+        }
+    }
+    let trace = (0..n4).map(|d| gram[d * n4 + d]).sum::<f64>() / n4.max(1) as f64;
+    let ridge = 1e-6 * trace.max(1e-12);
+    for d in 0..n4 {
+        gram[d * n4 + d] += ridge;
+    }
+    let factor = crate::linalg::DenseCholesky::new(&gram, n4);
+    train
+        .par_iter()
+        .enumerate()
+        .map(|(n, &i)| {
+            let mut rows = [vec![0.0; n4], vec![0.0; n4], vec![0.0; n4]];
+            for (a, w) in weights.iter().enumerate() {
+                let h = homogeneous(set.rest[a]).to_array();
+                let y = set.poses[i].vertices[a];
+                for &(b, wb) in w {
+                    for r in 0..4 {
+                        for c in 0..3 {
+                            rows[c][4 * b + r] += wb * h[r] * y[c];
+                        }
+                    }
+                }
+            }
+            for (b, t) in current[n].iter().enumerate() {
+                for c in 0..3 {
+                    let row = [t.m.x_axis[c], t.m.y_axis[c], t.m.z_axis[c], t.t[c]];
+                    for r in 0..4 {
+                        rows[c][4 * b + r] += ridge * row[r];
+                    }
+                }
+            }
+            rows.iter_mut().for_each(|rhs| factor.solve(rhs));
+            (0..p)
+                .map(|b| {
+                    let row = |c: usize| DVec4::from_slice(&rows[c][4 * b..4 * b + 4]);
+                    affine_of_rows(&[row(0), row(1), row(2)])
+                })
+                .collect()
+        })
+        .collect()
+}
