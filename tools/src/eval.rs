@@ -430,17 +430,20 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
     let reduce_start = Instant::now();
     let trained = match (&options.model, options.proxies) {
         (Some(_), _) | (None, 0) => None,
-        (None, p) => Some(reduce(
-            set,
-            &prep,
-            &train,
-            &ssd,
-            &model.fixed,
-            &model.alpha,
-            p,
-            k,
-            choice.ridge,
-        )?),
+        (None, p) => Some(
+            reduce(
+                set,
+                &prep,
+                &train,
+                &ssd,
+                &model.fixed,
+                &model.alpha,
+                p,
+                k,
+                choice.ridge,
+            )
+            .to_runtime(set, k)?,
+        ),
     };
     let runtime = options.model.as_ref().or(trained.as_ref());
     let rr_reduced = match runtime {
@@ -507,9 +510,10 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
     })
 }
 
-/// Vertex reduction, predictor reduction and C1/C2: the runtime model (paper §5, §4.3).
+/// Vertex reduction, predictor reduction and C1/C2 (paper §5, §4.3), for the full model's
+/// near-rigid set `fixed` and per-triangle regression weights `blend`.
 #[allow(clippy::too_many_arguments)]
-fn reduce(
+pub fn reduce(
     set: &ExampleSet,
     prep: &Prepared,
     train: &[usize],
@@ -519,7 +523,7 @@ fn reduce(
     proxies: usize,
     influences: usize,
     ridge: f64,
-) -> Result<rrskin::Model, Box<dyn std::error::Error>> {
+) -> crate::reduced::Reduced {
     let groups = crate::vertex_reduction::reduce(set, train, fixed, proxies, influences);
     let keys = crate::predictor_reduction::reduce(set, prep, train, &groups);
     let nearby = full_model::nearby_bones(set, ssd);
@@ -533,8 +537,7 @@ fn reduce(
     }
     let predictors =
         crate::predictor_reduction::train_predictors(set, prep, train, &keys, &key_bones, ridge);
-    let reduced = crate::reduced::assemble(set, ssd, fixed, blend, &groups, &keys, predictors);
-    Ok(reduced.to_runtime(set, influences)?)
+    crate::reduced::assemble(set, ssd, fixed, blend, &groups, &keys, predictors)
 }
 
 /// EE of a runtime model evaluated by the runtime's CPU evaluator.

@@ -1,10 +1,16 @@
 //! Predictor reduction (paper §5.2, METHOD.md §7): P key gradient sequences D_ℓ^i and sparse
-//! blend weights β (T x P) with `Σ_i Σ_k Σ_j=2,3 |Σ_ℓ β_kℓ D_ℓ^i v̂_kj − v_kj^i|²` small, by
+//! blend weights β (T x P) with `Σ_i Σ_k Σ_j |Σ_ℓ β_kℓ D_ℓ^i v̂_kj − v_kj^i|²` small, by
 //! coordinate descent from D_ℓ^i = the 3x3 part of proxy ℓ's transforms; then a predictor
 //! (rotation §3.2 + scale/shear §3.3) is trained on each key sequence.
+//!
+//! j runs over the two edges *and* the Sumner–Popović normal n̂ of each triangle (the frame D is
+//! defined by, METHOD.md §1): the edges alone leave each D_ℓ free along the normal, and the
+//! predictors are trained on the polar factors of the whole D_ℓ. With one key per triangle the
+//! keys are then exactly the triangles' gradients.
 
 use crate::example_set::ExampleSet;
-use crate::full_model::{rest_edges, Prepared};
+use crate::full_model::Prepared;
+use crate::gradients::frame;
 use crate::linalg::{cholesky_solve, polar, DenseCholesky};
 use crate::rotreg::{self, PoseFeatures, RotationPredictor};
 use crate::scale_shear::{self, ScaleShear};
@@ -43,11 +49,19 @@ pub fn reduce(
     proxies: &Proxies,
 ) -> KeySequences {
     let p = proxies.count();
-    let edges = rest_edges(set);
+    // Per triangle the three columns v̂2, v̂3, n̂ of its rest frame.
+    let edges: Vec<[DVec3; 3]> = set
+        .faces
+        .iter()
+        .map(|&[a, b, c]| {
+            let f = frame(set.rest[a], set.rest[b], set.rest[c]);
+            [f.x_axis, f.y_axis, f.z_axis]
+        })
+        .collect();
     let cands: Vec<Vec<usize>> = (0..set.faces.len())
         .map(|k| candidates(set, proxies, k))
         .collect();
-    // True edges v_kj^i = D_k^i v̂_kj.
+    // True edges (and normal) v_kj^i = D_k^i v̂_kj.
     let target = |n: usize, k: usize, j: usize| {
         let (r, s) = prep.polar[train[n]][k];
         r * s * edges[k][j]
@@ -67,7 +81,7 @@ pub fn reduce(
                 let m = c.len();
                 let (mut g, mut h) = (vec![0.0; m * m], vec![0.0; m]);
                 for n in 0..train.len() {
-                    for j in 0..2 {
+                    for j in 0..3 {
                         let cols: Vec<DVec3> = c.iter().map(|&l| d[n][l] * edges[k][j]).collect();
                         let v = target(n, k, j);
                         for r in 0..m {
@@ -78,10 +92,13 @@ pub fn reduce(
                         }
                     }
                 }
+                // Ridge toward following the triangle's own group key (candidate 0): where
+                // several keys fit equally well (neighbours moving alike), β stays on its own.
                 let ridge = 1e-9 * (0..m).map(|r| g[r * m + r]).sum::<f64>().max(1e-300);
                 for r in 0..m {
                     g[r * m + r] += ridge;
                 }
+                h[0] += ridge;
                 cholesky_solve(&g, &mut h, m);
                 c.iter().copied().zip(h).collect()
             })
@@ -91,7 +108,7 @@ pub fn reduce(
         let n3 = 3 * p;
         let mut gram = vec![0.0; n3 * n3];
         for (k, bk) in beta.iter().enumerate() {
-            for j in 0..2 {
+            for j in 0..3 {
                 let e = edges[k][j].to_array();
                 for &(l1, b1) in bk {
                     for &(l2, b2) in bk {
@@ -112,7 +129,7 @@ pub fn reduce(
             .map(|n| {
                 let mut rows = [vec![0.0; n3], vec![0.0; n3], vec![0.0; n3]];
                 for (k, bk) in beta.iter().enumerate() {
-                    for j in 0..2 {
+                    for j in 0..3 {
                         let (e, v) = (edges[k][j].to_array(), target(n, k, j));
                         for &(l, b) in bk {
                             for c in 0..3 {

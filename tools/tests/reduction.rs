@@ -1,0 +1,260 @@
+//! The reduction's invariants: a runtime model written by training, loaded by the runtime and
+//! evaluated by its CPU evaluator and by Vulkan (lavapipe, validation on) gives the training
+//! tool's own reduced prediction; with P = T the reduced model is the full one; the vertex
+//! reduction's error falls as P grows.
+
+use glam::DVec3;
+use rrskin::cpu::CpuEvaluator;
+use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
+use rrskin_tools::eval;
+use rrskin_tools::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::full_model::{self, FullModel, Prepared};
+use rrskin_tools::ssd::{self, Skinning};
+use rrskin_tools::vertex_reduction;
+
+/// Everything the reduction needs from the full model, with the paper's choices (no blend).
+struct Trained {
+    set: ExampleSet,
+    prep: Prepared,
+    train: Vec<usize>,
+    ssd: Skinning,
+    fixed: Vec<bool>,
+    full: FullModel,
+}
+
+const RIDGE: f64 = 1e-3;
+
+fn train(set: ExampleSet, percentile: f64) -> Trained {
+    let prep = Prepared::new(&set);
+    let train = set.train();
+    let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
+    let mut err = vec![0.0; set.vertex_count()];
+    for &i in &train {
+        for (a, p) in ssd
+            .deform(&set.rest, &set.poses[i].bones)
+            .iter()
+            .enumerate()
+        {
+            err[a] += (*p - set.poses[i].vertices[a]).length_squared();
+        }
+    }
+    let fixed = full_model::near_rigid(&set, &err, percentile);
+    let rot = full_model::fit_rotations(&set, &prep, &train, &full_model::nearby_bones(&set, &ssd));
+    let stretches = full_model::fit_stretches(&set, &prep, &train, &rot, RIDGE);
+    let full = FullModel::new(
+        &set,
+        rot,
+        stretches,
+        fixed.clone(),
+        vec![1.0; set.faces.len()],
+    )
+    .expect("factor");
+    Trained {
+        set,
+        prep,
+        train,
+        ssd,
+        fixed,
+        full,
+    }
+}
+
+fn cesiumman() -> ExampleSet {
+    ExampleSet::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
+        .expect("bundled data")
+}
+
+fn max_distance(a: &[DVec3], b: &[DVec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length())
+        .fold(0.0, f64::max)
+}
+
+/// Tolerances, in units of the mesh's size (CesiumMan is ~1.5 high): the runtime stores C1, C2
+/// and predictors in f32 and evaluates predictors in f32 on the GPU.
+const CPU_TOLERANCE: f64 = 1e-3;
+const GPU_TOLERANCE: f64 = 1e-3;
+
+#[test]
+fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
+    let t = train(cesiumman(), 50.0);
+    let blend = vec![1.0; t.set.faces.len()];
+    let reduced = eval::reduce(
+        &t.set, &t.prep, &t.train, &t.ssd, &t.fixed, &blend, 30, 4, RIDGE,
+    );
+    let written = reduced
+        .to_runtime(&t.set, 4)
+        .expect("a valid runtime model")
+        .to_bytes();
+    let model = rrskin::Model::from_bytes(&written).expect("loads");
+    assert_eq!(model.proxy_count(), 30);
+
+    let poses = t.set.test();
+    let bones: Vec<rrskin::predict::Affine> = poses
+        .iter()
+        .flat_map(|&i| t.set.poses[i].bones.iter().map(Bone::to_affine))
+        .collect();
+    let v = t.set.vertex_count();
+    let (mut cpu, mut normals) = (
+        vec![[0.0f32; 3]; poses.len() * v],
+        vec![[0.0f32; 3]; poses.len() * v],
+    );
+    CpuEvaluator::new(&model)
+        .evaluate(&bones, &mut cpu, &mut normals)
+        .expect("CPU evaluation");
+    let as_dvec = |p: &[[f32; 3]]| {
+        p.iter()
+            .map(|x| DVec3::from(x.map(f64::from)))
+            .collect::<Vec<_>>()
+    };
+    for (n, &i) in poses.iter().enumerate() {
+        let own = reduced.predict(&t.set, &t.prep.feats[i], &t.set.poses[i].bones);
+        let d = max_distance(&own, &as_dvec(&cpu[n * v..(n + 1) * v]));
+        assert!(
+            d < CPU_TOLERANCE,
+            "pose {i}: runtime CPU evaluator differs from the tool by {d}"
+        );
+    }
+
+    let ctx = Context::headless(&ContextDesc {
+        validation: true,
+        ..Default::default()
+    })
+    .expect("lavapipe");
+    let mut crowd =
+        Crowd::new(&GpuModel::new(&ctx, &model).expect("upload"), poses.len()).expect("crowd");
+    crowd.set_bones(&bones).expect("bones");
+    Batch::new(&ctx)
+        .expect("batch")
+        .run(&[&crowd])
+        .expect("run");
+    let gpu = crowd.read_back().expect("read back").positions;
+    let d = max_distance(&as_dvec(&gpu), &as_dvec(&cpu));
+    assert!(
+        d < GPU_TOLERANCE,
+        "Vulkan differs from the CPU evaluator by {d}"
+    );
+    assert!(
+        ctx.validation_messages().is_empty(),
+        "{:?}",
+        ctx.validation_messages()
+    );
+}
+
+/// A tube on a chain of three bones bending and twisting (small enough for P = T).
+fn tube() -> ExampleSet {
+    let (rings, segments) = (9, 8);
+    let mut rest = Vec::new();
+    for r in 0..rings {
+        for s in 0..segments {
+            let a = std::f64::consts::TAU * s as f64 / segments as f64;
+            rest.push(DVec3::new(
+                3.0 * r as f64 / (rings - 1) as f64,
+                0.3 * a.cos(),
+                0.3 * a.sin(),
+            ));
+        }
+    }
+    let mut faces = Vec::new();
+    for r in 0..rings - 1 {
+        for s in 0..segments {
+            let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
+            faces.push([a, b, b + segments]);
+            faces.push([a, b + segments, a + segments]);
+        }
+    }
+    let pose = |bend: f64, twist: f64| -> Pose {
+        let joint = |x: f64| {
+            glam::DMat3::from_rotation_z(bend * x) * glam::DMat3::from_rotation_x(twist * x)
+        };
+        let bones: Vec<Bone> = (0..3)
+            .map(|b| {
+                let q = joint(b as f64);
+                let pivot = DVec3::new(b as f64, 0.0, 0.0);
+                Bone {
+                    q,
+                    d: pivot - q * pivot,
+                }
+            })
+            .collect();
+        // The black box: a smooth blend of the bones' motions along x.
+        let vertices = rest
+            .iter()
+            .map(|&p| {
+                let s = p.x.clamp(0.0, 2.0);
+                let (b, f) = ((s.floor() as usize).min(1), s - s.floor().min(1.0));
+                bones[b].apply(p) * (1.0 - f) + bones[b + 1].apply(p) * f
+            })
+            .collect();
+        Pose { bones, vertices }
+    };
+    let params = [
+        (0.0, 0.0),
+        (0.3, 0.2),
+        (-0.4, 0.5),
+        (0.6, -0.3),
+        (0.2, 0.7),
+        (0.25, 0.35),
+    ];
+    let poses = params.iter().map(|&(b, t)| pose(b, t)).collect();
+    ExampleSet {
+        rest,
+        faces,
+        parents: vec![None, Some(0), Some(1)],
+        poses,
+        is_test: vec![false, false, false, false, false, true],
+        bone_names: None,
+        warnings: Vec::new(),
+    }
+}
+
+#[test]
+fn with_one_proxy_per_triangle_the_reduced_model_is_the_full_one() {
+    let t = train(tube(), 25.0);
+    let triangles = t.set.faces.len();
+    let blend = vec![1.0; triangles];
+    let reduced = eval::reduce(
+        &t.set, &t.prep, &t.train, &t.ssd, &t.fixed, &blend, triangles, 8, RIDGE,
+    );
+    assert_eq!(reduced.proxies, triangles);
+    let all: Vec<usize> = (0..t.set.poses.len()).collect();
+    let full = t.full.predict(&t.set, &t.prep, &t.ssd, &all);
+    let size = 3.0;
+    for &i in &all {
+        let own = reduced.predict(&t.set, &t.prep.feats[i], &t.set.poses[i].bones);
+        let d = max_distance(&own, &full[i]);
+        assert!(
+            d < 1e-4 * size,
+            "pose {i}: reduced differs from full by {d}"
+        );
+    }
+}
+
+#[test]
+fn the_vertex_reduction_error_falls_as_proxies_grow() {
+    let set = cesiumman();
+    let train = set.train();
+    let fixed = vec![false; set.vertex_count()];
+    let mut last = f64::INFINITY;
+    for p in [8, 16, 32, 64] {
+        let proxies = vertex_reduction::reduce(&set, &train, &fixed, p, 4);
+        let error: f64 = train
+            .iter()
+            .enumerate()
+            .map(|(n, &i)| {
+                (0..set.vertex_count())
+                    .map(|a| {
+                        let y: DVec3 = proxies.weights[a]
+                            .iter()
+                            .map(|&(b, w)| proxies.transforms[n][b].apply(set.rest[a]) * w)
+                            .sum();
+                        (y - set.poses[i].vertices[a]).length_squared()
+                    })
+                    .sum::<f64>()
+            })
+            .sum();
+        assert!(error < last, "P = {p}: error {error} is not below {last}");
+        last = error;
+    }
+}
