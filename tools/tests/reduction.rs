@@ -214,8 +214,11 @@ fn with_one_proxy_per_triangle_the_reduced_model_is_the_full_one() {
     let t = train(tube(), 25.0);
     let triangles = t.set.faces.len();
     let blend = vec![1.0; triangles];
+    // No reduction: every triangle its own proxy and key, every free vertex following one
+    // proxy (K = 1). Blending several exact proxies (K = 8) ties on the training poses and
+    // narrows what the proxies can express at the boundary (measured: 1.4e-3 on this tube).
     let reduced = eval::reduce(
-        &t.set, &t.prep, &t.train, &t.ssd, &t.fixed, &blend, triangles, 8, RIDGE,
+        &t.set, &t.prep, &t.train, &t.ssd, &t.fixed, &blend, triangles, 1, RIDGE,
     );
     assert_eq!(reduced.proxies, triangles);
     let all: Vec<usize> = (0..t.set.poses.len()).collect();
