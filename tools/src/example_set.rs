@@ -391,6 +391,61 @@ impl ExampleSet {
         warnings
     }
 
+    /// Writes the set in the NumPy folder layout (the inverse of [`ExampleSet::load`]).
+    pub fn save(&self, dir: impl AsRef<Path>) -> Result<(), InputError> {
+        let dir = dir.as_ref();
+        std::fs::create_dir_all(dir).map_err(|e| bad(dir, format!("cannot create: {e}")))?;
+        let (v, j, n) = (self.vertex_count(), self.bone_count(), self.poses.len());
+        let xyz = |ps: &mut dyn Iterator<Item = &DVec3>| -> Vec<f32> {
+            ps.flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+                .collect()
+        };
+        let transforms: Vec<f32> = self
+            .poses
+            .iter()
+            .flat_map(|p| p.bones.iter().flat_map(|b| b.to_affine()))
+            .collect();
+        let vertices = xyz(&mut self.poses.iter().flat_map(|p| p.vertices.iter()));
+        let faces: Vec<i32> = self.faces.iter().flatten().map(|&a| a as i32).collect();
+        let parents: Vec<i32> = self
+            .parents
+            .iter()
+            .map(|p| p.map_or(-1, |p| p as i32))
+            .collect();
+        let split: Vec<i32> = self.is_test.iter().map(|&t| i32::from(t)).collect();
+        let files: [(&str, Box<dyn Fn(&Path) -> std::io::Result<()> + '_>); 6] = [
+            (
+                "rest_vertices.npy",
+                Box::new(|p| crate::npy::write_f32(p, &[v, 3], &xyz(&mut self.rest.iter()))),
+            ),
+            (
+                "faces.npy",
+                Box::new(|p| crate::npy::write_i32(p, &[self.faces.len(), 3], &faces)),
+            ),
+            (
+                "bone_parents.npy",
+                Box::new(|p| crate::npy::write_i32(p, &[j], &parents)),
+            ),
+            (
+                "pose_transforms.npy",
+                Box::new(|p| crate::npy::write_f32(p, &[n, j, 3, 4], &transforms)),
+            ),
+            (
+                "pose_vertices.npy",
+                Box::new(|p| crate::npy::write_f32(p, &[n, v, 3], &vertices)),
+            ),
+            (
+                "split.npy",
+                Box::new(|p| crate::npy::write_i32(p, &[n], &split)),
+            ),
+        ];
+        for (name, write) in files {
+            let path = dir.join(name);
+            write(&path).map_err(|e| bad(&path, format!("cannot write: {e}")))?;
+        }
+        Ok(())
+    }
+
     pub fn vertex_count(&self) -> usize {
         self.rest.len()
     }

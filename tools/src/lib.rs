@@ -10,6 +10,7 @@ pub mod example_set;
 pub mod full_model;
 pub mod gradients;
 pub mod linalg;
+pub mod npy;
 pub mod poisson;
 pub mod predictor_reduction;
 pub mod profile;

@@ -184,3 +184,15 @@ fn degenerate_triangles_and_loose_vertices_are_warnings() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_saved_set_loads_back() {
+    let dir = temp_dir("set-save");
+    write_valid(&dir);
+    let set = ExampleSet::load(&dir).expect("valid");
+    let copy = temp_dir("set-save-copy");
+    set.save(&copy).expect("save");
+    assert_eq!(ExampleSet::load(&copy).expect("reload"), set);
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::remove_dir_all(&copy).ok();
+}

@@ -77,6 +77,8 @@ fn rotational_regression_learns_the_twist_that_skinning_cannot() {
     let set = bar_set(&[0.0, 90.0, 180.0], &[135.0]);
     let options = eval::Options {
         influences: 4,
+        proxies: 0,
+        model: None,
         loocv: false,
         quiet: true,
     };
