@@ -85,7 +85,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|&p| {
                 let b = (p.x.floor() as usize).min(bones - 1);
                 let f = p.x - b as f64;
-                let (lo, hi) = if f < 0.5 && b > 0 { (b - 1, b) } else { (b, (b + 1).min(bones - 1)) };
+                let (lo, hi) = if f < 0.5 && b > 0 {
+                    (b - 1, b)
+                } else {
+                    (b, (b + 1).min(bones - 1))
+                };
                 if lo == hi {
                     return pose_bones[lo].apply(p);
                 }
@@ -93,7 +97,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let s = ((t - 0.1) / 0.8).clamp(0.0, 1.0);
                 let s = s * s * (3.0 - 2.0 * s);
                 let joint = DVec3::new(hi as f64, 0.0, 0.0);
-                let (qa, qb) = (DQuat::from_mat3(&pose_bones[lo].q), DQuat::from_mat3(&pose_bones[hi].q));
+                let (qa, qb) = (
+                    DQuat::from_mat3(&pose_bones[lo].q),
+                    DQuat::from_mat3(&pose_bones[hi].q),
+                );
                 DMat3::from_quat(qa.slerp(qb, s)) * (p - joint) + pose_bones[lo].apply(joint)
             })
             .collect();

@@ -354,8 +354,9 @@ fn choose(
 pub struct Options {
     /// K for SSD and for the runtime model.
     pub influences: usize,
-    /// P for the reduced model (0: no reduction).
+    /// P for the reduced model (0: no reduction), or fewer if `epsilon` stops merging first.
     pub proxies: usize,
+    pub epsilon: Option<f64>,
     /// Evaluate this runtime model as "rr_reduced" instead of training a reduction.
     pub model: Option<rrskin::Model>,
     /// Replace the test error by leave-one-out over the training poses.
@@ -438,7 +439,10 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
                 &ssd,
                 &model.fixed,
                 &model.alpha,
-                p,
+                crate::vertex_reduction::Stop {
+                    proxies: p,
+                    epsilon: options.epsilon,
+                },
                 k,
                 choice.ridge,
             )
@@ -520,11 +524,11 @@ pub fn reduce(
     ssd: &Skinning,
     fixed: &[bool],
     blend: &[f64],
-    proxies: usize,
+    stop: crate::vertex_reduction::Stop,
     influences: usize,
     ridge: f64,
 ) -> crate::reduced::Reduced {
-    let groups = crate::vertex_reduction::reduce(set, train, fixed, proxies, influences);
+    let groups = crate::vertex_reduction::reduce(set, train, fixed, stop, influences);
     let keys = crate::predictor_reduction::reduce(set, prep, train, &groups);
     let nearby = full_model::nearby_bones(set, ssd);
     let mut key_bones = vec![Vec::<usize>::new(); groups.count()];

@@ -413,7 +413,8 @@ impl ExampleSet {
             .map(|p| p.map_or(-1, |p| p as i32))
             .collect();
         let split: Vec<i32> = self.is_test.iter().map(|&t| i32::from(t)).collect();
-        let files: [(&str, Box<dyn Fn(&Path) -> std::io::Result<()> + '_>); 6] = [
+        type Writer<'a> = Box<dyn Fn(&Path) -> std::io::Result<()> + 'a>;
+        let files: [(&str, Writer); 6] = [
             (
                 "rest_vertices.npy",
                 Box::new(|p| crate::npy::write_f32(p, &[v, 3], &xyz(&mut self.rest.iter()))),

@@ -5,6 +5,10 @@
 //! Letters as everywhere in the project: V vertices, T triangles, J bones, N example poses,
 //! K influences per vertex; i indexes poses, a vertices, k triangles, b bones.
 
+// The numeric kernels index several arrays in lockstep (rows, columns, poses); index loops read
+// closer to the equations than zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
 pub mod eval;
 pub mod example_set;
 pub mod full_model;

@@ -38,6 +38,9 @@ enum Command {
         /// Proxy bones of the reduced model (0: no reduction).
         #[arg(long, default_value_t = DEFAULT_PROXIES)]
         proxies: usize,
+        /// Stop merging proxy bones earlier at this RMS fitting error (mesh units).
+        #[arg(long)]
+        epsilon: Option<f64>,
         /// Evaluate this trained model (runtime CPU evaluator) as rr_reduced.
         #[arg(long)]
         model: Option<PathBuf>,
@@ -51,6 +54,10 @@ enum Command {
         /// Proxy bones P (the model's size and per-frame cost grow with it).
         #[arg(long, default_value_t = DEFAULT_PROXIES)]
         proxies: usize,
+        /// Stop merging proxy bones earlier, when the RMS fitting error of the groups (mesh
+        /// units) would pass this (the paper's ε).
+        #[arg(long)]
+        epsilon: Option<f64>,
         /// Influences per vertex: 4 or 8.
         #[arg(long, default_value_t = 4)]
         influences: usize,
@@ -155,6 +162,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             loocv,
             influences,
             proxies,
+            epsilon,
             model,
         } => {
             let model = model.map(Model::load).transpose()?;
@@ -164,6 +172,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 Options {
                     influences,
                     proxies,
+                    epsilon,
                     model,
                     loocv,
                     quiet: json,
@@ -175,6 +184,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             set,
             output,
             proxies,
+            epsilon,
             influences,
             json,
         } => {
@@ -187,6 +197,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 Options {
                     influences,
                     proxies,
+                    epsilon,
                     model: None,
                     loocv: false,
                     quiet: json,

@@ -175,12 +175,22 @@ impl PartialOrd for Join {
     }
 }
 
-/// Greedy merging of contiguous triangle groups down to `proxies` groups. Returns each
-/// triangle's group (0..proxies) and the group adjacency.
+/// When merging stops: at `proxies` groups, or earlier when the next join would take the RMS
+/// fitting error of the groups' sample points (vertices and normal points, over the training
+/// poses, in mesh units) past `epsilon` (the paper's ε, §5.1). Join costs add up to an upper
+/// bound of that error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stop {
+    pub proxies: usize,
+    pub epsilon: Option<f64>,
+}
+
+/// Greedy merging of contiguous triangle groups until `stop`. Returns each triangle's group
+/// (0..P) and the group adjacency.
 pub fn merge_groups(
     set: &ExampleSet,
     train: &[usize],
-    proxies: usize,
+    stop: Stop,
 ) -> (Vec<usize>, Vec<Vec<usize>>) {
     let t = set.faces.len();
     let mut moments: Vec<Option<Moments>> = (0..t)
@@ -216,13 +226,22 @@ pub fn merge_groups(
         }
     }
     let mut groups = t;
-    while groups > proxies.max(1) {
+    // ε bounds the RMS over 4 samples per triangle and pose: a budget on the summed join costs.
+    let budget = stop
+        .epsilon
+        .map_or(f64::INFINITY, |e| e * e * (4 * t * train.len()) as f64);
+    let mut spent = 0.0;
+    while groups > stop.proxies.max(1) {
         let Some(join) = heap.pop() else { break };
         let (a, b) = (join.from, join.into);
         if moments[a].is_none() || moments[b].is_none() || join.versions != (version[a], version[b])
         {
             continue; // stale
         }
+        if spent + join.cost > budget {
+            break;
+        }
+        spent += join.cost;
         let ma = moments[a].take().expect("checked above");
         if let Some(mb) = moments[b].as_mut() {
             mb.add(&ma);
@@ -295,10 +314,10 @@ pub fn reduce(
     set: &ExampleSet,
     train: &[usize],
     fixed: &[bool],
-    proxies: usize,
+    stop: Stop,
     influences: usize,
 ) -> Proxies {
-    let (triangle_group, adjacency) = merge_groups(set, train, proxies);
+    let (triangle_group, adjacency) = merge_groups(set, train, stop);
     let p = adjacency.len();
     // Initial transforms: the least-squares fit of each group's triangles.
     let mut group_moments: Vec<Option<Moments>> = vec![None; p];

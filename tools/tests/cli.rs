@@ -187,3 +187,49 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         assert!(n(&e["seconds"][method]) > 0.0, "{method}: {e}");
     }
 }
+
+/// `rrskin train` writes a runtime model; `rrskin eval --model` evaluates that file with the
+/// runtime's CPU evaluator and reports the same figures training did.
+#[test]
+fn a_trained_model_file_evaluates_as_trained() {
+    let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
+    let set = set.to_str().expect("utf-8");
+    let dir = temp_dir("train");
+    let model = dir.join("cm.rrs");
+    let m = model.to_str().expect("utf-8");
+    let trained = json(&rrskin(&[
+        "train",
+        set,
+        "-o",
+        m,
+        "--proxies",
+        "20",
+        "--json",
+    ]));
+    let info = json(&rrskin(&["info", m, "--json"]));
+    assert_eq!(
+        (info["proxies"].as_u64(), info["vertices"].as_u64()),
+        (Some(20), Some(2338))
+    );
+    let evaluated = json(&rrskin(&["eval", set, "--model", m, "--json"]));
+    assert_eq!(evaluated["proxies"], 20);
+    for split in ["train", "test"] {
+        let (a, b) = (
+            &trained["rr_reduced"][split],
+            &evaluated["rr_reduced"][split],
+        );
+        assert!(
+            a.as_f64().is_some() && a == b,
+            "{split}: trained {a}, evaluated {b}"
+        );
+    }
+    // A model of another mesh is refused with both sizes named.
+    let other = dir.join("other.rrs");
+    let o = other.to_str().expect("utf-8");
+    assert!(rrskin(&["synth", "--grid", "5", "-o", o]).status.success());
+    let out = rrskin(&["eval", set, "--model", o, "--json"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("25 vertices") && err.contains("2338"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

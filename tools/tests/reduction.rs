@@ -10,7 +10,7 @@ use rrskin_tools::eval;
 use rrskin_tools::example_set::{Bone, ExampleSet, Pose};
 use rrskin_tools::full_model::{self, FullModel, Prepared};
 use rrskin_tools::ssd::{self, Skinning};
-use rrskin_tools::vertex_reduction;
+use rrskin_tools::vertex_reduction::{self, Stop};
 
 /// Everything the reduction needs from the full model, with the paper's choices (no blend).
 struct Trained {
@@ -81,7 +81,18 @@ fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     let t = train(cesiumman(), 50.0);
     let blend = vec![1.0; t.set.faces.len()];
     let reduced = eval::reduce(
-        &t.set, &t.prep, &t.train, &t.ssd, &t.fixed, &blend, 30, 4, RIDGE,
+        &t.set,
+        &t.prep,
+        &t.train,
+        &t.ssd,
+        &t.fixed,
+        &blend,
+        Stop {
+            proxies: 30,
+            epsilon: None,
+        },
+        4,
+        RIDGE,
     );
     let written = reduced
         .to_runtime(&t.set, 4)
@@ -218,7 +229,18 @@ fn with_one_proxy_per_triangle_the_reduced_model_is_the_full_one() {
     // proxy (K = 1). Blending several exact proxies (K = 8) ties on the training poses and
     // narrows what the proxies can express at the boundary (measured: 1.4e-3 on this tube).
     let reduced = eval::reduce(
-        &t.set, &t.prep, &t.train, &t.ssd, &t.fixed, &blend, triangles, 1, RIDGE,
+        &t.set,
+        &t.prep,
+        &t.train,
+        &t.ssd,
+        &t.fixed,
+        &blend,
+        Stop {
+            proxies: triangles,
+            epsilon: None,
+        },
+        1,
+        RIDGE,
     );
     assert_eq!(reduced.proxies, triangles);
     let all: Vec<usize> = (0..t.set.poses.len()).collect();
@@ -241,7 +263,16 @@ fn the_vertex_reduction_error_falls_as_proxies_grow() {
     let fixed = vec![false; set.vertex_count()];
     let mut last = f64::INFINITY;
     for p in [8, 16, 32, 64] {
-        let proxies = vertex_reduction::reduce(&set, &train, &fixed, p, 4);
+        let proxies = vertex_reduction::reduce(
+            &set,
+            &train,
+            &fixed,
+            Stop {
+                proxies: p,
+                epsilon: None,
+            },
+            4,
+        );
         let error: f64 = train
             .iter()
             .enumerate()
@@ -260,4 +291,40 @@ fn the_vertex_reduction_error_falls_as_proxies_grow() {
         assert!(error < last, "P = {p}: error {error} is not below {last}");
         last = error;
     }
+}
+
+#[test]
+fn a_smaller_epsilon_stops_merging_earlier() {
+    let set = cesiumman();
+    let train = set.train();
+    let counts: Vec<usize> = [0.02, 0.01, 0.005]
+        .iter()
+        .map(|&e| {
+            vertex_reduction::merge_groups(
+                &set,
+                &train,
+                Stop {
+                    proxies: 1,
+                    epsilon: Some(e),
+                },
+            )
+            .1
+            .len()
+        })
+        .collect();
+    assert!(
+        counts[0] < counts[1] && counts[1] < counts[2],
+        "proxies for ε = 0.02, 0.01, 0.005: {counts:?}"
+    );
+    let capped = vertex_reduction::merge_groups(
+        &set,
+        &train,
+        Stop {
+            proxies: 40,
+            epsilon: Some(0.02),
+        },
+    )
+    .1
+    .len();
+    assert_eq!(capped, counts[0].max(40), "P and ε: whichever stops first");
 }

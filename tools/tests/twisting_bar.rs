@@ -78,6 +78,7 @@ fn rotational_regression_learns_the_twist_that_skinning_cannot() {
     let options = eval::Options {
         influences: 4,
         proxies: 0,
+        epsilon: None,
         model: None,
         loocv: false,
         quiet: true,
