@@ -39,6 +39,7 @@
 
 pub mod cpu;
 pub mod error;
+pub mod ffi;
 pub mod model;
 pub mod predict;
 pub mod synthetic;

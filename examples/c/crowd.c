@@ -1,0 +1,278 @@
+/*
+ * A C "engine" using rrskin: it creates its own VkInstance (validation + synchronization
+ * validation, its own messenger) and VkDevice, hands them to rrskin, loads a model, animates a
+ * crowd of characters for a few frames recorded into its OWN command buffer, reads the positions
+ * back and checks them against values computed by the Rust CPU evaluator; then it checks the
+ * ABI's answers to bad input. Prints "N passed, M failed" and exits non-zero on any failure or
+ * validation message.
+ *
+ *   crowd MODEL.rrs POSES.bin EXPECTED.bin FRAMES CHARACTERS
+ *
+ * POSES.bin: FRAMES x CHARACTERS x BONES x 12 floats (3x4 row-major bone transforms).
+ * EXPECTED.bin: FRAMES x CHARACTERS x VERTICES x 3 floats (positions).
+ *
+ * Build: cc crowd.c -I include target/debug/librrskin.a -lvulkan -lpthread -ldl -lm
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <vulkan/vulkan.h>
+
+#include "rrskin.h"
+
+static int passed = 0, failed = 0;
+static unsigned validation_messages = 0;
+
+static void check(int ok, const char *what) {
+    if (ok) {
+        passed++;
+    } else {
+        failed++;
+        fprintf(stderr, "FAILED: %s (last error: %s)\n", what, rrskin_last_error());
+    }
+}
+
+/* Aborts the run on an error that makes going on pointless. */
+#define REQUIRE(call)                                                                   \
+    do {                                                                                \
+        rrskin_status s_ = (call);                                                      \
+        if (s_ != RRSKIN_STATUS_OK) {                                                   \
+            fprintf(stderr, "%s failed with %d: %s\n", #call, (int)s_, rrskin_last_error()); \
+            return 1;                                                                   \
+        }                                                                               \
+    } while (0)
+
+#define VK_REQUIRE(call)                                          \
+    do {                                                          \
+        VkResult r_ = (call);                                     \
+        if (r_ != VK_SUCCESS) {                                   \
+            fprintf(stderr, "%s failed with %d\n", #call, (int)r_); \
+            return 1;                                             \
+        }                                                         \
+    } while (0)
+
+static VKAPI_ATTR VkBool32 VKAPI_CALL on_validation(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                    VkDebugUtilsMessageTypeFlagsEXT types,
+                                                    const VkDebugUtilsMessengerCallbackDataEXT *data,
+                                                    void *user) {
+    (void)severity; (void)types; (void)user;
+    validation_messages++;
+    fprintf(stderr, "validation: %s\n", data->pMessage);
+    return VK_FALSE;
+}
+
+static float *read_floats(const char *path, size_t count) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    float *data = malloc(count * sizeof(float));
+    size_t got = data ? fread(data, sizeof(float), count, f) : 0;
+    fclose(f);
+    if (got != count) {
+        free(data);
+        return NULL;
+    }
+    return data;
+}
+
+int main(int argc, char **argv) {
+    if (argc != 6) {
+        fprintf(stderr, "usage: %s MODEL.rrs POSES.bin EXPECTED.bin FRAMES CHARACTERS\n", argv[0]);
+        return 2;
+    }
+    const char *model_path = argv[1];
+    const unsigned frames = (unsigned)atoi(argv[4]), characters = (unsigned)atoi(argv[5]);
+
+    /* --- The engine's own Vulkan objects. --- */
+    const char *layers[] = {"VK_LAYER_KHRONOS_validation"};
+    const char *extensions[] = {VK_EXT_DEBUG_UTILS_EXTENSION_NAME};
+    VkValidationFeatureEnableEXT enables[] = {VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+    VkValidationFeaturesEXT features = {.sType = VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT,
+                                        .enabledValidationFeatureCount = 1,
+                                        .pEnabledValidationFeatures = enables};
+    VkApplicationInfo app = {.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO, .apiVersion = VK_API_VERSION_1_2};
+    VkInstanceCreateInfo instance_info = {.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO,
+                                          .pNext = &features,
+                                          .pApplicationInfo = &app,
+                                          .enabledLayerCount = 1,
+                                          .ppEnabledLayerNames = layers,
+                                          .enabledExtensionCount = 1,
+                                          .ppEnabledExtensionNames = extensions};
+    VkInstance instance;
+    VK_REQUIRE(vkCreateInstance(&instance_info, NULL, &instance));
+    PFN_vkCreateDebugUtilsMessengerEXT create_messenger =
+        (PFN_vkCreateDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT");
+    PFN_vkDestroyDebugUtilsMessengerEXT destroy_messenger =
+        (PFN_vkDestroyDebugUtilsMessengerEXT)vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT");
+    VkDebugUtilsMessengerCreateInfoEXT messenger_info = {
+        .sType = VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT,
+        .messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT,
+        .messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT,
+        .pfnUserCallback = on_validation};
+    VkDebugUtilsMessengerEXT messenger;
+    VK_REQUIRE(create_messenger(instance, &messenger_info, NULL, &messenger));
+
+    uint32_t device_count = 1;
+    VkPhysicalDevice physical;
+    VkResult enumerated = vkEnumeratePhysicalDevices(instance, &device_count, &physical);
+    if ((enumerated != VK_SUCCESS && enumerated != VK_INCOMPLETE) || device_count == 0) {
+        fprintf(stderr, "no Vulkan device\n");
+        return 1;
+    }
+    uint32_t family_count = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical, &family_count, NULL);
+    VkQueueFamilyProperties families[16];
+    family_count = family_count > 16 ? 16 : family_count;
+    vkGetPhysicalDeviceQueueFamilyProperties(physical, &family_count, families);
+    uint32_t family = UINT32_MAX;
+    for (uint32_t i = 0; i < family_count && family == UINT32_MAX; i++)
+        if (families[i].queueFlags & VK_QUEUE_COMPUTE_BIT) family = i;
+    if (family == UINT32_MAX) return 1;
+    float priority = 1.0f;
+    VkDeviceQueueCreateInfo queue_info = {.sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO,
+                                          .queueFamilyIndex = family,
+                                          .queueCount = 1,
+                                          .pQueuePriorities = &priority};
+    VkDeviceCreateInfo device_info = {.sType = VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO,
+                                      .queueCreateInfoCount = 1,
+                                      .pQueueCreateInfos = &queue_info};
+    VkDevice device;
+    VK_REQUIRE(vkCreateDevice(physical, &device_info, NULL, &device));
+    VkQueue queue;
+    vkGetDeviceQueue(device, family, 0, &queue);
+    VkCommandPoolCreateInfo pool_info = {.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO,
+                                         .flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT,
+                                         .queueFamilyIndex = family};
+    VkCommandPool pool;
+    VK_REQUIRE(vkCreateCommandPool(device, &pool_info, NULL, &pool));
+    VkCommandBufferAllocateInfo cmd_info = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO,
+                                            .commandPool = pool,
+                                            .level = VK_COMMAND_BUFFER_LEVEL_PRIMARY,
+                                            .commandBufferCount = 1};
+    VkCommandBuffer cmd;
+    VK_REQUIRE(vkAllocateCommandBuffers(device, &cmd_info, &cmd));
+    VkFenceCreateInfo fence_info = {.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+    VkFence fence;
+    VK_REQUIRE(vkCreateFence(device, &fence_info, NULL, &fence));
+
+    /* --- rrskin on the engine's device. --- */
+    rrskin_engine_device engine = {.get_instance_proc_addr = (const void *)vkGetInstanceProcAddr,
+                                   .instance = instance,
+                                   .physical_device = physical,
+                                   .device = device,
+                                   .queue_family_index = family,
+                                   .queue = queue};
+    rrskin_context context;
+    REQUIRE(rrskin_context_create_from_engine(&engine, &context));
+    rrskin_model model;
+    REQUIRE(rrskin_model_load_file(context, model_path, &model));
+    rrskin_model_info info;
+    REQUIRE(rrskin_model_get_info(model, &info));
+    rrskin_crowd crowd;
+    REQUIRE(rrskin_crowd_create(model, characters, &crowd));
+    rrskin_crowd_output output;
+    REQUIRE(rrskin_crowd_get_output(crowd, &output));
+    check(output.positions != 0 && output.vertex_stride == 12 && output.character_stride == 12u * info.vertices,
+          "output buffers and strides");
+
+    const size_t bone_floats = (size_t)characters * info.bones * 12;
+    const size_t vertex_floats = (size_t)characters * info.vertices * 3;
+    float *poses = read_floats(argv[2], frames * bone_floats);
+    float *expected = read_floats(argv[3], frames * vertex_floats);
+    float *positions = malloc(vertex_floats * sizeof(float));
+    float *normals = malloc(vertex_floats * sizeof(float));
+    if (!poses || !expected || !positions || !normals) {
+        fprintf(stderr, "cannot read %s or %s (or out of memory)\n", argv[2], argv[3]);
+        return 1;
+    }
+    for (unsigned frame = 0; frame < frames; frame++) {
+        REQUIRE(rrskin_crowd_set_bones(crowd, poses + frame * bone_floats, bone_floats));
+        VkCommandBufferBeginInfo begin = {.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+        VK_REQUIRE(vkBeginCommandBuffer(cmd, &begin));
+        REQUIRE(rrskin_crowds_record(context, cmd, &crowd, 1));
+        VK_REQUIRE(vkEndCommandBuffer(cmd));
+        VkSubmitInfo submit = {.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO, .commandBufferCount = 1, .pCommandBuffers = &cmd};
+        VK_REQUIRE(vkQueueSubmit(queue, 1, &submit, fence));
+        VK_REQUIRE(vkWaitForFences(device, 1, &fence, VK_TRUE, UINT64_MAX));
+        VK_REQUIRE(vkResetFences(device, 1, &fence));
+        REQUIRE(rrskin_crowd_read_back(crowd, positions, normals, vertex_floats));
+        /* Tolerance as in the Rust tests: 2e-4 relative to max(1, |p|). */
+        double worst = 0.0;
+        const float *want = expected + frame * vertex_floats;
+        for (size_t v = 0; v < vertex_floats / 3; v++) {
+            double dx = positions[3 * v] - want[3 * v], dy = positions[3 * v + 1] - want[3 * v + 1],
+                   dz = positions[3 * v + 2] - want[3 * v + 2];
+            double len = sqrt((double)want[3 * v] * want[3 * v] + (double)want[3 * v + 1] * want[3 * v + 1] +
+                              (double)want[3 * v + 2] * want[3 * v + 2]);
+            double err = sqrt(dx * dx + dy * dy + dz * dz) / (len > 1.0 ? len : 1.0);
+            if (!(err <= worst)) worst = err; /* NaN counts as worst */
+        }
+        char what[96];
+        snprintf(what, sizeof what, "frame %u: positions match the CPU evaluator (worst %.2e)", frame, worst);
+        check(worst <= 2e-4, what);
+        rrskin_pass_timings timings;
+        check(rrskin_context_get_timings(context, &timings) == RRSKIN_STATUS_OK && timings.skin_ms > 0.0, "pass timings");
+    }
+
+    /* --- Bad input: every case answers with a status and a message, never a crash. --- */
+    check(rrskin_model_get_info(model, NULL) == RRSKIN_STATUS_ERROR_NULL_POINTER, "NULL out pointer");
+    rrskin_model null_model = {0};
+    check(rrskin_model_get_info(null_model, &info) == RRSKIN_STATUS_ERROR_INVALID_HANDLE, "null handle");
+    rrskin_model not_a_model;
+    const char text[] = "this is not a model file at all, just text";
+    check(rrskin_model_load_memory(context, (const uint8_t *)text, sizeof text, &not_a_model) ==
+              RRSKIN_STATUS_ERROR_BAD_MODEL && strstr(rrskin_last_error(), "bad magic"),
+          "a model file that is not a model");
+    check(rrskin_model_load_file(context, "/nonexistent/model.rrs", &not_a_model) == RRSKIN_STATUS_ERROR_IO &&
+              strstr(rrskin_last_error(), "/nonexistent/model.rrs"),
+          "a missing model file is named");
+    check(rrskin_crowd_set_bones(crowd, poses, bone_floats - 12) == RRSKIN_STATUS_ERROR_WRONG_LENGTH,
+          "pose array of the wrong bone count");
+    check(rrskin_crowd_set_bones(crowd, poses, bone_floats - 5) == RRSKIN_STATUS_ERROR_WRONG_LENGTH,
+          "pose array not made of 3x4 transforms");
+    check(rrskin_crowd_set_bones(crowd, NULL, bone_floats) == RRSKIN_STATUS_ERROR_NULL_POINTER, "NULL poses");
+    check(rrskin_crowd_set_character_bones(crowd, characters, poses, info.bones * 12) ==
+              RRSKIN_STATUS_ERROR_OUT_OF_RANGE,
+          "character index past the crowd");
+    float *nan_pose = malloc(info.bones * 12 * sizeof(float));
+    if (!nan_pose) return 1;
+    memcpy(nan_pose, poses, info.bones * 12 * sizeof(float));
+    nan_pose[5] = NAN;
+    check(rrskin_crowd_set_character_bones(crowd, 0, nan_pose, info.bones * 12) == RRSKIN_STATUS_ERROR_NON_FINITE &&
+              strstr(rrskin_last_error(), "not finite"),
+          "NaN in a pose");
+    free(nan_pose);
+    check(rrskin_crowds_record(context, NULL, &crowd, 1) == RRSKIN_STATUS_ERROR_NULL_POINTER, "NULL command buffer");
+    rrskin_crowd doomed;
+    REQUIRE(rrskin_crowd_create(model, 2, &doomed));
+    REQUIRE(rrskin_crowd_destroy(doomed));
+    check(rrskin_crowd_set_bones(doomed, poses, 2 * info.bones * 12) == RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "use after destroy is caught");
+    check(rrskin_crowd_destroy(doomed) == RRSKIN_STATUS_ERROR_INVALID_HANDLE, "double destroy is caught");
+    rrskin_crowd reused;
+    REQUIRE(rrskin_crowd_create(model, 1, &reused)); /* may reuse the slot: the stale handle must still fail */
+    check(reused.id != doomed.id && rrskin_crowd_destroy(doomed) == RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "a stale handle does not reach the slot's new crowd");
+    REQUIRE(rrskin_crowd_destroy(reused));
+    rrskin_context as_context = {crowd.id};
+    check(rrskin_context_destroy(as_context) == RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "a crowd handle is not a context handle");
+    check(rrskin_crowd_create(model, 0, &doomed) == RRSKIN_STATUS_ERROR_OUT_OF_RANGE, "an empty crowd");
+
+    /* --- Teardown: rrskin first, then the engine's objects. --- */
+    REQUIRE(rrskin_crowd_destroy(crowd));
+    REQUIRE(rrskin_model_destroy(model));
+    REQUIRE(rrskin_context_destroy(context));
+    vkDestroyFence(device, fence, NULL);
+    vkDestroyCommandPool(device, pool, NULL);
+    vkDestroyDevice(device, NULL);
+    destroy_messenger(instance, messenger, NULL);
+    vkDestroyInstance(instance, NULL);
+    check(validation_messages == 0, "no validation messages");
+    free(poses);
+    free(expected);
+    free(positions);
+    free(normals);
+    printf("%d passed, %d failed\n", passed, failed);
+    return failed == 0 ? 0 : 1;
+}

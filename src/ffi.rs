@@ -1,0 +1,724 @@
+//! The C ABI (header: `include/rrskin.h`, generated from this file by cbindgen).
+//!
+//! Conventions, for every function:
+//! - Returns an `RrskinStatus` (`int32_t`); `RRSKIN_OK` is 0. On failure
+//!   `rrskin_last_error()` holds a message for the calling thread.
+//! - Never unwinds into C: every body runs under `catch_unwind` (`RRSKIN_ERROR_PANIC`).
+//! - Handles are `{ uint64_t id }` values (0 is never valid). Destroying a handle invalidates it;
+//!   using it afterwards is the caller's error, but it is caught: slots carry a generation, so a
+//!   stale handle gives `RRSKIN_ERROR_INVALID_HANDLE` instead of touching freed memory.
+//! - Null pointers give `RRSKIN_ERROR_NULL_POINTER`; array lengths are passed explicitly and
+//!   checked (`RRSKIN_ERROR_WRONG_LENGTH`).
+//! - Threads: any function may be called from any thread; calls are serialised by one lock.
+//!   The Vulkan rules of the Rust crate's contract (src/lib.rs) apply: no submitted work reading
+//!   a crowd may be executing when its bones are set or it is destroyed.
+
+use crate::error::Error;
+use crate::model::Model;
+use crate::predict::Affine;
+use crate::vk::{ash::vk, Batch, Context, ContextDesc, Crowd, EngineDevice, GpuModel};
+use std::cell::RefCell;
+use std::ffi::{c_char, c_void, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Mutex, MutexGuard};
+
+/// Status codes (fixed width: `int32_t`).
+#[repr(i32)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RrskinStatus {
+    Ok = 0,
+    ErrorNullPointer = 1,
+    ErrorInvalidHandle = 2,
+    ErrorWrongLength = 3,
+    ErrorOutOfRange = 4,
+    ErrorNonFinite = 5,
+    ErrorBadModel = 6,
+    ErrorIo = 7,
+    ErrorLoader = 8,
+    ErrorVulkan = 9,
+    ErrorNoDevice = 10,
+    ErrorMissingLayer = 11,
+    ErrorAllocation = 12,
+    ErrorDeviceLimit = 13,
+    ErrorNotReady = 14,
+    ErrorMismatch = 15,
+    ErrorInvalidArgument = 16,
+    ErrorPanic = 17,
+}
+
+/// A Vulkan context (headless, or wrapping an engine's device).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RrskinContext {
+    pub id: u64,
+}
+
+/// A model uploaded to one context.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RrskinModel {
+    pub id: u64,
+}
+
+/// C characters of one model.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RrskinCrowd {
+    pub id: u64,
+}
+
+/// An engine's Vulkan objects, borrowed by `rrskin_context_create_from_engine` (never destroyed
+/// by rrskin). Dispatchable handles are passed as pointers.
+#[repr(C)]
+pub struct RrskinEngineDevice {
+    /// The engine's `vkGetInstanceProcAddr` (PFN_vkGetInstanceProcAddr).
+    pub get_instance_proc_addr: *const c_void,
+    /// VkInstance
+    pub instance: *mut c_void,
+    /// VkPhysicalDevice
+    pub physical_device: *mut c_void,
+    /// VkDevice
+    pub device: *mut c_void,
+    pub queue_family_index: u32,
+    /// VkQueue (of `queue_family_index`; must support compute)
+    pub queue: *mut c_void,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RrskinModelInfo {
+    pub vertices: u32,
+    pub triangles: u32,
+    pub bones: u32,
+    /// P; 0 for a plain linear-blend-skinning model.
+    pub proxies: u32,
+    /// K: 4 or 8.
+    pub influences: u32,
+}
+
+/// Where the engine finds a crowd's outputs: character c, vertex a is at
+/// `offset + c * character_stride + a * vertex_stride` bytes in each buffer, as 3 floats.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RrskinCrowdOutput {
+    /// VkBuffer of positions (usage: vertex buffer, storage, transfer source).
+    pub positions: u64,
+    /// VkBuffer of normals.
+    pub normals: u64,
+    pub offset: u64,
+    pub vertex_stride: u64,
+    pub character_stride: u64,
+}
+
+/// GPU time per pass of the last recorded frame, in milliseconds.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RrskinPassTimings {
+    pub predict_ms: f64,
+    pub blend_ms: f64,
+    pub skin_ms: f64,
+    pub normals_ms: f64,
+}
+
+struct ContextEntry {
+    context: Context,
+    batch: Batch,
+}
+
+struct ModelEntry {
+    context: u64,
+    model: Model,
+    gpu: GpuModel,
+}
+
+struct CrowdEntry {
+    context: u64,
+    crowd: Crowd,
+}
+
+/// A slot map. A handle is `kind << 60 | generation << 28 | (index + 1)`: 0 is never a handle,
+/// a destroyed slot's old handles stop matching, and a handle of one kind (say a crowd) never
+/// matches another kind's slots (a context).
+struct Slots<T> {
+    kind: u64,
+    entries: Vec<(u32, Option<T>)>,
+}
+
+const INDEX_BITS: u32 = 28;
+
+impl<T> Slots<T> {
+    const fn new(kind: u64) -> Self {
+        Slots {
+            kind,
+            entries: Vec::new(),
+        }
+    }
+
+    fn insert(&mut self, value: T) -> u64 {
+        let index = match self.entries.iter().position(|(_, v)| v.is_none()) {
+            Some(i) => i,
+            None => {
+                self.entries.push((0, None));
+                self.entries.len() - 1
+            }
+        };
+        debug_assert!(
+            index + 1 < 1 << INDEX_BITS,
+            "more than 2^28 live handles of one kind"
+        );
+        let slot = &mut self.entries[index];
+        slot.0 = slot.0.wrapping_add(1);
+        slot.1 = Some(value);
+        (self.kind << 60) | ((slot.0 as u64) << INDEX_BITS) | (index as u64 + 1)
+    }
+
+    fn locate(&self, id: u64) -> Option<usize> {
+        if id >> 60 != self.kind {
+            return None;
+        }
+        let index = (id & ((1 << INDEX_BITS) - 1)).checked_sub(1)? as usize;
+        let generation = ((id >> INDEX_BITS) & 0xFFFF_FFFF) as u32;
+        match self.entries.get(index) {
+            Some((g, Some(_))) if *g == generation => Some(index),
+            _ => None,
+        }
+    }
+
+    fn get(&self, id: u64) -> Result<&T, Failure> {
+        self.locate(id)
+            .and_then(|i| self.entries[i].1.as_ref())
+            .ok_or(Failure::invalid_handle())
+    }
+
+    fn get_mut(&mut self, id: u64) -> Result<&mut T, Failure> {
+        let i = self.locate(id).ok_or(Failure::invalid_handle())?;
+        self.entries[i].1.as_mut().ok_or(Failure::invalid_handle())
+    }
+
+    fn remove(&mut self, id: u64) -> Result<T, Failure> {
+        let i = self.locate(id).ok_or(Failure::invalid_handle())?;
+        self.entries[i].1.take().ok_or(Failure::invalid_handle())
+    }
+}
+
+struct Registry {
+    contexts: Slots<ContextEntry>,
+    models: Slots<ModelEntry>,
+    crowds: Slots<CrowdEntry>,
+}
+
+// SAFETY: the registry is only reached through the mutex; its Vulkan objects are Send (ash
+// handles are plain values) and every use is serialised.
+unsafe impl Send for Registry {}
+
+static REGISTRY: Mutex<Registry> = Mutex::new(Registry {
+    contexts: Slots::new(1),
+    models: Slots::new(2),
+    crowds: Slots::new(3),
+});
+
+fn registry() -> MutexGuard<'static, Registry> {
+    REGISTRY
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+thread_local! {
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+/// An error on its way to C: status and message.
+struct Failure {
+    status: RrskinStatus,
+    message: String,
+}
+
+impl Failure {
+    fn new(status: RrskinStatus, message: impl Into<String>) -> Failure {
+        Failure {
+            status,
+            message: message.into(),
+        }
+    }
+
+    fn invalid_handle() -> Failure {
+        Failure::new(
+            RrskinStatus::ErrorInvalidHandle,
+            "invalid handle (never created, already destroyed, or of another kind)",
+        )
+    }
+
+    fn null(what: &str) -> Failure {
+        Failure::new(RrskinStatus::ErrorNullPointer, format!("{what} is NULL"))
+    }
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Failure {
+        use RrskinStatus as S;
+        let status = match &e {
+            Error::Io { .. } => S::ErrorIo,
+            Error::BadModel { .. } => S::ErrorBadModel,
+            Error::WrongLength { .. } => S::ErrorWrongLength,
+            Error::OutOfRange { .. } => S::ErrorOutOfRange,
+            Error::NonFinite { .. } => S::ErrorNonFinite,
+            Error::Mismatch { .. } => S::ErrorMismatch,
+            Error::Loader { .. } => S::ErrorLoader,
+            Error::Vulkan { .. } => S::ErrorVulkan,
+            Error::NoDevice { .. } => S::ErrorNoDevice,
+            Error::MissingLayer { .. } => S::ErrorMissingLayer,
+            Error::Allocation { .. } => S::ErrorAllocation,
+            Error::DeviceLimit { .. } => S::ErrorDeviceLimit,
+            Error::NotReady { .. } => S::ErrorNotReady,
+        };
+        Failure::new(status, e.to_string())
+    }
+}
+
+/// Runs `body`, catching panics, recording the error message, returning the status.
+fn guard(body: impl FnOnce() -> Result<(), Failure>) -> RrskinStatus {
+    let outcome = catch_unwind(AssertUnwindSafe(body)).unwrap_or_else(|panic| {
+        let text = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown panic".into());
+        Err(Failure::new(
+            RrskinStatus::ErrorPanic,
+            format!("internal error (panic): {text}"),
+        ))
+    });
+    let (status, message) = match outcome {
+        Ok(()) => (RrskinStatus::Ok, String::new()),
+        Err(f) => (f.status, f.message),
+    };
+    let message = CString::new(message.replace('\0', " ")).unwrap_or_default();
+    LAST_ERROR.with(|slot| *slot.borrow_mut() = message);
+    status
+}
+
+/// Writes through an out-pointer the caller gave.
+fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(Failure::null(what));
+    }
+    // SAFETY: non-null; the caller guarantees it points to writable memory for a T.
+    unsafe { out.write(value) };
+    Ok(())
+}
+
+/// A caller's (pointer, count) as a slice.
+fn slice<'a, T>(data: *const T, count: usize, what: &str) -> Result<&'a [T], Failure> {
+    if count == 0 {
+        return Ok(&[]);
+    }
+    if data.is_null() {
+        return Err(Failure::null(what));
+    }
+    // SAFETY: non-null; the caller guarantees `count` readable elements.
+    Ok(unsafe { std::slice::from_raw_parts(data, count) })
+}
+
+/// The calling thread's message for the last failed call ("" after a success). Valid until the
+/// next rrskin call on this thread; never NULL.
+#[no_mangle]
+pub extern "C" fn rrskin_last_error() -> *const c_char {
+    LAST_ERROR.with(|slot| slot.borrow().as_ptr())
+}
+
+/// Creates a context with its own Vulkan instance and device (the best GPU, else lavapipe).
+/// `validation` != 0 enables the Khronos validation layer with synchronization validation and
+/// fails with RRSKIN_ERROR_MISSING_LAYER if it is not installed. Destroy with
+/// `rrskin_context_destroy`.
+#[no_mangle]
+pub extern "C" fn rrskin_context_create_headless(
+    validation: u32,
+    out: *mut RrskinContext,
+) -> RrskinStatus {
+    guard(|| {
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let context = Context::headless(&ContextDesc {
+            validation: validation != 0,
+            ..Default::default()
+        })?;
+        let batch = Batch::new(&context)?;
+        let id = registry().contexts.insert(ContextEntry { context, batch });
+        put(out, RrskinContext { id }, "out")
+    })
+}
+
+/// Creates a context on the engine's instance, device and queue. The engine keeps ownership:
+/// its objects must outlive the context and every model and crowd made from it. The library
+/// submits to the queue only in `rrskin_model_load_*`, `rrskin_crowds_run` and
+/// `rrskin_crowd_read_back`; the engine must not use the queue concurrently with those.
+///
+/// # Safety
+/// `device` must point to valid handles that belong together.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_context_create_from_engine(
+    device: *const RrskinEngineDevice,
+    out: *mut RrskinContext,
+) -> RrskinStatus {
+    guard(|| {
+        if device.is_null() {
+            return Err(Failure::null("device"));
+        }
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        // SAFETY: non-null, and the caller guarantees a valid struct.
+        let d = unsafe { &*device };
+        for (p, what) in [
+            (
+                d.get_instance_proc_addr as *mut c_void,
+                "device->get_instance_proc_addr",
+            ),
+            (d.instance, "device->instance"),
+            (d.physical_device, "device->physical_device"),
+            (d.device, "device->device"),
+            (d.queue, "device->queue"),
+        ] {
+            if p.is_null() {
+                return Err(Failure::null(what));
+            }
+        }
+        // SAFETY: a non-null PFN_vkGetInstanceProcAddr, as the caller guarantees.
+        let gipa: vk::PFN_vkGetInstanceProcAddr =
+            unsafe { std::mem::transmute(d.get_instance_proc_addr) };
+        use vk::Handle;
+        let engine = EngineDevice {
+            get_instance_proc_addr: gipa,
+            instance: vk::Instance::from_raw(d.instance as u64),
+            physical_device: vk::PhysicalDevice::from_raw(d.physical_device as u64),
+            device: vk::Device::from_raw(d.device as u64),
+            queue_family_index: d.queue_family_index,
+            queue: vk::Queue::from_raw(d.queue as u64),
+        };
+        // SAFETY: the caller guarantees the handles are valid and outlive the context.
+        let context = unsafe { Context::from_engine(engine) }?;
+        let batch = Batch::new(&context)?;
+        let id = registry().contexts.insert(ContextEntry { context, batch });
+        put(out, RrskinContext { id }, "out")
+    })
+}
+
+/// Destroys a context handle. Its device is released once the last model and crowd made from it
+/// is destroyed too.
+#[no_mangle]
+pub extern "C" fn rrskin_context_destroy(context: RrskinContext) -> RrskinStatus {
+    guard(|| registry().contexts.remove(context.id).map(drop))
+}
+
+/// The number of validation-layer warnings and errors a headless context created with
+/// validation has collected (0 otherwise).
+#[no_mangle]
+pub extern "C" fn rrskin_context_validation_message_count(
+    context: RrskinContext,
+    out: *mut u32,
+) -> RrskinStatus {
+    guard(|| {
+        let count = registry()
+            .contexts
+            .get(context.id)?
+            .context
+            .validation_messages()
+            .len();
+        put(out, count as u32, "out")
+    })
+}
+
+fn add_model(context: RrskinContext, model: Model, out: *mut RrskinModel) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(Failure::null("out"));
+    }
+    let mut reg = registry();
+    let gpu = GpuModel::new(&reg.contexts.get(context.id)?.context, &model)?;
+    let id = reg.models.insert(ModelEntry {
+        context: context.id,
+        model,
+        gpu,
+    });
+    put(out, RrskinModel { id }, "out")
+}
+
+/// Loads and validates a `.rrs` file (UTF-8 path) and uploads it to `context`.
+///
+/// # Safety
+/// `path` must be a NUL-terminated string.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_model_load_file(
+    context: RrskinContext,
+    path: *const c_char,
+    out: *mut RrskinModel,
+) -> RrskinStatus {
+    guard(|| {
+        if path.is_null() {
+            return Err(Failure::null("path"));
+        }
+        // SAFETY: non-null NUL-terminated string, as the caller guarantees.
+        let path = unsafe { CStr::from_ptr(path) }
+            .to_str()
+            .map_err(|_| Failure::new(RrskinStatus::ErrorInvalidArgument, "path is not UTF-8"))?;
+        add_model(context, Model::load(path)?, out)
+    })
+}
+
+/// Validates a `.rrs` image of `size` bytes and uploads it to `context` (the bytes are copied).
+///
+/// # Safety
+/// `data` must point to `size` readable bytes.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_model_load_memory(
+    context: RrskinContext,
+    data: *const u8,
+    size: usize,
+    out: *mut RrskinModel,
+) -> RrskinStatus {
+    guard(|| add_model(context, Model::from_bytes(slice(data, size, "data")?)?, out))
+}
+
+#[no_mangle]
+pub extern "C" fn rrskin_model_get_info(
+    model: RrskinModel,
+    out: *mut RrskinModelInfo,
+) -> RrskinStatus {
+    guard(|| {
+        let reg = registry();
+        let m = &reg.models.get(model.id)?.model;
+        let info = RrskinModelInfo {
+            vertices: m.vertex_count() as u32,
+            triangles: m.triangle_count() as u32,
+            bones: m.bone_count() as u32,
+            proxies: m.proxy_count() as u32,
+            influences: m.influences() as u32,
+        };
+        put(out, info, "out")
+    })
+}
+
+/// Destroys a model handle; crowds made from it keep working until destroyed themselves.
+#[no_mangle]
+pub extern "C" fn rrskin_model_destroy(model: RrskinModel) -> RrskinStatus {
+    guard(|| registry().models.remove(model.id).map(drop))
+}
+
+/// Creates a crowd of `characters` characters of `model`, all in the rest pose.
+#[no_mangle]
+pub extern "C" fn rrskin_crowd_create(
+    model: RrskinModel,
+    characters: u32,
+    out: *mut RrskinCrowd,
+) -> RrskinStatus {
+    guard(|| {
+        if out.is_null() {
+            return Err(Failure::null("out"));
+        }
+        let mut reg = registry();
+        let entry = reg.models.get(model.id)?;
+        let (context, crowd) = (entry.context, Crowd::new(&entry.gpu, characters as usize)?);
+        let id = reg.crowds.insert(CrowdEntry { context, crowd });
+        put(out, RrskinCrowd { id }, "out")
+    })
+}
+
+fn affines<'a>(transforms: *const f32, float_count: usize) -> Result<&'a [Affine], Failure> {
+    if float_count % 12 != 0 {
+        return Err(Failure::new(
+            RrskinStatus::ErrorWrongLength,
+            format!("{float_count} floats is not a whole number of 3x4 transforms"),
+        ));
+    }
+    let floats = slice(transforms, float_count, "transforms")?;
+    Ok(bytemuck::cast_slice(floats))
+}
+
+/// Sets every character's bone transforms: `float_count` = characters x bones x 12 floats, each
+/// transform 3x4 row-major, world space, relative to the rest pose.
+///
+/// # Safety
+/// `transforms` must point to `float_count` readable floats.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_set_bones(
+    crowd: RrskinCrowd,
+    transforms: *const f32,
+    float_count: usize,
+) -> RrskinStatus {
+    guard(|| {
+        let bones = affines(transforms, float_count)?;
+        Ok(registry()
+            .crowds
+            .get_mut(crowd.id)?
+            .crowd
+            .set_bones(bones)?)
+    })
+}
+
+/// Sets one character's bone transforms: `float_count` = bones x 12.
+///
+/// # Safety
+/// `transforms` must point to `float_count` readable floats.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
+    crowd: RrskinCrowd,
+    character: u32,
+    transforms: *const f32,
+    float_count: usize,
+) -> RrskinStatus {
+    guard(|| {
+        let bones = affines(transforms, float_count)?;
+        Ok(registry()
+            .crowds
+            .get_mut(crowd.id)?
+            .crowd
+            .set_character_bones(character as usize, bones)?)
+    })
+}
+
+#[no_mangle]
+pub extern "C" fn rrskin_crowd_get_output(
+    crowd: RrskinCrowd,
+    out: *mut RrskinCrowdOutput,
+) -> RrskinStatus {
+    guard(|| {
+        use vk::Handle;
+        let o = registry().crowds.get(crowd.id)?.crowd.output();
+        let output = RrskinCrowdOutput {
+            positions: o.positions.as_raw(),
+            normals: o.normals.as_raw(),
+            offset: o.offset,
+            vertex_stride: o.vertex_stride,
+            character_stride: o.character_stride,
+        };
+        put(out, output, "out")
+    })
+}
+
+/// Copies the outputs to host memory: `float_count` = characters x vertices x 3 for each of
+/// `positions` and `normals` (either may be NULL to skip it). Submits and waits: for tools and
+/// tests, not the per-frame path.
+///
+/// # Safety
+/// Non-null pointers must have room for `float_count` floats.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_read_back(
+    crowd: RrskinCrowd,
+    positions: *mut f32,
+    normals: *mut f32,
+    float_count: usize,
+) -> RrskinStatus {
+    guard(|| {
+        let reg = registry();
+        let c = &reg.crowds.get(crowd.id)?.crowd;
+        let expected = c.character_count() * c.model().vertex_count() * 3;
+        if float_count != expected {
+            return Err(Failure::from(Error::WrongLength {
+                what: "read-back floats",
+                expected,
+                actual: float_count,
+            }));
+        }
+        let out = c.read_back()?;
+        for (dst, src) in [(positions, &out.positions), (normals, &out.normals)] {
+            if !dst.is_null() {
+                // SAFETY: the caller guarantees room for `float_count` floats.
+                let dst = unsafe { std::slice::from_raw_parts_mut(dst, float_count) };
+                dst.copy_from_slice(src.as_flattened());
+            }
+        }
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub extern "C" fn rrskin_crowd_destroy(crowd: RrskinCrowd) -> RrskinStatus {
+    guard(|| registry().crowds.remove(crowd.id).map(drop))
+}
+
+/// Collects the crowds of one context for a batch.
+fn crowds_of<'r>(
+    slots: &'r Slots<CrowdEntry>,
+    context: u64,
+    crowds: &[RrskinCrowd],
+) -> Result<Vec<&'r Crowd>, Failure> {
+    crowds
+        .iter()
+        .map(|c| {
+            let entry = slots.get(c.id)?;
+            if entry.context != context {
+                return Err(Failure::from(Error::Mismatch {
+                    what: "a crowd of another context",
+                }));
+            }
+            Ok(&entry.crowd)
+        })
+        .collect()
+}
+
+/// Records all passes of `count` crowds into the engine's command buffer (VkCommandBuffer,
+/// recording, outside a render pass, on the context's queue family). The recorded commands end
+/// with a barrier making the outputs visible to vertex input, transfer and compute.
+///
+/// # Safety
+/// `crowds` must point to `count` handles; `command_buffer` must be a valid VkCommandBuffer.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowds_record(
+    context: RrskinContext,
+    command_buffer: *mut c_void,
+    crowds: *const RrskinCrowd,
+    count: u32,
+) -> RrskinStatus {
+    guard(|| {
+        if command_buffer.is_null() {
+            return Err(Failure::null("command_buffer"));
+        }
+        let handles = slice(crowds, count as usize, "crowds")?;
+        let mut reg = registry();
+        let reg = &mut *reg;
+        let list = crowds_of(&reg.crowds, context.id, handles)?;
+        let entry = reg.contexts.get_mut(context.id)?;
+        use vk::Handle;
+        Ok(entry
+            .batch
+            .record(vk::CommandBuffer::from_raw(command_buffer as u64), &list)?)
+    })
+}
+
+/// Records all passes of `count` crowds, submits them and waits (headless path).
+///
+/// # Safety
+/// `crowds` must point to `count` handles.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowds_run(
+    context: RrskinContext,
+    crowds: *const RrskinCrowd,
+    count: u32,
+) -> RrskinStatus {
+    guard(|| {
+        let handles = slice(crowds, count as usize, "crowds")?;
+        let mut reg = registry();
+        let reg = &mut *reg;
+        let list = crowds_of(&reg.crowds, context.id, handles)?;
+        Ok(reg.contexts.get_mut(context.id)?.batch.run(&list)?)
+    })
+}
+
+/// GPU time per pass of the context's last recorded frame (after `rrskin_crowds_record`, only
+/// once the command buffer completed; RRSKIN_ERROR_NOT_READY otherwise).
+#[no_mangle]
+pub extern "C" fn rrskin_context_get_timings(
+    context: RrskinContext,
+    out: *mut RrskinPassTimings,
+) -> RrskinStatus {
+    guard(|| {
+        let t = registry().contexts.get(context.id)?.batch.timings()?;
+        let timings = RrskinPassTimings {
+            predict_ms: t.predict_ms,
+            blend_ms: t.blend_ms,
+            skin_ms: t.skin_ms,
+            normals_ms: t.normals_ms,
+        };
+        put(out, timings, "out")
+    })
+}

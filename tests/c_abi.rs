@@ -1,0 +1,138 @@
+//! The C ABI from C: the committed header is what cbindgen generates from src/ffi.rs, and the
+//! C example (examples/c/crowd.c), compiled by the system C compiler against that header and
+//! the static library, runs on lavapipe with the validation layer on, checks positions against
+//! the Rust CPU evaluator, and checks the bad-input behaviour of the ABI.
+
+use rrskin::cpu::CpuEvaluator;
+use rrskin::synthetic::{random_model, random_poses, Spec};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn generated_header() -> String {
+    let config = cbindgen::Config::from_file(root().join("cbindgen.toml")).expect("cbindgen.toml");
+    let mut out = Vec::new();
+    cbindgen::Builder::new()
+        .with_crate(root())
+        .with_config(config)
+        .generate()
+        .expect("cbindgen parses src/ffi.rs")
+        .write(&mut out);
+    String::from_utf8(out).expect("UTF-8 header")
+}
+
+#[test]
+fn the_committed_header_is_current() {
+    let path = root().join("include/rrskin.h");
+    let generated = generated_header();
+    if std::env::var_os("RRSKIN_BLESS").is_some() {
+        std::fs::write(&path, &generated).expect("write header");
+    }
+    let committed = std::fs::read_to_string(&path).unwrap_or_default();
+    assert!(
+        committed == generated,
+        "include/rrskin.h is stale: regenerate it with `RRSKIN_BLESS=1 cargo test --test c_abi`"
+    );
+}
+
+fn write_floats(path: &Path, floats: &[f32]) {
+    let bytes: Vec<u8> = floats.iter().flat_map(|x| x.to_le_bytes()).collect();
+    std::fs::write(path, bytes).expect("write floats");
+}
+
+/// The directory holding this build's librrskin.a (target/<profile>).
+fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    let dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps/..")
+        .to_path_buf();
+    assert!(
+        dir.join("librrskin.a").exists(),
+        "librrskin.a not built in {}",
+        dir.display()
+    );
+    dir
+}
+
+#[test]
+fn the_c_example_drives_the_runtime_on_the_engines_device() {
+    let (frames, characters) = (3usize, 64usize);
+    let dir = std::env::temp_dir().join(format!("rrskin-c-abi-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let model = random_model(
+        Spec {
+            grid: 12,
+            bones: 9,
+            proxies: 7,
+            influences: 8,
+        },
+        5,
+    )
+    .expect("model");
+    model.save(dir.join("model.rrs")).expect("save model");
+    let (mut poses, mut expected) = (Vec::new(), Vec::new());
+    let v = model.vertex_count();
+    for frame in 0..frames {
+        let bones = random_poses(&model, characters, frame as u64);
+        let (mut p, mut n) = (
+            vec![[0.0; 3]; characters * v],
+            vec![[0.0; 3]; characters * v],
+        );
+        CpuEvaluator::new(&model)
+            .evaluate(&bones, &mut p, &mut n)
+            .expect("CPU evaluator");
+        poses.extend(bones.as_flattened());
+        expected.extend(p.as_flattened());
+    }
+    write_floats(&dir.join("poses.bin"), &poses);
+    write_floats(&dir.join("expected.bin"), &expected);
+
+    let exe = dir.join("crowd");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let build = Command::new(&cc)
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-o"])
+        .arg(&exe)
+        .arg(root().join("examples/c/crowd.c"))
+        .arg("-I")
+        .arg(root().join("include"))
+        .arg(library_dir().join("librrskin.a"))
+        .args([
+            "-lvulkan",
+            "-lgcc_s",
+            "-lutil",
+            "-lrt",
+            "-lpthread",
+            "-lm",
+            "-ldl",
+        ])
+        .output()
+        .expect("a C compiler");
+    assert!(
+        build.status.success(),
+        "{cc} failed:\n{}",
+        String::from_utf8_lossy(&build.stderr)
+    );
+
+    let run = Command::new(&exe)
+        .arg(dir.join("model.rrs"))
+        .arg(dir.join("poses.bin"))
+        .arg(dir.join("expected.bin"))
+        .arg(frames.to_string())
+        .arg(characters.to_string())
+        .output()
+        .expect("run the C example");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.success() && stdout.contains("passed, 0 failed"),
+        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    if std::env::var_os("RRSKIN_KEEP_C_DIR").is_none() {
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
