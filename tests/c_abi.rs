@@ -136,3 +136,93 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         std::fs::remove_dir_all(&dir).ok();
     }
 }
+
+/// The headless path through the ABI (called in-process): a context of its own with
+/// validation, a model from memory, run-and-wait, read-back, compared with the CPU evaluator.
+#[test]
+fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
+    use rrskin::ffi::*;
+    let model = random_model(
+        Spec {
+            grid: 8,
+            bones: 5,
+            proxies: 4,
+            influences: 4,
+        },
+        9,
+    )
+    .expect("model");
+    let bytes = model.to_bytes();
+    let characters = 5u32;
+    let poses = random_poses(&model, characters as usize, 3);
+    let v = model.vertex_count();
+    let (mut p, mut n) = (
+        vec![[0.0; 3]; characters as usize * v],
+        vec![[0.0; 3]; characters as usize * v],
+    );
+    CpuEvaluator::new(&model)
+        .evaluate(&poses, &mut p, &mut n)
+        .expect("CPU evaluator");
+
+    let ok = RrskinStatus::Ok;
+    let mut ctx = RrskinContext { id: 0 };
+    assert_eq!(rrskin_context_create_headless(1, &mut ctx), ok);
+    let mut m = RrskinModel { id: 0 };
+    // SAFETY: valid pointers and lengths.
+    assert_eq!(
+        unsafe { rrskin_model_load_memory(ctx, bytes.as_ptr(), bytes.len(), &mut m) },
+        ok
+    );
+    let mut crowd = RrskinCrowd { id: 0 };
+    assert_eq!(rrskin_crowd_create(m, characters, &mut crowd), ok);
+    let floats = poses.as_flattened();
+    // SAFETY: valid pointers and lengths.
+    unsafe {
+        assert_eq!(
+            rrskin_crowd_set_bones(crowd, floats.as_ptr(), floats.len()),
+            ok
+        );
+        assert_eq!(rrskin_crowds_run(ctx, &crowd, 1), ok);
+    }
+    let mut positions = vec![0.0f32; characters as usize * v * 3];
+    // SAFETY: room for the floats; normals skipped.
+    let read = unsafe {
+        rrskin_crowd_read_back(
+            crowd,
+            positions.as_mut_ptr(),
+            std::ptr::null_mut(),
+            positions.len(),
+        )
+    };
+    assert_eq!(read, ok);
+    for (a, b) in positions.chunks_exact(3).zip(&p) {
+        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        assert!(
+            d <= 2e-4 * (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt().max(1.0),
+            "{a:?} vs {b:?}"
+        );
+    }
+    let mut timings = RrskinPassTimings::default();
+    assert_eq!(rrskin_context_get_timings(ctx, &mut timings), ok);
+    assert!(timings.skin_ms > 0.0);
+    // A read-back buffer of the wrong size is refused, and the message says why.
+    // SAFETY: the length is checked before anything is written.
+    let short =
+        unsafe { rrskin_crowd_read_back(crowd, positions.as_mut_ptr(), std::ptr::null_mut(), 3) };
+    assert_eq!(short, RrskinStatus::ErrorWrongLength);
+    // SAFETY: rrskin_last_error never returns NULL.
+    let message = unsafe { std::ffi::CStr::from_ptr(rrskin_last_error()) }
+        .to_string_lossy()
+        .into_owned();
+    assert!(message.contains("read-back floats"), "{message}");
+    let mut count = u32::MAX;
+    assert_eq!(rrskin_context_validation_message_count(ctx, &mut count), ok);
+    assert_eq!(count, 0, "validation messages");
+    assert_eq!(rrskin_crowd_destroy(crowd), ok);
+    assert_eq!(rrskin_model_destroy(m), ok);
+    assert_eq!(rrskin_context_destroy(ctx), ok);
+    assert_eq!(
+        rrskin_context_destroy(ctx),
+        RrskinStatus::ErrorInvalidHandle
+    );
+}
