@@ -188,6 +188,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         predictors,
         c1,
         c2,
+        normal_groups: Vec::new(),
     };
     Model::new(parts)
 }

@@ -43,20 +43,37 @@ fn write_floats(path: &Path, floats: &[f32]) {
     std::fs::write(path, bytes).expect("write floats");
 }
 
-/// The directory holding this build's librrskin.a (target/<profile>).
-fn library_dir() -> PathBuf {
+/// This build's librrskin.a. `cargo test` builds the library only as an rlib, so build the
+/// static library into the same target directory and profile first (quick: the dependencies
+/// are already built).
+fn static_library() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe
+    let profile_dir = exe
         .parent()
         .and_then(Path::parent)
-        .expect("target/<profile>/deps/..")
+        .expect("target/<profile>/deps")
         .to_path_buf();
+    let target_dir = profile_dir
+        .parent()
+        .expect("target/<profile>")
+        .to_path_buf();
+    let mut cargo = Command::new(env!("CARGO"));
+    cargo
+        .args(["build", "--lib", "-p", "rrskin", "--target-dir"])
+        .arg(&target_dir)
+        .current_dir(root());
+    if profile_dir.file_name().is_some_and(|n| n == "release") {
+        cargo.arg("--release");
+    }
+    let out = cargo.output().expect("run cargo");
     assert!(
-        dir.join("librrskin.a").exists(),
-        "librrskin.a not built in {}",
-        dir.display()
+        out.status.success(),
+        "cargo build --lib failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
     );
-    dir
+    let lib = profile_dir.join("librrskin.a");
+    assert!(lib.exists(), "{} was not built", lib.display());
+    lib
 }
 
 #[test]
@@ -100,7 +117,7 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         .arg(root().join("examples/c/crowd.c"))
         .arg("-I")
         .arg(root().join("include"))
-        .arg(library_dir().join("librrskin.a"))
+        .arg(static_library())
         .args([
             "-lvulkan",
             "-lgcc_s",

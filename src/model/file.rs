@@ -24,6 +24,7 @@
 //! | PRED | P records of 85 words: bone u32, second bone u32 (0xFFFFFFFF: none), u f32, u2 f32, W 9 f32, W2 9 f32, H 63 f32 |
 //! | C1   | 4P x 3P f32 (row-major)                              |
 //! | C2   | 4P x 4J f32 (row-major)                              |
+//! | NGRP | optional: V u32 normal groups (absent: no groups)    |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
@@ -50,6 +51,7 @@ const SKIW: [u8; 4] = *b"SKIW";
 const PRED: [u8; 4] = *b"PRED";
 const C1: [u8; 4] = *b"C1\0\0";
 const C2: [u8; 4] = *b"C2\0\0";
+const NGRP: [u8; 4] = *b"NGRP";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let (v, t, j, p) = (
@@ -93,6 +95,11 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
     let mut c2 = Vec::new();
     push_f32s(&mut c2, &m.c2);
     sections.push((C2, c2));
+    if !m.normal_groups.is_empty() {
+        let mut groups = Vec::new();
+        push_u32s(&mut groups, &m.normal_groups);
+        sections.push((NGRP, groups));
+    }
 
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
@@ -182,6 +189,10 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
     let pred = table.section(body, PRED, words(&[p, PREDICTOR_WORDS as u64]))?;
     let c1 = table.section(body, C1, words(&[4, p, 3, p]))?;
     let c2 = table.section(body, C2, words(&[4, p, 4, j]))?;
+    let normal_groups = match table.has(NGRP) {
+        true => u32s(table.section(body, NGRP, words(&[v]))?),
+        false => Vec::new(),
+    };
 
     let predictors = pred
         .chunks_exact(PREDICTOR_WORDS * 4)
@@ -214,6 +225,7 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         predictors,
         c1: f32s(c1),
         c2: f32s(c2),
+        normal_groups,
     })
 }
 
@@ -253,6 +265,10 @@ impl SectionTable {
             entries.push((tag, offset, length));
         }
         Ok(SectionTable { entries })
+    }
+
+    fn has(&self, tag: [u8; 4]) -> bool {
+        self.entries.iter().any(|(t, _, _)| *t == tag)
     }
 
     /// The payload of a required section, checked against its expected length.

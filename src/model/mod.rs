@@ -13,6 +13,7 @@
 //! | `predictors`       | P                | key predictors d_ℓ(q) (METHOD.md §2–3, paper §3)      |
 //! | `c1`               | 4P x 3P          | t_c = C1 d_c + C2 q_c (METHOD.md §8, paper Eq. 5)    |
 //! | `c2`               | 4P x 4J          |                                                      |
+//! | `normal_groups`    | V or empty       | vertices sharing a normal (welded seams)             |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
@@ -69,6 +70,10 @@ pub struct ModelParts {
     pub predictors: Vec<KeyPredictor>,
     pub c1: Vec<f32>,
     pub c2: Vec<f32>,
+    /// Empty, or V group ids (< V): vertices of one group share their normal, summed over the
+    /// triangles around all of them. For meshes split along UV seams (glTF), so that the two
+    /// sides of a seam do not shade apart. Empty: every vertex is its own group.
+    pub normal_groups: Vec<u32>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -95,8 +100,11 @@ impl Model {
             origin: origin.to_string(),
             problem,
         })?;
-        let (incident_offsets, incident_triangles) =
-            incidence(parts.rest_positions.len(), &parts.triangles);
+        let (incident_offsets, incident_triangles) = incidence(
+            parts.rest_positions.len(),
+            &parts.triangles,
+            &parts.normal_groups,
+        );
         Ok(Model {
             parts,
             incident_offsets,
@@ -195,24 +203,43 @@ impl Model {
     }
 }
 
-/// Per-vertex incident-triangle lists (CSR). Shape: offsets V + 1, triangles 3T.
-fn incidence(vertex_count: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
-    let mut offsets = vec![0u32; vertex_count + 1];
+/// Per-vertex incident-triangle lists (CSR): the triangles around each vertex's normal group
+/// (around the vertex itself when `groups` is empty). Shape: offsets V + 1.
+fn incidence(vertex_count: usize, triangles: &[[u32; 3]], groups: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let group = |v: usize| {
+        if groups.is_empty() {
+            v
+        } else {
+            groups[v] as usize
+        }
+    };
+    // Triangles around each group (CSR over group ids).
+    let mut count = vec![0u32; vertex_count + 1];
     for tri in triangles {
         for &v in tri {
-            offsets[v as usize + 1] += 1;
+            count[group(v as usize) + 1] += 1;
         }
     }
-    for a in 0..vertex_count {
-        offsets[a + 1] += offsets[a];
+    for g in 0..vertex_count {
+        count[g + 1] += count[g];
     }
-    let mut fill = offsets.clone();
-    let mut list = vec![0u32; offsets[vertex_count] as usize];
+    let mut fill = count.clone();
+    let mut by_group = vec![0u32; count[vertex_count] as usize];
     for (k, tri) in triangles.iter().enumerate() {
         for &v in tri {
-            list[fill[v as usize] as usize] = k as u32;
-            fill[v as usize] += 1;
+            let g = group(v as usize);
+            by_group[fill[g] as usize] = k as u32;
+            fill[g] += 1;
         }
+    }
+    // Each vertex gets its group's list.
+    let mut offsets = Vec::with_capacity(vertex_count + 1);
+    let mut list = Vec::with_capacity(by_group.len());
+    offsets.push(0);
+    for v in 0..vertex_count {
+        let g = group(v);
+        list.extend_from_slice(&by_group[count[g] as usize..count[g + 1] as usize]);
+        offsets.push(list.len() as u32);
     }
     (offsets, list)
 }
@@ -223,8 +250,17 @@ mod tests {
 
     #[test]
     fn incidence_lists_every_corner_once() {
-        let (off, list) = incidence(4, &[[0, 1, 2], [0, 2, 3]]);
+        let (off, list) = incidence(4, &[[0, 1, 2], [0, 2, 3]], &[]);
         assert_eq!(off, vec![0, 2, 3, 5, 6]);
         assert_eq!(list, vec![0, 1, 0, 0, 1, 1]);
+    }
+
+    #[test]
+    fn grouped_vertices_share_every_triangle_of_their_group() {
+        // Vertices 1 and 4 are one seam vertex split in two.
+        let (off, list) = incidence(5, &[[0, 1, 2], [4, 3, 2]], &[0, 1, 2, 3, 1]);
+        assert_eq!(&list[off[1] as usize..off[2] as usize], &[0, 1]);
+        assert_eq!(&list[off[4] as usize..off[5] as usize], &[0, 1]);
+        assert_eq!(&list[off[0] as usize..off[1] as usize], &[0]);
     }
 }

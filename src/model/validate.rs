@@ -65,6 +65,17 @@ pub fn check(m: &ModelParts) -> Check {
     for (l, pred) in m.predictors.iter().enumerate() {
         predictor(l, pred, j)?;
     }
+    if !m.normal_groups.is_empty() {
+        length("normal groups", v, m.normal_groups.len())?;
+        if let Some(i) = m.normal_groups.iter().position(|&g| g as usize >= v) {
+            return Err(out_of_range(
+                "normal groups",
+                i,
+                m.normal_groups[i] as i64,
+                v,
+            ));
+        }
+    }
     Ok(())
 }
 

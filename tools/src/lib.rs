@@ -12,9 +12,12 @@
 pub mod eval;
 pub mod example_set;
 pub mod full_model;
+pub mod gltf_rig;
 pub mod gradients;
+pub mod import;
 pub mod linalg;
 pub mod npy;
+pub mod point_cache;
 pub mod poisson;
 pub mod predictor_reduction;
 pub mod profile;

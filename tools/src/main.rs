@@ -6,7 +6,8 @@ use rrskin::vk::DeviceChoice;
 use rrskin::Model;
 use rrskin_tools::eval::{Options, Report};
 use rrskin_tools::example_set::ExampleSet;
-use std::path::{Path, PathBuf};
+use rrskin_tools::import::{Imported, Options as ImportOptions};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -24,8 +25,8 @@ struct Cli {
 enum Command {
     /// Train every method on the training poses of SET and report the enveloping error.
     Eval {
-        /// An example-set folder (NumPy layout).
-        set: PathBuf,
+        #[command(flatten)]
+        set: SetArgs,
         /// One JSON object on stdout (the contract of ARCHITECTURE.md), no progress.
         #[arg(long)]
         json: bool,
@@ -47,8 +48,8 @@ enum Command {
     },
     /// Train the runtime model on the training poses of SET and write it.
     Train {
-        /// An example-set folder (NumPy layout).
-        set: PathBuf,
+        #[command(flatten)]
+        set: SetArgs,
         #[arg(short, long)]
         output: PathBuf,
         /// Proxy bones P (the model's size and per-frame cost grow with it).
@@ -124,11 +125,89 @@ fn main() -> ExitCode {
 
 const DEFAULT_PROXIES: usize = 60;
 
+/// SET: a NumPy example-set folder, or a glTF rig (.glb/.gltf) with a point cache.
+#[derive(clap::Args)]
+struct SetArgs {
+    /// An example-set folder (NumPy layout) or a glTF rig (.glb / .gltf).
+    set: PathBuf,
+    /// glTF rig: the animation that poses the rig at the cache's samples.
+    #[arg(long)]
+    clip: Option<String>,
+    /// glTF rig: the point cache (.pc2 or .mdd) of the black-box rig's vertices, glTF order.
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// glTF rig: frames per second of the cache's frame numbers.
+    #[arg(long, default_value_t = 24.0)]
+    fps: f64,
+    /// glTF rig: cache frames held out as test poses, e.g. 41..60 (inclusive).
+    #[arg(long)]
+    test_frames: Option<String>,
+}
+
+impl SetArgs {
+    fn is_gltf(&self) -> bool {
+        let ext = self
+            .set
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        ext == "glb" || ext == "gltf"
+    }
+
+    /// The example set, and for a glTF rig what maps it back to the file's vertices.
+    fn load(&self) -> Result<(ExampleSet, Option<Imported>), Box<dyn std::error::Error>> {
+        if !self.is_gltf() {
+            if self.clip.is_some() || self.cache.is_some() || self.test_frames.is_some() {
+                return Err(format!(
+                    "{}: --clip, --cache and --test-frames apply to a glTF rig (.glb/.gltf)",
+                    self.set.display()
+                )
+                .into());
+            }
+            return Ok((ExampleSet::load(&self.set)?, None));
+        }
+        let (Some(clip), Some(cache)) = (&self.clip, &self.cache) else {
+            return Err(format!(
+                "{}: a glTF rig needs --clip NAME and --cache FILE.pc2|FILE.mdd",
+                self.set.display()
+            )
+            .into());
+        };
+        let test_frames = self.test_frames.as_deref().map(parse_range).transpose()?;
+        let options = ImportOptions {
+            clip: clip.clone(),
+            cache: cache.clone(),
+            fps: self.fps,
+            test_frames,
+        };
+        let imported = rrskin_tools::import::import(&self.set, &options)?;
+        Ok((imported.set.clone(), Some(imported)))
+    }
+}
+
+/// "A..B" (inclusive) as a frame range.
+fn parse_range(text: &str) -> Result<(f64, f64), String> {
+    let (a, b) = text
+        .split_once("..")
+        .ok_or_else(|| format!("--test-frames {text}: expected A..B"))?;
+    let parse = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("--test-frames {text}: '{x}' is not a number"))
+    };
+    let (a, b) = (parse(a)?, parse(b)?);
+    if b < a {
+        return Err(format!("--test-frames {text}: the range is empty"));
+    }
+    Ok((a, b))
+}
+
 fn evaluate(
-    set: &Path,
+    set: &SetArgs,
     json: bool,
     options: Options,
-) -> Result<Report, Box<dyn std::error::Error>> {
+) -> Result<(Report, Option<Imported>), Box<dyn std::error::Error>> {
     if !matches!(options.influences, 4 | 8) {
         return Err(format!(
             "--influences {}: the runtime supports 4 or 8",
@@ -136,17 +215,22 @@ fn evaluate(
         )
         .into());
     }
-    let examples = ExampleSet::load(set)?;
+    let (examples, imported) = set.load()?;
+    let mut options = options;
+    if let (Some(model), Some(imported)) = (&options.model, &imported) {
+        options.model = Some(imported.collapse(model)?);
+    }
     if !json {
         examples
             .warnings
             .iter()
             .for_each(|w| eprintln!("warning: {w}"));
     }
-    rrskin_tools::eval::run(&examples, &options)
+    Ok((rrskin_tools::eval::run(&examples, &options)?, imported))
 }
 
-fn print_report(report: &Report, set: &Path, json: bool) {
+fn print_report(report: &Report, set: &SetArgs, json: bool) {
+    let set = &set.set;
     if json {
         out!("{}", report.to_json());
     } else {
@@ -166,7 +250,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             model,
         } => {
             let model = model.map(Model::load).transpose()?;
-            let report = evaluate(
+            let (report, _) = evaluate(
                 &set,
                 json,
                 Options {
@@ -191,7 +275,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             if proxies == 0 {
                 return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }
-            let report = evaluate(
+            let (report, imported) = evaluate(
                 &set,
                 json,
                 Options {
@@ -204,6 +288,11 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 },
             )?;
             let model = report.model.as_ref().ok_or("training produced no model")?;
+            // A glTF rig's model is written over the file's own vertices (order and count).
+            let model = match &imported {
+                Some(imported) => imported.expand(model)?,
+                None => model.clone(),
+            };
             model.save(&output)?;
             print_report(&report, &set, json);
             if !json {

@@ -285,6 +285,7 @@ impl Reduced {
             predictors,
             c1: self.c1.iter().map(|&x| x as f32).collect(),
             c2: self.c2.iter().map(|&x| x as f32).collect(),
+            normal_groups: Vec::new(),
         })
     }
 }

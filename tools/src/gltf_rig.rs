@@ -1,0 +1,587 @@
+//! A rig from glTF 2.0 (.glb, or .gltf with external buffers): the skinned mesh (all primitives
+//! of every skinned mesh node, concatenated in file order; all must share one skin), the skin's
+//! joints as bones (parent = nearest ancestor that is a joint), the rest mesh = the mesh skinned
+//! at the nodes' default pose (mesh-space POSITIONs are not always the rest pose), and per time
+//! `T_b = W_b(t) · W_b(default)⁻¹` from a sampled animation clip.
+
+use crate::example_set::{Bone, InputError};
+use glam::{DMat4, DQuat, DVec3, DVec4};
+use gltf::animation::{Interpolation, Property};
+use std::path::Path;
+
+/// Key times are compared with this slack (seconds): STEP keys at i/24 s stored as f32 must
+/// be hit by frame times computed in f64.
+const TIME_SLACK: f64 = 1e-5;
+
+fn bad(file: &Path, message: impl Into<String>) -> InputError {
+    InputError {
+        file: file.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+/// Local transform of a node: translation, rotation, scale.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Trs {
+    t: DVec3,
+    r: DQuat,
+    s: DVec3,
+}
+
+impl Trs {
+    fn matrix(&self) -> DMat4 {
+        DMat4::from_scale_rotation_translation(self.s, self.r, self.t)
+    }
+}
+
+#[derive(Debug, Clone)]
+enum Values {
+    Vec3(Vec<DVec3>),
+    Quat(Vec<DQuat>),
+}
+
+#[derive(Debug, Clone)]
+struct Channel {
+    node: usize,
+    property: Property,
+    interpolation: Interpolation,
+    times: Vec<f64>,
+    /// For CUBICSPLINE: (in-tangent, value, out-tangent) per key, flattened.
+    values: Values,
+}
+
+#[derive(Debug, Clone)]
+pub struct Rig {
+    /// G rest positions in glTF order (primitives concatenated).
+    pub rest: Vec<DVec3>,
+    /// glTF triangles (indices into `rest`).
+    pub triangles: Vec<[usize; 3]>,
+    /// J bone names (node names, or "joint N").
+    pub names: Vec<String>,
+    pub parents: Vec<Option<usize>>,
+    /// Node of each bone.
+    joints: Vec<usize>,
+    node_parents: Vec<Option<usize>>,
+    defaults: Vec<Trs>,
+    /// World matrices of the bones at the default pose, inverted.
+    default_inverse: Vec<DMat4>,
+    channels: Vec<Channel>,
+    pub clip_duration: f64,
+}
+
+impl Rig {
+    /// Loads the rig and the animation named `clip`.
+    pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
+        let bytes = std::fs::read(path).map_err(|e| bad(path, format!("cannot read: {e}")))?;
+        let gltf = gltf::Gltf::from_slice(&bytes)
+            .map_err(|e| bad(path, format!("not a valid glTF file: {e}")))?;
+        let buffers = load_buffers(path, &gltf)?;
+        let doc = &gltf.document;
+        let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| d.as_slice());
+
+        let nodes: Vec<gltf::Node> = doc.nodes().collect();
+        let mut node_parents = vec![None; nodes.len()];
+        for n in &nodes {
+            for c in n.children() {
+                node_parents[c.index()] = Some(n.index());
+            }
+        }
+        let defaults: Vec<Trs> = nodes
+            .iter()
+            .map(|n| {
+                let (t, r, s) = n.transform().decomposed();
+                Trs {
+                    t: DVec3::from(t.map(f64::from)),
+                    r: DQuat::from_array(r.map(f64::from)).normalize(),
+                    s: DVec3::from(s.map(f64::from)),
+                }
+            })
+            .collect();
+
+        let skinned: Vec<&gltf::Node> = nodes
+            .iter()
+            .filter(|n| n.mesh().is_some() && n.skin().is_some())
+            .collect();
+        let Some(first) = skinned.first() else {
+            return Err(bad(
+                path,
+                "no skinned mesh (a node with both a mesh and a skin)",
+            ));
+        };
+        let skin = first.skin().ok_or_else(|| bad(path, "no skin"))?;
+        if let Some(other) = skinned
+            .iter()
+            .find(|n| n.skin().map(|s| s.index()) != Some(skin.index()))
+        {
+            return Err(bad(
+                path,
+                format!(
+                    "skinned meshes use different skins (node {} uses skin {}, node {} skin {:?}): one skin per rig",
+                    first.index(),
+                    skin.index(),
+                    other.index(),
+                    other.skin().map(|s| s.index())
+                ),
+            ));
+        }
+        let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+        let mut bone_of_node = vec![None; nodes.len()];
+        joints
+            .iter()
+            .enumerate()
+            .for_each(|(b, &n)| bone_of_node[n] = Some(b));
+        let parents: Vec<Option<usize>> = joints
+            .iter()
+            .map(|&n| {
+                let mut p = node_parents[n];
+                while let Some(x) = p {
+                    if bone_of_node[x].is_some() {
+                        return bone_of_node[x];
+                    }
+                    p = node_parents[x];
+                }
+                None
+            })
+            .collect();
+        let names = joints
+            .iter()
+            .enumerate()
+            .map(|(b, &n)| {
+                nodes[n]
+                    .name()
+                    .map_or_else(|| format!("joint {b}"), str::to_string)
+            })
+            .collect();
+        let inverse_bind: Vec<DMat4> = match skin.reader(get).read_inverse_bind_matrices() {
+            Some(ibm) => ibm
+                .map(|m| DMat4::from_cols_array_2d(&m.map(|c| c.map(f64::from))))
+                .collect(),
+            None => vec![DMat4::IDENTITY; joints.len()],
+        };
+        if inverse_bind.len() != joints.len() {
+            return Err(bad(
+                path,
+                format!(
+                    "{} inverse bind matrices for {} joints",
+                    inverse_bind.len(),
+                    joints.len()
+                ),
+            ));
+        }
+
+        let world_default = world_matrices(
+            &node_parents,
+            &defaults.iter().map(Trs::matrix).collect::<Vec<_>>(),
+        );
+        let mut default_inverse = Vec::with_capacity(joints.len());
+        for (b, &n) in joints.iter().enumerate() {
+            let w = world_default[n];
+            if !(w.determinant().abs() > 1e-12) {
+                return Err(bad(
+                    path,
+                    format!("joint {b} (node {n}) has a non-invertible world matrix"),
+                ));
+            }
+            default_inverse.push(w.inverse());
+        }
+        // Rest mesh: skinned at the default pose with joint matrices W_j · IBM_j.
+        let joint_matrices: Vec<DMat4> = joints
+            .iter()
+            .zip(&inverse_bind)
+            .map(|(&n, ibm)| world_default[n] * *ibm)
+            .collect();
+        let (mut rest, mut triangles) = (Vec::new(), Vec::new());
+        for node in &skinned {
+            let mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
+            for prim in mesh.primitives() {
+                if prim.mode() != gltf::mesh::Mode::Triangles {
+                    return Err(bad(
+                        path,
+                        format!(
+                            "mesh {} has a primitive that is not triangles",
+                            mesh.index()
+                        ),
+                    ));
+                }
+                let reader = prim.reader(get);
+                let positions: Vec<[f32; 3]> = reader
+                    .read_positions()
+                    .ok_or_else(|| {
+                        bad(
+                            path,
+                            format!("mesh {}: a primitive without POSITION", mesh.index()),
+                        )
+                    })?
+                    .collect();
+                let joints0: Vec<[u16; 4]> = reader
+                    .read_joints(0)
+                    .ok_or_else(|| {
+                        bad(
+                            path,
+                            format!("mesh {}: a primitive without JOINTS_0", mesh.index()),
+                        )
+                    })?
+                    .into_u16()
+                    .collect();
+                let weights0: Vec<[f32; 4]> = reader
+                    .read_weights(0)
+                    .ok_or_else(|| {
+                        bad(
+                            path,
+                            format!("mesh {}: a primitive without WEIGHTS_0", mesh.index()),
+                        )
+                    })?
+                    .into_f32()
+                    .collect();
+                if joints0.len() != positions.len() || weights0.len() != positions.len() {
+                    return Err(bad(
+                        path,
+                        format!("mesh {}: attribute counts differ", mesh.index()),
+                    ));
+                }
+                let base = rest.len();
+                for ((p, js), ws) in positions.iter().zip(&joints0).zip(&weights0) {
+                    let p = DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
+                    let mut acc = DVec3::ZERO;
+                    for (j, w) in js.iter().zip(ws) {
+                        let m = joint_matrices.get(*j as usize).ok_or_else(|| {
+                            bad(
+                                path,
+                                format!(
+                                    "JOINTS_0 index {j} outside the skin's {} joints",
+                                    joint_matrices.len()
+                                ),
+                            )
+                        })?;
+                        acc += (*m * p).truncate() * *w as f64;
+                    }
+                    rest.push(acc);
+                }
+                let count = positions.len();
+                let indices: Vec<usize> = match reader.read_indices() {
+                    Some(i) => i.into_u32().map(|x| x as usize).collect(),
+                    None => (0..count).collect(),
+                };
+                if let Some(&i) = indices.iter().find(|&&i| i >= count) {
+                    return Err(bad(
+                        path,
+                        format!(
+                            "mesh {}: index {i} outside its {count} vertices",
+                            mesh.index()
+                        ),
+                    ));
+                }
+                triangles.extend(
+                    indices
+                        .chunks_exact(3)
+                        .map(|t| [base + t[0], base + t[1], base + t[2]]),
+                );
+            }
+        }
+
+        let names_of_clips: Vec<String> = doc
+            .animations()
+            .filter_map(|a| a.name().map(str::to_string))
+            .collect();
+        let animation = doc
+            .animations()
+            .find(|a| a.name() == Some(clip))
+            .ok_or_else(|| {
+                bad(
+                    path,
+                    format!("no animation named '{clip}' (the file has {names_of_clips:?})"),
+                )
+            })?;
+        let mut channels = Vec::new();
+        let mut clip_duration: f64 = 0.0;
+        for ch in animation.channels() {
+            let reader = ch.reader(get);
+            let times: Vec<f64> = reader
+                .read_inputs()
+                .ok_or_else(|| bad(path, "an animation channel without key times"))?
+                .map(f64::from)
+                .collect();
+            let values = match reader
+                .read_outputs()
+                .ok_or_else(|| bad(path, "an animation channel without values"))?
+            {
+                gltf::animation::util::ReadOutputs::Translations(t) => {
+                    Values::Vec3(t.map(|v| DVec3::from(v.map(f64::from))).collect())
+                }
+                gltf::animation::util::ReadOutputs::Scales(s) => {
+                    Values::Vec3(s.map(|v| DVec3::from(v.map(f64::from))).collect())
+                }
+                gltf::animation::util::ReadOutputs::Rotations(r) => Values::Quat(
+                    r.into_f32()
+                        .map(|q| DQuat::from_array(q.map(f64::from)))
+                        .collect(),
+                ),
+                gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
+            };
+            let interpolation = ch.sampler().interpolation();
+            let per_key = if interpolation == Interpolation::CubicSpline {
+                3
+            } else {
+                1
+            };
+            let n = match &values {
+                Values::Vec3(v) => v.len(),
+                Values::Quat(q) => q.len(),
+            };
+            if times.is_empty() || n != per_key * times.len() {
+                return Err(bad(
+                    path,
+                    format!(
+                        "animation '{clip}': {n} values for {} key times",
+                        times.len()
+                    ),
+                ));
+            }
+            if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+                return Err(bad(
+                    path,
+                    format!("animation '{clip}': key times must be finite and increasing"),
+                ));
+            }
+            clip_duration = clip_duration.max(*times.last().unwrap_or(&0.0));
+            channels.push(Channel {
+                node: ch.target().node().index(),
+                property: ch.target().property(),
+                interpolation,
+                times,
+                values,
+            });
+        }
+        Ok(Rig {
+            rest,
+            triangles,
+            names,
+            parents,
+            joints,
+            node_parents,
+            defaults,
+            default_inverse,
+            channels,
+            clip_duration,
+        })
+    }
+
+    /// Every bone's transform at `time` (seconds) relative to the rest pose.
+    pub fn bones_at(&self, time: f64) -> Vec<Bone> {
+        let mut locals = self.defaults.clone();
+        for ch in &self.channels {
+            let trs = &mut locals[ch.node];
+            match (&ch.property, &ch.values) {
+                (Property::Translation, Values::Vec3(v)) => trs.t = sample_vec3(ch, v, time),
+                (Property::Scale, Values::Vec3(v)) => trs.s = sample_vec3(ch, v, time),
+                (Property::Rotation, Values::Quat(q)) => trs.r = sample_quat(ch, q, time),
+                _ => {}
+            }
+        }
+        let world = world_matrices(
+            &self.node_parents,
+            &locals.iter().map(Trs::matrix).collect::<Vec<_>>(),
+        );
+        self.joints
+            .iter()
+            .zip(&self.default_inverse)
+            .map(|(&n, inv)| {
+                let t = world[n] * *inv;
+                Bone {
+                    q: glam::DMat3::from_mat4(t),
+                    d: t.w_axis.truncate(),
+                }
+            })
+            .collect()
+    }
+}
+
+/// World matrices of all nodes from local ones (parents before or after children).
+fn world_matrices(parents: &[Option<usize>], local: &[DMat4]) -> Vec<DMat4> {
+    let mut world: Vec<Option<DMat4>> = vec![None; local.len()];
+    fn resolve(
+        n: usize,
+        parents: &[Option<usize>],
+        local: &[DMat4],
+        world: &mut [Option<DMat4>],
+        depth: usize,
+    ) -> DMat4 {
+        if let Some(w) = world[n] {
+            return w;
+        }
+        let w = match parents[n] {
+            Some(p) if depth < parents.len() => {
+                resolve(p, parents, local, world, depth + 1) * local[n]
+            }
+            _ => local[n],
+        };
+        world[n] = Some(w);
+        w
+    }
+    (0..local.len())
+        .map(|n| resolve(n, parents, local, &mut world, 0))
+        .collect()
+}
+
+/// The key segment containing `time`: (k, s) with t_k ≤ time < t_k+1 and s ∈ [0, 1].
+fn segment(times: &[f64], time: f64) -> (usize, f64) {
+    if time <= times[0] + TIME_SLACK || times.len() == 1 {
+        return (0, 0.0);
+    }
+    let last = times.len() - 1;
+    if time >= times[last] - TIME_SLACK {
+        return (last, 0.0);
+    }
+    let k = times.partition_point(|&t| t <= time + TIME_SLACK) - 1;
+    let s = ((time - times[k]) / (times[k + 1] - times[k])).clamp(0.0, 1.0);
+    (k, s)
+}
+
+fn hermite(s: f64) -> [f64; 4] {
+    let (s2, s3) = (s * s, s * s * s);
+    [
+        2.0 * s3 - 3.0 * s2 + 1.0,
+        s3 - 2.0 * s2 + s,
+        -2.0 * s3 + 3.0 * s2,
+        s3 - s2,
+    ]
+}
+
+fn sample_vec3(ch: &Channel, v: &[DVec3], time: f64) -> DVec3 {
+    let (k, s) = segment(&ch.times, time);
+    let next = (k + 1).min(ch.times.len() - 1);
+    match ch.interpolation {
+        Interpolation::Step => v[k],
+        Interpolation::Linear => v[k].lerp(v[next], s),
+        Interpolation::CubicSpline => {
+            let dt = ch.times[next] - ch.times[k];
+            let h = hermite(s);
+            // Per key: in-tangent a, value v, out-tangent b.
+            v[3 * k + 1] * h[0]
+                + v[3 * k + 2] * (h[1] * dt)
+                + v[3 * next + 1] * h[2]
+                + v[3 * next] * (h[3] * dt)
+        }
+    }
+}
+
+fn sample_quat(ch: &Channel, q: &[DQuat], time: f64) -> DQuat {
+    let (k, s) = segment(&ch.times, time);
+    let next = (k + 1).min(ch.times.len() - 1);
+    match ch.interpolation {
+        Interpolation::Step => q[k].normalize(),
+        Interpolation::Linear => q[k].normalize().slerp(q[next].normalize(), s),
+        Interpolation::CubicSpline => {
+            let dt = ch.times[next] - ch.times[k];
+            let h = hermite(s);
+            let v = DVec4::from(q[3 * k + 1]) * h[0]
+                + DVec4::from(q[3 * k + 2]) * (h[1] * dt)
+                + DVec4::from(q[3 * next + 1]) * h[2]
+                + DVec4::from(q[3 * next]) * (h[3] * dt);
+            DQuat::from_vec4(v).normalize()
+        }
+    }
+}
+
+/// The binary buffers: the .glb's BIN chunk, or files next to a .gltf.
+fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, InputError> {
+    gltf.document
+        .buffers()
+        .map(|b| {
+            let data = match b.source() {
+                gltf::buffer::Source::Bin => {
+                    gltf.blob.clone().ok_or_else(|| bad(path, format!("buffer {} refers to a missing GLB binary chunk", b.index())))?
+                }
+                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                    return Err(bad(path, format!("buffer {}: embedded data URIs are not supported; use .glb or external .bin files", b.index())))
+                }
+                gltf::buffer::Source::Uri(uri) => {
+                    let file = path.parent().unwrap_or(Path::new(".")).join(uri);
+                    std::fs::read(&file).map_err(|e| bad(&file, format!("buffer {} of {}: {e}", b.index(), path.display())))?
+                }
+            };
+            if data.len() < b.length() {
+                return Err(bad(path, format!("buffer {} is truncated: {} bytes, {} declared", b.index(), data.len(), b.length())));
+            }
+            Ok(data)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn channel(interpolation: Interpolation, times: Vec<f64>, values: Vec<DVec3>) -> Channel {
+        Channel {
+            node: 0,
+            property: Property::Translation,
+            interpolation,
+            times,
+            values: Values::Vec3(values),
+        }
+    }
+
+    #[test]
+    fn step_holds_each_key_until_the_next() {
+        let c = channel(
+            Interpolation::Step,
+            vec![0.0, 1.0 / 24.0, 2.0 / 24.0],
+            vec![DVec3::X, DVec3::Y, DVec3::Z],
+        );
+        let Values::Vec3(v) = &c.values else {
+            unreachable!()
+        };
+        // f32-rounded key times are still hit by f64 frame times.
+        assert_eq!(sample_vec3(&c, v, (1.0f32 / 24.0) as f64 - 1e-7), DVec3::Y);
+        assert_eq!(sample_vec3(&c, v, 1.5 / 24.0), DVec3::Y);
+        assert_eq!(sample_vec3(&c, v, -1.0), DVec3::X);
+        assert_eq!(sample_vec3(&c, v, 5.0), DVec3::Z);
+    }
+
+    #[test]
+    fn linear_interpolates_and_slerps() {
+        let c = channel(
+            Interpolation::Linear,
+            vec![0.0, 2.0],
+            vec![DVec3::ZERO, DVec3::new(2.0, 4.0, 6.0)],
+        );
+        let Values::Vec3(v) = &c.values else {
+            unreachable!()
+        };
+        assert!((sample_vec3(&c, v, 0.5) - DVec3::new(0.5, 1.0, 1.5)).length() < 1e-12);
+        let qs = vec![DQuat::IDENTITY, DQuat::from_rotation_z(2.0)];
+        let q = Channel {
+            values: Values::Quat(qs.clone()),
+            ..c.clone()
+        };
+        let r = sample_quat(&q, &qs, 0.5);
+        assert!(
+            r.angle_between(DQuat::from_rotation_z(0.5)) < 1e-9,
+            "slerp: a quarter of the angle"
+        );
+    }
+
+    #[test]
+    fn cubic_spline_follows_the_hermite_curve_through_its_keys() {
+        // x(t) = t³ on [0, 1]: values 0, 1; tangents 0 at 0 and 3 at 1 (per second).
+        let values = vec![
+            DVec3::ZERO,
+            DVec3::ZERO,
+            DVec3::ZERO,
+            DVec3::X * 3.0,
+            DVec3::X,
+            DVec3::ZERO,
+        ];
+        let c = channel(Interpolation::CubicSpline, vec![0.0, 1.0], values);
+        let Values::Vec3(v) = &c.values else {
+            unreachable!()
+        };
+        for &t in &[0.0, 0.25, 0.5, 0.9, 1.0] {
+            assert!(
+                (sample_vec3(&c, v, t).x - t * t * t).abs() < 1e-12,
+                "t = {t}"
+            );
+        }
+    }
+}

@@ -1,0 +1,285 @@
+//! An example set from a glTF rig and a point cache.
+//!
+//! glTF splits vertices along UV and normal seams. Vertices at the same rest position whose
+//! cache trajectories agree are welded into one training vertex, so the mesh is connected for
+//! the Poisson solve; `weld` maps every glTF vertex to its training vertex, so a trained model
+//! can be expanded back to the file's own vertex order and count.
+
+use crate::example_set::{rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE};
+use crate::gltf_rig::Rig;
+use crate::point_cache::PointCache;
+use glam::DVec3;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Welding tolerances relative to the rest mesh's bounding-box diagonal.
+const WELD_REST: f64 = 1e-6;
+const WELD_TRAJECTORY: f64 = 1e-5;
+
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The animation whose samples pose the rig.
+    pub clip: String,
+    pub cache: PathBuf,
+    pub fps: f64,
+    /// Cache frames (inclusive range) held out as test poses.
+    pub test_frames: Option<(f64, f64)>,
+}
+
+pub struct Imported {
+    pub set: ExampleSet,
+    /// glTF vertex → training vertex.
+    pub weld: Vec<usize>,
+    /// The glTF rest mesh and triangles (the file's own order and count).
+    pub rest: Vec<DVec3>,
+    pub triangles: Vec<[usize; 3]>,
+}
+
+pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError> {
+    if !(options.fps.is_finite() && options.fps > 0.0) {
+        return Err(InputError {
+            file: options.cache.clone(),
+            message: format!("--fps {} must be positive", options.fps),
+        });
+    }
+    let rig = Rig::load(rig_path, &options.clip)?;
+    let cache = PointCache::load(&options.cache, options.fps)?;
+    let bad = |message: String| InputError {
+        file: options.cache.clone(),
+        message,
+    };
+    if cache.point_count() != rig.rest.len() {
+        return Err(bad(format!(
+            "{} points per sample, but the rig {} has {} vertices",
+            cache.point_count(),
+            rig_path.display(),
+            rig.rest.len()
+        )));
+    }
+    let weld = weld(&rig.rest, &cache.positions);
+    let welded = weld.iter().max().map_or(0, |m| m + 1);
+    let mut representative = vec![usize::MAX; welded];
+    for (g, &w) in weld.iter().enumerate() {
+        if representative[w] == usize::MAX {
+            representative[w] = g;
+        }
+    }
+    let faces: Vec<[usize; 3]> = rig
+        .triangles
+        .iter()
+        .map(|t| t.map(|g| weld[g]))
+        .filter(|[a, b, c]| a != b && b != c && a != c)
+        .collect();
+    let mut poses = Vec::with_capacity(cache.positions.len());
+    for (s, (positions, &time)) in cache.positions.iter().zip(&cache.times).enumerate() {
+        let bones = rig.bones_at(time);
+        if let Some((b, e)) = bones
+            .iter()
+            .enumerate()
+            .map(|(b, x)| (b, rotation_error(x.q)))
+            .find(|(_, e)| *e > ROTATION_TOLERANCE)
+        {
+            return Err(InputError {
+                file: rig_path.to_path_buf(),
+                message: format!("sample {s} (t = {time:.4} s): joint {} is not rigid (error {e:.2e}); scaled joints are not supported", rig.names[b]),
+            });
+        }
+        poses.push(Pose {
+            bones,
+            vertices: representative.iter().map(|&g| positions[g]).collect(),
+        });
+    }
+    let is_test: Vec<bool> = cache
+        .frames
+        .iter()
+        .map(|&f| {
+            options
+                .test_frames
+                .is_some_and(|(a, b)| f >= a - 1e-6 && f <= b + 1e-6)
+        })
+        .collect();
+    if is_test.iter().all(|&t| t) {
+        return Err(bad(
+            "every cache sample is a test frame: nothing to train on".into(),
+        ));
+    }
+    let set = ExampleSet {
+        rest: representative.iter().map(|&g| rig.rest[g]).collect(),
+        faces,
+        parents: rig.parents.clone(),
+        poses,
+        is_test,
+        bone_names: Some(rig.names.clone()),
+        warnings: Vec::new(),
+    };
+    Ok(Imported {
+        set,
+        weld,
+        rest: rig.rest,
+        triangles: rig.triangles,
+    })
+}
+
+impl Imported {
+    /// The runtime model over the glTF file's own vertices (order and count), so an engine keeps
+    /// its index buffer, UVs and materials: each vertex takes its training vertex's skinning,
+    /// and welded duplicates form one normal group (they shade as one vertex across the seam).
+    pub fn expand(&self, model: &rrskin::Model) -> rrskin::Result<rrskin::Model> {
+        let parts = model.parts();
+        let k = model.influences();
+        let mut first = vec![u32::MAX; model.vertex_count()];
+        for (g, &w) in self.weld.iter().enumerate() {
+            if first[w] == u32::MAX {
+                first[w] = g as u32;
+            }
+        }
+        let per_vertex = |data: &[u32]| -> Vec<u32> {
+            self.weld
+                .iter()
+                .flat_map(|&w| data[w * k..(w + 1) * k].to_vec())
+                .collect()
+        };
+        rrskin::Model::new(rrskin::ModelParts {
+            rest_positions: self.rest.iter().map(|p| p.as_vec3().to_array()).collect(),
+            triangles: self.triangles.iter().map(|t| t.map(|g| g as u32)).collect(),
+            bone_parents: parts.bone_parents.clone(),
+            influences: parts.influences,
+            skin_indices: per_vertex(&parts.skin_indices),
+            skin_weights: self
+                .weld
+                .iter()
+                .flat_map(|&w| parts.skin_weights[w * k..(w + 1) * k].to_vec())
+                .collect(),
+            predictors: parts.predictors.clone(),
+            c1: parts.c1.clone(),
+            c2: parts.c2.clone(),
+            normal_groups: self.weld.iter().map(|&w| first[w]).collect(),
+        })
+    }
+}
+
+impl Imported {
+    /// The inverse of [`Imported::expand`]: a model over the glTF vertices restricted to the
+    /// training vertices (each takes its first glTF duplicate), for evaluation on the set.
+    pub fn collapse(&self, model: &rrskin::Model) -> rrskin::Result<rrskin::Model> {
+        if model.vertex_count() != self.weld.len() {
+            return Err(rrskin::Error::WrongLength {
+                what: "model vertices (the glTF rig's vertex count)",
+                expected: self.weld.len(),
+                actual: model.vertex_count(),
+            });
+        }
+        let parts = model.parts();
+        let k = model.influences();
+        let mut first = vec![usize::MAX; self.set.vertex_count()];
+        for (g, &w) in self.weld.iter().enumerate() {
+            if first[w] == usize::MAX {
+                first[w] = g;
+            }
+        }
+        rrskin::Model::new(rrskin::ModelParts {
+            rest_positions: self
+                .set
+                .rest
+                .iter()
+                .map(|p| p.as_vec3().to_array())
+                .collect(),
+            triangles: self.set.faces.iter().map(|t| t.map(|a| a as u32)).collect(),
+            bone_parents: parts.bone_parents.clone(),
+            influences: parts.influences,
+            skin_indices: first
+                .iter()
+                .flat_map(|&g| parts.skin_indices[g * k..(g + 1) * k].to_vec())
+                .collect(),
+            skin_weights: first
+                .iter()
+                .flat_map(|&g| parts.skin_weights[g * k..(g + 1) * k].to_vec())
+                .collect(),
+            predictors: parts.predictors.clone(),
+            c1: parts.c1.clone(),
+            c2: parts.c2.clone(),
+            normal_groups: Vec::new(),
+        })
+    }
+}
+
+/// Groups vertices with equal rest positions and trajectories; returns each vertex's group, the
+/// groups numbered in order of first appearance.
+pub fn weld(rest: &[DVec3], trajectories: &[Vec<DVec3>]) -> Vec<usize> {
+    let (lo, hi) = rest.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let scale = (hi - lo).length().max(1e-12);
+    let cell = WELD_REST * scale * 4.0;
+    let key = |p: DVec3| ((p / cell).round().as_i64vec3()).to_array();
+    let mut buckets: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    let mut group = vec![0usize; rest.len()];
+    let mut groups = 0;
+    for (g, &p) in rest.iter().enumerate() {
+        let candidates = buckets.entry(key(p)).or_default();
+        let same = candidates.iter().copied().find(|&h| {
+            (rest[h] - p).length() <= WELD_REST * scale
+                && trajectories
+                    .iter()
+                    .all(|t| (t[h] - t[g]).length() <= WELD_TRAJECTORY * scale)
+        });
+        group[g] = match same {
+            Some(h) => group[h],
+            None => {
+                candidates.push(g);
+                groups += 1;
+                groups - 1
+            }
+        };
+    }
+    group
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit cube the way glTF stores it: 6 faces x 4 vertices (split along every seam).
+    fn split_cube() -> Vec<DVec3> {
+        let mut v = Vec::new();
+        for axis in 0..3 {
+            for side in [-0.5, 0.5] {
+                for (a, b) in [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)] {
+                    let mut p = [0.0; 3];
+                    p[axis] = side;
+                    p[(axis + 1) % 3] = a;
+                    p[(axis + 2) % 3] = b;
+                    v.push(DVec3::from(p));
+                }
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn a_cube_with_split_seams_welds_to_8_vertices_and_maps_back() {
+        let rest = split_cube();
+        assert_eq!(rest.len(), 24);
+        let moved: Vec<Vec<DVec3>> = (0..3)
+            .map(|i| {
+                rest.iter()
+                    .map(|p| *p * (1.0 + i as f64) + DVec3::X)
+                    .collect()
+            })
+            .collect();
+        let group = weld(&rest, &moved);
+        assert_eq!(group.iter().max().map(|m| m + 1), Some(8));
+        for (g, h) in (0..24).flat_map(|g| (0..24).map(move |h| (g, h))) {
+            assert_eq!(
+                group[g] == group[h],
+                rest[g] == rest[h],
+                "vertices {g} and {h}"
+            );
+        }
+        // Same rest position but a different trajectory (a torn seam) stays apart.
+        let mut torn = moved.clone();
+        torn[2][0] += DVec3::Y;
+        assert_eq!(weld(&rest, &torn).iter().max().map(|m| m + 1), Some(9));
+    }
+}
