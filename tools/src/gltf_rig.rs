@@ -176,7 +176,8 @@ impl Rig {
         let mut default_inverse = Vec::with_capacity(joints.len());
         for (b, &n) in joints.iter().enumerate() {
             let w = world_default[n];
-            if !(w.determinant().abs() > 1e-12) {
+            let det = w.determinant();
+            if !det.is_finite() || det.abs() <= 1e-12 {
                 return Err(bad(
                     path,
                     format!("joint {b} (node {n}) has a non-invertible world matrix"),
@@ -337,7 +338,7 @@ impl Rig {
                     ),
                 ));
             }
-            if times.windows(2).any(|w| !(w[1] > w[0])) || times.iter().any(|t| !t.is_finite()) {
+            if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] <= w[0]) {
                 return Err(bad(
                     path,
                     format!("animation '{clip}': key times must be finite and increasing"),
