@@ -300,3 +300,36 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn normal_groups_round_trip_and_are_checked() {
+    let mut parts = model(2, 4).into_parts();
+    let v = parts.rest_positions.len();
+    parts.normal_groups = (0..v as u32).map(|a| a - a % 2).collect();
+    let m = Model::new(parts.clone()).expect("valid groups");
+    let back = Model::from_bytes(&m.to_bytes()).expect("round trip");
+    assert_eq!(back, m);
+    // Vertices 0 and 1 share a group, so they share their incident triangles.
+    let (off, list) = back.incidence();
+    assert_eq!(
+        &list[off[0] as usize..off[1] as usize],
+        &list[off[1] as usize..off[2] as usize]
+    );
+    parts.normal_groups[3] = v as u32;
+    assert!(matches!(
+        problem(Model::new(parts.clone())),
+        ModelProblem::IndexOutOfRange {
+            what: "normal groups",
+            index: 3,
+            ..
+        }
+    ));
+    parts.normal_groups.pop();
+    assert!(matches!(
+        problem(Model::new(parts)),
+        ModelProblem::Length {
+            what: "normal groups",
+            ..
+        }
+    ));
+}
