@@ -189,6 +189,8 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         c1,
         c2,
         normal_groups: Vec::new(),
+        baseline_indices: Vec::new(),
+        baseline_weights: Vec::new(),
     };
     Model::new(parts)
 }

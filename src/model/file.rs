@@ -25,6 +25,8 @@
 //! | C1   | 4P x 3P f32 (row-major)                              |
 //! | C2   | 4P x 4J f32 (row-major)                              |
 //! | NGRP | optional: V u32 normal groups (absent: no groups)    |
+//! | SSDI | optional: V x K u32 SSD baseline bone indices        |
+//! | SSDW | optional: V x K f32 SSD baseline weights             |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
@@ -52,6 +54,8 @@ const PRED: [u8; 4] = *b"PRED";
 const C1: [u8; 4] = *b"C1\0\0";
 const C2: [u8; 4] = *b"C2\0\0";
 const NGRP: [u8; 4] = *b"NGRP";
+const SSDI: [u8; 4] = *b"SSDI";
+const SSDW: [u8; 4] = *b"SSDW";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let (v, t, j, p) = (
@@ -99,6 +103,13 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
         let mut groups = Vec::new();
         push_u32s(&mut groups, &m.normal_groups);
         sections.push((NGRP, groups));
+    }
+    if !m.baseline_indices.is_empty() {
+        let (mut indices, mut weights) = (Vec::new(), Vec::new());
+        push_u32s(&mut indices, &m.baseline_indices);
+        push_f32s(&mut weights, &m.baseline_weights);
+        sections.push((SSDI, indices));
+        sections.push((SSDW, weights));
     }
 
     let mut out = Vec::new();
@@ -193,6 +204,13 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         true => u32s(table.section(body, NGRP, words(&[v]))?),
         false => Vec::new(),
     };
+    let (baseline_indices, baseline_weights) = match table.has(SSDI) || table.has(SSDW) {
+        true => (
+            u32s(table.section(body, SSDI, words(&[v, k]))?),
+            f32s(table.section(body, SSDW, words(&[v, k]))?),
+        ),
+        false => (Vec::new(), Vec::new()),
+    };
 
     let predictors = pred
         .chunks_exact(PREDICTOR_WORDS * 4)
@@ -226,6 +244,8 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         c1: f32s(c1),
         c2: f32s(c2),
         normal_groups,
+        baseline_indices,
+        baseline_weights,
     })
 }
 

@@ -14,6 +14,7 @@
 //! | `c1`               | 4P x 3P          | t_c = C1 d_c + C2 q_c (METHOD.md §8, paper Eq. 5)    |
 //! | `c2`               | 4P x 4J          |                                                      |
 //! | `normal_groups`    | V or empty       | vertices sharing a normal (welded seams)             |
+//! | `baseline_*`       | V x K or empty   | SSD skinning of the same mesh (bone indices, weights)|
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
@@ -74,6 +75,10 @@ pub struct ModelParts {
     /// triangles around all of them. For meshes split along UV seams (glTF), so that the two
     /// sides of a seam do not shade apart. Empty: every vertex is its own group.
     pub normal_groups: Vec<u32>,
+    /// Empty, or V x K bone indices (< J) and weights: plain linear blend skinning (SSD) of the
+    /// same mesh, the baseline every engine has; see [`Model::baseline`].
+    pub baseline_indices: Vec<u32>,
+    pub baseline_weights: Vec<f32>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -189,6 +194,25 @@ impl Model {
     /// CSR offsets (V + 1) and triangle ids of the triangles around each vertex.
     pub fn incidence(&self) -> (&[u32], &[u32]) {
         (&self.incident_offsets, &self.incident_triangles)
+    }
+
+    /// The model's SSD baseline as a plain linear-blend-skinning model (P = 0) of the same mesh,
+    /// if the model carries one: what `rrskin bench` compares against.
+    pub fn baseline(&self) -> Option<Model> {
+        if self.parts.baseline_indices.is_empty() {
+            return None;
+        }
+        let parts = ModelParts {
+            skin_indices: self.parts.baseline_indices.clone(),
+            skin_weights: self.parts.baseline_weights.clone(),
+            predictors: Vec::new(),
+            c1: Vec::new(),
+            c2: Vec::new(),
+            baseline_indices: Vec::new(),
+            baseline_weights: Vec::new(),
+            ..self.parts.clone()
+        };
+        Model::new(parts).ok()
     }
 
     /// Row-major `[C1 | C2]`: 4P x (3P + 4J), the one matrix the GEMM pass multiplies by.

@@ -65,6 +65,25 @@ pub fn check(m: &ModelParts) -> Check {
     for (l, pred) in m.predictors.iter().enumerate() {
         predictor(l, pred, j)?;
     }
+    if !m.baseline_indices.is_empty() || !m.baseline_weights.is_empty() {
+        length("baseline indices", v * k, m.baseline_indices.len())?;
+        length("baseline weights", v * k, m.baseline_weights.len())?;
+        finite("baseline weights", m.baseline_weights.iter())?;
+        if let Some(i) = m.baseline_indices.iter().position(|&b| b as usize >= j) {
+            return Err(out_of_range(
+                "baseline indices",
+                i,
+                m.baseline_indices[i] as i64,
+                j,
+            ));
+        }
+        for (a, w) in m.baseline_weights.chunks_exact(k).enumerate() {
+            let sum: f32 = w.iter().sum();
+            if w.iter().any(|&x| x < 0.0) || (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
+                return Err(ModelProblem::BadWeights { vertex: a, sum });
+            }
+        }
+    }
     if !m.normal_groups.is_empty() {
         length("normal groups", v, m.normal_groups.len())?;
         if let Some(i) = m.normal_groups.iter().position(|&g| g as usize >= v) {

@@ -154,6 +154,12 @@ impl Imported {
             c1: parts.c1.clone(),
             c2: parts.c2.clone(),
             normal_groups: self.weld.iter().map(|&w| first[w]).collect(),
+            baseline_indices: per_vertex(&parts.baseline_indices),
+            baseline_weights: self
+                .weld
+                .iter()
+                .flat_map(|&w| parts.baseline_weights[w * k..(w + 1) * k].to_vec())
+                .collect(),
         })
     }
 }
@@ -199,6 +205,14 @@ impl Imported {
             c1: parts.c1.clone(),
             c2: parts.c2.clone(),
             normal_groups: Vec::new(),
+            baseline_indices: first
+                .iter()
+                .flat_map(|&g| parts.baseline_indices[g * k..(g + 1) * k].to_vec())
+                .collect(),
+            baseline_weights: first
+                .iter()
+                .flat_map(|&g| parts.baseline_weights[g * k..(g + 1) * k].to_vec())
+                .collect(),
         })
     }
 }

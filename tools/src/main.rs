@@ -90,6 +90,19 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Rotational regression against plain SSD skinning of the same mesh: GPU time per frame.
+    Bench {
+        model: PathBuf,
+        #[arg(long, default_value_t = 256)]
+        characters: usize,
+        #[arg(long, default_value_t = 20)]
+        frames: usize,
+        /// Use the first Vulkan device whose name contains this text.
+        #[arg(long)]
+        device: Option<String>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
     Profile {
         model: PathBuf,
@@ -300,6 +313,27 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     "wrote {} ({} bytes)",
                     output.display(),
                     model.to_bytes().len()
+                );
+            }
+        }
+        Command::Bench {
+            model,
+            characters,
+            frames,
+            device,
+            json,
+        } => {
+            let m = Model::load(&model)?;
+            let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
+            let b = rrskin_tools::profile::Bench::run(&m, characters, frames, choice, json)?;
+            if json {
+                out!("{}", b.to_json());
+            } else {
+                out!(
+                    "{}: {} characters x {} vertices, median of {} frames\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2}",
+                    b.rr.device, b.rr.characters, b.rr.vertices, b.rr.frames,
+                    b.rr.total_ms, b.rr.pipeline_mverts_per_s(), b.ssd.total_ms, b.ssd.pipeline_mverts_per_s(),
+                    b.rr.total_ms / b.ssd.total_ms
                 );
             }
         }

@@ -67,11 +67,24 @@ pub fn run(
         device,
         validation: false,
     })?;
-    let gpu_model = GpuModel::new(&ctx, model)?;
+    measure(&ctx, model, characters, frames, "profiling", quiet)
+}
+
+/// Runs `frames` frames (after the warm-up) of a crowd of `model` on `ctx`.
+pub fn measure(
+    ctx: &Context,
+    model: &Model,
+    characters: usize,
+    frames: usize,
+    label: &'static str,
+    quiet: bool,
+) -> rrskin::Result<Profile> {
+    let gpu_model = GpuModel::new(ctx, model)?;
     let mut crowd = Crowd::new(&gpu_model, characters)?;
-    let mut batch = Batch::new(&ctx)?;
-    let progress = Progress::new("profiling", WARM_UP_FRAMES + frames, quiet);
+    let mut batch = Batch::new(ctx)?;
+    let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
+    let frames = frames.max(1);
     for frame in 0..WARM_UP_FRAMES + frames {
         crowd.set_bones(&random_poses(model, characters, frame as u64))?;
         batch.run(&[&crowd])?;
@@ -102,4 +115,54 @@ pub fn run(
         },
         total_ms: median(PassTimings::total_ms),
     })
+}
+
+/// `rrskin bench`: the whole per-frame pipeline of rotational regression against plain
+/// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
+/// device in one run, median frame time from GPU timestamps.
+pub struct Bench {
+    pub rr: Profile,
+    pub ssd: Profile,
+}
+
+impl Bench {
+    pub fn run(
+        model: &Model,
+        characters: usize,
+        frames: usize,
+        device: DeviceChoice,
+        quiet: bool,
+    ) -> Result<Bench, Box<dyn std::error::Error>> {
+        let baseline = model.baseline().ok_or(
+            "the model has no SSD baseline to compare with (train it with `rrskin train`)",
+        )?;
+        let ctx = Context::headless(&ContextDesc {
+            device,
+            validation: false,
+        })?;
+        let rr = measure(
+            &ctx,
+            model,
+            characters,
+            frames,
+            "rotational regression",
+            quiet,
+        )?;
+        let ssd = measure(&ctx, &baseline, characters, frames, "SSD", quiet)?;
+        Ok(Bench { rr, ssd })
+    }
+
+    pub fn to_json(&self) -> serde_json::Value {
+        let mverts = |p: &Profile| p.pipeline_mverts_per_s();
+        serde_json::json!({
+            "device": self.rr.device,
+            "characters": self.rr.characters,
+            "vertices": self.rr.vertices,
+            "rr_ms": self.rr.total_ms,
+            "ssd_ms": self.ssd.total_ms,
+            "ratio": self.rr.total_ms / self.ssd.total_ms,
+            "rr_mverts_per_s": mverts(&self.rr),
+            "ssd_mverts_per_s": mverts(&self.ssd),
+        })
+    }
 }

@@ -34,6 +34,8 @@ pub struct Reduced {
     pub predictors: Vec<KeyPredictor>,
     /// Per vertex: (palette entry, weight); entries < P are proxies, P + b bone b.
     pub skin: Vec<Vec<(usize, f64)>>,
+    /// Per vertex: SSD's (bone, weight), the baseline the runtime model carries.
+    pub baseline: Vec<Vec<(usize, f64)>>,
 }
 
 /// Relative strength of the rows pulling each proxy toward its bone.
@@ -141,6 +143,7 @@ pub fn assemble(
         c2,
         predictors,
         skin,
+        baseline: ssd.influences.clone(),
     }
 }
 
@@ -261,16 +264,8 @@ impl Reduced {
                 },
             })
             .collect();
-        let mut skin_indices = Vec::with_capacity(set.vertex_count() * influences);
-        let mut skin_weights = Vec::with_capacity(set.vertex_count() * influences);
-        for inf in &self.skin {
-            let total: f64 = inf.iter().map(|&(_, w)| w).sum();
-            for s in 0..influences {
-                let (e, w) = inf.get(s).copied().unwrap_or((0, 0.0));
-                skin_indices.push(e as u32);
-                skin_weights.push((w / total) as f32);
-            }
-        }
+        let (skin_indices, skin_weights) = padded(&self.skin, influences);
+        let (baseline_indices, baseline_weights) = padded(&self.baseline, influences);
         rrskin::Model::new(rrskin::ModelParts {
             rest_positions: set.rest.iter().map(|p| p.as_vec3().to_array()).collect(),
             triangles: set.faces.iter().map(|t| t.map(|a| a as u32)).collect(),
@@ -286,6 +281,23 @@ impl Reduced {
             c1: self.c1.iter().map(|&x| x as f32).collect(),
             c2: self.c2.iter().map(|&x| x as f32).collect(),
             normal_groups: Vec::new(),
+            baseline_indices,
+            baseline_weights,
         })
     }
+}
+
+/// Per-vertex (index, weight) lists as V x K arrays, normalised, padded with (0, 0).
+fn padded(lists: &[Vec<(usize, f64)>], k: usize) -> (Vec<u32>, Vec<f32>) {
+    let mut indices = Vec::with_capacity(lists.len() * k);
+    let mut weights = Vec::with_capacity(lists.len() * k);
+    for inf in lists {
+        let total: f64 = inf.iter().map(|&(_, w)| w).sum();
+        for s in 0..k {
+            let (e, w) = inf.get(s).copied().unwrap_or((0, 0.0));
+            indices.push(e as u32);
+            weights.push((w / total) as f32);
+        }
+    }
+    (indices, weights)
 }

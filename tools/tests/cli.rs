@@ -223,10 +223,40 @@ fn a_trained_model_file_evaluates_as_trained() {
             "{split}: trained {a}, evaluated {b}"
         );
     }
+    // `bench` compares it with its SSD baseline (the contract of ARCHITECTURE.md).
+    let b = json(&rrskin(&[
+        "bench",
+        m,
+        "--characters",
+        "4",
+        "--frames",
+        "2",
+        "--json",
+    ]));
+    for key in [
+        "device",
+        "characters",
+        "vertices",
+        "rr_ms",
+        "ssd_ms",
+        "ratio",
+        "rr_mverts_per_s",
+        "ssd_mverts_per_s",
+    ] {
+        assert!(!b[key].is_null(), "{key} missing in {b}");
+    }
+    let ratio = b["rr_ms"].as_f64().unwrap_or(f64::NAN) / b["ssd_ms"].as_f64().unwrap_or(f64::NAN);
+    assert!(
+        (b["ratio"].as_f64().unwrap_or(f64::NAN) - ratio).abs() < 1e-9 && ratio > 0.0,
+        "{b}"
+    );
+    assert_eq!(b["vertices"], 2338);
     // A model of another mesh is refused with both sizes named.
     let other = dir.join("other.rrs");
     let o = other.to_str().expect("utf-8");
     assert!(rrskin(&["synth", "--grid", "5", "-o", o]).status.success());
+    let no_baseline = rrskin(&["bench", o, "--characters", "2"]);
+    assert!(String::from_utf8_lossy(&no_baseline.stderr).contains("no SSD baseline"));
     let out = rrskin(&["eval", set, "--model", o, "--json"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
