@@ -7,10 +7,12 @@
 // B column n = 3 ch + c holds [d_c; q_c] of character ch; pass 1 writes it row-major, so the
 // invocations of a workgroup (consecutive n) read consecutive B addresses.
 //
-// Tiling: a workgroup owns 16 rows of T (4 proxies) x 64 columns. Per k-tile it stages the
+// Tiling: a workgroup owns 16 rows of T (4 proxies) x 128 columns. Per k-tile it stages the
 // 16 x 128 block of A in shared memory (transposed into vec4s of 4 rows), then every invocation
-// accumulates its column: per k one B load and 4 vec4 FMAs. Rows 4b..4b+3 of T are proxy b's
-// row c, so each accumulator is stored as one vec4 of the 3x4 proxy transform.
+// accumulates two columns, n and n + 64: per k two B loads and 8 vec4 FMAs, each A vec4 used
+// twice (A's loads are the same for every invocation, which CPU drivers pay per lane). Rows
+// 4b..4b+3 of T are proxy b's row c, so each accumulator is stored as one vec4 of the 3x4 proxy
+// transform.
 layout(local_size_x = 64) in;
 
 const uint ROWS = 16u;     // rows of T per workgroup (4 proxies)
@@ -29,14 +31,19 @@ void main() {
     uint m_rows = 4u * pc.P;
     uint depth = 3u * pc.P + 4u * pc.J;
     uint n_cols = 3u * pc.chars;
-    uint n = gl_GlobalInvocationID.x;
     uint lx = gl_LocalInvocationID.x;
+    uint n = gl_WorkGroupID.x * 2u * WG + lx;
+    uint n2 = n + WG;
     uint row0 = gl_WorkGroupID.y * ROWS;
 
     vec4 acc0 = vec4(0.0);
     vec4 acc1 = vec4(0.0);
     vec4 acc2 = vec4(0.0);
     vec4 acc3 = vec4(0.0);
+    vec4 bcc0 = vec4(0.0);
+    vec4 bcc1 = vec4(0.0);
+    vec4 bcc2 = vec4(0.0);
+    vec4 bcc3 = vec4(0.0);
     for (uint k0 = 0u; k0 < depth; k0 += KT) {
         // Stage A: 4 x KT vec4s, each gathering 4 rows of one column.
         for (uint i = lx; i < 4u * KT; i += WG) {
@@ -56,25 +63,44 @@ void main() {
         barrier();
         if (n < n_cols) {
             uint kend = min(KT, depth - k0);
+            // The second column reads a clamped index past the end and its sums are dropped.
+            uint m2 = min(n2, n_cols - 1u);
             for (uint k = 0u; k < kend; k++) {
-                float b = bmat[(k0 + k) * n_cols + n];
-                acc0 += tile_a[4u * k] * b;
-                acc1 += tile_a[4u * k + 1u] * b;
-                acc2 += tile_a[4u * k + 2u] * b;
-                acc3 += tile_a[4u * k + 3u] * b;
+                uint row = (k0 + k) * n_cols;
+                float b = bmat[row + n];
+                float b2 = bmat[row + m2];
+                vec4 a0 = tile_a[4u * k];
+                vec4 a1 = tile_a[4u * k + 1u];
+                vec4 a2 = tile_a[4u * k + 2u];
+                vec4 a3 = tile_a[4u * k + 3u];
+                acc0 += a0 * b;
+                acc1 += a1 * b;
+                acc2 += a2 * b;
+                acc3 += a3 * b;
+                bcc0 += a0 * b2;
+                bcc1 += a1 * b2;
+                bcc2 += a2 * b2;
+                bcc3 += a3 * b2;
             }
         }
         barrier();
     }
-    if (n >= n_cols) {
-        return;
-    }
-    uint ch = n / 3u;
-    uint c = n - 3u * ch;
     uint b0 = row0 / 4u;
-    // acc_q = rows 4(b0 + q) .. + 3 = proxy b0 + q, row c, columns 0..3.
-    if (b0 < pc.P) { proxies[(ch * pc.P + b0) * 3u + c] = acc0; }
-    if (b0 + 1u < pc.P) { proxies[(ch * pc.P + b0 + 1u) * 3u + c] = acc1; }
-    if (b0 + 2u < pc.P) { proxies[(ch * pc.P + b0 + 2u) * 3u + c] = acc2; }
-    if (b0 + 3u < pc.P) { proxies[(ch * pc.P + b0 + 3u) * 3u + c] = acc3; }
+    // acc_q = rows 4(b0 + q) .. + 3 = proxy b0 + q, row c, columns 0..3 (bcc_q: column n2).
+    if (n < n_cols) {
+        uint ch = n / 3u;
+        uint c = n - 3u * ch;
+        if (b0 < pc.P) { proxies[(ch * pc.P + b0) * 3u + c] = acc0; }
+        if (b0 + 1u < pc.P) { proxies[(ch * pc.P + b0 + 1u) * 3u + c] = acc1; }
+        if (b0 + 2u < pc.P) { proxies[(ch * pc.P + b0 + 2u) * 3u + c] = acc2; }
+        if (b0 + 3u < pc.P) { proxies[(ch * pc.P + b0 + 3u) * 3u + c] = acc3; }
+    }
+    if (n2 < n_cols) {
+        uint ch = n2 / 3u;
+        uint c = n2 - 3u * ch;
+        if (b0 < pc.P) { proxies[(ch * pc.P + b0) * 3u + c] = bcc0; }
+        if (b0 + 1u < pc.P) { proxies[(ch * pc.P + b0 + 1u) * 3u + c] = bcc1; }
+        if (b0 + 2u < pc.P) { proxies[(ch * pc.P + b0 + 2u) * 3u + c] = bcc2; }
+        if (b0 + 3u < pc.P) { proxies[(ch * pc.P + b0 + 3u) * 3u + c] = bcc3; }
+    }
 }

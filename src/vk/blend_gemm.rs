@@ -16,9 +16,9 @@ pub struct Push {
     pub chars: u32,
 }
 
-/// Output tile of one workgroup: 16 rows (4 proxies) x 64 columns (see the shader).
+/// Output tile of one workgroup: 16 rows (4 proxies) x 128 columns (see the shader).
 const TILE_ROWS: u32 = 16;
-const TILE_COLUMNS: u32 = 64;
+const TILE_COLUMNS: u32 = 128;
 
 pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 3] {
     [m.blend_matrix.whole(), v.rhs, v.proxies]
