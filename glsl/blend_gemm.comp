@@ -7,10 +7,10 @@
 // B column n = 3 ch + c holds [d_c; q_c] of character ch; pass 1 writes it row-major, so the
 // invocations of a workgroup (consecutive n) read consecutive B addresses.
 //
-// Tiling: a workgroup owns 16 rows of T (4 proxies) x 128 columns. Per k-tile it stages the
+// Tiling: a workgroup owns 16 rows of T (4 proxies) x 256 columns. Per k-tile it stages the
 // 16 x 128 block of A in shared memory (transposed into vec4s of 4 rows), then every invocation
-// accumulates two columns, n and n + 64: per k two B loads and 8 vec4 FMAs, each A vec4 used
-// twice (A's loads are the same for every invocation, which CPU drivers pay per lane). Rows
+// accumulates four columns, n + 64 i: per k four B loads and 16 vec4 FMAs, each A vec4 used
+// four times (A's loads are the same for every invocation, which CPU drivers pay per lane). Rows
 // 4b..4b+3 of T are proxy b's row c, so each accumulator is stored as one vec4 of the 3x4 proxy
 // transform.
 layout(local_size_x = 64) in;
@@ -32,18 +32,13 @@ void main() {
     uint depth = 3u * pc.P + 4u * pc.J;
     uint n_cols = 3u * pc.chars;
     uint lx = gl_LocalInvocationID.x;
-    uint n = gl_WorkGroupID.x * 2u * WG + lx;
-    uint n2 = n + WG;
+    uint n = gl_WorkGroupID.x * 4u * WG + lx;
     uint row0 = gl_WorkGroupID.y * ROWS;
 
-    vec4 acc0 = vec4(0.0);
-    vec4 acc1 = vec4(0.0);
-    vec4 acc2 = vec4(0.0);
-    vec4 acc3 = vec4(0.0);
-    vec4 bcc0 = vec4(0.0);
-    vec4 bcc1 = vec4(0.0);
-    vec4 bcc2 = vec4(0.0);
-    vec4 bcc3 = vec4(0.0);
+    // acc[4 t + q]: column n + 64 t, rows 4q..4q+3 of the block.
+    vec4 acc[16] = vec4[16](vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0),
+        vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0), vec4(0.0),
+        vec4(0.0), vec4(0.0));
     for (uint k0 = 0u; k0 < depth; k0 += KT) {
         // Stage A: 4 x KT vec4s, each gathering 4 rows of one column.
         for (uint i = lx; i < 4u * KT; i += WG) {
@@ -63,44 +58,33 @@ void main() {
         barrier();
         if (n < n_cols) {
             uint kend = min(KT, depth - k0);
-            // The second column reads a clamped index past the end and its sums are dropped.
-            uint m2 = min(n2, n_cols - 1u);
+            // Columns past the end read a clamped index; their sums are dropped.
+            uint m1 = min(n + WG, n_cols - 1u);
+            uint m2 = min(n + 2u * WG, n_cols - 1u);
+            uint m3 = min(n + 3u * WG, n_cols - 1u);
             for (uint k = 0u; k < kend; k++) {
                 uint row = (k0 + k) * n_cols;
-                float b = bmat[row + n];
-                float b2 = bmat[row + m2];
-                vec4 a0 = tile_a[4u * k];
-                vec4 a1 = tile_a[4u * k + 1u];
-                vec4 a2 = tile_a[4u * k + 2u];
-                vec4 a3 = tile_a[4u * k + 3u];
-                acc0 += a0 * b;
-                acc1 += a1 * b;
-                acc2 += a2 * b;
-                acc3 += a3 * b;
-                bcc0 += a0 * b2;
-                bcc1 += a1 * b2;
-                bcc2 += a2 * b2;
-                bcc3 += a3 * b2;
+                vec4 b = vec4(bmat[row + n], bmat[row + m1], bmat[row + m2], bmat[row + m3]);
+                for (uint q = 0u; q < 4u; q++) {
+                    vec4 av = tile_a[4u * k + q];
+                    acc[q] += av * b.x;
+                    acc[4u + q] += av * b.y;
+                    acc[8u + q] += av * b.z;
+                    acc[12u + q] += av * b.w;
+                }
             }
         }
         barrier();
     }
     uint b0 = row0 / 4u;
-    // acc_q = rows 4(b0 + q) .. + 3 = proxy b0 + q, row c, columns 0..3 (bcc_q: column n2).
-    if (n < n_cols) {
-        uint ch = n / 3u;
-        uint c = n - 3u * ch;
-        if (b0 < pc.P) { proxies[(ch * pc.P + b0) * 3u + c] = acc0; }
-        if (b0 + 1u < pc.P) { proxies[(ch * pc.P + b0 + 1u) * 3u + c] = acc1; }
-        if (b0 + 2u < pc.P) { proxies[(ch * pc.P + b0 + 2u) * 3u + c] = acc2; }
-        if (b0 + 3u < pc.P) { proxies[(ch * pc.P + b0 + 3u) * 3u + c] = acc3; }
-    }
-    if (n2 < n_cols) {
-        uint ch = n2 / 3u;
-        uint c = n2 - 3u * ch;
-        if (b0 < pc.P) { proxies[(ch * pc.P + b0) * 3u + c] = bcc0; }
-        if (b0 + 1u < pc.P) { proxies[(ch * pc.P + b0 + 1u) * 3u + c] = bcc1; }
-        if (b0 + 2u < pc.P) { proxies[(ch * pc.P + b0 + 2u) * 3u + c] = bcc2; }
-        if (b0 + 3u < pc.P) { proxies[(ch * pc.P + b0 + 3u) * 3u + c] = bcc3; }
+    for (uint t = 0u; t < 4u; t++) {
+        uint col = n + t * WG;
+        if (col < n_cols) {
+            uint ch = col / 3u;
+            uint c = col - 3u * ch;
+            for (uint q = 0u; q < 4u; q++) {
+                if (b0 + q < pc.P) { proxies[(ch * pc.P + b0 + q) * 3u + c] = acc[4u * t + q]; }
+            }
+        }
     }
 }

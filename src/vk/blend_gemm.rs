@@ -18,7 +18,7 @@ pub struct Push {
 
 /// Output tile of one workgroup: 16 rows (4 proxies) x 128 columns (see the shader).
 const TILE_ROWS: u32 = 16;
-const TILE_COLUMNS: u32 = 128;
+const TILE_COLUMNS: u32 = 256;
 
 pub fn bindings(m: &Inner, v: &ChunkViews) -> [DescriptorBufferInfo; 3] {
     [m.blend_matrix.whole(), v.rhs, v.proxies]
