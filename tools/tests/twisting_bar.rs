@@ -100,3 +100,33 @@ fn rotational_regression_learns_the_twist_that_skinning_cannot() {
         report.ssd
     );
 }
+
+/// `--loocv`: the test column becomes the leave-one-out error over the training poses (each
+/// predicted by a model trained without it), here on the bar's three twists.
+#[test]
+fn leave_one_out_reports_held_out_training_poses() {
+    let set = bar_set(&[0.0, 60.0, 120.0, 180.0], &[]);
+    let options = |loocv| eval::Options {
+        influences: 4,
+        proxies: 0,
+        epsilon: None,
+        model: None,
+        loocv,
+        quiet: true,
+    };
+    let plain = eval::run(&set, &options(false)).expect("training");
+    assert_eq!(plain.rr_full.test, None, "no test poses");
+    let loo = eval::run(&set, &options(true)).expect("leave-one-out");
+    assert!(loo.loocv);
+    let (rr, ssd) = (
+        loo.rr_full.test.expect("LOOCV error"),
+        loo.ssd.test.expect("LOOCV error"),
+    );
+    assert_eq!(loo.rigid.test, Some(100.0));
+    assert!(
+        rr.is_finite() && rr > loo.rr_full.train,
+        "held-out {rr} vs train {}",
+        loo.rr_full.train
+    );
+    assert!(rr < ssd, "leave-one-out: RR {rr} vs SSD {ssd}");
+}
