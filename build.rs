@@ -1,5 +1,7 @@
-//! Compiles every compute shader in `glsl/` to SPIR-V with naga (pure Rust, no shaderc).
-//! The SPIR-V lands in OUT_DIR and is embedded by `src/vk/shaders.rs`; it is never committed.
+//! Compiles every shader in `glsl/` to SPIR-V with naga (pure Rust, no shaderc): the compute
+//! passes and the renderer's vertex/fragment stages (the stage follows the file extension).
+//! The SPIR-V lands in OUT_DIR and is embedded by `src/vk/pipelines.rs` and `src/vk/render.rs`;
+//! it is never committed.
 //! A shader may be built in several variants, each with its own `#define`s (skinning: K = 4, 8).
 
 use std::path::Path;
@@ -16,6 +18,8 @@ const SHADERS: &[Shader] = &[
     ("skin.comp", "skin_k4", &[("K", "4")]),
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),
+    ("shade.vert", "shade_vert", &[]),
+    ("shade.frag", "shade_frag", &[]),
 ];
 
 fn main() {
@@ -34,7 +38,12 @@ fn main() {
 
 fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
     use naga::{back::spv, front::glsl, valid};
-    let mut options = glsl::Options::from(naga::ShaderStage::Compute);
+    let stage = match path.extension().and_then(|e| e.to_str()) {
+        Some("vert") => naga::ShaderStage::Vertex,
+        Some("frag") => naga::ShaderStage::Fragment,
+        _ => naga::ShaderStage::Compute,
+    };
+    let mut options = glsl::Options::from(stage);
     for (k, v) in defines {
         options.defines.insert((*k).to_string(), (*v).to_string());
     }
@@ -46,15 +55,16 @@ fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
         .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(source)));
     let spv_options = spv::Options {
         lang_version: (1, 3),
-        // Compute only: no coordinate-space flip; no injected loop counters (they cost in the
-        // GEMM inner loop and our loops are bounded by push constants the runtime checks).
+        // No coordinate-space flip (graphics would come out upside down: the shaders write
+        // Vulkan's clip space); no injected loop counters (they cost in the GEMM inner loop and
+        // our loops are bounded by push constants the runtime checks).
         flags: spv::WriterFlags::empty(),
         force_loop_bounding: false,
         emit_int_div_checks: false,
         ..Default::default()
     };
     let pipeline = spv::PipelineOptions {
-        shader_stage: naga::ShaderStage::Compute,
+        shader_stage: stage,
         entry_point: "main".to_string(),
     };
     spv::write_vec(&module, &info, &spv_options, Some(&pipeline))

@@ -17,6 +17,7 @@ pub struct GpuModel {
 pub(crate) struct Inner {
     pub context: Context,
     pub vertices: u32,
+    pub triangle_count: u32,
     pub bones: u32,
     pub proxies: u32,
     pub influences: usize,
@@ -100,7 +101,8 @@ impl GpuModel {
         let buffers = upload(
             &context.shared,
             &items,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
+            // The triangles double as the index buffer of the renderer (src/vk/render.rs).
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDEX_BUFFER,
         )?;
         let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, incident_offsets, incident_triangles, triangles] =
             <[Buffer; 9]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
@@ -110,6 +112,7 @@ impl GpuModel {
             inner: Arc::new(Inner {
                 context: context.clone(),
                 vertices: model.vertex_count() as u32,
+                triangle_count: model.triangle_count() as u32,
                 bones: model.bone_count() as u32,
                 proxies: model.proxy_count() as u32,
                 influences: model.influences(),

@@ -19,6 +19,7 @@ mod gpu_model;
 mod normals;
 mod pipelines;
 mod predict;
+pub mod render;
 mod skin;
 
 pub use ash;

@@ -14,6 +14,7 @@ pub mod example_set;
 pub mod full_model;
 pub mod gltf_rig;
 pub mod gradients;
+pub mod image;
 pub mod import;
 pub mod linalg;
 pub mod npy;

@@ -1,0 +1,615 @@
+//! An offscreen renderer for crowds (`glsl/shade.vert`, `glsl/shade.frag`): the crowd sample's
+//! headless mode and the demo's images. It draws straight from the crowds' output buffers
+//! (positions and normals as vertex buffers, the model's triangles as the index buffer), one
+//! draw per character placed by a push-constant offset, and reads the image back as RGBA8.
+//!
+//! Synchronisation: the batch's last barrier makes the compute outputs visible to vertex input;
+//! the render pass's external dependencies order this frame's attachment writes after the last
+//! frame's read-back and the read-back after the writes.
+
+use super::buffer::{memory_barrier, Buffer};
+use super::context::{Context, Shared};
+use super::crowd::Crowd;
+use crate::error::{Error, Result};
+use ash::vk;
+use glam::{Mat4, Vec3};
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+use std::sync::Arc;
+
+const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
+const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+
+/// A perspective camera in Vulkan clip space (y down, depth 0..1).
+#[derive(Debug, Clone, Copy)]
+pub struct Camera {
+    pub view_proj: Mat4,
+}
+
+impl Camera {
+    /// Looking from `eye` at `target` (y up), vertical field of view in radians.
+    pub fn looking_at(
+        eye: Vec3,
+        target: Vec3,
+        fov_y: f32,
+        aspect: f32,
+        near: f32,
+        far: f32,
+    ) -> Camera {
+        // View: right-handed, looking down −z.
+        let f = (target - eye).normalize();
+        let s = f.cross(Vec3::Y).normalize();
+        let u = s.cross(f);
+        let view = Mat4::from_cols(
+            s.extend(-s.dot(eye)),
+            u.extend(-u.dot(eye)),
+            (-f).extend(f.dot(eye)),
+            glam::Vec4::W,
+        )
+        .transpose();
+        // Projection to Vulkan clip space: y down, depth 0 (near) .. 1 (far).
+        let h = 1.0 / (0.5 * fov_y).tan();
+        let proj = Mat4::from_cols(
+            glam::Vec4::new(h / aspect, 0.0, 0.0, 0.0),
+            glam::Vec4::new(0.0, -h, 0.0, 0.0),
+            glam::Vec4::new(0.0, 0.0, far / (near - far), -1.0),
+            glam::Vec4::new(0.0, 0.0, near * far / (near - far), 0.0),
+        );
+        Camera {
+            view_proj: proj * view,
+        }
+    }
+}
+
+/// One character to draw: which, where, and its tint.
+#[derive(Clone, Copy)]
+pub struct Draw<'a> {
+    pub crowd: &'a Crowd,
+    pub character: usize,
+    pub offset: [f32; 3],
+    pub color: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    view_proj: [f32; 16],
+    offset: [f32; 4],
+    color: [f32; 4],
+}
+
+/// An image with its memory and view, freed in Drop.
+struct Target {
+    shared: Arc<Shared>,
+    image: vk::Image,
+    view: vk::ImageView,
+    allocation: Option<Allocation>,
+}
+
+impl Target {
+    fn new(
+        shared: &Arc<Shared>,
+        format: vk::Format,
+        usage: vk::ImageUsageFlags,
+        aspect: vk::ImageAspectFlags,
+        extent: vk::Extent2D,
+    ) -> Result<Target> {
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(format)
+            .extent(vk::Extent3D {
+                width: extent.width,
+                height: extent.height,
+                depth: 1,
+            })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        let device = &shared.device;
+        // SAFETY: valid device and create info.
+        let image =
+            unsafe { device.create_image(&info, None) }.map_err(Error::vk("vkCreateImage"))?;
+        let mut target = Target {
+            shared: shared.clone(),
+            image,
+            view: vk::ImageView::null(),
+            allocation: None,
+        };
+        // SAFETY: valid image.
+        let requirements = unsafe { device.get_image_memory_requirements(image) };
+        let allocation = shared
+            .allocator()
+            .as_mut()
+            .ok_or(Error::Allocation {
+                what: "render target",
+                message: "the allocator is gone".into(),
+            })?
+            .allocate(&AllocationCreateDesc {
+                name: "render target",
+                requirements,
+                location: MemoryLocation::GpuOnly,
+                linear: false,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            })
+            .map_err(|e| Error::Allocation {
+                what: "render target",
+                message: e.to_string(),
+            })?;
+        // SAFETY: fresh allocation meeting the image's requirements.
+        unsafe { device.bind_image_memory(image, allocation.memory(), allocation.offset()) }
+            .map_err(Error::vk("vkBindImageMemory"))?;
+        target.allocation = Some(allocation);
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(image)
+            .view_type(vk::ImageViewType::TYPE_2D)
+            .format(format)
+            .subresource_range(
+                vk::ImageSubresourceRange::default()
+                    .aspect_mask(aspect)
+                    .level_count(1)
+                    .layer_count(1),
+            );
+        // SAFETY: the image is bound to memory.
+        target.view = unsafe { device.create_image_view(&view_info, None) }
+            .map_err(Error::vk("vkCreateImageView"))?;
+        Ok(target)
+    }
+}
+
+impl Drop for Target {
+    fn drop(&mut self) {
+        // SAFETY: the renderer waits for its submissions; null handles are no-ops.
+        unsafe {
+            self.shared.device.destroy_image_view(self.view, None);
+            self.shared.device.destroy_image(self.image, None);
+        }
+        if let (Some(a), Some(allocator)) =
+            (self.allocation.take(), self.shared.allocator().as_mut())
+        {
+            let _ = allocator.free(a);
+        }
+    }
+}
+
+pub struct Renderer {
+    shared: Arc<Shared>,
+    extent: vk::Extent2D,
+    color: Target,
+    _depth: Target,
+    render_pass: vk::RenderPass,
+    framebuffer: vk::Framebuffer,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    readback: Buffer,
+    pool: vk::CommandPool,
+    fence: vk::Fence,
+}
+
+impl Renderer {
+    /// An offscreen renderer of `width` x `height` pixels. The context's queue must support
+    /// graphics.
+    pub fn new(context: &Context, width: u32, height: u32) -> Result<Renderer> {
+        let shared = context.shared.clone();
+        if !shared.queue_has_graphics {
+            return Err(Error::NoDevice {
+                reason: "the context's queue has no graphics".into(),
+            });
+        }
+        if width == 0 || height == 0 {
+            return Err(Error::OutOfRange {
+                what: "image size",
+                index: 0,
+                count: 0,
+            });
+        }
+        let extent = vk::Extent2D { width, height };
+        let color = Target::new(
+            &shared,
+            COLOR_FORMAT,
+            vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
+            vk::ImageAspectFlags::COLOR,
+            extent,
+        )?;
+        let depth = Target::new(
+            &shared,
+            DEPTH_FORMAT,
+            vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
+            vk::ImageAspectFlags::DEPTH,
+            extent,
+        )?;
+        let readback = Buffer::new(
+            &shared,
+            "rendered image",
+            width as u64 * height as u64 * 4,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        let mut r = Renderer {
+            shared: shared.clone(),
+            extent,
+            color,
+            _depth: depth,
+            render_pass: vk::RenderPass::null(),
+            framebuffer: vk::Framebuffer::null(),
+            layout: vk::PipelineLayout::null(),
+            pipeline: vk::Pipeline::null(),
+            readback,
+            pool: vk::CommandPool::null(),
+            fence: vk::Fence::null(),
+        };
+        // Every handle is stored as soon as it exists, so Drop frees a partial renderer.
+        r.create_objects()?;
+        Ok(r)
+    }
+
+    fn create_objects(&mut self) -> Result<()> {
+        let device = &self.shared.device;
+        let attachments = [
+            vk::AttachmentDescription::default()
+                .format(COLOR_FORMAT)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .initial_layout(vk::ImageLayout::UNDEFINED)
+                .final_layout(vk::ImageLayout::TRANSFER_SRC_OPTIMAL),
+            vk::AttachmentDescription::default()
+                .format(DEPTH_FORMAT)
+                .samples(vk::SampleCountFlags::TYPE_1)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::DONT_CARE)
+                .initial_layout(vk::ImageLayout::UNDEFINED)
+                .final_layout(vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL),
+        ];
+        let color_ref = [vk::AttachmentReference {
+            attachment: 0,
+            layout: vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL,
+        }];
+        let depth_ref = vk::AttachmentReference {
+            attachment: 1,
+            layout: vk::ImageLayout::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+        };
+        let subpass = [vk::SubpassDescription::default()
+            .pipeline_bind_point(vk::PipelineBindPoint::GRAPHICS)
+            .color_attachments(&color_ref)
+            .depth_stencil_attachment(&depth_ref)];
+        let attachment_stages = vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT
+            | vk::PipelineStageFlags::EARLY_FRAGMENT_TESTS
+            | vk::PipelineStageFlags::LATE_FRAGMENT_TESTS;
+        let attachment_writes = vk::AccessFlags::COLOR_ATTACHMENT_WRITE
+            | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_WRITE;
+        let dependencies = [
+            // After the last frame's read-back and attachment writes.
+            vk::SubpassDependency::default()
+                .src_subpass(vk::SUBPASS_EXTERNAL)
+                .dst_subpass(0)
+                .src_stage_mask(vk::PipelineStageFlags::TRANSFER | attachment_stages)
+                .src_access_mask(attachment_writes)
+                .dst_stage_mask(attachment_stages)
+                .dst_access_mask(
+                    attachment_writes | vk::AccessFlags::DEPTH_STENCIL_ATTACHMENT_READ,
+                ),
+            // Before the read-back.
+            vk::SubpassDependency::default()
+                .src_subpass(0)
+                .dst_subpass(vk::SUBPASS_EXTERNAL)
+                .src_stage_mask(vk::PipelineStageFlags::COLOR_ATTACHMENT_OUTPUT)
+                .src_access_mask(vk::AccessFlags::COLOR_ATTACHMENT_WRITE)
+                .dst_stage_mask(vk::PipelineStageFlags::TRANSFER)
+                .dst_access_mask(vk::AccessFlags::TRANSFER_READ),
+        ];
+        let info = vk::RenderPassCreateInfo::default()
+            .attachments(&attachments)
+            .subpasses(&subpass)
+            .dependencies(&dependencies);
+        // SAFETY: valid device and create info.
+        self.render_pass = unsafe { device.create_render_pass(&info, None) }
+            .map_err(Error::vk("vkCreateRenderPass"))?;
+        let views = [self.color.view, self._depth.view];
+        let info = vk::FramebufferCreateInfo::default()
+            .render_pass(self.render_pass)
+            .attachments(&views)
+            .width(self.extent.width)
+            .height(self.extent.height)
+            .layers(1);
+        // SAFETY: the views match the render pass's attachments.
+        self.framebuffer = unsafe { device.create_framebuffer(&info, None) }
+            .map_err(Error::vk("vkCreateFramebuffer"))?;
+        let ranges = [vk::PushConstantRange::default()
+            .stage_flags(vk::ShaderStageFlags::VERTEX)
+            .size(size_of::<Push>() as u32)];
+        let info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
+        // SAFETY: valid device and create info.
+        self.layout = unsafe { device.create_pipeline_layout(&info, None) }
+            .map_err(Error::vk("vkCreatePipelineLayout"))?;
+        self.pipeline = self.create_pipeline()?;
+        let info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(self.shared.queue_family_index)
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: valid device and create info.
+        self.pool = unsafe { device.create_command_pool(&info, None) }
+            .map_err(Error::vk("vkCreateCommandPool"))?;
+        // SAFETY: valid device.
+        self.fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
+            .map_err(Error::vk("vkCreateFence"))?;
+        Ok(())
+    }
+
+    fn create_pipeline(&self) -> Result<vk::Pipeline> {
+        let device = &self.shared.device;
+        let module = |code: &[u8]| -> Result<vk::ShaderModule> {
+            let words: Vec<u32> = code
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+                .collect();
+            // SAFETY: SPIR-V produced and validated by naga in build.rs.
+            unsafe {
+                device
+                    .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+            }
+            .map_err(Error::vk("vkCreateShaderModule"))
+        };
+        let vert = module(include_bytes!(concat!(env!("OUT_DIR"), "/shade_vert.spv")))?;
+        let frag = match module(include_bytes!(concat!(env!("OUT_DIR"), "/shade_frag.spv"))) {
+            Ok(m) => m,
+            Err(e) => {
+                // SAFETY: unused module.
+                unsafe { device.destroy_shader_module(vert, None) };
+                return Err(e);
+            }
+        };
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::VERTEX)
+                .module(vert)
+                .name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::FRAGMENT)
+                .module(frag)
+                .name(c"main"),
+        ];
+        // Positions (binding 0) and normals (binding 1): the crowd's output layout, 12 bytes.
+        let bindings = [
+            vk::VertexInputBindingDescription {
+                binding: 0,
+                stride: 12,
+                input_rate: vk::VertexInputRate::VERTEX,
+            },
+            vk::VertexInputBindingDescription {
+                binding: 1,
+                stride: 12,
+                input_rate: vk::VertexInputRate::VERTEX,
+            },
+        ];
+        let attributes = [
+            vk::VertexInputAttributeDescription {
+                location: 0,
+                binding: 0,
+                format: vk::Format::R32G32B32_SFLOAT,
+                offset: 0,
+            },
+            vk::VertexInputAttributeDescription {
+                location: 1,
+                binding: 1,
+                format: vk::Format::R32G32B32_SFLOAT,
+                offset: 0,
+            },
+        ];
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&bindings)
+            .vertex_attribute_descriptions(&attributes);
+        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewports = [vk::Viewport {
+            x: 0.0,
+            y: 0.0,
+            width: self.extent.width as f32,
+            height: self.extent.height as f32,
+            min_depth: 0.0,
+            max_depth: 1.0,
+        }];
+        let scissors = [vk::Rect2D {
+            offset: vk::Offset2D::default(),
+            extent: self.extent,
+        }];
+        let viewport = vk::PipelineViewportStateCreateInfo::default()
+            .viewports(&viewports)
+            .scissors(&scissors);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(vk::CullModeFlags::NONE)
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default()
+            .rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(true)
+            .depth_write_enable(true)
+            .depth_compare_op(vk::CompareOp::LESS);
+        let blend_attachments = [vk::PipelineColorBlendAttachmentState::default()
+            .color_write_mask(vk::ColorComponentFlags::RGBA)];
+        let blend =
+            vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .layout(self.layout)
+            .render_pass(self.render_pass)
+            .subpass(0)];
+        // SAFETY: valid create info; the modules may be destroyed once the pipeline exists.
+        let result = unsafe {
+            let r = device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None);
+            device.destroy_shader_module(vert, None);
+            device.destroy_shader_module(frag, None);
+            r
+        };
+        Ok(result.map_err(|(_, result)| Error::Vulkan {
+            call: "vkCreateGraphicsPipelines",
+            result,
+        })?[0])
+    }
+
+    pub fn width(&self) -> u32 {
+        self.extent.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.extent.height
+    }
+
+    /// Draws `draws` (whose crowds were run before, e.g. by `Batch::run`) and returns the image:
+    /// width x height RGBA8 pixels, rows top to bottom.
+    pub fn render(
+        &mut self,
+        camera: &Camera,
+        draws: &[Draw],
+        background: [f32; 3],
+    ) -> Result<Vec<u8>> {
+        for d in draws {
+            if !Arc::ptr_eq(d.crowd.shared(), &self.shared) {
+                return Err(Error::Mismatch {
+                    what: "a crowd of another context",
+                });
+            }
+            if d.character >= d.crowd.character_count() {
+                return Err(Error::OutOfRange {
+                    what: "character",
+                    index: d.character,
+                    count: d.crowd.character_count(),
+                });
+            }
+        }
+        let shared = self.shared.clone();
+        let device = &shared.device;
+        let info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(self.pool)
+            .command_buffer_count(1);
+        // SAFETY: our pool; every command below uses objects alive until the wait returns.
+        let cmd = unsafe { device.allocate_command_buffers(&info) }
+            .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
+        let recorded = (|| -> Result<()> {
+            // SAFETY: cmd is fresh; the handles belong to this device.
+            unsafe {
+                let begin = vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+                device
+                    .begin_command_buffer(cmd, &begin)
+                    .map_err(Error::vk("vkBeginCommandBuffer"))?;
+                let clear = [
+                    vk::ClearValue {
+                        color: vk::ClearColorValue {
+                            float32: [background[0], background[1], background[2], 1.0],
+                        },
+                    },
+                    vk::ClearValue {
+                        depth_stencil: vk::ClearDepthStencilValue {
+                            depth: 1.0,
+                            stencil: 0,
+                        },
+                    },
+                ];
+                let pass = vk::RenderPassBeginInfo::default()
+                    .render_pass(self.render_pass)
+                    .framebuffer(self.framebuffer)
+                    .render_area(vk::Rect2D {
+                        offset: vk::Offset2D::default(),
+                        extent: self.extent,
+                    })
+                    .clear_values(&clear);
+                device.cmd_begin_render_pass(cmd, &pass, vk::SubpassContents::INLINE);
+                device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+                for d in draws {
+                    let out = d.crowd.output();
+                    let at = out.offset + d.character as u64 * out.character_stride;
+                    device.cmd_bind_vertex_buffers(
+                        cmd,
+                        0,
+                        &[out.positions, out.normals],
+                        &[at, at],
+                    );
+                    let model = &d.crowd.model.inner;
+                    device.cmd_bind_index_buffer(
+                        cmd,
+                        model.triangles.handle,
+                        0,
+                        vk::IndexType::UINT32,
+                    );
+                    let push = Push {
+                        view_proj: camera.view_proj.to_cols_array(),
+                        offset: [d.offset[0], d.offset[1], d.offset[2], 0.0],
+                        color: [d.color[0], d.color[1], d.color[2], 1.0],
+                    };
+                    device.cmd_push_constants(
+                        cmd,
+                        self.layout,
+                        vk::ShaderStageFlags::VERTEX,
+                        0,
+                        bytemuck::bytes_of(&push),
+                    );
+                    let indices = model.triangle_count * 3;
+                    device.cmd_draw_indexed(cmd, indices, 1, 0, 0, 0);
+                }
+                device.cmd_end_render_pass(cmd);
+                let region = [vk::BufferImageCopy::default()
+                    .image_subresource(
+                        vk::ImageSubresourceLayers::default()
+                            .aspect_mask(vk::ImageAspectFlags::COLOR)
+                            .layer_count(1),
+                    )
+                    .image_extent(vk::Extent3D {
+                        width: self.extent.width,
+                        height: self.extent.height,
+                        depth: 1,
+                    })];
+                device.cmd_copy_image_to_buffer(
+                    cmd,
+                    self.color.image,
+                    vk::ImageLayout::TRANSFER_SRC_OPTIMAL,
+                    self.readback.handle,
+                    &region,
+                );
+                memory_barrier(
+                    device,
+                    cmd,
+                    (
+                        vk::PipelineStageFlags::TRANSFER,
+                        vk::AccessFlags::TRANSFER_WRITE,
+                    ),
+                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
+                );
+                device
+                    .end_command_buffer(cmd)
+                    .map_err(Error::vk("vkEndCommandBuffer"))?;
+            }
+            shared.submit_wait(cmd, self.fence)
+        })();
+        // SAFETY: the command buffer finished (or never ran).
+        unsafe { device.free_command_buffers(self.pool, &[cmd]) };
+        recorded?;
+        let n = self.extent.width as usize * self.extent.height as usize * 4;
+        Ok(self.readback.mapped()?[..n].to_vec())
+    }
+}
+
+impl Drop for Renderer {
+    fn drop(&mut self) {
+        // SAFETY: `render` waits for its submission; null handles are no-ops.
+        unsafe {
+            let d = &self.shared.device;
+            d.destroy_fence(self.fence, None);
+            d.destroy_command_pool(self.pool, None);
+            d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline_layout(self.layout, None);
+            d.destroy_framebuffer(self.framebuffer, None);
+            d.destroy_render_pass(self.render_pass, None);
+        }
+    }
+}

@@ -1,0 +1,110 @@
+//! The headless crowd: 256 CesiumMan characters of a trained model, each walking at its own
+//! phase (the held-out walk frames), deformed in one command buffer and drawn straight from the
+//! runtime's output buffers, on lavapipe with the validation layer on.
+
+use rrskin::vk::render::{Camera, Draw, Renderer};
+use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
+use rrskin_tools::eval;
+use rrskin_tools::example_set::ExampleSet;
+
+const SIDE: usize = 16;
+const BACKGROUND: [f32; 3] = [0.1, 0.12, 0.15];
+
+#[test]
+fn a_crowd_of_256_renders_and_moves() {
+    let set = ExampleSet::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
+        .expect("bundled data");
+    let options = eval::Options {
+        influences: 4,
+        proxies: 20,
+        epsilon: None,
+        model: None,
+        loocv: false,
+        quiet: true,
+    };
+    let model = eval::run(&set, &options)
+        .expect("training")
+        .model
+        .expect("a runtime model");
+    let walk = set.test();
+    let ctx = Context::headless(&ContextDesc {
+        validation: true,
+        ..Default::default()
+    })
+    .expect("lavapipe");
+    let mut crowd =
+        Crowd::new(&GpuModel::new(&ctx, &model).expect("upload"), SIDE * SIDE).expect("crowd");
+    let mut batch = Batch::new(&ctx).expect("batch");
+    let (w, h) = (480, 270);
+    let mut renderer = Renderer::new(&ctx, w, h).expect("renderer");
+    let spacing = 1.3f32;
+    let extent = spacing * (SIDE - 1) as f32;
+    let camera = Camera::looking_at(
+        glam::Vec3::new(extent * 0.5, 7.0, extent + 6.0),
+        glam::Vec3::new(extent * 0.5, 0.0, extent * 0.4),
+        0.9,
+        w as f32 / h as f32,
+        0.1,
+        100.0,
+    );
+    let mut frames = Vec::new();
+    for frame in [0usize, 3] {
+        let bones: Vec<rrskin::predict::Affine> = (0..SIDE * SIDE)
+            .flat_map(|c| {
+                set.poses[walk[(c * 7 + frame) % walk.len()]]
+                    .bones
+                    .iter()
+                    .map(|b| b.to_affine())
+            })
+            .collect();
+        crowd.set_bones(&bones).expect("bones");
+        batch.run(&[&crowd]).expect("run");
+        let draws: Vec<Draw> = (0..SIDE * SIDE)
+            .map(|c| Draw {
+                crowd: &crowd,
+                character: c,
+                offset: [
+                    spacing * (c % SIDE) as f32,
+                    0.0,
+                    spacing * (c / SIDE) as f32,
+                ],
+                color: [0.55 + 0.4 * ((c * 37 % 11) as f32 / 10.0), 0.6, 0.75],
+            })
+            .collect();
+        frames.push(
+            renderer
+                .render(&camera, &draws, BACKGROUND)
+                .expect("render"),
+        );
+    }
+    if let Some(dir) = std::env::var_os("RRSKIN_SAVE_IMAGES") {
+        for (n, img) in frames.iter().enumerate() {
+            let path = std::path::Path::new(&dir).join(format!("crowd{n}.png"));
+            rrskin_tools::image::write_png(&path, w, h, img).expect("png");
+        }
+    }
+    let background = BACKGROUND.map(|x| (x * 255.0).round() as u8);
+    let covered = frames[0]
+        .chunks_exact(4)
+        .filter(|p| (0..3).any(|i| p[i].abs_diff(background[i]) > 2))
+        .count();
+    let pixels = (w * h) as usize;
+    assert!(
+        covered > pixels / 20,
+        "only {covered} of {pixels} pixels show a character"
+    );
+    let changed = frames[0]
+        .chunks_exact(4)
+        .zip(frames[1].chunks_exact(4))
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        changed > pixels / 100,
+        "only {changed} pixels changed between frames"
+    );
+    assert!(
+        ctx.validation_messages().is_empty(),
+        "{:?}",
+        ctx.validation_messages()
+    );
+}
