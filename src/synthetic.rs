@@ -191,6 +191,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         normal_groups: Vec::new(),
         baseline_indices: Vec::new(),
         baseline_weights: Vec::new(),
+        animation: Vec::new(),
     };
     Model::new(parts)
 }

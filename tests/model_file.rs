@@ -333,3 +333,34 @@ fn normal_groups_round_trip_and_are_checked() {
         }
     ));
 }
+
+#[test]
+fn an_animation_round_trips_and_is_checked() {
+    let mut parts = model(1, 4).into_parts();
+    let j = parts.bone_parents.len();
+    let identity: rrskin::predict::Affine =
+        [1.0, 0.0, 0.0, 0.5, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    parts.animation = vec![identity; 3 * j];
+    let m = Model::new(parts.clone()).expect("valid animation");
+    let back = Model::from_bytes(&m.to_bytes()).expect("round trip");
+    assert_eq!(back.animation().count(), 3);
+    assert_eq!(back, m);
+    parts.animation.pop();
+    assert!(matches!(
+        problem(Model::new(parts.clone())),
+        ModelProblem::Length {
+            what: "animation (frames x bones)",
+            ..
+        }
+    ));
+    parts.animation.push(identity);
+    parts.animation[1][0] = 2.0;
+    assert!(matches!(
+        problem(Model::new(parts)),
+        ModelProblem::NotRotation {
+            what: "animation rotation",
+            index: 1,
+            ..
+        }
+    ));
+}

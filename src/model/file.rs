@@ -27,6 +27,7 @@
 //! | NGRP | optional: V u32 normal groups (absent: no groups)    |
 //! | SSDI | optional: V x K u32 SSD baseline bone indices        |
 //! | SSDW | optional: V x K f32 SSD baseline weights             |
+//! | ANIM | optional: frames x J x 12 f32 bone transforms        |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
@@ -56,6 +57,7 @@ const C2: [u8; 4] = *b"C2\0\0";
 const NGRP: [u8; 4] = *b"NGRP";
 const SSDI: [u8; 4] = *b"SSDI";
 const SSDW: [u8; 4] = *b"SSDW";
+const ANIM: [u8; 4] = *b"ANIM";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let (v, t, j, p) = (
@@ -110,6 +112,11 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
         push_f32s(&mut weights, &m.baseline_weights);
         sections.push((SSDI, indices));
         sections.push((SSDW, weights));
+    }
+    if !m.animation.is_empty() {
+        let mut animation = Vec::new();
+        push_f32s(&mut animation, m.animation.as_flattened());
+        sections.push((ANIM, animation));
     }
 
     let mut out = Vec::new();
@@ -211,6 +218,21 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         ),
         false => (Vec::new(), Vec::new()),
     };
+    // Any length that is whole transforms; `validate` checks it against J.
+    let animation: Vec<[f32; 12]> = match table.entry(ANIM) {
+        Some(length) if length % 48 == 0 => f32s(table.section(body, ANIM, length)?)
+            .chunks_exact(12)
+            .map(array)
+            .collect(),
+        Some(length) => {
+            return Err(ModelProblem::SectionLength {
+                tag: "ANIM".into(),
+                expected: length / 48 * 48,
+                actual: length,
+            })
+        }
+        None => Vec::new(),
+    };
 
     let predictors = pred
         .chunks_exact(PREDICTOR_WORDS * 4)
@@ -246,6 +268,7 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         normal_groups,
         baseline_indices,
         baseline_weights,
+        animation,
     })
 }
 
@@ -288,7 +311,15 @@ impl SectionTable {
     }
 
     fn has(&self, tag: [u8; 4]) -> bool {
-        self.entries.iter().any(|(t, _, _)| *t == tag)
+        self.entry(tag).is_some()
+    }
+
+    /// The length of a section, if present.
+    fn entry(&self, tag: [u8; 4]) -> Option<u64> {
+        self.entries
+            .iter()
+            .find(|(t, _, _)| *t == tag)
+            .map(|&(_, _, length)| length)
     }
 
     /// The payload of a required section, checked against its expected length.

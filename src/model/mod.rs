@@ -15,6 +15,7 @@
 //! | `c2`               | 4P x 4J          |                                                      |
 //! | `normal_groups`    | V or empty       | vertices sharing a normal (welded seams)             |
 //! | `baseline_*`       | V x K or empty   | SSD skinning of the same mesh (bone indices, weights)|
+//! | `animation`        | frames x J       | optional bone transforms to show the model with      |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
@@ -79,6 +80,9 @@ pub struct ModelParts {
     /// same mesh, the baseline every engine has; see [`Model::baseline`].
     pub baseline_indices: Vec<u32>,
     pub baseline_weights: Vec<f32>,
+    /// Empty, or frames x J bone transforms (3x4 row-major, relative to the rest pose): an
+    /// animation to show the model with (the crowd sample, the demo).
+    pub animation: Vec<crate::predict::Affine>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -194,6 +198,11 @@ impl Model {
     /// CSR offsets (V + 1) and triangle ids of the triangles around each vertex.
     pub fn incidence(&self) -> (&[u32], &[u32]) {
         (&self.incident_offsets, &self.incident_triangles)
+    }
+
+    /// The model's animation: frames of J bone transforms (empty if it carries none).
+    pub fn animation(&self) -> impl Iterator<Item = &[crate::predict::Affine]> {
+        self.parts.animation.chunks_exact(self.bone_count())
     }
 
     /// The model's SSD baseline as a plain linear-blend-skinning model (P = 0) of the same mesh,

@@ -84,6 +84,21 @@ pub fn check(m: &ModelParts) -> Check {
             }
         }
     }
+    if m.animation.len() % j != 0 {
+        return Err(ModelProblem::Length {
+            what: "animation (frames x bones)",
+            expected: m.animation.len().div_ceil(j) * j,
+            actual: m.animation.len(),
+        });
+    }
+    finite("animation", m.animation.as_flattened().iter())?;
+    for (i, t) in m.animation.iter().enumerate() {
+        rotation(
+            "animation rotation",
+            i,
+            &[t[0], t[1], t[2], t[4], t[5], t[6], t[8], t[9], t[10]],
+        )?;
+    }
     if !m.normal_groups.is_empty() {
         length("normal groups", v, m.normal_groups.len())?;
         if let Some(i) = m.normal_groups.iter().position(|&g| g as usize >= v) {

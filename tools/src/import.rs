@@ -160,6 +160,7 @@ impl Imported {
                 .iter()
                 .flat_map(|&w| parts.baseline_weights[w * k..(w + 1) * k].to_vec())
                 .collect(),
+            animation: parts.animation.clone(),
         })
     }
 }
@@ -213,6 +214,7 @@ impl Imported {
                 .iter()
                 .flat_map(|&g| parts.baseline_weights[g * k..(g + 1) * k].to_vec())
                 .collect(),
+            animation: parts.animation.clone(),
         })
     }
 }

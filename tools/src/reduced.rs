@@ -283,8 +283,23 @@ impl Reduced {
             normal_groups: Vec::new(),
             baseline_indices,
             baseline_weights,
+            animation: set_animation(set),
         })
     }
+}
+
+/// The poses a model is shown with: the held-out poses (a sequence, like CesiumMan's walk) if
+/// there are any, else the training poses.
+fn set_animation(set: &ExampleSet) -> Vec<rrskin::predict::Affine> {
+    let poses = if set.test().is_empty() {
+        set.train()
+    } else {
+        set.test()
+    };
+    poses
+        .iter()
+        .flat_map(|&i| set.poses[i].bones.iter().map(Bone::to_affine))
+        .collect()
 }
 
 /// Per-vertex (index, weight) lists as V x K arrays, normalised, padded with (0, 0).
