@@ -19,6 +19,7 @@ const SHADERS: &[Shader] = &[
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),
     ("shade.vert", "shade_vert", &[]),
+    ("shade.vert", "shade_colors_vert", &[("VERTEX_COLORS", "1")]),
     ("shade.frag", "shade_frag", &[]),
 ];
 

@@ -8,7 +8,7 @@
 //! regression. Prints the median GPU time of each pass. This version renders offscreen only
 //! (works on lavapipe); the window mode is not built yet.
 
-use rrskin::vk::render::{Camera, Draw, Renderer};
+use rrskin::vk::render::{grid_scene, Draw, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel, PassTimings};
 use rrskin::Model;
 
@@ -91,31 +91,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
     let (width, height) = (1280, 720);
     let mut renderer = Renderer::new(&ctx, width, height)?;
 
-    // Grid spacing and camera from the rest mesh's bounding box (y up).
-    let rest = &model.parts().rest_positions;
-    let (lo, hi) = rest
-        .iter()
-        .fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
-            (
-                std::array::from_fn(|i| lo[i].min(p[i])),
-                std::array::from_fn(|i| hi[i].max(p[i])),
-            )
-        });
-    let size = (hi[0] - lo[0]).max(hi[2] - lo[2]).max(1e-3) * 1.15;
-    let tall = (hi[1] - lo[1]).max(1e-3);
-    let side = (args.characters as f32).sqrt().ceil() as usize;
-    let extent = size * (side - 1) as f32;
-    let center = glam::Vec3::new(extent * 0.5, tall * 0.4, extent * 0.5);
-    let eye = center + glam::Vec3::new(0.0, extent * 0.45 + tall * 2.0, extent * 0.85 + tall * 3.0);
-    let camera = Camera::looking_at(
-        eye,
-        center,
-        0.8,
-        width as f32 / height as f32,
-        0.05,
-        10.0 * (extent + tall * 4.0),
-    );
-
+    let scene = grid_scene(&model, args.characters, width as f32 / height as f32);
     let mut samples = Vec::with_capacity(args.frames);
     let mut image = Vec::new();
     for frame in 0..args.frames {
@@ -130,7 +106,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                 .map(|c| Draw {
                     crowd: &crowd,
                     character: c,
-                    offset: [size * (c % side) as f32, 0.0, size * (c / side) as f32],
+                    offset: scene.offsets[c],
                     color: [
                         0.55 + 0.35 * ((c * 37 % 11) as f32 / 10.0),
                         0.62,
@@ -138,7 +114,7 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
                     ],
                 })
                 .collect();
-            image = renderer.render(&camera, &draws, [0.09, 0.1, 0.12])?;
+            image = renderer.render(&scene.camera, &draws, &[], [0.09, 0.1, 0.12])?;
         }
     }
     let median = |f: fn(&PassTimings) -> f64| {

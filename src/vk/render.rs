@@ -61,6 +61,49 @@ impl Camera {
     }
 }
 
+/// A crowd laid out in a square grid, framed by a camera: where each character stands.
+pub struct GridScene {
+    pub camera: Camera,
+    pub offsets: Vec<[f32; 3]>,
+}
+
+/// Lays out `characters` of `model` (y up) on a square grid spaced by its rest mesh's footprint
+/// and frames them from the front, above, for an image of `aspect` width / height.
+pub fn grid_scene(model: &crate::Model, characters: usize, aspect: f32) -> GridScene {
+    let rest = &model.parts().rest_positions;
+    let (lo, hi) = rest
+        .iter()
+        .fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
+            (
+                std::array::from_fn(|i| lo[i].min(p[i])),
+                std::array::from_fn(|i| hi[i].max(p[i])),
+            )
+        });
+    let size = (hi[0] - lo[0]).max(hi[2] - lo[2]).max(1e-3) * 1.15;
+    let tall = (hi[1] - lo[1]).max(1e-3);
+    let side = (characters as f32).sqrt().ceil().max(1.0) as usize;
+    let extent = size * (side - 1) as f32;
+    let center = Vec3::new(extent * 0.5, tall * 0.4, extent * 0.5);
+    let eye = center + Vec3::new(0.0, extent * 0.45 + tall * 2.0, extent * 0.85 + tall * 3.0);
+    let far = 10.0 * (extent + tall * 4.0);
+    GridScene {
+        camera: Camera::looking_at(eye, center, 0.8, aspect, 0.05 * tall, far),
+        offsets: (0..characters)
+            .map(|c| [size * (c % side) as f32, 0.0, size * (c / side) as f32])
+            .collect(),
+    }
+}
+
+/// A mesh from host memory (e.g. a ground truth, or an error map), with a colour per vertex.
+#[derive(Clone, Copy)]
+pub struct HostMesh<'a> {
+    pub positions: &'a [[f32; 3]],
+    pub normals: &'a [[f32; 3]],
+    pub colors: &'a [[f32; 3]],
+    pub triangles: &'a [[u32; 3]],
+    pub offset: [f32; 3],
+}
+
 /// One character to draw: which, where, and its tint.
 #[derive(Clone, Copy)]
 pub struct Draw<'a> {
@@ -182,7 +225,10 @@ pub struct Renderer {
     render_pass: vk::RenderPass,
     framebuffer: vk::Framebuffer,
     layout: vk::PipelineLayout,
+    /// Crowd characters: positions and normals from the crowd's buffers.
     pipeline: vk::Pipeline,
+    /// Host meshes: positions, normals and per-vertex colours.
+    mesh_pipeline: vk::Pipeline,
     readback: Buffer,
     pool: vk::CommandPool,
     fence: vk::Fence,
@@ -236,6 +282,7 @@ impl Renderer {
             framebuffer: vk::Framebuffer::null(),
             layout: vk::PipelineLayout::null(),
             pipeline: vk::Pipeline::null(),
+            mesh_pipeline: vk::Pipeline::null(),
             readback,
             pool: vk::CommandPool::null(),
             fence: vk::Fence::null(),
@@ -324,7 +371,14 @@ impl Renderer {
         // SAFETY: valid device and create info.
         self.layout = unsafe { device.create_pipeline_layout(&info, None) }
             .map_err(Error::vk("vkCreatePipelineLayout"))?;
-        self.pipeline = self.create_pipeline()?;
+        self.pipeline = self.create_pipeline(
+            include_bytes!(concat!(env!("OUT_DIR"), "/shade_vert.spv")),
+            2,
+        )?;
+        self.mesh_pipeline = self.create_pipeline(
+            include_bytes!(concat!(env!("OUT_DIR"), "/shade_colors_vert.spv")),
+            3,
+        )?;
         let info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(self.shared.queue_family_index)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
@@ -337,7 +391,8 @@ impl Renderer {
         Ok(())
     }
 
-    fn create_pipeline(&self) -> Result<vk::Pipeline> {
+    /// A pipeline with `streams` vertex bindings (positions, normals[, colours]), 12 bytes each.
+    fn create_pipeline(&self, vertex_code: &[u8], streams: u32) -> Result<vk::Pipeline> {
         let device = &self.shared.device;
         let module = |code: &[u8]| -> Result<vk::ShaderModule> {
             let words: Vec<u32> = code
@@ -351,7 +406,7 @@ impl Renderer {
             }
             .map_err(Error::vk("vkCreateShaderModule"))
         };
-        let vert = module(include_bytes!(concat!(env!("OUT_DIR"), "/shade_vert.spv")))?;
+        let vert = module(vertex_code)?;
         let frag = match module(include_bytes!(concat!(env!("OUT_DIR"), "/shade_frag.spv"))) {
             Ok(m) => m,
             Err(e) => {
@@ -370,33 +425,22 @@ impl Renderer {
                 .module(frag)
                 .name(c"main"),
         ];
-        // Positions (binding 0) and normals (binding 1): the crowd's output layout, 12 bytes.
-        let bindings = [
-            vk::VertexInputBindingDescription {
-                binding: 0,
+        // Positions (binding 0), normals (1)[, colours (2)]: the crowd's output layout, 12 bytes.
+        let bindings: Vec<vk::VertexInputBindingDescription> = (0..streams)
+            .map(|b| vk::VertexInputBindingDescription {
+                binding: b,
                 stride: 12,
                 input_rate: vk::VertexInputRate::VERTEX,
-            },
-            vk::VertexInputBindingDescription {
-                binding: 1,
-                stride: 12,
-                input_rate: vk::VertexInputRate::VERTEX,
-            },
-        ];
-        let attributes = [
-            vk::VertexInputAttributeDescription {
-                location: 0,
-                binding: 0,
+            })
+            .collect();
+        let attributes: Vec<vk::VertexInputAttributeDescription> = (0..streams)
+            .map(|b| vk::VertexInputAttributeDescription {
+                location: b,
+                binding: b,
                 format: vk::Format::R32G32B32_SFLOAT,
                 offset: 0,
-            },
-            vk::VertexInputAttributeDescription {
-                location: 1,
-                binding: 1,
-                format: vk::Format::R32G32B32_SFLOAT,
-                offset: 0,
-            },
-        ];
+            })
+            .collect();
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
             .vertex_binding_descriptions(&bindings)
             .vertex_attribute_descriptions(&attributes);
@@ -465,14 +509,74 @@ impl Renderer {
         self.extent.height
     }
 
-    /// Draws `draws` (whose crowds were run before, e.g. by `Batch::run`) and returns the image:
-    /// width x height RGBA8 pixels, rows top to bottom.
+    /// Draws `draws` (whose crowds were run before, e.g. by `Batch::run`) and `meshes`, and
+    /// returns the image: width x height RGBA8 pixels, rows top to bottom.
     pub fn render(
         &mut self,
         camera: &Camera,
         draws: &[Draw],
+        meshes: &[HostMesh],
         background: [f32; 3],
     ) -> Result<Vec<u8>> {
+        // Host meshes go to host-visible vertex and index buffers, alive until the wait returns.
+        let mut uploaded = Vec::with_capacity(meshes.len());
+        for m in meshes {
+            let v = m.positions.len();
+            if m.normals.len() != v || m.colors.len() != v {
+                let actual = m.normals.len().min(m.colors.len());
+                return Err(Error::WrongLength {
+                    what: "mesh normals and colours",
+                    expected: v,
+                    actual,
+                });
+            }
+            if let Some(i) = m
+                .triangles
+                .as_flattened()
+                .iter()
+                .position(|&x| x as usize >= v)
+            {
+                return Err(Error::OutOfRange {
+                    what: "mesh triangle corner",
+                    index: i,
+                    count: v,
+                });
+            }
+            let mut streams = Vec::with_capacity(4);
+            for (name, data, usage) in [
+                (
+                    "mesh positions",
+                    bytemuck::cast_slice::<[f32; 3], u8>(m.positions),
+                    vk::BufferUsageFlags::VERTEX_BUFFER,
+                ),
+                (
+                    "mesh normals",
+                    bytemuck::cast_slice(m.normals),
+                    vk::BufferUsageFlags::VERTEX_BUFFER,
+                ),
+                (
+                    "mesh colours",
+                    bytemuck::cast_slice(m.colors),
+                    vk::BufferUsageFlags::VERTEX_BUFFER,
+                ),
+                (
+                    "mesh triangles",
+                    bytemuck::cast_slice(m.triangles),
+                    vk::BufferUsageFlags::INDEX_BUFFER,
+                ),
+            ] {
+                let mut b = Buffer::new(
+                    &self.shared,
+                    name,
+                    data.len() as u64,
+                    usage,
+                    MemoryLocation::CpuToGpu,
+                )?;
+                b.mapped()?[..data.len()].copy_from_slice(data);
+                streams.push(b);
+            }
+            uploaded.push(streams);
+        }
         for d in draws {
             if !Arc::ptr_eq(d.crowd.shared(), &self.shared) {
                 return Err(Error::Mismatch {
@@ -557,6 +661,29 @@ impl Renderer {
                     let indices = model.triangle_count * 3;
                     device.cmd_draw_indexed(cmd, indices, 1, 0, 0, 0);
                 }
+                device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.mesh_pipeline);
+                for (m, b) in meshes.iter().zip(&uploaded) {
+                    device.cmd_bind_vertex_buffers(
+                        cmd,
+                        0,
+                        &[b[0].handle, b[1].handle, b[2].handle],
+                        &[0, 0, 0],
+                    );
+                    device.cmd_bind_index_buffer(cmd, b[3].handle, 0, vk::IndexType::UINT32);
+                    let push = Push {
+                        view_proj: camera.view_proj.to_cols_array(),
+                        offset: [m.offset[0], m.offset[1], m.offset[2], 0.0],
+                        color: [1.0; 4],
+                    };
+                    device.cmd_push_constants(
+                        cmd,
+                        self.layout,
+                        vk::ShaderStageFlags::VERTEX,
+                        0,
+                        bytemuck::bytes_of(&push),
+                    );
+                    device.cmd_draw_indexed(cmd, m.triangles.len() as u32 * 3, 1, 0, 0, 0);
+                }
                 device.cmd_end_render_pass(cmd);
                 let region = [vk::BufferImageCopy::default()
                     .image_subresource(
@@ -607,6 +734,7 @@ impl Drop for Renderer {
             d.destroy_fence(self.fence, None);
             d.destroy_command_pool(self.pool, None);
             d.destroy_pipeline(self.pipeline, None);
+            d.destroy_pipeline(self.mesh_pipeline, None);
             d.destroy_pipeline_layout(self.layout, None);
             d.destroy_framebuffer(self.framebuffer, None);
             d.destroy_render_pass(self.render_pass, None);

@@ -9,6 +9,7 @@
 // closer to the equations than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod demo;
 pub mod eval;
 pub mod example_set;
 pub mod full_model;

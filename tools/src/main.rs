@@ -23,6 +23,16 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job on the bundled example: train, print the error table, write the model and
+    /// render a comparison image and a crowd image.
+    Demo {
+        /// Where the model and the images go.
+        #[arg(long, default_value = "demo-out")]
+        out: PathBuf,
+        /// The example set (default: the bundled CesiumMan).
+        #[arg(long)]
+        set: Option<PathBuf>,
+    },
     /// Train every method on the training poses of SET and report the enveloping error.
     Eval {
         #[command(flatten)]
@@ -336,6 +346,24 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     b.rr.total_ms / b.ssd.total_ms
                 );
             }
+        }
+        Command::Demo { out, set } => {
+            let set = set.unwrap_or_else(|| {
+                PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
+            });
+            let start = std::time::Instant::now();
+            let o = rrskin_tools::demo::run(&set, &out, false)?;
+            out!("{}", o.report.table(&set.display().to_string()));
+            out!(
+                "training (all methods, including the cross-validation): {:.1} s",
+                o.report.stages.iter().map(|s| s.1).sum::<f64>()
+            );
+            out!(
+                "held-out pose {}: RMS vertex error SSD {:.4}, rotational regression {:.4} (mesh units)",
+                o.pose, o.rms.0, o.rms.1
+            );
+            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  ({} characters on the runtime)", o.model.display(), o.comparison.display(), 100.0 * rrskin_tools::demo::ERROR_SCALE, o.crowd.display(), rrskin_tools::demo::CROWD);
+            out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
         }
         Command::Info { model, json } => {
             let m = Model::load(&model)?;

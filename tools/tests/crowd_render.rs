@@ -73,7 +73,7 @@ fn a_crowd_of_256_renders_and_moves() {
             .collect();
         frames.push(
             renderer
-                .render(&camera, &draws, BACKGROUND)
+                .render(&camera, &draws, &[], BACKGROUND)
                 .expect("render"),
         );
     }
