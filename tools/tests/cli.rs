@@ -271,11 +271,21 @@ fn the_demo_writes_the_model_and_both_images() {
     let dir = temp_dir("demo");
     let out = rrskin(&["demo", "--out", dir.to_str().expect("utf-8")]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}\n{}", stdout, String::from_utf8_lossy(&out.stderr));
-    assert!(stdout.contains("rotational regression") && stdout.contains("comparison.png"), "{stdout}");
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        stdout,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("rotational regression") && stdout.contains("comparison.png"),
+        "{stdout}"
+    );
     assert!(rrskin::Model::load(dir.join("model.rrs")).is_ok());
     for (name, size) in [("comparison.png", (1200, 600)), ("crowd.png", (1280, 720))] {
-        let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(dir.join(name)).expect(name)));
+        let decoder = png::Decoder::new(std::io::BufReader::new(
+            std::fs::File::open(dir.join(name)).expect(name),
+        ));
         let info = decoder.read_info().expect("a PNG").info().clone();
         assert_eq!((info.width, info.height), size, "{name}");
     }

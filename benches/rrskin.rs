@@ -1,0 +1,71 @@
+//! Criterion benches: per-frame runtime of rotational regression and of its SSD baseline at
+//! C = 1, 16, 256, 1024 characters, and training on the bundled example (benches/README.md).
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
+use rrskin_tools::eval;
+use rrskin_tools::example_set::ExampleSet;
+use std::time::Duration;
+
+fn cesiumman() -> ExampleSet {
+    ExampleSet::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
+        .expect("bundled data")
+}
+
+fn options() -> eval::Options {
+    eval::Options {
+        influences: 4,
+        proxies: 60,
+        epsilon: None,
+        model: None,
+        loocv: false,
+        quiet: true,
+    }
+}
+
+fn runtime(c: &mut Criterion) {
+    let model = eval::run(&cesiumman(), &options())
+        .expect("training")
+        .model
+        .expect("a model");
+    let baseline = model.baseline().expect("an SSD baseline");
+    let ctx = Context::headless(&ContextDesc::default()).expect("a Vulkan device");
+    let mut group = c.benchmark_group("runtime");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(5))
+        .warm_up_time(Duration::from_secs(1));
+    for (name, m) in [("rr", &model), ("ssd", &baseline)] {
+        let frames: Vec<&[rrskin::predict::Affine]> = model.animation().collect();
+        for characters in [1usize, 16, 256, 1024] {
+            let mut crowd =
+                Crowd::new(&GpuModel::new(&ctx, m).expect("upload"), characters).expect("crowd");
+            let mut batch = Batch::new(&ctx).expect("batch");
+            let bones: Vec<rrskin::predict::Affine> = (0..characters)
+                .flat_map(|i| frames[(i * 7) % frames.len()].iter().copied())
+                .collect();
+            group.bench_with_input(BenchmarkId::new(name, characters), &characters, |b, _| {
+                b.iter(|| {
+                    crowd.set_bones(&bones).expect("bones");
+                    batch.run(&[&crowd]).expect("run");
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+fn training(c: &mut Criterion) {
+    let set = cesiumman();
+    let mut group = c.benchmark_group("training");
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(60));
+    group.bench_function("cesiumman", |b| {
+        b.iter(|| eval::run(&set, &options()).expect("training"))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, runtime, training);
+criterion_main!(benches);
