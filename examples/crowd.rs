@@ -8,7 +8,7 @@
 //! regression. Prints the median GPU time of each pass. This version renders offscreen only
 //! (works on lavapipe); the window mode is not built yet.
 
-use rrskin::vk::render::{grid_scene, Draw, Renderer};
+use rrskin::vk::render::{grid_scene, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel, PassTimings};
 use rrskin::Model;
 
@@ -102,26 +102,11 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         batch.run(&[&crowd])?;
         samples.push(batch.timings()?);
         if frame + 1 == args.frames {
-            let draws: Vec<Draw> = (0..args.characters)
-                .map(|c| Draw {
-                    crowd: &crowd,
-                    character: c,
-                    offset: scene.offsets[c],
-                    color: [
-                        0.55 + 0.35 * ((c * 37 % 11) as f32 / 10.0),
-                        0.62,
-                        0.78 - 0.2 * ((c * 13 % 7) as f32 / 6.0),
-                    ],
-                })
-                .collect();
+            let draws = scene.draws(&crowd);
             image = renderer.render(&scene.camera, &draws, &[], [0.09, 0.1, 0.12])?;
         }
     }
-    let median = |f: fn(&PassTimings) -> f64| {
-        let mut v: Vec<f64> = samples.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    let (median, _) = PassTimings::median(&samples).ok_or("no frames")?;
     println!(
         "{}: {} characters x {} vertices ({}), median over {} frames: predictors {:.3} ms, C1/C2 {:.3} ms, skinning {:.3} ms, normals {:.3} ms",
         ctx.device_name(),
@@ -129,10 +114,10 @@ fn run() -> Result<(), Box<dyn std::error::Error>> {
         model.vertex_count(),
         if args.lbs { "linear blend skinning" } else { "rotational regression" },
         args.frames,
-        median(|t| t.predict_ms),
-        median(|t| t.blend_ms),
-        median(|t| t.skin_ms),
-        median(|t| t.normals_ms),
+        median.predict_ms,
+        median.blend_ms,
+        median.skin_ms,
+        median.normals_ms,
     );
     let file = std::fs::File::create(&args.out).map_err(|e| format!("{}: {e}", args.out))?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);

@@ -35,6 +35,22 @@ impl PassTimings {
     pub fn total_ms(&self) -> f64 {
         self.predict_ms + self.blend_ms + self.skin_ms + self.normals_ms
     }
+
+    /// The median of each pass over `samples`, and the median frame total (None if empty).
+    pub fn median(samples: &[PassTimings]) -> Option<(PassTimings, f64)> {
+        let median = |f: fn(&PassTimings) -> f64| {
+            let mut v: Vec<f64> = samples.iter().map(f).collect();
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied()
+        };
+        let passes = PassTimings {
+            predict_ms: median(|t| t.predict_ms)?,
+            blend_ms: median(|t| t.blend_ms)?,
+            skin_ms: median(|t| t.skin_ms)?,
+            normals_ms: median(|t| t.normals_ms)?,
+        };
+        Some((passes, median(PassTimings::total_ms)?))
+    }
 }
 
 /// Owns a timestamp query pool and, for the headless path, a command buffer and its pool.

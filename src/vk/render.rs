@@ -94,6 +94,24 @@ pub fn grid_scene(model: &crate::Model, characters: usize, aspect: f32) -> GridS
     }
 }
 
+impl GridScene {
+    /// Every character of `crowd` (up to the grid's size) at its place, each with its own tint.
+    pub fn draws<'a>(&self, crowd: &'a Crowd) -> Vec<Draw<'a>> {
+        (0..self.offsets.len().min(crowd.character_count()))
+            .map(|c| Draw {
+                crowd,
+                character: c,
+                offset: self.offsets[c],
+                color: [
+                    0.55 + 0.35 * ((c * 37 % 11) as f32 / 10.0),
+                    0.62,
+                    0.78 - 0.2 * ((c * 13 % 7) as f32 / 6.0),
+                ],
+            })
+            .collect()
+    }
+}
+
 /// A mesh from host memory (e.g. a ground truth, or an error map), with a colour per vertex.
 #[derive(Clone, Copy)]
 pub struct HostMesh<'a> {

@@ -7,7 +7,7 @@
 use crate::eval::{self, Report};
 use crate::example_set::ExampleSet;
 use crate::image::write_png;
-use rrskin::vk::render::{grid_scene, Camera, Draw, HostMesh, Renderer};
+use rrskin::vk::render::{grid_scene, Camera, HostMesh, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
 use std::path::{Path, PathBuf};
@@ -182,18 +182,7 @@ fn render_crowd(
     Batch::new(ctx)?.run(&[&crowd])?;
     let (w, h) = (1280, 720);
     let scene = grid_scene(model, CROWD, w as f32 / h as f32);
-    let draws: Vec<Draw> = (0..CROWD)
-        .map(|c| Draw {
-            crowd: &crowd,
-            character: c,
-            offset: scene.offsets[c],
-            color: [
-                0.55 + 0.35 * ((c * 37 % 11) as f32 / 10.0),
-                0.62,
-                0.78 - 0.2 * ((c * 13 % 7) as f32 / 6.0),
-            ],
-        })
-        .collect();
+    let draws = scene.draws(&crowd);
     let image = Renderer::new(ctx, w, h)?.render(&scene.camera, &draws, &[], [0.09, 0.1, 0.12])?;
     write_png(path, w, h, &image)
 }

@@ -94,11 +94,9 @@ pub fn measure(
         progress.set(frame + 1);
     }
     progress.finish();
-    let median = |f: fn(&PassTimings) -> f64| {
-        let mut v: Vec<f64> = samples.iter().map(f).collect();
-        v.sort_by(f64::total_cmp);
-        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-    };
+    let (median, total_ms) = PassTimings::median(&samples).ok_or(rrskin::Error::NotReady {
+        what: "timestamps (no frame measured)",
+    })?;
     Ok(Profile {
         device: ctx.device_name().to_string(),
         characters,
@@ -107,13 +105,8 @@ pub fn measure(
         proxies: model.proxy_count(),
         influences: model.influences(),
         frames,
-        median: PassTimings {
-            predict_ms: median(|t| t.predict_ms),
-            blend_ms: median(|t| t.blend_ms),
-            skin_ms: median(|t| t.skin_ms),
-            normals_ms: median(|t| t.normals_ms),
-        },
-        total_ms: median(PassTimings::total_ms),
+        median,
+        total_ms,
     })
 }
 

@@ -2,7 +2,7 @@
 //! phase (the held-out walk frames), deformed in one command buffer and drawn straight from the
 //! runtime's output buffers, on lavapipe with the validation layer on.
 
-use rrskin::vk::render::{Camera, Draw, Renderer};
+use rrskin::vk::render::{grid_scene, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_tools::eval;
 use rrskin_tools::example_set::ExampleSet;
@@ -37,16 +37,7 @@ fn a_crowd_of_256_renders_and_moves() {
     let mut batch = Batch::new(&ctx).expect("batch");
     let (w, h) = (480, 270);
     let mut renderer = Renderer::new(&ctx, w, h).expect("renderer");
-    let spacing = 1.3f32;
-    let extent = spacing * (SIDE - 1) as f32;
-    let camera = Camera::looking_at(
-        glam::Vec3::new(extent * 0.5, 7.0, extent + 6.0),
-        glam::Vec3::new(extent * 0.5, 0.0, extent * 0.4),
-        0.9,
-        w as f32 / h as f32,
-        0.1,
-        100.0,
-    );
+    let scene = grid_scene(&model, SIDE * SIDE, w as f32 / h as f32);
     let mut frames = Vec::new();
     for frame in [0usize, 3] {
         let bones: Vec<rrskin::predict::Affine> = (0..SIDE * SIDE)
@@ -59,21 +50,10 @@ fn a_crowd_of_256_renders_and_moves() {
             .collect();
         crowd.set_bones(&bones).expect("bones");
         batch.run(&[&crowd]).expect("run");
-        let draws: Vec<Draw> = (0..SIDE * SIDE)
-            .map(|c| Draw {
-                crowd: &crowd,
-                character: c,
-                offset: [
-                    spacing * (c % SIDE) as f32,
-                    0.0,
-                    spacing * (c / SIDE) as f32,
-                ],
-                color: [0.55 + 0.4 * ((c * 37 % 11) as f32 / 10.0), 0.6, 0.75],
-            })
-            .collect();
+        let draws = scene.draws(&crowd);
         frames.push(
             renderer
-                .render(&camera, &draws, &[], BACKGROUND)
+                .render(&scene.camera, &draws, &[], BACKGROUND)
                 .expect("render"),
         );
     }
