@@ -101,31 +101,9 @@ enum Command {
         output: PathBuf,
     },
     /// Rotational regression against plain SSD skinning of the same mesh: GPU time per frame.
-    Bench {
-        model: PathBuf,
-        #[arg(long, default_value_t = 256)]
-        characters: usize,
-        #[arg(long, default_value_t = 20)]
-        frames: usize,
-        /// Use the first Vulkan device whose name contains this text.
-        #[arg(long)]
-        device: Option<String>,
-        #[arg(long)]
-        json: bool,
-    },
+    Bench(RunArgs),
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
-    Profile {
-        model: PathBuf,
-        #[arg(long, default_value_t = 256)]
-        characters: usize,
-        #[arg(long, default_value_t = 20)]
-        frames: usize,
-        /// Use the first Vulkan device whose name contains this text.
-        #[arg(long)]
-        device: Option<String>,
-        #[arg(long)]
-        json: bool,
-    },
+    Profile(RunArgs),
 }
 
 /// Prints to stdout; a closed pipe (`rrskin eval … | head`) ends output quietly, not in a panic.
@@ -147,6 +125,21 @@ fn main() -> ExitCode {
 }
 
 const DEFAULT_PROXIES: usize = 60;
+
+/// A crowd of a model's characters run for some frames on one Vulkan device.
+#[derive(clap::Args)]
+struct RunArgs {
+    model: PathBuf,
+    #[arg(long, default_value_t = 256)]
+    characters: usize,
+    #[arg(long, default_value_t = 20)]
+    frames: usize,
+    /// Use the first Vulkan device whose name contains this text.
+    #[arg(long)]
+    device: Option<String>,
+    #[arg(long)]
+    json: bool,
+}
 
 /// SET: a NumPy example-set folder, or a glTF rig (.glb/.gltf) with a point cache.
 #[derive(clap::Args)]
@@ -326,13 +319,13 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
         }
-        Command::Bench {
+        Command::Bench(RunArgs {
             model,
             characters,
             frames,
             device,
             json,
-        } => {
+        }) => {
             let m = Model::load(&model)?;
             let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
             let b = rrskin_tools::profile::Bench::run(&m, characters, frames, choice, json)?;
@@ -406,13 +399,13 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             m.save(&output)?;
             eprintln!("wrote {} ({} vertices)", output.display(), m.vertex_count());
         }
-        Command::Profile {
+        Command::Profile(RunArgs {
             model,
             characters,
             frames,
             device,
             json,
-        } => {
+        }) => {
             let m = Model::load(&model)?;
             let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
             let p = rrskin_tools::profile::run(&m, characters, frames.max(1), choice, json)?;
