@@ -66,7 +66,6 @@ pub struct Rig {
     /// World matrices of the bones at the default pose, inverted.
     default_inverse: Vec<DMat4>,
     channels: Vec<Channel>,
-    pub clip_duration: f64,
 }
 
 impl Rig {
@@ -294,7 +293,6 @@ impl Rig {
                 )
             })?;
         let mut channels = Vec::new();
-        let mut clip_duration: f64 = 0.0;
         for ch in animation.channels() {
             let reader = ch.reader(get);
             let times: Vec<f64> = reader
@@ -344,7 +342,6 @@ impl Rig {
                     format!("animation '{clip}': key times must be finite and increasing"),
                 ));
             }
-            clip_duration = clip_duration.max(*times.last().unwrap_or(&0.0));
             channels.push(Channel {
                 node: ch.target().node().index(),
                 property: ch.target().property(),
@@ -363,7 +360,6 @@ impl Rig {
             defaults,
             default_inverse,
             channels,
-            clip_duration,
         })
     }
 

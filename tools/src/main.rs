@@ -141,6 +141,17 @@ struct RunArgs {
     json: bool,
 }
 
+impl RunArgs {
+    /// The model, and the device to run it on.
+    fn load(&self) -> Result<(Model, DeviceChoice), Box<dyn std::error::Error>> {
+        let choice = self
+            .device
+            .clone()
+            .map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
+        Ok((Model::load(&self.model)?, choice))
+    }
+}
+
 /// SET: a NumPy example-set folder, or a glTF rig (.glb/.gltf) with a point cache.
 #[derive(clap::Args)]
 struct SetArgs {
@@ -319,15 +330,9 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 );
             }
         }
-        Command::Bench(RunArgs {
-            model,
-            characters,
-            frames,
-            device,
-            json,
-        }) => {
-            let m = Model::load(&model)?;
-            let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
+        Command::Bench(args) => {
+            let (m, choice) = args.load()?;
+            let (characters, frames, json) = (args.characters, args.frames, args.json);
             let b = rrskin_tools::profile::Bench::run(&m, characters, frames, choice, json)?;
             if json {
                 out!("{}", b.to_json());
@@ -399,16 +404,10 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             m.save(&output)?;
             eprintln!("wrote {} ({} vertices)", output.display(), m.vertex_count());
         }
-        Command::Profile(RunArgs {
-            model,
-            characters,
-            frames,
-            device,
-            json,
-        }) => {
-            let m = Model::load(&model)?;
-            let choice = device.map_or(DeviceChoice::Auto, DeviceChoice::NameContains);
-            let p = rrskin_tools::profile::run(&m, characters, frames.max(1), choice, json)?;
+        Command::Profile(args) => {
+            let (m, choice) = args.load()?;
+            let (characters, frames, json) = (args.characters, args.frames, args.json);
+            let p = rrskin_tools::profile::run(&m, characters, frames, choice, json)?;
             if json {
                 out!("{}", p.to_json());
             } else {

@@ -63,11 +63,22 @@ pub fn run(
     device: DeviceChoice,
     quiet: bool,
 ) -> rrskin::Result<Profile> {
-    let ctx = Context::headless(&ContextDesc {
+    measure(
+        &context(device)?,
+        model,
+        characters,
+        frames,
+        "profiling",
+        quiet,
+    )
+}
+
+/// A headless context on the chosen device, without validation (it would distort timings).
+fn context(device: DeviceChoice) -> rrskin::Result<Context> {
+    Context::headless(&ContextDesc {
         device,
         validation: false,
-    })?;
-    measure(&ctx, model, characters, frames, "profiling", quiet)
+    })
 }
 
 /// Runs `frames` frames (after the warm-up) of a crowd of `model` on `ctx`.
@@ -79,12 +90,12 @@ pub fn measure(
     label: &'static str,
     quiet: bool,
 ) -> rrskin::Result<Profile> {
+    let frames = frames.max(1);
     let gpu_model = GpuModel::new(ctx, model)?;
     let mut crowd = Crowd::new(&gpu_model, characters)?;
     let mut batch = Batch::new(ctx)?;
     let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
-    let frames = frames.max(1);
     for frame in 0..WARM_UP_FRAMES + frames {
         crowd.set_bones(&random_poses(model, characters, frame as u64))?;
         batch.run(&[&crowd])?;
@@ -129,10 +140,7 @@ impl Bench {
         let baseline = model.baseline().ok_or(
             "the model has no SSD baseline to compare with (train it with `rrskin train`)",
         )?;
-        let ctx = Context::headless(&ContextDesc {
-            device,
-            validation: false,
-        })?;
+        let ctx = context(device)?;
         let rr = measure(
             &ctx,
             model,
