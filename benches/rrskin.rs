@@ -29,7 +29,7 @@ fn runtime(c: &mut Criterion) {
         .model
         .expect("a model");
     let baseline = model.baseline().expect("an SSD baseline");
-    let ctx = Context::headless(&ContextDesc::default()).expect("a Vulkan device");
+    let ctx = Context::new(&ContextDesc::default()).expect("a Vulkan device");
     let mut group = c.benchmark_group("runtime");
     group
         .sample_size(10)

@@ -339,7 +339,7 @@ pub extern "C" fn rrskin_context_create_headless(
         if out.is_null() {
             return Err(Failure::null("out"));
         }
-        let context = Context::headless(&ContextDesc {
+        let context = Context::new(&ContextDesc {
             validation: validation != 0,
             ..Default::default()
         })?;

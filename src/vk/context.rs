@@ -8,7 +8,7 @@ use super::pipelines::Pipelines;
 use crate::error::{Error, Result};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
-use std::ffi::{c_void, CStr};
+use std::ffi::{c_char, c_void, CStr};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
@@ -25,13 +25,19 @@ pub enum DeviceChoice {
     Index(usize),
 }
 
-/// How to create a headless context.
+/// How to create a context with its own instance and device ([`Context::new`]).
 #[derive(Debug, Clone, Default)]
 pub struct ContextDesc {
     pub device: DeviceChoice,
     /// Enable the Khronos validation layer with synchronization validation, and collect its
     /// warnings and errors (see [`Context::validation_messages`]). Fails if the layer is absent.
     pub validation: bool,
+    /// Extra instance extensions, e.g. a window system's surface extensions for an application
+    /// that presents with the runtime's device (the crowd sample's window).
+    pub instance_extensions: Vec<&'static CStr>,
+    /// Extra device extensions, e.g. `VK_KHR_swapchain`. Devices without all of them are not
+    /// picked.
+    pub device_extensions: Vec<&'static CStr>,
 }
 
 /// An engine's Vulkan objects, borrowed (never destroyed) by [`Context::from_engine`].
@@ -63,7 +69,7 @@ pub struct Context {
 
 pub(crate) struct Shared {
     /// Keeps the Vulkan loader loaded for as long as the device is used.
-    _entry: ash::Entry,
+    entry: ash::Entry,
     pub instance: ash::Instance,
     pub physical_device: vk::PhysicalDevice,
     pub device: ash::Device,
@@ -87,23 +93,28 @@ struct Owned {
 }
 
 impl Context {
-    /// Creates an instance and device of its own (headless: no surface).
-    pub fn headless(desc: &ContextDesc) -> Result<Context> {
+    /// Creates an instance and device of its own (headless unless `desc` asks for surface
+    /// extensions).
+    pub fn new(desc: &ContextDesc) -> Result<Context> {
         // SAFETY: loading the system Vulkan loader; the Entry keeps the library alive.
         let entry = unsafe { ash::Entry::load() }.map_err(|e| Error::Loader {
             message: e.to_string(),
         })?;
         let messages: Box<Mutex<Vec<String>>> = Box::default();
-        let (instance, debug) = create_instance(&entry, desc.validation, &messages)?;
+        let (instance, debug) = create_instance(&entry, desc, &messages)?;
         let owned = Owned { debug, messages };
         let picked = (|| {
-            let physical_device = pick_device(&instance, &desc.device)?;
+            let physical_device = pick_device(&instance, &desc.device, &desc.device_extensions)?;
             let queue_family_index = pick_queue_family(&instance, physical_device)?;
             let priorities = [1.0f32];
             let queue_info = [vk::DeviceQueueCreateInfo::default()
                 .queue_family_index(queue_family_index)
                 .queue_priorities(&priorities)];
-            let device_info = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info);
+            let extensions: Vec<*const c_char> =
+                desc.device_extensions.iter().map(|e| e.as_ptr()).collect();
+            let device_info = vk::DeviceCreateInfo::default()
+                .queue_create_infos(&queue_info)
+                .enabled_extension_names(&extensions);
             // SAFETY: valid physical device and create info.
             let device = unsafe { instance.create_device(physical_device, &device_info, None) }
                 .map_err(Error::vk("vkCreateDevice"))?;
@@ -210,7 +221,7 @@ impl Context {
             allocation_sizes: Default::default(),
         });
         let mut shared = Shared {
-            _entry: entry,
+            entry,
             instance,
             physical_device,
             device,
@@ -250,6 +261,11 @@ impl Context {
         self.shared.limits
     }
 
+    /// The Vulkan entry points the context was loaded with (to create a surface, say).
+    pub fn entry(&self) -> &ash::Entry {
+        &self.shared.entry
+    }
+
     pub fn instance(&self) -> &ash::Instance {
         &self.shared.instance
     }
@@ -264,6 +280,13 @@ impl Context {
 
     pub fn queue_family_index(&self) -> u32 {
         self.shared.queue_family_index
+    }
+
+    /// Runs `f` with the context's queue locked: an application that submits or presents on
+    /// the runtime's own queue does it here, so that it never races the runtime's uploads,
+    /// read-backs and [`super::Batch::run`].
+    pub fn with_queue<R>(&self, f: impl FnOnce(vk::Queue) -> R) -> R {
+        f(*lock(&self.shared.queue))
     }
 
     /// Warnings and errors the validation layer reported so far (headless contexts created with
@@ -386,15 +409,20 @@ type Debug = Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT
 
 fn create_instance(
     entry: &ash::Entry,
-    validation: bool,
+    desc: &ContextDesc,
     messages: &Mutex<Vec<String>>,
 ) -> Result<(ash::Instance, Debug)> {
+    let validation = desc.validation;
     let app = vk::ApplicationInfo::default()
         .application_name(c"rrskin")
         .engine_name(c"rrskin")
         .api_version(vk::API_VERSION_1_2);
     let mut layers = Vec::new();
-    let mut extensions = Vec::new();
+    let mut extensions: Vec<*const c_char> = desc
+        .instance_extensions
+        .iter()
+        .map(|e| e.as_ptr())
+        .collect();
     if validation {
         // SAFETY: plain query.
         let available = unsafe { entry.enumerate_instance_layer_properties() }
@@ -475,14 +503,28 @@ unsafe extern "system" fn on_validation_message(
     vk::FALSE
 }
 
-fn pick_device(instance: &ash::Instance, choice: &DeviceChoice) -> Result<vk::PhysicalDevice> {
+fn pick_device(
+    instance: &ash::Instance,
+    choice: &DeviceChoice,
+    extensions: &[&CStr],
+) -> Result<vk::PhysicalDevice> {
     // SAFETY: valid instance.
     let devices = unsafe { instance.enumerate_physical_devices() }
         .map_err(Error::vk("vkEnumeratePhysicalDevices"))?;
+    let has_extensions = |d: vk::PhysicalDevice| {
+        // SAFETY: valid physical device.
+        let available =
+            unsafe { instance.enumerate_device_extension_properties(d) }.unwrap_or_default();
+        extensions.iter().all(|&wanted| {
+            available
+                .iter()
+                .any(|e| e.extension_name_as_c_str() == Ok(wanted))
+        })
+    };
     let usable: Vec<(usize, vk::PhysicalDevice, vk::PhysicalDeviceProperties)> = devices
         .iter()
         .enumerate()
-        .filter(|(_, &d)| pick_queue_family(instance, d).is_ok())
+        .filter(|(_, &d)| pick_queue_family(instance, d).is_ok() && has_extensions(d))
         // SAFETY: valid physical device.
         .map(|(i, &d)| (i, d, unsafe { instance.get_physical_device_properties(d) }))
         .collect();
@@ -512,7 +554,12 @@ fn pick_device(instance: &ash::Instance, choice: &DeviceChoice) -> Result<vk::Ph
             .collect();
         Error::NoDevice {
             reason: format!(
-                "{choice:?} matches none of the devices with compute [{}]",
+                "{choice:?} matches none of the devices with compute{} [{}]",
+                if extensions.is_empty() {
+                    String::new()
+                } else {
+                    format!(" and {extensions:?}")
+                },
                 names.join(", ")
             ),
         }

@@ -536,79 +536,8 @@ impl Renderer {
         meshes: &[HostMesh],
         background: [f32; 3],
     ) -> Result<Vec<u8>> {
-        // Host meshes go to host-visible vertex and index buffers, alive until the wait returns.
-        let mut uploaded = Vec::with_capacity(meshes.len());
-        for m in meshes {
-            let v = m.positions.len();
-            if m.normals.len() != v || m.colors.len() != v {
-                let actual = m.normals.len().min(m.colors.len());
-                return Err(Error::WrongLength {
-                    what: "mesh normals and colours",
-                    expected: v,
-                    actual,
-                });
-            }
-            if let Some(i) = m
-                .triangles
-                .as_flattened()
-                .iter()
-                .position(|&x| x as usize >= v)
-            {
-                return Err(Error::OutOfRange {
-                    what: "mesh triangle corner",
-                    index: i,
-                    count: v,
-                });
-            }
-            let mut streams = Vec::with_capacity(4);
-            for (name, data, usage) in [
-                (
-                    "mesh positions",
-                    bytemuck::cast_slice::<[f32; 3], u8>(m.positions),
-                    vk::BufferUsageFlags::VERTEX_BUFFER,
-                ),
-                (
-                    "mesh normals",
-                    bytemuck::cast_slice(m.normals),
-                    vk::BufferUsageFlags::VERTEX_BUFFER,
-                ),
-                (
-                    "mesh colours",
-                    bytemuck::cast_slice(m.colors),
-                    vk::BufferUsageFlags::VERTEX_BUFFER,
-                ),
-                (
-                    "mesh triangles",
-                    bytemuck::cast_slice(m.triangles),
-                    vk::BufferUsageFlags::INDEX_BUFFER,
-                ),
-            ] {
-                let mut b = Buffer::new(
-                    &self.shared,
-                    name,
-                    data.len() as u64,
-                    usage,
-                    MemoryLocation::CpuToGpu,
-                )?;
-                b.mapped()?[..data.len()].copy_from_slice(data);
-                streams.push(b);
-            }
-            uploaded.push(streams);
-        }
-        for d in draws {
-            if !Arc::ptr_eq(d.crowd.shared(), &self.shared) {
-                return Err(Error::Mismatch {
-                    what: "a crowd of another context",
-                });
-            }
-            if d.character >= d.crowd.character_count() {
-                return Err(Error::OutOfRange {
-                    what: "character",
-                    index: d.character,
-                    count: d.crowd.character_count(),
-                });
-            }
-        }
+        self.check_draws(draws)?;
+        let uploaded = self.upload_meshes(meshes)?;
         let shared = self.shared.clone();
         let device = &shared.device;
         let info = vk::CommandBufferAllocateInfo::default()
@@ -618,102 +547,27 @@ impl Renderer {
         let cmd = unsafe { device.allocate_command_buffers(&info) }
             .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
         let recorded = (|| -> Result<()> {
-            // SAFETY: cmd is fresh; the handles belong to this device.
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            // SAFETY: cmd is fresh.
+            unsafe { device.begin_command_buffer(cmd, &begin) }
+                .map_err(Error::vk("vkBeginCommandBuffer"))?;
+            self.record_pass(cmd, camera, draws, background, |cmd| {
+                self.record_meshes(cmd, camera, meshes, &uploaded)
+            });
+            let region = [vk::BufferImageCopy::default()
+                .image_subresource(
+                    vk::ImageSubresourceLayers::default()
+                        .aspect_mask(vk::ImageAspectFlags::COLOR)
+                        .layer_count(1),
+                )
+                .image_extent(vk::Extent3D {
+                    width: self.extent.width,
+                    height: self.extent.height,
+                    depth: 1,
+                })];
+            // SAFETY: cmd is recording; the image is in TRANSFER_SRC_OPTIMAL after the pass.
             unsafe {
-                let begin = vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-                device
-                    .begin_command_buffer(cmd, &begin)
-                    .map_err(Error::vk("vkBeginCommandBuffer"))?;
-                let clear = [
-                    vk::ClearValue {
-                        color: vk::ClearColorValue {
-                            float32: [background[0], background[1], background[2], 1.0],
-                        },
-                    },
-                    vk::ClearValue {
-                        depth_stencil: vk::ClearDepthStencilValue {
-                            depth: 1.0,
-                            stencil: 0,
-                        },
-                    },
-                ];
-                let pass = vk::RenderPassBeginInfo::default()
-                    .render_pass(self.render_pass)
-                    .framebuffer(self.framebuffer)
-                    .render_area(vk::Rect2D {
-                        offset: vk::Offset2D::default(),
-                        extent: self.extent,
-                    })
-                    .clear_values(&clear);
-                device.cmd_begin_render_pass(cmd, &pass, vk::SubpassContents::INLINE);
-                device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
-                for d in draws {
-                    let out = d.crowd.output();
-                    let at = out.offset + d.character as u64 * out.character_stride;
-                    device.cmd_bind_vertex_buffers(
-                        cmd,
-                        0,
-                        &[out.positions, out.normals],
-                        &[at, at],
-                    );
-                    let model = &d.crowd.model.inner;
-                    device.cmd_bind_index_buffer(
-                        cmd,
-                        model.triangles.handle,
-                        0,
-                        vk::IndexType::UINT32,
-                    );
-                    let push = Push {
-                        view_proj: camera.view_proj.to_cols_array(),
-                        offset: [d.offset[0], d.offset[1], d.offset[2], 0.0],
-                        color: [d.color[0], d.color[1], d.color[2], 1.0],
-                    };
-                    device.cmd_push_constants(
-                        cmd,
-                        self.layout,
-                        vk::ShaderStageFlags::VERTEX,
-                        0,
-                        bytemuck::bytes_of(&push),
-                    );
-                    let indices = model.triangle_count * 3;
-                    device.cmd_draw_indexed(cmd, indices, 1, 0, 0, 0);
-                }
-                device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.mesh_pipeline);
-                for (m, b) in meshes.iter().zip(&uploaded) {
-                    device.cmd_bind_vertex_buffers(
-                        cmd,
-                        0,
-                        &[b[0].handle, b[1].handle, b[2].handle],
-                        &[0, 0, 0],
-                    );
-                    device.cmd_bind_index_buffer(cmd, b[3].handle, 0, vk::IndexType::UINT32);
-                    let push = Push {
-                        view_proj: camera.view_proj.to_cols_array(),
-                        offset: [m.offset[0], m.offset[1], m.offset[2], 0.0],
-                        color: [1.0; 4],
-                    };
-                    device.cmd_push_constants(
-                        cmd,
-                        self.layout,
-                        vk::ShaderStageFlags::VERTEX,
-                        0,
-                        bytemuck::bytes_of(&push),
-                    );
-                    device.cmd_draw_indexed(cmd, m.triangles.len() as u32 * 3, 1, 0, 0, 0);
-                }
-                device.cmd_end_render_pass(cmd);
-                let region = [vk::BufferImageCopy::default()
-                    .image_subresource(
-                        vk::ImageSubresourceLayers::default()
-                            .aspect_mask(vk::ImageAspectFlags::COLOR)
-                            .layer_count(1),
-                    )
-                    .image_extent(vk::Extent3D {
-                        width: self.extent.width,
-                        height: self.extent.height,
-                        depth: 1,
-                    })];
                 device.cmd_copy_image_to_buffer(
                     cmd,
                     self.color.image,
@@ -741,6 +595,207 @@ impl Renderer {
         recorded?;
         let n = self.extent.width as usize * self.extent.height as usize * 4;
         Ok(self.readback.mapped()?[..n].to_vec())
+    }
+
+    /// Records the drawing of `draws` into the caller's command buffer (a window's frame:
+    /// `Batch::record`, then this, then a copy of [`Renderer::color_image`] to the swapchain).
+    /// `cmd` must be recording, outside a render pass, on the context's queue family, after the
+    /// crowds' passes. When the pass ends the colour image is in `TRANSFER_SRC_OPTIMAL` and its
+    /// writes are visible to transfer reads.
+    pub fn record(
+        &self,
+        cmd: vk::CommandBuffer,
+        camera: &Camera,
+        draws: &[Draw],
+        background: [f32; 3],
+    ) -> Result<()> {
+        self.check_draws(draws)?;
+        self.record_pass(cmd, camera, draws, background, |_| {});
+        Ok(())
+    }
+
+    /// The colour target (`COLOR_FORMAT`, width x height), e.g. to blit to a swapchain image.
+    pub fn color_image(&self) -> vk::Image {
+        self.color.image
+    }
+
+    fn check_draws(&self, draws: &[Draw]) -> Result<()> {
+        for d in draws {
+            if !Arc::ptr_eq(d.crowd.shared(), &self.shared) {
+                return Err(Error::Mismatch {
+                    what: "a crowd of another context",
+                });
+            }
+            if d.character >= d.crowd.character_count() {
+                return Err(Error::OutOfRange {
+                    what: "character",
+                    index: d.character,
+                    count: d.crowd.character_count(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Host meshes go to host-visible vertex and index buffers: positions, normals, colours,
+    /// triangles per mesh. The caller keeps them alive until the submission completes.
+    fn upload_meshes(&self, meshes: &[HostMesh]) -> Result<Vec<[Buffer; 4]>> {
+        let mut uploaded = Vec::with_capacity(meshes.len());
+        for m in meshes {
+            let v = m.positions.len();
+            if m.normals.len() != v || m.colors.len() != v {
+                let actual = m.normals.len().min(m.colors.len());
+                return Err(Error::WrongLength {
+                    what: "mesh normals and colours",
+                    expected: v,
+                    actual,
+                });
+            }
+            if let Some(i) = m
+                .triangles
+                .as_flattened()
+                .iter()
+                .position(|&x| x as usize >= v)
+            {
+                return Err(Error::OutOfRange {
+                    what: "mesh triangle corner",
+                    index: i,
+                    count: v,
+                });
+            }
+            let streams: [(&'static str, &[u8], vk::BufferUsageFlags); 4] = [
+                (
+                    "mesh positions",
+                    bytemuck::cast_slice(m.positions),
+                    vk::BufferUsageFlags::VERTEX_BUFFER,
+                ),
+                (
+                    "mesh normals",
+                    bytemuck::cast_slice(m.normals),
+                    vk::BufferUsageFlags::VERTEX_BUFFER,
+                ),
+                (
+                    "mesh colours",
+                    bytemuck::cast_slice(m.colors),
+                    vk::BufferUsageFlags::VERTEX_BUFFER,
+                ),
+                (
+                    "mesh triangles",
+                    bytemuck::cast_slice(m.triangles),
+                    vk::BufferUsageFlags::INDEX_BUFFER,
+                ),
+            ];
+            let upload = |(name, data, usage): (&'static str, &[u8], vk::BufferUsageFlags)| {
+                let mut b = Buffer::new(
+                    &self.shared,
+                    name,
+                    data.len() as u64,
+                    usage,
+                    MemoryLocation::CpuToGpu,
+                )?;
+                b.mapped()?[..data.len()].copy_from_slice(data);
+                Ok(b)
+            };
+            let [p, n, c, t] = streams;
+            uploaded.push([upload(p)?, upload(n)?, upload(c)?, upload(t)?]);
+        }
+        Ok(uploaded)
+    }
+
+    /// The render pass: clear, the crowd characters, then whatever `extra` records.
+    fn record_pass(
+        &self,
+        cmd: vk::CommandBuffer,
+        camera: &Camera,
+        draws: &[Draw],
+        background: [f32; 3],
+        extra: impl FnOnce(vk::CommandBuffer),
+    ) {
+        let device = &self.shared.device;
+        let clear = [
+            vk::ClearValue {
+                color: vk::ClearColorValue {
+                    float32: [background[0], background[1], background[2], 1.0],
+                },
+            },
+            vk::ClearValue {
+                depth_stencil: vk::ClearDepthStencilValue {
+                    depth: 1.0,
+                    stencil: 0,
+                },
+            },
+        ];
+        let pass = vk::RenderPassBeginInfo::default()
+            .render_pass(self.render_pass)
+            .framebuffer(self.framebuffer)
+            .render_area(vk::Rect2D {
+                offset: vk::Offset2D::default(),
+                extent: self.extent,
+            })
+            .clear_values(&clear);
+        // SAFETY: cmd is recording outside a render pass (callers' contract); the draws were
+        // checked against this context and live as long as the caller's borrow.
+        unsafe {
+            device.cmd_begin_render_pass(cmd, &pass, vk::SubpassContents::INLINE);
+            device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
+            for d in draws {
+                let out = d.crowd.output();
+                let at = out.offset + d.character as u64 * out.character_stride;
+                device.cmd_bind_vertex_buffers(cmd, 0, &[out.positions, out.normals], &[at, at]);
+                let model = &d.crowd.model.inner;
+                device.cmd_bind_index_buffer(cmd, model.triangles.handle, 0, vk::IndexType::UINT32);
+                self.push(cmd, camera, d.offset, d.color);
+                device.cmd_draw_indexed(cmd, model.triangle_count * 3, 1, 0, 0, 0);
+            }
+            extra(cmd);
+            device.cmd_end_render_pass(cmd);
+        }
+    }
+
+    fn record_meshes(
+        &self,
+        cmd: vk::CommandBuffer,
+        camera: &Camera,
+        meshes: &[HostMesh],
+        uploaded: &[[Buffer; 4]],
+    ) {
+        let device = &self.shared.device;
+        // SAFETY: inside the render pass of `record_pass`; the buffers outlive the submission.
+        unsafe {
+            device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.mesh_pipeline);
+            for (m, [p, n, c, t]) in meshes.iter().zip(uploaded) {
+                device.cmd_bind_vertex_buffers(cmd, 0, &[p.handle, n.handle, c.handle], &[0; 3]);
+                device.cmd_bind_index_buffer(cmd, t.handle, 0, vk::IndexType::UINT32);
+                self.push(cmd, camera, m.offset, [1.0; 3]);
+                device.cmd_draw_indexed(cmd, m.triangles.len() as u32 * 3, 1, 0, 0, 0);
+            }
+        }
+    }
+
+    /// # Safety
+    /// `cmd` is recording with one of this renderer's pipelines bound.
+    unsafe fn push(
+        &self,
+        cmd: vk::CommandBuffer,
+        camera: &Camera,
+        offset: [f32; 3],
+        color: [f32; 3],
+    ) {
+        let push = Push {
+            view_proj: camera.view_proj.to_cols_array(),
+            offset: [offset[0], offset[1], offset[2], 0.0],
+            color: [color[0], color[1], color[2], 1.0],
+        };
+        // SAFETY: see the function's contract.
+        unsafe {
+            self.shared.device.cmd_push_constants(
+                cmd,
+                self.layout,
+                vk::ShaderStageFlags::VERTEX,
+                0,
+                bytemuck::bytes_of(&push),
+            )
+        };
     }
 }
 

@@ -12,7 +12,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Model {
 
 /// A headless context on the default device with validation + synchronization validation.
 pub fn validated_context() -> Context {
-    Context::headless(&ContextDesc {
+    Context::new(&ContextDesc {
         validation: true,
         ..Default::default()
     })

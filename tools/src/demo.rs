@@ -42,7 +42,7 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
     let model_path = out.join("model.rrs");
     model.save(&model_path)?;
 
-    let ctx = Context::headless(&ContextDesc::default())?;
+    let ctx = Context::new(&ContextDesc::default())?;
     let baseline = model
         .baseline()
         .ok_or("the trained model has no SSD baseline")?;

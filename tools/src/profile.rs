@@ -75,9 +75,9 @@ pub fn run(
 
 /// A headless context on the chosen device, without validation (it would distort timings).
 fn context(device: DeviceChoice) -> rrskin::Result<Context> {
-    Context::headless(&ContextDesc {
+    Context::new(&ContextDesc {
         device,
-        validation: false,
+        ..Default::default()
     })
 }
 

@@ -27,7 +27,7 @@ fn a_crowd_of_256_renders_and_moves() {
         .model
         .expect("a runtime model");
     let walk = set.test();
-    let ctx = Context::headless(&ContextDesc {
+    let ctx = Context::new(&ContextDesc {
         validation: true,
         ..Default::default()
     })

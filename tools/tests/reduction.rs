@@ -128,7 +128,7 @@ fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
         );
     }
 
-    let ctx = Context::headless(&ContextDesc {
+    let ctx = Context::new(&ContextDesc {
         validation: true,
         ..Default::default()
     })
