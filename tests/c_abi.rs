@@ -3,6 +3,8 @@
 //! the static library, runs on lavapipe with the validation layer on, checks positions against
 //! the Rust CPU evaluator, and checks the bad-input behaviour of the ABI.
 
+mod common;
+
 use rrskin::cpu::CpuEvaluator;
 use rrskin::synthetic::{random_model, random_poses, Spec};
 use std::path::{Path, PathBuf};
@@ -44,34 +46,9 @@ fn write_floats(path: &Path, floats: &[f32]) {
 }
 
 /// This build's librrskin.a. `cargo test` builds the library only as an rlib, so build the
-/// static library into the same target directory and profile first (quick: the dependencies
-/// are already built).
+/// static library too (quick: the dependencies are already built).
 fn static_library() -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable path");
-    let profile_dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps")
-        .to_path_buf();
-    let target_dir = profile_dir
-        .parent()
-        .expect("target/<profile>")
-        .to_path_buf();
-    let mut cargo = Command::new(env!("CARGO"));
-    cargo
-        .args(["build", "--lib", "-p", "rrskin", "--target-dir"])
-        .arg(&target_dir)
-        .current_dir(root());
-    if profile_dir.file_name().is_some_and(|n| n == "release") {
-        cargo.arg("--release");
-    }
-    let out = cargo.output().expect("run cargo");
-    assert!(
-        out.status.success(),
-        "cargo build --lib failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lib = profile_dir.join("librrskin.a");
+    let lib = common::cargo_build(&["--lib"]).join("librrskin.a");
     assert!(lib.exists(), "{} was not built", lib.display());
     lib
 }

@@ -5,6 +5,8 @@ use glam::DVec3;
 pub use rrskin::synthetic::{random_poses, Spec};
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 pub fn random_model(spec: Spec, seed: u64) -> Model {
     rrskin::synthetic::random_model(spec, seed).expect("the generator makes valid models")
@@ -103,4 +105,34 @@ fn dist(a: &[f32; 3], b: &[f32; 3]) -> f32 {
 
 fn norm(a: &[f32; 3]) -> f32 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// Builds `what` of the root package (e.g. `--lib`, `--example crowd`) into this test's target
+/// directory and profile, which `cargo test` alone may not have built (the static library, or
+/// examples when only one test runs), and returns `target/<profile>`. Quick: the dependencies
+/// are built already.
+pub fn cargo_build(what: &[&str]) -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    let profile_dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps")
+        .to_path_buf();
+    let target_dir = profile_dir.parent().expect("target/<profile>");
+    let mut cargo = Command::new(env!("CARGO"));
+    cargo
+        .args(["build", "-p", "rrskin", "--target-dir"])
+        .arg(target_dir)
+        .args(what)
+        .current_dir(env!("CARGO_MANIFEST_DIR"));
+    if profile_dir.file_name().is_some_and(|n| n == "release") {
+        cargo.arg("--release");
+    }
+    let out = cargo.output().expect("run cargo");
+    assert!(
+        out.status.success(),
+        "cargo build {what:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    profile_dir
 }
