@@ -5,8 +5,8 @@
 
 mod common;
 
+use common::{random_model, random_poses, Spec};
 use rrskin::cpu::CpuEvaluator;
-use rrskin::synthetic::{random_model, random_poses, Spec};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -66,8 +66,7 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
             influences: 8,
         },
         5,
-    )
-    .expect("model");
+    );
     model.save(dir.join("model.rrs")).expect("save model");
     let (mut poses, mut expected) = (Vec::new(), Vec::new());
     let v = model.vertex_count();
@@ -144,8 +143,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
             influences: 4,
         },
         9,
-    )
-    .expect("model");
+    );
     let bytes = model.to_bytes();
     let characters = 5u32;
     let poses = random_poses(&model, characters as usize, 3);
