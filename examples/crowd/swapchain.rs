@@ -249,24 +249,33 @@ impl Presenter {
         // SAFETY: cmd is recording; the image is the acquired one; `picture` is in
         // TRANSFER_SRC_OPTIMAL (the caller's contract).
         unsafe {
+            let transfer = vk::PipelineStageFlags::TRANSFER;
+            let layout = |from, to, (src_stage, src_access), (dst_stage, dst_access)| {
+                let barrier = vk::ImageMemoryBarrier::default()
+                    .src_access_mask(src_access)
+                    .dst_access_mask(dst_access)
+                    .old_layout(from)
+                    .new_layout(to)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(image)
+                    .subresource_range(color);
+                device.cmd_pipeline_barrier(
+                    cmd,
+                    src_stage,
+                    dst_stage,
+                    vk::DependencyFlags::empty(),
+                    &[],
+                    &[],
+                    &[barrier],
+                );
+            };
             // The acquire semaphore is waited at TRANSFER: chain the layout change to it.
-            let to_dst = vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::empty())
-                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .old_layout(vk::ImageLayout::UNDEFINED)
-                .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(color);
-            device.cmd_pipeline_barrier(
-                cmd,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::DependencyFlags::empty(),
-                &[],
-                &[],
-                &[to_dst],
+            layout(
+                vk::ImageLayout::UNDEFINED,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                (transfer, vk::AccessFlags::empty()),
+                (transfer, vk::AccessFlags::TRANSFER_WRITE),
             );
             let blit = vk::ImageBlit::default()
                 .src_subresource(layers)
@@ -283,23 +292,14 @@ impl Presenter {
                 vk::Filter::LINEAR,
             );
             // Presentation waits on the semaphore signalled after this; no access of its own.
-            let to_present = vk::ImageMemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::empty())
-                .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                .new_layout(vk::ImageLayout::PRESENT_SRC_KHR)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(color);
-            device.cmd_pipeline_barrier(
-                cmd,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::BOTTOM_OF_PIPE,
-                vk::DependencyFlags::empty(),
-                &[],
-                &[],
-                &[to_present],
+            layout(
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::ImageLayout::PRESENT_SRC_KHR,
+                (transfer, vk::AccessFlags::TRANSFER_WRITE),
+                (
+                    vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                    vk::AccessFlags::empty(),
+                ),
             );
             device.end_command_buffer(cmd)?;
         }

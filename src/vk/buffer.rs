@@ -206,3 +206,22 @@ pub(crate) unsafe fn memory_barrier(
         )
     };
 }
+
+/// Copies (transfer writes) before the host reads them after the fence: the read-back barrier.
+///
+/// # Safety
+/// `cmd` must be recording.
+pub(crate) unsafe fn transfer_to_host_barrier(device: &ash::Device, cmd: vk::CommandBuffer) {
+    // SAFETY: see the function's contract.
+    unsafe {
+        memory_barrier(
+            device,
+            cmd,
+            (
+                vk::PipelineStageFlags::TRANSFER,
+                vk::AccessFlags::TRANSFER_WRITE,
+            ),
+            (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
+        )
+    };
+}

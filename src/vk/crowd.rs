@@ -8,7 +8,7 @@
 //! `minStorageBufferOffsetAlignment`, and the passes dispatch once per chunk.
 
 use super::blend_gemm;
-use super::buffer::{memory_barrier, Buffer};
+use super::buffer::{memory_barrier, transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
 use super::normals;
@@ -308,15 +308,7 @@ impl Crowd {
                     }];
                     device.cmd_copy_buffer(cmd, src.handle, staging.handle, &region);
                 }
-                memory_barrier(
-                    device,
-                    cmd,
-                    (
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::AccessFlags::TRANSFER_WRITE,
-                    ),
-                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
-                );
+                transfer_to_host_barrier(device, cmd);
             }
             Ok(())
         })?;

@@ -7,7 +7,7 @@
 //! the render pass's external dependencies order this frame's attachment writes after the last
 //! frame's read-back and the read-back after the writes.
 
-use super::buffer::{memory_barrier, Buffer};
+use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::{Context, Shared};
 use super::crowd::Crowd;
 use crate::error::{Error, Result};
@@ -575,15 +575,7 @@ impl Renderer {
                     self.readback.handle,
                     &region,
                 );
-                memory_barrier(
-                    device,
-                    cmd,
-                    (
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::AccessFlags::TRANSFER_WRITE,
-                    ),
-                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
-                );
+                transfer_to_host_barrier(device, cmd);
                 device
                     .end_command_buffer(cmd)
                     .map_err(Error::vk("vkEndCommandBuffer"))?;
