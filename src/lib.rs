@@ -20,7 +20,9 @@
 //!
 //! **The caller's duties** (Vulkan makes them impossible to check cheaply):
 //! - With an engine's device ([`vk::Context::from_engine`]), the engine's objects must outlive
-//!   the context, and the queue must be externally synchronised as Vulkan requires.
+//!   the context, and the queue must be externally synchronised as Vulkan requires. With the
+//!   runtime's own device ([`vk::Context::new`], which can enable surface and swapchain
+//!   extensions), submit and present inside [`vk::Context::with_queue`].
 //! - A crowd's bone transforms live in host-visible memory read by the recorded commands: call
 //!   [`vk::Crowd::set_bones`] only when no submitted command buffer that reads the crowd is still
 //!   executing (the headless path, [`vk::Batch::run`], waits itself).
