@@ -43,7 +43,14 @@ pub fn run(args: &Args, model: &Model) -> Result<(), Error> {
     };
     event_loop.run_app(&mut app)?;
     if let Some(shown) = &app.shown {
-        println!("presented {} frames", shown.presented);
+        let seconds = shown.opened.elapsed().as_secs_f64();
+        println!(
+            "presented {} frames in {seconds:.1} s ({:.1} frames/s, window {}x{})",
+            shown.presented,
+            shown.presented as f64 / seconds,
+            shown.presenter.extent.width,
+            shown.presenter.extent.height
+        );
     }
     match app.error.take() {
         Some(e) => Err(e),
@@ -69,6 +76,7 @@ struct Shown {
     presented: usize,
     clock: Clock,
     title_at: Instant,
+    opened: Instant,
     window: Window,
 }
 
@@ -123,6 +131,7 @@ impl App {
                 paused_at: None,
             },
             title_at: Instant::now(),
+            opened: Instant::now(),
             window,
         };
         self.fit(&mut shown)?;
