@@ -8,13 +8,11 @@
 mod common;
 
 use common::{random_model, random_poses, Spec};
+use rrskin::vk::render::CROWD_BACKGROUND;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-/// The sample's clear colour (examples/crowd/main.rs), 8-bit.
-const BACKGROUND: [u8; 3] = [23, 26, 31];
 
 /// A synthetic model with an animation (random poses) and a baseline (its skinning, folded onto
 /// the bones), so
@@ -114,10 +112,11 @@ impl Drop for Xvfb {
 
 /// Pixels that are neither the black root window nor the sample's clear colour.
 fn character_pixels(screen: &[[u8; 3]]) -> usize {
+    let background = CROWD_BACKGROUND.map(|x| (x * 255.0).round() as u8);
     let near = |p: &[u8; 3], q: [u8; 3]| (0..3).all(|i| p[i].abs_diff(q[i]) <= 6);
     screen
         .iter()
-        .filter(|p| !near(p, [0; 3]) && !near(p, BACKGROUND))
+        .filter(|p| !near(p, [0; 3]) && !near(p, background))
         .count()
 }
 

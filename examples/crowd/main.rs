@@ -16,13 +16,11 @@
 mod swapchain;
 mod window;
 
-use rrskin::predict::Affine;
+use rrskin::vk::render::{phased_poses, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel, PassTimings};
 use rrskin::Model;
 
 type Error = Box<dyn std::error::Error>;
-
-const BACKGROUND: [f32; 3] = [0.09, 0.1, 0.12];
 
 pub struct Args {
     model: String,
@@ -103,7 +101,7 @@ fn run(args: Args) -> Result<(), Error> {
 }
 
 /// The crowd of each method (rotational regression, and the model's SSD baseline as plain
-/// linear blend skinning when it carries one) on one context, the animation they play, and the
+/// linear blend skinning when it carries one, with the same animation) on one context, and the
 /// GPU timings of every frame.
 pub struct Show {
     pub ctx: Context,
@@ -111,7 +109,6 @@ pub struct Show {
     pub methods: Vec<Method>,
     /// Index into `methods` of the one shown.
     pub current: usize,
-    animation: Vec<Vec<Affine>>,
     characters: usize,
     validate: bool,
 }
@@ -146,7 +143,6 @@ impl Show {
             ctx,
             current: usize::from(args.lbs),
             methods,
-            animation: model.animation().map(<[Affine]>::to_vec).collect(),
             characters: args.characters,
             validate: args.validate,
         })
@@ -161,13 +157,11 @@ impl Show {
         self.current = (self.current + 1) % self.methods.len();
     }
 
-    /// Poses the shown crowd at animation frame `frame`: character c plays it 7c frames ahead.
+    /// Poses the shown crowd at animation frame `frame` (`phased_poses`: neighbours out of step).
     pub fn pose(&mut self, frame: usize) -> rrskin::Result<()> {
-        let n = self.animation.len();
-        let bones: Vec<Affine> = (0..self.characters)
-            .flat_map(|c| self.animation[(frame + c * 7) % n].iter().copied())
-            .collect();
-        self.methods[self.current].crowd.set_bones(&bones)
+        let m = &mut self.methods[self.current];
+        m.crowd
+            .set_bones(&phased_poses(&m.model, self.characters, frame))
     }
 
     /// After the frame that ran the shown crowd has completed: keep its pass timings.
@@ -229,7 +223,7 @@ fn headless(args: &Args, model: &Model) -> Result<(), Error> {
         show.sample()?;
         if frame + 1 == frames {
             let draws = scene.draws(&show.shown().crowd);
-            image = renderer.render(&scene.camera, &draws, &[], BACKGROUND)?;
+            image = renderer.render(&scene.camera, &draws, &[], CROWD_BACKGROUND)?;
         }
     }
     show.finish()?;

@@ -7,7 +7,7 @@ use crate::swapchain::{Frame, Presenter};
 use crate::{Args, Error, Show};
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use rrskin::vk::ash::{self, vk};
-use rrskin::vk::render::{grid_scene, GridScene, Renderer};
+use rrskin::vk::render::{grid_scene, GridScene, Renderer, CROWD_BACKGROUND};
 use rrskin::vk::{Context, ContextDesc, PassTimings};
 use rrskin::Model;
 use std::time::{Duration, Instant};
@@ -175,7 +175,7 @@ impl App {
             },
             |cmd| {
                 batch.record(cmd, &[crowd])?;
-                renderer.record(cmd, camera, &draws, crate::BACKGROUND)?;
+                renderer.record(cmd, camera, &draws, CROWD_BACKGROUND)?;
                 Ok(())
             },
         )?;

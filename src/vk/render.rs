@@ -61,6 +61,26 @@ impl Camera {
     }
 }
 
+/// The clear colour of the crowd images (the crowd sample, the demo).
+pub const CROWD_BACKGROUND: [f32; 3] = [0.09, 0.1, 0.12];
+
+/// The bone transforms (C x J) of `characters` playing `model`'s animation at its frame `frame`,
+/// character c 7c frames ahead, so that neighbours are out of step. Empty if the model carries
+/// no animation.
+pub fn phased_poses(
+    model: &crate::Model,
+    characters: usize,
+    frame: usize,
+) -> Vec<crate::predict::Affine> {
+    let frames: Vec<&[crate::predict::Affine]> = model.animation().collect();
+    if frames.is_empty() {
+        return Vec::new();
+    }
+    (0..characters)
+        .flat_map(|c| frames[(frame + 7 * c) % frames.len()].iter().copied())
+        .collect()
+}
+
 /// A crowd laid out in a square grid, framed by a camera: where each character stands.
 pub struct GridScene {
     pub camera: Camera,

@@ -7,7 +7,7 @@
 use crate::eval::{self, Report};
 use crate::example_set::ExampleSet;
 use crate::image::write_png;
-use rrskin::vk::render::{grid_scene, Camera, HostMesh, Renderer};
+use rrskin::vk::render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
 use std::path::{Path, PathBuf};
@@ -170,20 +170,16 @@ fn render_crowd(
     model: &Model,
     path: &Path,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    let frames: Vec<&[rrskin::predict::Affine]> = model.animation().collect();
-    if frames.is_empty() {
+    if model.animation().next().is_none() {
         return Err("the trained model carries no animation".into());
     }
     let mut crowd = Crowd::new(&GpuModel::new(ctx, model)?, CROWD)?;
-    let bones: Vec<rrskin::predict::Affine> = (0..CROWD)
-        .flat_map(|c| frames[(c * 7) % frames.len()].iter().copied())
-        .collect();
-    crowd.set_bones(&bones)?;
+    crowd.set_bones(&phased_poses(model, CROWD, 0))?;
     Batch::new(ctx)?.run(&[&crowd])?;
     let (w, h) = (1280, 720);
     let scene = grid_scene(model, CROWD, w as f32 / h as f32);
     let draws = scene.draws(&crowd);
-    let image = Renderer::new(ctx, w, h)?.render(&scene.camera, &draws, &[], [0.09, 0.1, 0.12])?;
+    let image = Renderer::new(ctx, w, h)?.render(&scene.camera, &draws, &[], CROWD_BACKGROUND)?;
     write_png(path, w, h, &image)
 }
 
