@@ -426,16 +426,41 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
     let rigid_e = errors(&|p| ee(p, &deform_all(set, &rigid, p)));
     let ssd_e = errors(&|p| ee(p, &deform_all(set, &ssd, p)));
     let mut rr_e = errors(&|p| ee(p, &model.predict(set, &prep, &ssd, p)));
+    if std::env::var("RRSKIN_EXP_DIAG").is_ok() {
+        let exact = |p: &[usize]| ee(p, &model.reconstruct(set, &ssd, p, |i, k| { let (r, s) = prep.polar[i][k]; r * s }));
+        eprintln!("diag full exact gradients: train {:.1} test {:.1}", exact(&train), exact(&test));
+        let exact_rot = |p: &[usize]| ee(p, &model.reconstruct(set, &ssd, p, |i, k| {
+            let (r, _) = prep.polar[i][k];
+            let x = match &model.rotations.0[k] { Some(rp) => crate::scale_shear::features(&prep.feats[i], &set.parents, rp.first.bone), None => [0.0; 7] };
+            r * crate::scale_shear::predict(&model.stretches[k], &x) }));
+        eprintln!("diag full exact rotations, predicted S: train {:.1} test {:.1}", exact_rot(&train), exact_rot(&test));
+    }
     lap("evaluation", &mut stages);
 
     let reduce_start = Instant::now();
     let trained = match (&options.model, options.proxies) {
         (Some(_), _) | (None, 0) => None,
-        (None, p) => Some(
+        (None, p) => Some({
+            let aug = std::env::var("RRSKIN_EXP_AUG").ok().map(|v| {
+                let scales: Vec<f64> = v.split(',').filter_map(|x| x.parse().ok()).collect();
+                let a = crate::augment::augment(set, &prep, &model, &ssd, &scales);
+                let ap = Prepared::new(&a);
+                (a, ap)
+            });
+            if let Some((a, _)) = &aug {
+                let order = crate::augment::topological_order(&set.parents);
+                let piv = crate::augment::pivots(set, &train);
+                let worst = train.iter().map(|&i| {
+                    let b = crate::augment::scaled_pose(set, &order, &piv, &set.poses[i].bones, 1.0);
+                    b.iter().zip(&set.poses[i].bones).map(|(x, y)| (x.d - y.d).length() + (x.q - y.q).abs().to_cols_array().iter().sum::<f64>()).fold(0.0, f64::max)
+                }).fold(0.0, f64::max);
+                eprintln!("aug: {} poses, s=1 reproduction error {worst:e}", a.poses.len());
+            }
+            let (rs, rp, rt) = match &aug { Some((a, ap)) => (a, ap, a.train()), None => (set, &prep, train.clone()) };
             reduce(
-                set,
-                &prep,
-                &train,
+                rs,
+                rp,
+                &rt,
                 &ssd,
                 &model.fixed,
                 &model.alpha,
@@ -446,8 +471,8 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report, Box<dyn std::e
                 k,
                 choice.ridge,
             )
-            .to_runtime(set, k)?,
-        ),
+            .to_runtime(set, k)?
+        }),
     };
     let runtime = options.model.as_ref().or(trained.as_ref());
     let rr_reduced = match runtime {
@@ -529,7 +554,10 @@ pub fn reduce(
     ridge: f64,
 ) -> crate::reduced::Reduced {
     let groups = crate::vertex_reduction::reduce(set, train, fixed, stop, influences);
-    let keys = crate::predictor_reduction::reduce(set, prep, train, &groups);
+    let mut keys = crate::predictor_reduction::reduce(set, prep, train, &groups);
+    if std::env::var("RRSKIN_EXP_KEYS").is_ok() {
+        keys.d = groups.transforms.iter().map(|ts| ts.iter().map(|t| t.m).collect()).collect();
+    }
     let nearby = full_model::nearby_bones(set, ssd);
     let mut key_bones = vec![Vec::<usize>::new(); groups.count()];
     for (k, &g) in groups.triangle_group.iter().enumerate() {
@@ -541,7 +569,40 @@ pub fn reduce(
     }
     let predictors =
         crate::predictor_reduction::train_predictors(set, prep, train, &keys, &key_bones, ridge);
-    crate::reduced::assemble(set, ssd, fixed, blend, &groups, &keys, predictors)
+    let mut reduced = crate::reduced::assemble(set, ssd, fixed, blend, &groups, &keys, predictors);
+    if let Ok(r) = std::env::var("RRSKIN_EXP_LOCAL") {
+        crate::runtime_fit::local(set, train, &mut reduced, &key_bones, r.parse().unwrap_or(1e-6));
+    }
+    if std::env::var("RRSKIN_EXP_DIAG").is_ok() {
+        let rigid = Skinning::rigid(&ssd::rigid_bones(&ssd::rigid_errors(set, train)));
+        let test = set.test();
+        let ee = |poses: &[usize], pred: &[Vec<DVec3>]| enveloping_error(set, poses, pred, &rigid);
+        let o_tr = crate::runtime_fit::oracle_meshes(set, &reduced, train);
+        let o_te = crate::runtime_fit::oracle_meshes(set, &reduced, &test);
+        eprintln!("diag oracle proxies: train {:.1} test {:.1}", ee(train, &o_tr), ee(&test, &o_te));
+        let r_tr: Vec<_> = train.iter().map(|&i| reduced.predict(set, &prep.feats[i], &set.poses[i].bones)).collect();
+        let r_te: Vec<_> = test.iter().map(|&i| reduced.predict(set, &prep.feats[i], &set.poses[i].bones)).collect();
+        eprintln!("diag reduced f64: train {:.1} test {:.1}", ee(train, &r_tr), ee(&test, &r_te));
+        let ok = |poses: &[usize]| -> f64 {
+            let or = crate::runtime_fit::oracle(set, &reduced, poses);
+            let m: Vec<_> = poses.iter().zip(&or).map(|(&i, (_, d))| { let d: Vec<_> = d.iter().map(crate::runtime_fit::m3).collect(); reduced.predict_with_keys(set, &d, &set.poses[i].bones) }).collect();
+            ee(poses, &m)
+        };
+        eprintln!("diag reduced with oracle keys: train {:.1} test {:.1}", ok(train), ok(&test));
+    }
+    if std::env::var("RRSKIN_EXP_E2E").is_ok() {
+        let mask = std::env::var("RRSKIN_EXP_MASK").ok().map(|_| {
+            let (p, j) = (groups.count(), set.bone_count());
+            faer::Mat::<f64>::from_fn(4 * p, 3 * p + 4 * j, |r, c| {
+                let e = r / 4;
+                let ok = if c < 3 * p { let l = c / 3; l == e || groups.adjacency[e].contains(&l) } else { std::env::var("RRSKIN_EXP_C1ONLY").is_err() && key_bones[e].contains(&((c - 3 * p) / 4)) };
+                f64::from(u8::from(ok))
+            })
+        });
+        let choice = crate::runtime_fit::refine(set, prep, train, FOLDS, &mut reduced, mask.as_ref());
+        eprintln!("e2e: {choice:?}");
+    }
+    reduced
 }
 
 /// EE of a runtime model evaluated by the runtime's CPU evaluator.

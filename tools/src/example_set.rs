@@ -53,6 +53,10 @@ pub struct ExampleSet {
     /// N flags: true for a held-out test pose (split.npy = 1).
     pub is_test: Vec<bool>,
     pub bone_names: Option<Vec<String>>,
+    /// The rig's own skinning weights, if the set carries them (`skin_weights.npy`, the skin of
+    /// a glTF rig): per vertex (bone, weight) with weight > 0, summing to one. A baseline (what
+    /// an engine skins with today), never an input of training.
+    pub rig_weights: Option<Vec<Vec<(usize, f64)>>>,
     pub warnings: Vec<String>,
 }
 
@@ -295,6 +299,12 @@ impl ExampleSet {
             None
         };
 
+        let weights_path = f("skin_weights.npy");
+        let rig_weights = match weights_path.exists() {
+            true => Some(read_rig_weights(&weights_path, v, j)?),
+            false => None,
+        };
+
         let mut poses = Vec::with_capacity(n);
         for i in 0..n {
             let mut bones = Vec::with_capacity(j);
@@ -344,6 +354,7 @@ impl ExampleSet {
             poses,
             is_test,
             bone_names,
+            rig_weights,
             warnings: Vec::new(),
         };
         set.warnings = set.mesh_warnings(&faces_path);
@@ -473,6 +484,29 @@ pub fn rotation_error(q: DMat3) -> f64 {
     let g = q.transpose() * q - DMat3::IDENTITY;
     let worst = g.to_cols_array().iter().fold(0.0f64, |m, x| m.max(x.abs()));
     worst.max((q.determinant() - 1.0).abs())
+}
+
+/// Tolerance on a row sum of `skin_weights.npy`.
+pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
+
+/// `skin_weights.npy`: (V, J), every weight finite and ≥ 0, every row summing to one.
+fn read_rig_weights(path: &Path, v: usize, j: usize) -> Result<Vec<Vec<(usize, f64)>>, InputError> {
+    let w = read_floats(path)?;
+    expect_shape(path, &w.shape, &[Some(v as u64), Some(j as u64)], &format!("(V = {v}, J = {j})"))?;
+    w.data
+        .chunks_exact(j)
+        .enumerate()
+        .map(|(a, row)| {
+            if let Some(b) = row.iter().position(|&x| x < 0.0) {
+                return Err(bad(path, format!("vertex {a}, bone {b}: negative weight {}", row[b])));
+            }
+            let sum: f64 = row.iter().sum();
+            if (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
+                return Err(bad(path, format!("vertex {a}: weights sum to {sum}, not 1")));
+            }
+            Ok(row.iter().enumerate().filter(|(_, &x)| x > 0.0).map(|(b, &x)| (b, x / sum)).collect())
+        })
+        .collect()
 }
 
 fn cycle(parents: &[Option<usize>]) -> Option<usize> {

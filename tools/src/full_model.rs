@@ -201,6 +201,20 @@ impl FullModel {
         ssd: &Skinning,
         poses: &[usize],
     ) -> Vec<Vec<DVec3>> {
+        self.reconstruct(set, ssd, poses, |i, k| {
+            predict_gradient(set, &prep.feats[i], &self.rotations.0[k], &self.stretches[k])
+        })
+    }
+
+    /// Poisson reconstruction of `poses` from per-triangle gradients `gradient(pose, k)`,
+    /// blended with SSD's by the model's α (fixed vertices follow `ssd`).
+    pub fn reconstruct(
+        &self,
+        set: &ExampleSet,
+        ssd: &Skinning,
+        poses: &[usize],
+        gradient: impl Fn(usize, usize) -> DMat3 + Sync,
+    ) -> Vec<Vec<DVec3>> {
         let inputs: Vec<(Vec<DMat3>, Vec<DVec3>)> = poses
             .par_iter()
             .map(|&i| {
@@ -209,15 +223,7 @@ impl FullModel {
                 let grads = (0..set.faces.len())
                     .map(|k| match self.alpha[k] {
                         a if a <= 0.0 => ssd_grads[k],
-                        a => {
-                            let d = predict_gradient(
-                                set,
-                                &prep.feats[i],
-                                &self.rotations.0[k],
-                                &self.stretches[k],
-                            );
-                            d * a + ssd_grads[k] * (1.0 - a)
-                        }
+                        a => gradient(i, k) * a + ssd_grads[k] * (1.0 - a),
                     })
                     .collect();
                 (grads, skinned)

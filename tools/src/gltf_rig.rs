@@ -59,6 +59,9 @@ pub struct Rig {
     /// J bone names (node names, or "joint N").
     pub names: Vec<String>,
     pub parents: Vec<Option<usize>>,
+    /// Per glTF vertex, the skin's own (bone, weight) pairs (JOINTS_0/WEIGHTS_0, weight > 0,
+    /// normalised): the baseline an engine skins with.
+    pub weights: Vec<Vec<(usize, f64)>>,
     /// Node of each bone.
     joints: Vec<usize>,
     node_parents: Vec<Option<usize>>,
@@ -190,7 +193,7 @@ impl Rig {
             .zip(&inverse_bind)
             .map(|(&n, ibm)| world_default[n] * *ibm)
             .collect();
-        let (mut rest, mut triangles) = (Vec::new(), Vec::new());
+        let (mut rest, mut triangles, mut weights) = (Vec::new(), Vec::new(), Vec::new());
         for node in &skinned {
             let mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
             for prim in mesh.primitives() {
@@ -243,6 +246,14 @@ impl Rig {
                 for ((p, js), ws) in positions.iter().zip(&joints0).zip(&weights0) {
                     let p = DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
                     let mut acc = DVec3::ZERO;
+                    let total: f64 = ws.iter().map(|&w| w.max(0.0) as f64).sum();
+                    weights.push(
+                        js.iter()
+                            .zip(ws)
+                            .filter(|(_, &w)| w > 0.0 && total > 0.0)
+                            .map(|(&j, &w)| (j as usize, w as f64 / total))
+                            .collect::<Vec<_>>(),
+                    );
                     for (j, w) in js.iter().zip(ws) {
                         let m = joint_matrices.get(*j as usize).ok_or_else(|| {
                             bad(
@@ -352,6 +363,7 @@ impl Rig {
         }
         Ok(Rig {
             rest,
+            weights,
             triangles,
             names,
             parents,

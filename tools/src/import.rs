@@ -110,6 +110,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         poses,
         is_test,
         bone_names: Some(rig.names.clone()),
+        rig_weights: Some(representative.iter().map(|&g| rig.weights[g].clone()).collect()),
         warnings: Vec::new(),
     };
     Ok(Imported {

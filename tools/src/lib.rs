@@ -9,7 +9,9 @@
 // closer to the equations than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod augment;
 pub mod demo;
+pub mod dqs;
 pub mod eval;
 pub mod example_set;
 pub mod full_model;
@@ -26,6 +28,7 @@ pub mod profile;
 pub mod progress;
 pub mod reduced;
 pub mod rotreg;
+pub mod runtime_fit;
 pub mod scale_shear;
 pub mod ssd;
 pub mod vertex_reduction;

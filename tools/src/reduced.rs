@@ -182,12 +182,17 @@ fn proxy_bones(set: &ExampleSet, ssd: &Skinning, proxies: &Proxies) -> Vec<usize
 impl Reduced {
     /// The mesh in one pose, in f64: predictors, t = C1 d + C2 q, palette skinning.
     pub fn predict(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<DVec3> {
-        let (p, j) = (self.proxies, self.bones);
         let d: Vec<DMat3> = self
             .predictors
             .iter()
             .map(|k| k.predict(f, &set.parents))
             .collect();
+        self.predict_with_keys(set, &d, bones)
+    }
+
+    /// The mesh for key gradients `d` (P) and bones: t = C1 d + C2 q, palette skinning.
+    pub fn predict_with_keys(&self, set: &ExampleSet, d: &[DMat3], bones: &[Bone]) -> Vec<DVec3> {
+        let (p, j) = (self.proxies, self.bones);
         let mut palette = vec![[DVec4::ZERO; 3]; p];
         for c in 0..3 {
             for r in 0..4 * p {
