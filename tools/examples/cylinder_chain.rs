@@ -116,6 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         poses: examples,
         is_test: (0..poses).map(|i| i >= poses - poses / 5).collect(),
         bone_names: None,
+        rig_weights: None,
         warnings: Vec::new(),
     };
     set.save(out)?;

@@ -216,6 +216,7 @@ fn tube() -> ExampleSet {
         poses,
         is_test: vec![false, false, false, false, false, true],
         bone_names: None,
+        rig_weights: None,
         warnings: Vec::new(),
     }
 }

@@ -68,6 +68,7 @@ fn bar_set(train_degrees: &[f64], test_degrees: &[f64]) -> ExampleSet {
         poses,
         is_test: degrees.iter().map(|&(_, t)| t).collect(),
         bone_names: None,
+        rig_weights: None,
         warnings: Vec::new(),
     }
 }
