@@ -9,7 +9,7 @@
 //! vertices and 15,840 triangles.
 
 use glam::{DMat3, DQuat, DVec3};
-use rrskin_tools::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();

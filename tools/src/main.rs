@@ -5,8 +5,9 @@ use rrskin::synthetic::{random_model, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
 use rrskin_tools::eval::{Options, Report};
-use rrskin_tools::example_set::ExampleSet;
-use rrskin_tools::import::{Imported, Options as ImportOptions};
+use rrskin_tools::train::TrainOptions;
+use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -37,21 +38,14 @@ enum Command {
     Eval {
         #[command(flatten)]
         set: SetArgs,
-        /// One JSON object on stdout (the contract of ARCHITECTURE.md), no progress.
-        #[arg(long)]
-        json: bool,
+        #[command(flatten)]
+        train: TrainArgs,
         /// Report leave-one-out error over the training poses as the test error.
         #[arg(long)]
         loocv: bool,
-        /// Influences per vertex (SSD and the runtime model): 4 or 8.
-        #[arg(long, default_value_t = 4)]
-        influences: usize,
-        /// Proxy bones of the reduced model (0: no reduction).
-        #[arg(long, default_value_t = DEFAULT_PROXIES)]
-        proxies: usize,
-        /// Stop merging proxy bones earlier at this RMS fitting error (mesh units).
+        /// Also print the error budget: oracle ceilings of the full and the runtime model.
         #[arg(long)]
-        epsilon: Option<f64>,
+        diagnose: bool,
         /// Evaluate this trained model (runtime CPU evaluator) as rr_reduced.
         #[arg(long)]
         model: Option<PathBuf>,
@@ -60,21 +54,10 @@ enum Command {
     Train {
         #[command(flatten)]
         set: SetArgs,
+        #[command(flatten)]
+        train: TrainArgs,
         #[arg(short, long)]
         output: PathBuf,
-        /// Proxy bones P (the model's size and per-frame cost grow with it).
-        #[arg(long, default_value_t = DEFAULT_PROXIES)]
-        proxies: usize,
-        /// Stop merging proxy bones earlier, when the RMS fitting error of the groups (mesh
-        /// units) would pass this (the paper's ε).
-        #[arg(long)]
-        epsilon: Option<f64>,
-        /// Influences per vertex: 4 or 8.
-        #[arg(long, default_value_t = 4)]
-        influences: usize,
-        /// One JSON object (the eval contract) on stdout, no progress.
-        #[arg(long)]
-        json: bool,
     },
     /// Print a model file's dimensions (validates it fully).
     Info {
@@ -124,7 +107,40 @@ fn main() -> ExitCode {
     }
 }
 
-const DEFAULT_PROXIES: usize = 60;
+/// What training is asked for (defaults: [`TrainOptions::default`]).
+#[derive(clap::Args)]
+struct TrainArgs {
+    /// Proxy bones P (the model's size and per-frame cost grow with it; 0: no reduction).
+    #[arg(long, default_value_t = TrainOptions::default().proxies)]
+    proxies: usize,
+    /// Stop merging proxy bones earlier, when the RMS fitting error of the groups (mesh
+    /// units) would pass this (the paper's ε).
+    #[arg(long)]
+    epsilon: Option<f64>,
+    /// Influences per vertex (SSD and the runtime model): 4 or 8.
+    #[arg(long, default_value_t = TrainOptions::default().influences)]
+    influences: usize,
+    /// No gentle poses for the reduction (see `train::augment`).
+    #[arg(long)]
+    no_gentle_poses: bool,
+    /// One JSON object (the contract of ARCHITECTURE.md) on stdout, no progress.
+    #[arg(long)]
+    json: bool,
+}
+
+impl TrainArgs {
+    fn options(&self) -> TrainOptions {
+        let defaults = TrainOptions::default();
+        TrainOptions {
+            influences: self.influences,
+            proxies: self.proxies,
+            epsilon: self.epsilon,
+            gentle_scales: if self.no_gentle_poses { Vec::new() } else { defaults.gentle_scales },
+            quiet: self.json,
+            ..defaults
+        }
+    }
+}
 
 /// A crowd of a model's characters run for some frames on one Vulkan device.
 #[derive(clap::Args)]
@@ -208,7 +224,7 @@ impl SetArgs {
             fps: self.fps,
             test_frames,
         };
-        let imported = rrskin_tools::import::import(&self.set, &options)?;
+        let imported = rrskin_tools::import::gltf::import(&self.set, &options)?;
         Ok((imported.set.clone(), Some(imported)))
     }
 }
@@ -232,27 +248,35 @@ fn parse_range(text: &str) -> Result<(f64, f64), String> {
 
 fn evaluate(
     set: &SetArgs,
-    json: bool,
-    options: Options,
+    train: &TrainArgs,
+    model: Option<PathBuf>,
+    loocv: bool,
+    diagnose: bool,
 ) -> Result<(Report, Option<Imported>), Box<dyn std::error::Error>> {
-    if !matches!(options.influences, 4 | 8) {
-        return Err(format!(
-            "--influences {}: the runtime supports 4 or 8",
-            options.influences
-        )
-        .into());
-    }
     let (examples, imported) = set.load()?;
-    let mut options = options;
-    if let (Some(model), Some(imported)) = (&options.model, &imported) {
-        options.model = Some(imported.collapse(model)?);
-    }
-    if !json {
+    let model = match model {
+        Some(path) => {
+            let m = Model::load(&path)?;
+            let m = match &imported {
+                Some(imported) => imported.collapse(&m)?,
+                None => m,
+            };
+            Some((path, m))
+        }
+        None => None,
+    };
+    if !train.json {
         examples
             .warnings
             .iter()
             .for_each(|w| eprintln!("warning: {w}"));
     }
+    let options = Options {
+        train: train.options(),
+        model,
+        loocv,
+        diagnose,
+    };
     Ok((rrskin_tools::eval::run(&examples, &options)?, imported))
 }
 
@@ -269,51 +293,23 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         Command::Eval {
             set,
-            json,
+            train,
             loocv,
-            influences,
-            proxies,
-            epsilon,
+            diagnose,
             model,
         } => {
-            let model = model.map(Model::load).transpose()?;
-            let (report, _) = evaluate(
-                &set,
-                json,
-                Options {
-                    influences,
-                    proxies,
-                    epsilon,
-                    model,
-                    loocv,
-                    quiet: json,
-                },
-            )?;
-            print_report(&report, &set, json);
+            let (report, _) = evaluate(&set, &train, model, loocv, diagnose)?;
+            print_report(&report, &set, train.json);
         }
         Command::Train {
             set,
+            train,
             output,
-            proxies,
-            epsilon,
-            influences,
-            json,
         } => {
-            if proxies == 0 {
+            if train.proxies == 0 {
                 return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }
-            let (report, imported) = evaluate(
-                &set,
-                json,
-                Options {
-                    influences,
-                    proxies,
-                    epsilon,
-                    model: None,
-                    loocv: false,
-                    quiet: json,
-                },
-            )?;
+            let (report, imported) = evaluate(&set, &train, None, false, false)?;
             let model = report.model.as_ref().ok_or("training produced no model")?;
             // A glTF rig's model is written over the file's own vertices (order and count).
             let model = match &imported {
@@ -321,8 +317,8 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 None => model.clone(),
             };
             model.save(&output)?;
-            print_report(&report, &set, json);
-            if !json {
+            print_report(&report, &set, train.json);
+            if !train.json {
                 eprintln!(
                     "wrote {} ({} bytes)",
                     output.display(),
@@ -333,7 +329,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         Command::Bench(args) => {
             let (m, choice) = args.load()?;
             let (characters, frames, json) = (args.characters, args.frames, args.json);
-            let b = rrskin_tools::profile::Bench::run(&m, characters, frames, choice, json)?;
+            let b = rrskin_tools::run::profile::Bench::run(&m, characters, frames, choice, json)?;
             if json {
                 out!("{}", b.to_json());
             } else {
@@ -350,7 +346,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
             });
             let start = std::time::Instant::now();
-            let o = rrskin_tools::demo::run(&set, &out, false)?;
+            let o = rrskin_tools::run::demo::run(&set, &out, false)?;
             out!("{}", o.report.table(&set.display().to_string()));
             out!(
                 "training (all methods, including the cross-validation): {:.1} s",
@@ -360,7 +356,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 "held-out pose {}: RMS vertex error SSD {:.4}, rotational regression {:.4} (mesh units)",
                 o.pose, o.rms.0, o.rms.1
             );
-            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  ({} characters on the runtime)", o.model.display(), o.comparison.display(), 100.0 * rrskin_tools::demo::ERROR_SCALE, o.crowd.display(), rrskin_tools::demo::CROWD);
+            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  ({} characters on the runtime)", o.model.display(), o.comparison.display(), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, o.crowd.display(), rrskin_tools::run::demo::CROWD);
             out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
         }
         Command::Info { model, json } => {
@@ -407,7 +403,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         Command::Profile(args) => {
             let (m, choice) = args.load()?;
             let (characters, frames, json) = (args.characters, args.frames, args.json);
-            let p = rrskin_tools::profile::run(&m, characters, frames, choice, json)?;
+            let p = rrskin_tools::run::profile::run(&m, characters, frames, choice, json)?;
             if json {
                 out!("{}", p.to_json());
             } else {

@@ -1,41 +1,57 @@
-//! Progress on a terminal, silence otherwise (pipes, `--json`).
+//! Progress of long work: a bar on a terminal (indicatif), a line per stage when stderr is a
+//! log (CI, a pipe), nothing under `--json`.
 
-use std::io::{IsTerminal, Write};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
 
 pub struct Progress {
     label: &'static str,
-    total: usize,
-    enabled: bool,
+    mode: Mode,
+}
+
+enum Mode {
+    Bar(ProgressBar),
+    Log,
+    Quiet,
 }
 
 impl Progress {
-    /// Shows progress on stderr only if it is a terminal and `quiet` is false.
+    /// `total` steps of work; `quiet` silences it whatever stderr is.
     pub fn new(label: &'static str, total: usize, quiet: bool) -> Progress {
-        Progress {
-            label,
-            total,
-            enabled: !quiet && std::io::stderr().is_terminal(),
+        let mode = match (quiet, std::io::stderr().is_terminal()) {
+            (true, _) => Mode::Quiet,
+            (false, false) => Mode::Log,
+            (false, true) => {
+                let bar = ProgressBar::new(total as u64);
+                if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})") {
+                    bar.set_style(style.progress_chars("#>-"));
+                }
+                bar.set_prefix(label);
+                Mode::Bar(bar)
+            }
+        };
+        Progress { label, mode }
+    }
+
+    /// A new stage begins.
+    pub fn stage(&self, name: &str) {
+        match &self.mode {
+            Mode::Bar(bar) => bar.set_message(name.to_string()),
+            Mode::Log => eprintln!("{}: {name}", self.label),
+            Mode::Quiet => {}
         }
     }
 
-    pub fn set(&self, done: usize) {
-        if self.enabled {
-            let width = 30;
-            let filled = width * done / self.total.max(1);
-            eprint!(
-                "\r{} [{}{}] {done}/{}",
-                self.label,
-                "#".repeat(filled),
-                " ".repeat(width - filled),
-                self.total
-            );
-            let _ = std::io::stderr().flush();
+    /// One step of the total is done.
+    pub fn step(&self) {
+        if let Mode::Bar(bar) = &self.mode {
+            bar.inc(1);
         }
     }
 
     pub fn finish(&self) {
-        if self.enabled {
-            eprintln!();
+        if let Mode::Bar(bar) = &self.mode {
+            bar.finish_and_clear();
         }
     }
 }

@@ -5,7 +5,7 @@
 use rrskin::vk::render::{grid_scene, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_tools::eval;
-use rrskin_tools::example_set::ExampleSet;
+use rrskin_tools::import::example_set::ExampleSet;
 
 const SIDE: usize = 16;
 const BACKGROUND: [f32; 3] = [0.1, 0.12, 0.15];
@@ -60,7 +60,7 @@ fn a_crowd_of_256_renders_and_moves() {
     if let Some(dir) = std::env::var_os("RRSKIN_SAVE_IMAGES") {
         for (n, img) in frames.iter().enumerate() {
             let path = std::path::Path::new(&dir).join(format!("crowd{n}.png"));
-            rrskin_tools::image::write_png(&path, w, h, img).expect("png");
+            rrskin_tools::run::image::write_png(&path, w, h, img).expect("png");
         }
     }
     let background = BACKGROUND.map(|x| (x * 255.0).round() as u8);

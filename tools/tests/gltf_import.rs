@@ -5,8 +5,8 @@
 mod support;
 
 use glam::DVec3;
-use rrskin_tools::import::{import, Options};
-use rrskin_tools::point_cache::PointCache;
+use rrskin_tools::import::gltf::{import, Options};
+use rrskin_tools::import::point_cache::PointCache;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use support::temp_dir;
@@ -140,7 +140,7 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
     assert_eq!(model.triangle_count(), imported.triangles.len());
 
     // Evaluate held-out frame 50 over the glTF vertices.
-    let rig = rrskin_tools::gltf_rig::Rig::load(Path::new(&rig()), "examples").expect("rig");
+    let rig = rrskin_tools::import::gltf_rig::Rig::load(Path::new(&rig()), "examples").expect("rig");
     let bones: Vec<rrskin::predict::Affine> = rig
         .bones_at(50.0 / 24.0)
         .iter()
@@ -308,7 +308,7 @@ fn tiny_rig(dir: &Path, skin: bool, joint_scale: f32) -> PathBuf {
 
 #[test]
 fn rigs_without_a_skin_or_with_a_singular_joint_are_refused() {
-    use rrskin_tools::gltf_rig::Rig;
+    use rrskin_tools::import::gltf_rig::Rig;
     let dir = temp_dir("gltf-tiny");
     let ok = tiny_rig(&dir, true, 1.0);
     let rig = Rig::load(&ok, "a").expect("a valid tiny rig (.gltf with an external buffer)");

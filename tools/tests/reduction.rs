@@ -7,10 +7,10 @@ use glam::DVec3;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_tools::eval;
-use rrskin_tools::example_set::{Bone, ExampleSet, Pose};
-use rrskin_tools::full_model::{self, FullModel, Prepared};
-use rrskin_tools::ssd::{self, Skinning};
-use rrskin_tools::vertex_reduction::{self, Stop};
+use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::train::full_model::{self, FullModel, Prepared};
+use rrskin_tools::train::ssd::{self, Skinning};
+use rrskin_tools::train::reduce::vertex::{self, Stop};
 
 /// Everything the reduction needs from the full model, with the paper's choices (no blend).
 struct Trained {

@@ -5,7 +5,7 @@
 
 use glam::{DMat3, DVec3};
 use rrskin_tools::eval;
-use rrskin_tools::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
 
 const RINGS: usize = 25;
 const SEGMENTS: usize = 12;

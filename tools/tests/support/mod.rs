@@ -4,11 +4,11 @@
 use std::path::Path;
 
 pub fn write_f32(path: &Path, shape: &[usize], data: &[f32]) {
-    rrskin_tools::npy::write_f32(path, shape, data).expect("write .npy");
+    rrskin_tools::import::npy::write_f32(path, shape, data).expect("write .npy");
 }
 
 pub fn write_i32(path: &Path, shape: &[usize], data: &[i32]) {
-    rrskin_tools::npy::write_i32(path, shape, data).expect("write .npy");
+    rrskin_tools::import::npy::write_i32(path, shape, data).expect("write .npy");
 }
 
 /// A fresh empty folder under the system temp dir.

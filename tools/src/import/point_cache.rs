@@ -6,7 +6,7 @@
 //! - MDD (big-endian): frames i32, points i32, frames f32 times (seconds), then
 //!   frames x points x 3 f32.
 
-use crate::example_set::InputError;
+use crate::import::example_set::InputError;
 use glam::DVec3;
 use std::path::Path;
 

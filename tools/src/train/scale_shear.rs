@@ -4,7 +4,7 @@
 //! squares problem is underdetermined.
 
 use crate::linalg::cholesky_solve;
-use crate::rotreg::PoseFeatures;
+use crate::train::rotreg::PoseFeatures;
 use glam::{DMat3, DVec3};
 
 /// H: 9 x 7, row-major.

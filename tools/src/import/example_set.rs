@@ -428,27 +428,27 @@ impl ExampleSet {
         let files: [(&str, Writer); 6] = [
             (
                 "rest_vertices.npy",
-                Box::new(|p| crate::npy::write_f32(p, &[v, 3], &xyz(&mut self.rest.iter()))),
+                Box::new(|p| crate::import::npy::write_f32(p, &[v, 3], &xyz(&mut self.rest.iter()))),
             ),
             (
                 "faces.npy",
-                Box::new(|p| crate::npy::write_i32(p, &[self.faces.len(), 3], &faces)),
+                Box::new(|p| crate::import::npy::write_i32(p, &[self.faces.len(), 3], &faces)),
             ),
             (
                 "bone_parents.npy",
-                Box::new(|p| crate::npy::write_i32(p, &[j], &parents)),
+                Box::new(|p| crate::import::npy::write_i32(p, &[j], &parents)),
             ),
             (
                 "pose_transforms.npy",
-                Box::new(|p| crate::npy::write_f32(p, &[n, j, 3, 4], &transforms)),
+                Box::new(|p| crate::import::npy::write_f32(p, &[n, j, 3, 4], &transforms)),
             ),
             (
                 "pose_vertices.npy",
-                Box::new(|p| crate::npy::write_f32(p, &[n, v, 3], &vertices)),
+                Box::new(|p| crate::import::npy::write_f32(p, &[n, v, 3], &vertices)),
             ),
             (
                 "split.npy",
-                Box::new(|p| crate::npy::write_i32(p, &[n], &split)),
+                Box::new(|p| crate::import::npy::write_i32(p, &[n], &split)),
             ),
         ];
         for (name, write) in files {

@@ -5,8 +5,8 @@
 //! animation.
 
 use crate::eval::{self, Report};
-use crate::example_set::ExampleSet;
-use crate::image::write_png;
+use crate::import::example_set::ExampleSet;
+use crate::run::image::write_png;
 use rrskin::vk::render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
@@ -29,12 +29,13 @@ pub struct Outputs {
 pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn std::error::Error>> {
     let set = ExampleSet::load(set_dir)?;
     let options = eval::Options {
-        influences: 4,
-        proxies: 60,
-        epsilon: None,
+        train: crate::train::TrainOptions {
+            quiet,
+            ..Default::default()
+        },
         model: None,
         loocv: false,
-        quiet,
+        diagnose: false,
     };
     let report = eval::run(&set, &options)?;
     let model = report.model.clone().ok_or("training produced no model")?;

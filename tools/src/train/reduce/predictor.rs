@@ -8,13 +8,13 @@
 //! predictors are trained on the polar factors of the whole D_ℓ. With one key per triangle the
 //! keys are then exactly the triangles' gradients.
 
-use crate::example_set::ExampleSet;
-use crate::full_model::Prepared;
-use crate::gradients::frame;
+use crate::import::example_set::ExampleSet;
+use crate::train::full_model::Prepared;
+use crate::train::gradients::frame;
 use crate::linalg::{cholesky_solve, polar, DenseCholesky};
-use crate::rotreg::{self, PoseFeatures, RotationPredictor};
-use crate::scale_shear::{self, ScaleShear};
-use crate::vertex_reduction::Proxies;
+use crate::train::rotreg::{self, PoseFeatures, RotationPredictor};
+use crate::train::scale_shear::{self, ScaleShear};
+use crate::train::reduce::vertex::Proxies;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -211,8 +211,7 @@ pub fn train_predictors(
                         .iter()
                         .map(|f| scale_shear::features(f, &set.parents, r.first.bone))
                         .collect();
-                    if std::env::var("RRSKIN_EXP_NOS").is_ok() { scale_shear::identity() } else {
-                    scale_shear::fit(&ss, &xs, ridge) }
+                    scale_shear::fit(&ss, &xs, ridge)
                 }
                 None => scale_shear::identity(),
             };

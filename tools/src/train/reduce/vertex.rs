@@ -12,7 +12,7 @@
 //!
 //! Index letters: b, g proxies (groups), i poses (in `train` order), a vertices, k triangles.
 
-use crate::example_set::ExampleSet;
+use crate::import::example_set::ExampleSet;
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use std::cmp::Ordering;
@@ -370,9 +370,9 @@ pub fn reduce(
                     .chain(adjacency[home].iter().copied())
                     .collect();
                 candidates.sort_by(|&x, &y| error(x).total_cmp(&error(y)));
-                candidates.truncate(crate::ssd::CANDIDATES);
+                candidates.truncate(crate::train::ssd::CANDIDATES);
                 let moved = |n: usize, g: usize| transforms[n][g].apply(set.rest[a]);
-                crate::ssd::fit_weights(train.len(), &candidates, influences, moved, |n| {
+                crate::train::ssd::fit_weights(train.len(), &candidates, influences, moved, |n| {
                     set.poses[train[n]].vertices[a]
                 })
             })

@@ -2,13 +2,14 @@
 //! (§3.2) and a scale/shear predictor (§3.3); meshes by Poisson reconstruction with the
 //! near-rigid vertices F fixed to SSD (§4.2). The quality reference for the reduced model.
 
-use crate::example_set::ExampleSet;
-use crate::gradients::{gradients, rest_inverses};
+use crate::import::example_set::ExampleSet;
+use crate::train::gradients::{gradients, rest_inverses};
 use crate::linalg::polar;
-use crate::poisson::{anchor_components, Poisson, PoissonError};
-use crate::rotreg::{self, PoseFeatures, RotationPredictor};
-use crate::scale_shear::{self, ScaleShear};
-use crate::ssd::Skinning;
+use crate::train::poisson::{anchor_components, Poisson, PoissonError};
+use crate::train::rotreg::{self, PoseFeatures, RotationPredictor};
+use crate::train::scale_shear::{self, ScaleShear};
+use crate::train::selection::Selection;
+use crate::train::ssd::Skinning;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -22,22 +23,44 @@ pub struct Prepared {
 
 impl Prepared {
     pub fn new(set: &ExampleSet) -> Prepared {
+        let all: Vec<usize> = (0..set.poses.len()).collect();
+        Prepared {
+            feats: PoseFeatures::all(set),
+            polar: Prepared::polar_factors(set, &all),
+        }
+    }
+
+    /// Per pose of `poses`, the polar factors (R, S) of every triangle's gradient.
+    pub fn polar_factors(set: &ExampleSet, poses: &[usize]) -> Vec<Vec<(DMat3, DMat3)>> {
         let inverses = rest_inverses(&set.rest, &set.faces);
-        let polar = set
-            .poses
+        poses
             .par_iter()
-            .map(|p| {
-                gradients(&p.vertices, &set.faces, &inverses)
+            .map(|&i| {
+                gradients(&set.poses[i].vertices, &set.faces, &inverses)
                     .into_iter()
                     .map(polar)
                     .collect()
             })
-            .collect();
-        Prepared {
-            feats: PoseFeatures::all(set),
-            polar,
-        }
+            .collect()
     }
+}
+
+/// The full model on `poses` for the cross-validation's `selection`: rotation predictors
+/// (§3.2) from the bones near each triangle in `ssd`, scale/shear (§3.3), the near-rigid set
+/// (§4.2) and the Poisson factor (§4.1).
+pub fn fit(
+    set: &ExampleSet,
+    prep: &Prepared,
+    poses: &[usize],
+    ssd: &Skinning,
+    selection: &Selection,
+) -> Result<FullModel, PoissonError> {
+    let rotations = fit_rotations(set, prep, poses, &nearby_bones(set, ssd));
+    let ridge = selection.choice.ridge;
+    let stretches = fit_stretches(set, prep, poses, &rotations, ridge);
+    let ssd_error = crate::train::ssd::per_vertex_error(set, poses, ssd);
+    let fixed = near_rigid(set, &ssd_error, selection.choice.percentile);
+    FullModel::new(set, rotations, stretches, fixed, selection.alpha.clone(), ridge)
 }
 
 /// Per triangle: its rotation predictor (None when no nearby bone moves: then R = I).
@@ -169,6 +192,8 @@ pub struct FullModel {
     /// `α D_rr(q) + (1 − α) D_ssd(q)`, D_ssd the gradient of the SSD mesh (α from held-out
     /// errors; 1 is the paper). D_ssd is linear in q, so the reduced C1/C2 form still holds.
     pub alpha: Vec<f64>,
+    /// The scale/shear ridge the stretches were fitted with (per pose).
+    pub ridge: f64,
     inverses: Vec<Option<DMat3>>,
     poisson: Poisson,
 }
@@ -180,6 +205,7 @@ impl FullModel {
         stretches: Vec<ScaleShear>,
         fixed: Vec<bool>,
         alpha: Vec<f64>,
+        ridge: f64,
     ) -> Result<FullModel, PoissonError> {
         let poisson = Poisson::new(&set.rest, &set.faces, &fixed)?;
         let inverses = rest_inverses(&set.rest, &set.faces);
@@ -188,6 +214,7 @@ impl FullModel {
             stretches,
             fixed,
             alpha,
+            ridge,
             inverses,
             poisson,
         })

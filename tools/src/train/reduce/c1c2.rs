@@ -15,12 +15,12 @@
 //! proxy toward its best-matching bone, which keeps proxies touching only fixed vertices
 //! determined while staying linear in q.
 
-use crate::example_set::{Bone, ExampleSet};
+use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::DenseCholesky;
-use crate::predictor_reduction::{KeyPredictor, KeySequences};
-use crate::rotreg::PoseFeatures;
-use crate::ssd::Skinning;
-use crate::vertex_reduction::Proxies;
+use crate::train::reduce::predictor::{KeyPredictor, KeySequences};
+use crate::train::rotreg::PoseFeatures;
+use crate::train::ssd::Skinning;
+use crate::train::reduce::vertex::Proxies;
 use glam::{DMat3, DVec3, DVec4};
 
 /// The reduced model in f64, as trained: what the runtime model stores in f32.
@@ -265,7 +265,7 @@ impl Reduced {
                     u: 0.0,
                     w: rows(DMat3::IDENTITY),
                     second: None,
-                    h: crate::scale_shear::identity().map(|x| x as f32),
+                    h: crate::train::scale_shear::identity().map(|x| x as f32),
                 },
             })
             .collect();

@@ -2,7 +2,7 @@
 //! (linear blend skinning with weights by non-negative least squares over the training poses,
 //! James & Twigg 2005; METHOD.md §4).
 
-use crate::example_set::{Bone, ExampleSet};
+use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::nnls;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -53,6 +53,19 @@ pub fn rigid_errors(set: &ExampleSet, poses: &[usize]) -> Vec<Vec<f64>> {
                 })
                 .collect()
         })
+        .collect()
+}
+
+/// RMS over `poses` of each vertex's error under `skin`.
+pub fn per_vertex_error(set: &ExampleSet, poses: &[usize], skin: &Skinning) -> Vec<f64> {
+    let mut sum = vec![0.0; set.vertex_count()];
+    for &i in poses {
+        for (a, p) in skin.deform(&set.rest, &set.poses[i].bones).iter().enumerate() {
+            sum[a] += (*p - set.poses[i].vertices[a]).length_squared();
+        }
+    }
+    sum.iter()
+        .map(|s| (s / poses.len().max(1) as f64).sqrt())
         .collect()
 }
 

@@ -5,9 +5,9 @@
 //! the Poisson solve; `weld` maps every glTF vertex to its training vertex, so a trained model
 //! can be expanded back to the file's own vertex order and count.
 
-use crate::example_set::{rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE};
-use crate::gltf_rig::Rig;
-use crate::point_cache::PointCache;
+use crate::import::example_set::{rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE};
+use crate::import::gltf_rig::Rig;
+use crate::import::point_cache::PointCache;
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

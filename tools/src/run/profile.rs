@@ -102,7 +102,7 @@ pub fn measure(
         if frame >= WARM_UP_FRAMES {
             samples.push(batch.timings()?);
         }
-        progress.set(frame + 1);
+        progress.step();
     }
     progress.finish();
     let (median, total_ms) = PassTimings::median(&samples).ok_or(rrskin::Error::NotReady {

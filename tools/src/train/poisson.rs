@@ -177,7 +177,7 @@ pub fn anchor_components(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::gradients::{gradients, rest_inverses};
+    use crate::train::gradients::{gradients, rest_inverses};
 
     #[test]
     fn exact_gradients_reproduce_the_mesh() {

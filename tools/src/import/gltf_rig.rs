@@ -4,7 +4,7 @@
 //! at the nodes' default pose (mesh-space POSITIONs are not always the rest pose), and per time
 //! `T_b = W_b(t) · W_b(default)⁻¹` from a sampled animation clip.
 
-use crate::example_set::{Bone, InputError};
+use crate::import::example_set::{Bone, InputError};
 use glam::{DMat4, DQuat, DVec3, DVec4};
 use gltf::animation::{Interpolation, Property};
 use std::path::Path;

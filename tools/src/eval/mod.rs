@@ -1,0 +1,360 @@
+//! `rrskin eval`: trains every method on the training poses ([`crate::train::run`]) and
+//! reports the enveloping error (paper §7.1, METHOD.md §10) on training and test poses, beside
+//! the baselines an engine would pick instead; optionally the error budget ([`diagnose`]) and
+//! leave-one-out over the training poses.
+//!
+//! `EE = sqrt(Σ_i Σ_a |y_a(q_i) − y_a^i|² / Σ_i Σ_a |r_a(q_i) − y_a^i|²)` in percent, r the best
+//! rigid predictor (one bone per vertex, chosen on the training poses).
+
+pub mod diagnose;
+pub mod dqs;
+
+use crate::import::example_set::ExampleSet;
+use crate::train::selection::{squared_error, Choice};
+use crate::train::ssd::{self, Skinning};
+use crate::train::{full_model, TrainOptions, Trained};
+use crate::{Error, Result};
+use glam::DVec3;
+use std::path::PathBuf;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Errors {
+    pub train: f64,
+    pub test: Option<f64>,
+}
+
+/// The error budget: oracle ceilings (see [`diagnose`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Budget {
+    pub full_exact: Errors,
+    pub reduced_oracle: Errors,
+    pub reduced_oracle_keys: Errors,
+}
+
+#[derive(Debug, Clone)]
+pub struct Report {
+    pub vertices: usize,
+    pub triangles: usize,
+    pub bones: usize,
+    pub train_poses: usize,
+    pub test_poses: usize,
+    pub rigid: Errors,
+    pub ssd: Errors,
+    /// Dual quaternion skinning with SSD's weights.
+    pub dqs: Errors,
+    /// Linear blend and dual quaternion skinning with the rig's own weights, when the set has
+    /// them.
+    pub rig_lbs: Option<Errors>,
+    pub rig_dqs: Option<Errors>,
+    pub rr_full: Errors,
+    /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
+    pub rr_reduced: Option<Errors>,
+    pub reduced_proxies: Option<usize>,
+    pub budget: Option<Budget>,
+    /// The runtime model trained here (None with `Options::model` or P = 0).
+    pub model: Option<rrskin::Model>,
+    /// F percentile, ridge and fallback chosen by cross-validation.
+    pub choice: Choice,
+    /// Mean weight of the regression in the triangles' blended gradients (1: the paper).
+    pub mean_alpha: f64,
+    pub folds: usize,
+    /// Wall time per stage, in order.
+    pub stages: Vec<(&'static str, f64)>,
+    /// Whether "test" is the leave-one-out error over the training poses.
+    pub loocv: bool,
+}
+
+impl Report {
+    fn seconds(&self, stages: &[&str]) -> f64 {
+        self.stages
+            .iter()
+            .filter(|(s, _)| stages.contains(s))
+            .map(|s| s.1)
+            .sum()
+    }
+
+    pub fn to_json(&self) -> serde_json::Value {
+        let errors = |e: &Errors| serde_json::json!({"train": e.train, "test": e.test});
+        let stages: serde_json::Map<String, serde_json::Value> = self
+            .stages
+            .iter()
+            .map(|(s, t)| (s.to_string(), (*t).into()))
+            .collect();
+        let reduced_seconds = self.model.as_ref().map(|_| self.seconds(&["reduction"]));
+        serde_json::json!({
+            "vertices": self.vertices, "triangles": self.triangles, "bones": self.bones,
+            "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": self.reduced_proxies,
+            "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "dqs": errors(&self.dqs),
+            "rig_lbs": self.rig_lbs.as_ref().map(errors), "rig_dqs": self.rig_dqs.as_ref().map(errors),
+            "rr_full": errors(&self.rr_full),
+            "rr_reduced": self.rr_reduced.as_ref().map(errors),
+            "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
+                "full_exact_gradients": errors(&b.full_exact),
+                "reduced_oracle_proxies": errors(&b.reduced_oracle),
+                "reduced_oracle_keys": errors(&b.reduced_oracle_keys),
+            })),
+            "seconds": {
+                "ssd": self.seconds(&["ssd"]),
+                "rr_full": self.seconds(&["cross-validation", "full model"]),
+                "rr_reduced": reduced_seconds,
+            },
+            "stages": stages,
+        })
+    }
+
+    pub fn table(&self, name: &str) -> String {
+        let pct = |x: Option<f64>| x.map_or("     –".to_string(), |x| format!("{x:6.1}"));
+        let test_label = if self.loocv {
+            "LOOCV EE %"
+        } else {
+            "test EE %"
+        };
+        let mut s = format!(
+            "{name}: V = {}, T = {}, J = {}; {} training poses, {} test poses\n\
+             {:<34} {:>10} {:>10}\n",
+            self.vertices,
+            self.triangles,
+            self.bones,
+            self.train_poses,
+            self.test_poses,
+            "method",
+            "train EE %",
+            test_label,
+        );
+        let row = |s: &mut String, label: &str, e: &Errors| {
+            *s += &format!("{label:<34} {:>10} {:>10}\n", pct(Some(e.train)), pct(e.test));
+        };
+        row(&mut s, "rigid", &self.rigid);
+        row(&mut s, "SSD (LBS, fitted weights)", &self.ssd);
+        row(&mut s, "DQS (SSD's weights)", &self.dqs);
+        if let (Some(lbs), Some(dqs)) = (&self.rig_lbs, &self.rig_dqs) {
+            row(&mut s, "LBS (the rig's weights)", lbs);
+            row(&mut s, "DQS (the rig's weights)", dqs);
+        }
+        row(&mut s, "rotational regression (full)", &self.rr_full);
+        if let Some(e) = &self.rr_reduced {
+            let label = match self.reduced_proxies {
+                Some(p) => format!("reduced, P = {p} (runtime model)"),
+                None => "reduced (runtime model)".to_string(),
+            };
+            row(&mut s, &label, e);
+        }
+        if let Some(b) = &self.budget {
+            s += "error budget (oracle ceilings):\n";
+            row(&mut s, "  full model, exact gradients", &b.full_exact);
+            row(&mut s, "  runtime form, oracle proxies", &b.reduced_oracle);
+            row(&mut s, "  runtime form, oracle keys", &b.reduced_oracle_keys);
+        }
+        s += &format!(
+            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {:.2}) (chosen by {}-fold cross-validation on the training poses)\nstages:",
+            self.choice.percentile, self.choice.ridge, self.choice.blend, self.mean_alpha, self.folds
+        );
+        for (stage, t) in &self.stages {
+            s += &format!(" {stage} {t:.2} s;");
+        }
+        s
+    }
+}
+
+fn deform_all(set: &ExampleSet, skin: &Skinning, poses: &[usize]) -> Vec<Vec<DVec3>> {
+    poses
+        .iter()
+        .map(|&i| skin.deform(&set.rest, &set.poses[i].bones))
+        .collect()
+}
+
+fn dqs_all(set: &ExampleSet, influences: &[Vec<(usize, f64)>], poses: &[usize]) -> Vec<Vec<DVec3>> {
+    poses
+        .iter()
+        .map(|&i| dqs::deform(&set.rest, influences, &set.poses[i].bones))
+        .collect()
+}
+
+/// EE in percent of `predicted` against the rigid predictor on the same poses.
+pub fn enveloping_error(
+    set: &ExampleSet,
+    poses: &[usize],
+    predicted: &[Vec<DVec3>],
+    rigid: &Skinning,
+) -> f64 {
+    let reference = squared_error(set, poses, &deform_all(set, rigid, poses));
+    100.0 * (squared_error(set, poses, predicted) / reference).sqrt()
+}
+
+pub struct Options {
+    pub train: TrainOptions,
+    /// Evaluate this runtime model file as "rr_reduced" instead of training a reduction.
+    pub model: Option<(PathBuf, rrskin::Model)>,
+    /// Replace the test error by leave-one-out over the training poses.
+    pub loocv: bool,
+    /// Also report the error budget.
+    pub diagnose: bool,
+}
+
+pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
+    if let Some((path, m)) = &options.model {
+        if m.vertex_count() != set.vertex_count() || m.bone_count() != set.bone_count() {
+            return Err(Error::ModelMismatch {
+                model: path.clone(),
+                model_size: (m.vertex_count(), m.bone_count()),
+                set_size: (set.vertex_count(), set.bone_count()),
+            });
+        }
+    }
+    let mut train_options = options.train.clone();
+    if options.model.is_some() {
+        train_options.proxies = 0;
+    }
+    let trained = crate::train::run(set, &train_options)?;
+    let (train, test) = (set.train(), set.test());
+    let mut stages = trained.seconds.clone();
+    let start = std::time::Instant::now();
+    let rigid = &trained.rigid;
+    let errors = |predict: &dyn Fn(&[usize]) -> Vec<Vec<DVec3>>| Errors {
+        train: enveloping_error(set, &train, &predict(&train), rigid),
+        test: (!test.is_empty()).then(|| enveloping_error(set, &test, &predict(&test), rigid)),
+    };
+    let mut rigid_e = errors(&|p| deform_all(set, rigid, p));
+    let mut ssd_e = errors(&|p| deform_all(set, &trained.ssd, p));
+    let mut dqs_e = errors(&|p| dqs_all(set, &trained.ssd.influences, p));
+    let rig = |f: &dyn Fn(&Skinning, &[usize]) -> Vec<Vec<DVec3>>| {
+        set.rig_weights.as_ref().map(|w| {
+            let skin = Skinning { influences: w.clone() };
+            errors(&|p| f(&skin, p))
+        })
+    };
+    let rig_lbs = rig(&|s, p| deform_all(set, s, p));
+    let rig_dqs = rig(&|s, p| dqs_all(set, &s.influences, p));
+    let mut rr_e = errors(&|p| trained.full.predict(set, &trained.prep, &trained.ssd, p));
+    let runtime = options.model.as_ref().map(|m| &m.1).or(trained.model.as_ref());
+    let mut rr_reduced = runtime
+        .map(|m| runtime_errors(set, m, &train, &test, rigid))
+        .transpose()?;
+    let budget = match (&trained.reduced, options.diagnose) {
+        (Some(reduced), true) => {
+            let exact = |p: &[usize]| {
+                trained.full.reconstruct(set, &trained.ssd, p, |i, k| {
+                    let (r, s) = trained.prep.polar[i][k];
+                    r * s
+                })
+            };
+            Some(Budget {
+                full_exact: errors(&exact),
+                reduced_oracle: errors(&|p| diagnose::oracle_meshes(set, reduced, p)),
+                reduced_oracle_keys: errors(&|p| diagnose::oracle_key_meshes(set, reduced, p)),
+            })
+        }
+        _ => None,
+    };
+    stages.push(("evaluation", start.elapsed().as_secs_f64()));
+    if options.loocv {
+        let start = std::time::Instant::now();
+        let loo = leave_one_out(set, &trained, &options.train)?;
+        rigid_e.test = Some(100.0);
+        ssd_e.test = Some(loo.ssd);
+        dqs_e.test = Some(loo.dqs);
+        rr_e.test = Some(loo.rr_full);
+        // Leave-one-out retrains the full model only: the reduced row has no such figure.
+        if let Some(e) = rr_reduced.as_mut() {
+            e.test = None;
+        }
+        stages.push(("leave-one-out", start.elapsed().as_secs_f64()));
+    }
+    Ok(Report {
+        vertices: set.vertex_count(),
+        triangles: set.faces.len(),
+        bones: set.bone_count(),
+        train_poses: train.len(),
+        test_poses: test.len(),
+        rigid: rigid_e,
+        ssd: ssd_e,
+        dqs: dqs_e,
+        rig_lbs: rig_lbs.map(|mut e| {
+            e.test = if options.loocv { Some(e.train) } else { e.test };
+            e
+        }),
+        rig_dqs: rig_dqs.map(|mut e| {
+            e.test = if options.loocv { Some(e.train) } else { e.test };
+            e
+        }),
+        rr_full: rr_e,
+        rr_reduced,
+        reduced_proxies: runtime.map(|m| m.proxy_count()),
+        budget,
+        model: trained.model.clone(),
+        choice: trained.selection.choice,
+        mean_alpha: trained.selection.alpha.iter().sum::<f64>()
+            / trained.selection.alpha.len().max(1) as f64,
+        folds: options.train.folds,
+        stages,
+        loocv: options.loocv,
+    })
+}
+
+/// Leave-one-out EE over the training poses (against a rigid predictor also refitted without
+/// the pose). The selection (F, ridge, blend weights) stays the one made on all training poses.
+struct LeaveOneOut {
+    ssd: f64,
+    dqs: f64,
+    rr_full: f64,
+}
+
+fn leave_one_out(set: &ExampleSet, trained: &Trained, options: &TrainOptions) -> Result<LeaveOneOut> {
+    let k = options.influences;
+    let train = set.train();
+    let (mut ssd_p, mut dqs_p, mut rr_p, mut rigid_p) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let progress = crate::progress::Progress::new("leave-one-out", train.len(), options.quiet);
+    for &i in &train {
+        let others: Vec<usize> = train.iter().copied().filter(|&t| t != i).collect();
+        let rigid_errors = ssd::rigid_errors(set, &others);
+        let ssd = ssd::fit(set, &others, &rigid_errors, k);
+        let full = full_model::fit(set, &trained.prep, &others, &ssd, &trained.selection)
+            .map_err(crate::train::TrainError::from)?;
+        rr_p.extend(full.predict(set, &trained.prep, &ssd, &[i]));
+        ssd_p.extend(deform_all(set, &ssd, &[i]));
+        dqs_p.extend(dqs_all(set, &ssd.influences, &[i]));
+        rigid_p.extend(deform_all(set, &Skinning::rigid(&ssd::rigid_bones(&rigid_errors)), &[i]));
+        progress.step();
+    }
+    progress.finish();
+    let reference = squared_error(set, &train, &rigid_p);
+    let ee = |p: &[Vec<DVec3>]| 100.0 * (squared_error(set, &train, p) / reference).sqrt();
+    Ok(LeaveOneOut {
+        ssd: ee(&ssd_p),
+        dqs: ee(&dqs_p),
+        rr_full: ee(&rr_p),
+    })
+}
+
+/// EE of a runtime model evaluated by the runtime's CPU evaluator.
+fn runtime_errors(
+    set: &ExampleSet,
+    model: &rrskin::Model,
+    train: &[usize],
+    test: &[usize],
+    rigid: &Skinning,
+) -> Result<Errors> {
+    let predict = |poses: &[usize]| -> rrskin::Result<Vec<Vec<DVec3>>> {
+        let mut evaluator = rrskin::cpu::CpuEvaluator::new(model);
+        let v = set.vertex_count();
+        let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+        poses
+            .iter()
+            .map(|&i| {
+                let bones: Vec<rrskin::predict::Affine> =
+                    set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+                evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
+                Ok(pos.iter().map(|p| DVec3::from(p.map(f64::from))).collect())
+            })
+            .collect()
+    };
+    let train_e = enveloping_error(set, train, &predict(train)?, rigid);
+    let test_e = match test.is_empty() {
+        true => None,
+        false => Some(enveloping_error(set, test, &predict(test)?, rigid)),
+    };
+    Ok(Errors {
+        train: train_e,
+        test: test_e,
+    })
+}

@@ -1,0 +1,7 @@
+//! Example sets: N pairs (skeleton pose q_i, deformed mesh y_i) from a black-box rig.
+
+pub mod example_set;
+pub mod gltf;
+pub mod gltf_rig;
+pub mod npy;
+pub mod point_cache;

@@ -1,0 +1,208 @@
+//! The training pipeline: from example poses to the runtime model, one module per stage of
+//! the paper and one entry point, [`run`].
+//!
+//! | stage | module | paper |
+//! |---|---|---|
+//! | deformation gradients and their polar factors | [`gradients`], [`full_model::Prepared`] | §3 |
+//! | rigid and SSD baselines, the near-rigid set | [`ssd`], [`full_model::near_rigid`] | §4.2 |
+//! | model selection by cross-validation | [`selection`] | beyond the paper |
+//! | rotational regression | [`rotreg`] | §3.2 |
+//! | scale/shear regression | [`scale_shear`] | §3.3 |
+//! | Poisson reconstruction: the full model | [`poisson`], [`full_model`] | §4.1 |
+//! | gentle poses meshed by the full model | [`augment`] | beyond the paper |
+//! | vertex reduction to P proxy bones | [`reduce::vertex`] | §5.1 |
+//! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
+//! | C1/C2 and the runtime model | [`reduce::c1c2`] | §4.3 |
+//!
+//! Every choice is made on the training poses; test poses are never looked at here.
+
+pub mod augment;
+pub mod full_model;
+pub mod gradients;
+pub mod poisson;
+pub mod reduce;
+pub mod rotreg;
+pub mod scale_shear;
+pub mod selection;
+pub mod ssd;
+
+use crate::import::example_set::ExampleSet;
+use crate::progress::Progress;
+use full_model::{FullModel, Prepared};
+use reduce::c1c2::Reduced;
+use reduce::vertex::Stop;
+use reduce::Reduction;
+use selection::Selection;
+use ssd::Skinning;
+use std::fmt;
+use std::time::Instant;
+
+/// Every training default, in one place.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainOptions {
+    /// K: influences per vertex, of SSD and of the runtime model (4 or 8).
+    pub influences: usize,
+    /// P: proxy bones of the runtime model (0: train the full model only).
+    pub proxies: usize,
+    /// Stop merging proxies earlier at this RMS fitting error (mesh units; the paper's ε).
+    pub epsilon: Option<f64>,
+    /// Folds of the cross-validation over the training poses.
+    pub folds: usize,
+    /// Joint-rotation scales of the gentle poses the reduction also sees (empty: none).
+    pub gentle_scales: Vec<f64>,
+    /// No progress output (for `--json`).
+    pub quiet: bool,
+}
+
+impl Default for TrainOptions {
+    fn default() -> TrainOptions {
+        TrainOptions {
+            influences: 4,
+            proxies: 60,
+            epsilon: None,
+            folds: 4,
+            gentle_scales: vec![augment::GENTLE_SCALE],
+            quiet: false,
+        }
+    }
+}
+
+/// Why training stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrainError {
+    /// K is not one the runtime has shaders for.
+    Influences { influences: usize },
+    /// The set has no training pose.
+    NoTrainingPoses,
+    /// The Poisson system cannot be factored (a component without a fixed vertex).
+    Poisson { problem: String },
+    /// The runtime refused the trained model (a bug if it happens: training makes valid models).
+    Model { source: rrskin::Error },
+}
+
+impl fmt::Display for TrainError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TrainError::Influences { influences } => {
+                write!(f, "{influences} influences per vertex: the runtime supports 4 or 8")
+            }
+            TrainError::NoTrainingPoses => write!(f, "the example set has no training pose"),
+            TrainError::Poisson { problem } => write!(f, "Poisson system: {problem}"),
+            TrainError::Model { source } => write!(f, "the trained model is invalid: {source}"),
+        }
+    }
+}
+
+impl std::error::Error for TrainError {}
+
+impl From<poisson::PoissonError> for TrainError {
+    fn from(e: poisson::PoissonError) -> TrainError {
+        TrainError::Poisson { problem: e.0 }
+    }
+}
+
+impl From<rrskin::Error> for TrainError {
+    fn from(source: rrskin::Error) -> TrainError {
+        TrainError::Model { source }
+    }
+}
+
+/// Everything training produced, for the runtime model and for evaluation.
+pub struct Trained {
+    pub prep: Prepared,
+    /// The best rigid predictor (one bone per vertex): EE's 100 %.
+    pub rigid: Skinning,
+    pub ssd: Skinning,
+    pub selection: Selection,
+    pub full: FullModel,
+    /// The reduced model in f64 and the runtime model (None when P = 0).
+    pub reduced: Option<Reduced>,
+    pub model: Option<rrskin::Model>,
+    /// Wall time per stage, in order.
+    pub seconds: Vec<(&'static str, f64)>,
+}
+
+/// Stage timings as they happen.
+struct Clock {
+    last: Instant,
+    seconds: Vec<(&'static str, f64)>,
+}
+
+impl Clock {
+    fn lap(&mut self, stage: &'static str) {
+        self.seconds.push((stage, self.last.elapsed().as_secs_f64()));
+        self.last = Instant::now();
+    }
+}
+
+/// Trains the full model and, for P > 0, the runtime model on the training poses of `set`.
+pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainError> {
+    let k = options.influences;
+    if !rrskin::model::SUPPORTED_INFLUENCES.contains(&(k as u32)) {
+        return Err(TrainError::Influences { influences: k });
+    }
+    let train = set.train();
+    if train.is_empty() {
+        return Err(TrainError::NoTrainingPoses);
+    }
+    let progress = Progress::new("training", options.folds + 3, options.quiet);
+    let mut clock = Clock {
+        last: Instant::now(),
+        seconds: Vec::new(),
+    };
+
+    progress.stage("gradients");
+    let prep = Prepared::new(set);
+    clock.lap("gradients");
+
+    progress.stage("SSD");
+    let rigid_errors = ssd::rigid_errors(set, &train);
+    let rigid = Skinning::rigid(&ssd::rigid_bones(&rigid_errors));
+    let ssd = ssd::fit(set, &train, &rigid_errors, k);
+    clock.lap("ssd");
+    progress.step();
+
+    progress.stage("cross-validation");
+    let selection = selection::choose(set, &prep, &train, k, options.folds, &progress)?;
+    clock.lap("cross-validation");
+
+    progress.stage("full model");
+    let full = full_model::fit(set, &prep, &train, &ssd, &selection)?;
+    clock.lap("full model");
+    progress.step();
+
+    let (reduced, model) = match options.proxies {
+        0 => (None, None),
+        proxies => {
+            progress.stage("reduction");
+            let reduction = Reduction {
+                stop: Stop {
+                    proxies,
+                    epsilon: options.epsilon,
+                },
+                influences: k,
+            };
+            let reduced = if options.gentle_scales.is_empty() {
+                reduce::run(set, &prep, &train, &ssd, &full, &reduction)
+            } else {
+                let wider = augment::augment(set, &prep, &full, &ssd, &options.gentle_scales);
+                reduce::run(&wider.set, &wider.prep, &wider.set.train(), &ssd, &full, &reduction)
+            };
+            let model = reduced.to_runtime(set, k)?;
+            clock.lap("reduction");
+            (Some(reduced), Some(model))
+        }
+    };
+    progress.step();
+    progress.finish();
+    Ok(Trained {
+        prep,
+        rigid,
+        ssd,
+        selection,
+        full,
+        reduced,
+        model,
+        seconds: clock.seconds,
+    })
+}

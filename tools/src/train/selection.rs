@@ -1,0 +1,236 @@
+//! Model selection by k-fold cross-validation over the training poses (beyond the paper: the
+//! paper fixes its choices by hand). The full model's three choices are made on held-out
+//! training poses, never on test poses:
+//!
+//! - the near-rigid set F (§4.2): vertices below a percentile of SSD's training error;
+//! - the scale/shear ridge (§3.3);
+//! - per triangle, how much of the regression's gradient to trust against SSD's ([`Blend`]).
+
+use crate::import::example_set::ExampleSet;
+use crate::progress::Progress;
+use crate::train::full_model::{self, FullModel, Prepared};
+use crate::train::ssd::{self, Skinning};
+use crate::train::TrainError;
+use glam::DVec3;
+
+/// Candidate F percentiles and scale/shear ridges (per pose) the cross-validation picks from.
+pub const PERCENTILES: [f64; 7] = [10.0, 25.0, 50.0, 70.0, 80.0, 90.0, 95.0];
+pub const RIDGES: [f64; 4] = [1e-3, 1e-2, 1e-1, 1.0];
+
+/// What the cross-validation chose, with the per-triangle regression weights α it implies.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    pub choice: Choice,
+    /// Per triangle, the regression's weight α in the Poisson target (1: the paper).
+    pub alpha: Vec<f64>,
+}
+
+impl Selection {
+    /// The paper's choices where there are too few poses to cross-validate.
+    fn fallback(triangles: usize) -> Selection {
+        Selection {
+            choice: Choice {
+                percentile: 90.0,
+                ridge: 1e-2,
+                blend: Blend::Regression,
+            },
+            alpha: vec![1.0; triangles],
+        }
+    }
+}
+
+/// What a training run on some poses produces, for every (percentile, ridge) candidate.
+struct FoldFit {
+    ssd: Skinning,
+    ssd_error: Vec<f64>,
+    rotations: full_model::Rotations,
+}
+
+fn fit_fold(set: &ExampleSet, prep: &Prepared, train: &[usize], k: usize) -> FoldFit {
+    let errors = ssd::rigid_errors(set, train);
+    let ssd = ssd::fit(set, train, &errors, k);
+    let ssd_error = ssd::per_vertex_error(set, train, &ssd);
+    let nearby = full_model::nearby_bones(set, &ssd);
+    let rotations = full_model::fit_rotations(set, prep, train, &nearby);
+    FoldFit {
+        ssd,
+        ssd_error,
+        rotations,
+    }
+}
+
+/// What the cross-validation chose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Choice {
+    pub percentile: f64,
+    pub ridge: f64,
+    pub blend: Blend,
+}
+
+/// How each triangle's Poisson target combines the regression with SSD's gradient.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Blend {
+    /// The regression alone (the paper).
+    Regression,
+    /// SSD's gradient where it generalised better on the held-out folds, else the regression.
+    Switch,
+    /// α D_rr + (1 − α) D_ssd with α minimising the held-out edge error.
+    Weighted,
+}
+
+fn dot(a: &[DVec3; 2], b: &[DVec3; 2]) -> f64 {
+    a[0].dot(b[0]) + a[1].dot(b[1])
+}
+
+/// Per ridge, per triangle, over the held-out poses of all folds: the edge residuals of the
+/// regression (e_r) and of SSD's gradient (e_s), as Σ|e_r|², Σ|e_s|² and Σ e_r·e_s.
+struct TriangleScores {
+    regression: Vec<Vec<f64>>,
+    cross: Vec<Vec<f64>>,
+    ssd: Vec<f64>,
+}
+
+impl TriangleScores {
+    /// Per triangle, the weight α of the regression in D = α D_rr + (1 − α) D_ssd, for ridge
+    /// index r. Weighted: α minimises the held-out edge error |α e_r + (1 − α) e_s|², clamped
+    /// to [0, 1]; Switch: α ∈ {0, 1}, whichever erred less.
+    fn alpha(&self, r: usize, blend: Blend) -> Vec<f64> {
+        (0..self.ssd.len())
+            .map(|k| {
+                let (rr, ss, rs) = (self.regression[r][k], self.ssd[k], self.cross[r][k]);
+                let denom = rr + ss - 2.0 * rs;
+                match blend {
+                    Blend::Regression => 1.0,
+                    Blend::Switch => f64::from(u8::from(rr <= ss)),
+                    Blend::Weighted if denom > 0.0 => ((ss - rs) / denom).clamp(0.0, 1.0),
+                    Blend::Weighted => 1.0,
+                }
+            })
+            .collect()
+    }
+}
+
+/// k-fold cross-validation over the training poses: first the per-triangle held-out gradient
+/// errors (which triangles fall back to SSD), then the held-out vertex error of every
+/// (percentile, ridge, fallback) candidate; returns the best and the triangle scores.
+pub fn choose(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    k: usize,
+    folds: usize,
+    progress: &Progress,
+) -> Result<Selection, TrainError> {
+    let folds = folds.min(train.len());
+    if folds < 2 {
+        return Ok(Selection::fallback(set.faces.len()));
+    }
+    let edges = full_model::rest_edges(set);
+    let inverses = crate::train::gradients::rest_inverses(&set.rest, &set.faces);
+    let t = set.faces.len();
+    let mut scores = TriangleScores {
+        regression: vec![vec![0.0; t]; RIDGES.len()],
+        cross: vec![vec![0.0; t]; RIDGES.len()],
+        ssd: vec![0.0; t],
+    };
+    let split = |fold: usize| -> (Vec<usize>, Vec<usize>) {
+        let inner = train
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| n % folds != fold)
+            .map(|(_, &i)| i)
+            .collect();
+        let held = train
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| n % folds == fold)
+            .map(|(_, &i)| i)
+            .collect();
+        (inner, held)
+    };
+    let mut fits = Vec::with_capacity(folds);
+    for fold in 0..folds {
+        let (inner, held) = split(fold);
+        let fit = fit_fold(set, prep, &inner, k);
+        let stretches: Vec<_> = RIDGES
+            .iter()
+            .map(|&ridge| full_model::fit_stretches(set, prep, &inner, &fit.rotations, ridge))
+            .collect();
+        for &i in &held {
+            let skinned = fit.ssd.deform(&set.rest, &set.poses[i].bones);
+            let ssd_grads = crate::train::gradients::gradients(&skinned, &set.faces, &inverses);
+            for kk in 0..t {
+                let (r, sv) = prep.polar[i][kk];
+                let truth = r * sv;
+                let e_ssd = full_model::edge_residuals(ssd_grads[kk], truth, &edges[kk]);
+                scores.ssd[kk] += dot(&e_ssd, &e_ssd);
+                for (ri, h) in stretches.iter().enumerate() {
+                    let d = full_model::predict_gradient(
+                        set,
+                        &prep.feats[i],
+                        &fit.rotations.0[kk],
+                        &h[kk],
+                    );
+                    let e = full_model::edge_residuals(d, truth, &edges[kk]);
+                    scores.regression[ri][kk] += dot(&e, &e);
+                    scores.cross[ri][kk] += dot(&e, &e_ssd);
+                }
+            }
+        }
+        fits.push((fit, stretches));
+        progress.step();
+    }
+    let mut candidates = Vec::new();
+    for blend in [Blend::Regression, Blend::Switch, Blend::Weighted] {
+        for &ridge in &RIDGES {
+            for &percentile in &PERCENTILES {
+                candidates.push(Choice {
+                    percentile,
+                    ridge,
+                    blend,
+                });
+            }
+        }
+    }
+    let mut score = vec![0.0; candidates.len()];
+    for (fold, (fit, stretches)) in fits.into_iter().enumerate() {
+        let (_, held) = split(fold);
+        for (c, choice) in candidates.iter().enumerate() {
+            let r = RIDGES.iter().position(|&x| x == choice.ridge).unwrap_or(0);
+            let fixed = full_model::near_rigid(set, &fit.ssd_error, choice.percentile);
+            let alpha = scores.alpha(r, choice.blend);
+            let model = FullModel::new(
+                set,
+                fit.rotations.clone(),
+                stretches[r].clone(),
+                fixed,
+                alpha,
+                choice.ridge,
+            )?;
+            score[c] += squared_error(set, &held, &model.predict(set, prep, &fit.ssd, &held));
+        }
+    }
+    let best = (0..score.len())
+        .min_by(|&a, &b| score[a].total_cmp(&score[b]))
+        .unwrap_or(0);
+    let choice = candidates[best];
+    let r = RIDGES.iter().position(|&x| x == choice.ridge).unwrap_or(0);
+    Ok(Selection {
+        choice,
+        alpha: scores.alpha(r, choice.blend),
+    })
+}
+
+/// Σ squared distance between predicted and true meshes of `poses`.
+pub fn squared_error(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]) -> f64 {
+    poses
+        .iter()
+        .zip(predicted)
+        .map(|(&i, y)| {
+            y.iter()
+                .zip(&set.poses[i].vertices)
+                .map(|(a, b)| (*a - *b).length_squared())
+                .sum::<f64>()
+        })
+        .sum()
+}
