@@ -3,8 +3,8 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
-use rrskin_tools::eval;
-use rrskin_tools::example_set::ExampleSet;
+use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::train::{self, TrainOptions};
 use std::time::Duration;
 
 fn cesiumman() -> ExampleSet {
@@ -12,19 +12,15 @@ fn cesiumman() -> ExampleSet {
         .expect("bundled data")
 }
 
-fn options() -> eval::Options {
-    eval::Options {
-        influences: 4,
-        proxies: 60,
-        epsilon: None,
-        model: None,
-        loocv: false,
+fn options() -> TrainOptions {
+    TrainOptions {
         quiet: true,
+        ..Default::default()
     }
 }
 
 fn runtime(c: &mut Criterion) {
-    let model = eval::run(&cesiumman(), &options())
+    let model = train::run(&cesiumman(), &options())
         .expect("training")
         .model
         .expect("a model");
@@ -62,7 +58,7 @@ fn training(c: &mut Criterion) {
         .sample_size(10)
         .measurement_time(Duration::from_secs(60));
     group.bench_function("cesiumman", |b| {
-        b.iter(|| eval::run(&set, &options()).expect("training"))
+        b.iter(|| train::run(&set, &options()).expect("training"))
     });
     group.finish();
 }

@@ -5,7 +5,7 @@ use rrskin::synthetic::{random_model, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
 use rrskin_tools::eval::{Options, Report};
-use rrskin_tools::train::TrainOptions;
+use rrskin_tools::train::{Method, TrainOptions};
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
 use std::path::PathBuf;
@@ -120,12 +120,22 @@ struct TrainArgs {
     /// Influences per vertex (SSD and the runtime model): 4 or 8.
     #[arg(long, default_value_t = TrainOptions::default().influences)]
     influences: usize,
-    /// No gentle poses for the reduction (see `train::augment`).
+    /// How the runtime model is made: joint-blend proxies (default), or the paper's reduction
+    /// of the full model.
+    #[arg(long, value_enum, default_value_t = Reduction::JointBlend)]
+    reduction: Reduction,
+    /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     no_gentle_poses: bool,
     /// One JSON object (the contract of ARCHITECTURE.md) on stdout, no progress.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Reduction {
+    JointBlend,
+    Paper,
 }
 
 impl TrainArgs {
@@ -135,6 +145,10 @@ impl TrainArgs {
             influences: self.influences,
             proxies: self.proxies,
             epsilon: self.epsilon,
+            method: match self.reduction {
+                Reduction::JointBlend => Method::JointBlend,
+                Reduction::Paper => Method::Paper,
+            },
             gentle_scales: if self.no_gentle_poses { Vec::new() } else { defaults.gentle_scales },
             quiet: self.json,
             ..defaults

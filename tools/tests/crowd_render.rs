@@ -5,6 +5,7 @@
 use rrskin::vk::render::{grid_scene, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_tools::eval;
+use rrskin_tools::train::TrainOptions;
 use rrskin_tools::import::example_set::ExampleSet;
 
 const SIDE: usize = 16;
@@ -15,12 +16,12 @@ fn a_crowd_of_256_renders_and_moves() {
     let set = ExampleSet::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
         .expect("bundled data");
     let options = eval::Options {
-        influences: 4,
-        proxies: 20,
-        epsilon: None,
-        model: None,
-        loocv: false,
-        quiet: true,
+        train: TrainOptions {
+            proxies: 20,
+            quiet: true,
+            ..Default::default()
+        },
+        ..Default::default()
     };
     let model = eval::run(&set, &options)
         .expect("training")

@@ -6,19 +6,20 @@
 use glam::DVec3;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
-use rrskin_tools::eval;
 use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
 use rrskin_tools::train::full_model::{self, FullModel, Prepared};
-use rrskin_tools::train::ssd::{self, Skinning};
+use rrskin_tools::train::reduce::c1c2::Reduced;
 use rrskin_tools::train::reduce::vertex::{self, Stop};
+use rrskin_tools::train::reduce::{self, Reduction};
+use rrskin_tools::train::selection::{Blend, Choice, Selection};
+use rrskin_tools::train::ssd::{self, Skinning};
 
-/// Everything the reduction needs from the full model, with the paper's choices (no blend).
+/// The pipeline's stages with the paper's choices (no blend, a fixed percentile and ridge).
 struct Trained {
     set: ExampleSet,
     prep: Prepared,
     train: Vec<usize>,
     ssd: Skinning,
-    fixed: Vec<bool>,
     full: FullModel,
 }
 
@@ -28,35 +29,34 @@ fn train(set: ExampleSet, percentile: f64) -> Trained {
     let prep = Prepared::new(&set);
     let train = set.train();
     let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
-    let mut err = vec![0.0; set.vertex_count()];
-    for &i in &train {
-        for (a, p) in ssd
-            .deform(&set.rest, &set.poses[i].bones)
-            .iter()
-            .enumerate()
-        {
-            err[a] += (*p - set.poses[i].vertices[a]).length_squared();
-        }
-    }
-    let fixed = full_model::near_rigid(&set, &err, percentile);
-    let rot = full_model::fit_rotations(&set, &prep, &train, &full_model::nearby_bones(&set, &ssd));
-    let stretches = full_model::fit_stretches(&set, &prep, &train, &rot, RIDGE);
-    let full = FullModel::new(
-        &set,
-        rot,
-        stretches,
-        fixed.clone(),
-        vec![1.0; set.faces.len()],
-    )
-    .expect("factor");
+    let selection = Selection {
+        choice: Choice {
+            percentile,
+            ridge: RIDGE,
+            blend: Blend::Regression,
+        },
+        alpha: vec![1.0; set.faces.len()],
+    };
+    let full = full_model::fit(&set, &prep, &train, &ssd, &selection).expect("factor");
     Trained {
         set,
         prep,
         train,
         ssd,
-        fixed,
         full,
     }
+}
+
+/// The paper's reduction (§5) of the full model to `proxies` proxies with K = `influences`.
+fn paper_reduction(t: &Trained, proxies: usize, influences: usize) -> Reduced {
+    let reduction = Reduction {
+        stop: Stop {
+            proxies,
+            epsilon: None,
+        },
+        influences,
+    };
+    reduce::run(&t.set, &t.prep, &t.train, &t.ssd, &t.full, &reduction)
 }
 
 fn cesiumman() -> ExampleSet {
@@ -79,21 +79,7 @@ const GPU_TOLERANCE: f64 = 1e-3;
 #[test]
 fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     let t = train(cesiumman(), 50.0);
-    let blend = vec![1.0; t.set.faces.len()];
-    let reduced = eval::reduce(
-        &t.set,
-        &t.prep,
-        &t.train,
-        &t.ssd,
-        &t.fixed,
-        &blend,
-        Stop {
-            proxies: 30,
-            epsilon: None,
-        },
-        4,
-        RIDGE,
-    );
+    let reduced = paper_reduction(&t, 30, 4);
     let written = reduced
         .to_runtime(&t.set, 4)
         .expect("a valid runtime model")
@@ -225,24 +211,10 @@ fn tube() -> ExampleSet {
 fn with_one_proxy_per_triangle_the_reduced_model_is_the_full_one() {
     let t = train(tube(), 25.0);
     let triangles = t.set.faces.len();
-    let blend = vec![1.0; triangles];
     // No reduction: every triangle its own proxy and key, every free vertex following one
     // proxy (K = 1). Blending several exact proxies (K = 8) ties on the training poses and
     // narrows what the proxies can express at the boundary (measured: 1.4e-3 on this tube).
-    let reduced = eval::reduce(
-        &t.set,
-        &t.prep,
-        &t.train,
-        &t.ssd,
-        &t.fixed,
-        &blend,
-        Stop {
-            proxies: triangles,
-            epsilon: None,
-        },
-        1,
-        RIDGE,
-    );
+    let reduced = paper_reduction(&t, triangles, 1);
     assert_eq!(reduced.proxies, triangles);
     let all: Vec<usize> = (0..t.set.poses.len()).collect();
     let full = t.full.predict(&t.set, &t.prep, &t.ssd, &all);
@@ -264,7 +236,7 @@ fn the_vertex_reduction_error_falls_as_proxies_grow() {
     let fixed = vec![false; set.vertex_count()];
     let mut last = f64::INFINITY;
     for p in [8, 16, 32, 64] {
-        let proxies = vertex_reduction::reduce(
+        let proxies = vertex::reduce(
             &set,
             &train,
             &fixed,
@@ -301,7 +273,7 @@ fn a_smaller_epsilon_stops_merging_earlier() {
     let counts: Vec<usize> = [0.02, 0.01, 0.005]
         .iter()
         .map(|&e| {
-            vertex_reduction::merge_groups(
+            vertex::merge_groups(
                 &set,
                 &train,
                 Stop {
@@ -317,7 +289,7 @@ fn a_smaller_epsilon_stops_merging_earlier() {
         counts[0] < counts[1] && counts[1] < counts[2],
         "proxies for ε = 0.02, 0.01, 0.005: {counts:?}"
     );
-    let capped = vertex_reduction::merge_groups(
+    let capped = vertex::merge_groups(
         &set,
         &train,
         Stop {

@@ -5,6 +5,7 @@
 
 use glam::{DMat3, DVec3};
 use rrskin_tools::eval;
+use rrskin_tools::train::TrainOptions;
 use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
 
 const RINGS: usize = 25;
@@ -77,12 +78,12 @@ fn bar_set(train_degrees: &[f64], test_degrees: &[f64]) -> ExampleSet {
 fn rotational_regression_learns_the_twist_that_skinning_cannot() {
     let set = bar_set(&[0.0, 90.0, 180.0], &[135.0]);
     let options = eval::Options {
-        influences: 4,
-        proxies: 0,
-        epsilon: None,
-        model: None,
-        loocv: false,
-        quiet: true,
+        train: TrainOptions {
+            proxies: 0,
+            quiet: true,
+            ..Default::default()
+        },
+        ..Default::default()
     };
     let report = eval::run(&set, &options).expect("training");
     let ssd = report.ssd.test.expect("a test pose");
@@ -108,12 +109,13 @@ fn rotational_regression_learns_the_twist_that_skinning_cannot() {
 fn leave_one_out_reports_held_out_training_poses() {
     let set = bar_set(&[0.0, 60.0, 120.0, 180.0], &[]);
     let options = |loocv| eval::Options {
-        influences: 4,
-        proxies: 0,
-        epsilon: None,
-        model: None,
+        train: TrainOptions {
+            proxies: 0,
+            quiet: true,
+            ..Default::default()
+        },
         loocv,
-        quiet: true,
+        ..Default::default()
     };
     let plain = eval::run(&set, &options(false)).expect("training");
     assert_eq!(plain.rr_full.test, None, "no test poses");

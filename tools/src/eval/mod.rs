@@ -181,6 +181,7 @@ pub fn enveloping_error(
     100.0 * (squared_error(set, poses, predicted) / reference).sqrt()
 }
 
+#[derive(Default)]
 pub struct Options {
     pub train: TrainOptions,
     /// Evaluate this runtime model file as "rr_reduced" instead of training a reduction.

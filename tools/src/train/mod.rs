@@ -13,6 +13,7 @@
 //! | vertex reduction to P proxy bones | [`reduce::vertex`] | §5.1 |
 //! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
 //! | C1/C2 and the runtime model | [`reduce::c1c2`] | §4.3 |
+//! | or: joint-blend proxies, the default runtime model | [`reduce::joint_blend`] | beyond the paper |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
 
@@ -37,6 +38,17 @@ use ssd::Skinning;
 use std::fmt;
 use std::time::Instant;
 
+/// How the runtime model is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Joint-blend proxies with NNLS weights ([`reduce::joint_blend`]; beyond the paper):
+    /// geometry that extrapolates as the rig's joints do.
+    JointBlend,
+    /// The paper's reduction of the full model (§5, §4.3), on the training poses and gentle
+    /// poses meshed by the full model ([`augment`]).
+    Paper,
+}
+
 /// Every training default, in one place.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainOptions {
@@ -48,7 +60,8 @@ pub struct TrainOptions {
     pub epsilon: Option<f64>,
     /// Folds of the cross-validation over the training poses.
     pub folds: usize,
-    /// Joint-rotation scales of the gentle poses the reduction also sees (empty: none).
+    pub method: Method,
+    /// Joint-rotation scales of the gentle poses the paper's reduction also sees (empty: none).
     pub gentle_scales: Vec<f64>,
     /// No progress output (for `--json`).
     pub quiet: bool,
@@ -61,6 +74,7 @@ impl Default for TrainOptions {
             proxies: 60,
             epsilon: None,
             folds: 4,
+            method: Method::JointBlend,
             gentle_scales: vec![augment::GENTLE_SCALE],
             quiet: false,
         }
@@ -182,11 +196,17 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                 },
                 influences: k,
             };
-            let reduced = if options.gentle_scales.is_empty() {
-                reduce::run(set, &prep, &train, &ssd, &full, &reduction)
-            } else {
-                let wider = augment::augment(set, &prep, &full, &ssd, &options.gentle_scales);
-                reduce::run(&wider.set, &wider.prep, &wider.set.train(), &ssd, &full, &reduction)
+            let reduced = match options.method {
+                Method::JointBlend => {
+                    reduce::joint_blend::fit(set, &prep.feats, &train, &ssd, proxies, k)
+                }
+                Method::Paper if options.gentle_scales.is_empty() => {
+                    reduce::run(set, &prep, &train, &ssd, &full, &reduction)
+                }
+                Method::Paper => {
+                    let wider = augment::augment(set, &prep, &full, &ssd, &options.gentle_scales);
+                    reduce::run(&wider.set, &wider.prep, &wider.set.train(), &ssd, &full, &reduction)
+                }
             };
             let model = reduced.to_runtime(set, k)?;
             clock.lap("reduction");

@@ -2,6 +2,7 @@
 //! (§5.2), and the C1/C2 matrices mapping key gradients and bones to proxy transforms (§4.3).
 
 pub mod c1c2;
+pub mod joint_blend;
 pub mod predictor;
 pub mod vertex;
 
