@@ -196,3 +196,37 @@ fn a_saved_set_loads_back() {
     std::fs::remove_dir_all(&dir).ok();
     std::fs::remove_dir_all(&copy).ok();
 }
+
+#[test]
+fn the_rigs_own_weights_load_when_present() {
+    let dir = temp_dir("set-weights");
+    write_valid(&dir);
+    assert_eq!(ExampleSet::load(&dir).expect("valid").rig_weights, None);
+    let weights = [1.0, 0.0, 0.25, 0.75, 0.0, 1.0, 0.5, 0.5];
+    write_f32(&dir.join("skin_weights.npy"), &[V, 2], &weights);
+    let set = ExampleSet::load(&dir).expect("valid");
+    std::fs::remove_dir_all(&dir).ok();
+    let w = set.rig_weights.expect("weights");
+    assert_eq!(w[0], vec![(0, 1.0)], "zero weights are dropped");
+    assert_eq!(w[1], vec![(0, 0.25), (1, 0.75)]);
+    assert_eq!(w.len(), V);
+}
+
+#[test]
+fn bad_rig_weights_name_the_file_and_the_vertex() {
+    let file = "skin_weights.npy";
+    let e = error_after("weights-shape", |d| write_f32(&d.join(file), &[V, 3], &[0.0; V * 3]));
+    assert_names(&e, file, "expected (V = 4, J = 2)");
+    let e = error_after("weights-negative", |d| {
+        write_f32(&d.join(file), &[V, 2], &[1.0, 0.0, 1.5, -0.5, 0.0, 1.0, 0.5, 0.5])
+    });
+    assert_names(&e, file, "vertex 1, bone 1: negative weight");
+    let e = error_after("weights-sum", |d| {
+        write_f32(&d.join(file), &[V, 2], &[1.0, 0.0, 0.5, 0.25, 0.0, 1.0, 0.5, 0.5])
+    });
+    assert_names(&e, file, "vertex 1: weights sum to 0.75");
+    let e = error_after("weights-nan", |d| {
+        write_f32(&d.join(file), &[V, 2], &[1.0, 0.0, f32::NAN, 0.5, 0.0, 1.0, 0.5, 0.5])
+    });
+    assert_names(&e, file, "not finite");
+}

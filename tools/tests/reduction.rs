@@ -80,12 +80,26 @@ const GPU_TOLERANCE: f64 = 1e-3;
 fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     let t = train(cesiumman(), 50.0);
     let reduced = paper_reduction(&t, 30, 4);
+    assert_runtime_reproduces(&t, &reduced, 30);
+}
+
+#[test]
+fn the_runtime_reproduces_the_joint_blend_model() {
+    let t = train(cesiumman(), 50.0);
+    let feats = &t.prep.feats;
+    let reduced = rrskin_tools::train::reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, 30, 4);
+    assert_runtime_reproduces(&t, &reduced, 30);
+}
+
+/// The runtime model written from `reduced` and loaded back gives, on the CPU evaluator and on
+/// Vulkan (validation on), the training tool's own prediction on the test poses.
+fn assert_runtime_reproduces(t: &Trained, reduced: &Reduced, proxies: usize) {
     let written = reduced
         .to_runtime(&t.set, 4)
         .expect("a valid runtime model")
         .to_bytes();
     let model = rrskin::Model::from_bytes(&written).expect("loads");
-    assert_eq!(model.proxy_count(), 30);
+    assert_eq!(model.proxy_count(), proxies);
 
     let poses = t.set.test();
     let bones: Vec<rrskin::predict::Affine> = poses

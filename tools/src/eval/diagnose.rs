@@ -17,20 +17,20 @@ use faer::prelude::*;
 use faer::{Mat, Side};
 use glam::{DMat3, DVec3, DVec4};
 
-/// Per pose, every proxy transform (3 rows of 4) fitting the free vertices best, with the
-/// trained weights: the ceiling of the runtime form.
+/// Per pose, every proxy transform (3 rows of 4) fitting the vertices best, with the trained
+/// weights (the bones' share of each vertex is known): the ceiling of the runtime form.
 pub fn oracle_transforms(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> Vec<Vec<[DVec4; 3]>> {
     let p = reduced.proxies;
     let n4p = 4 * p;
     let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
-    // Fixed vertices follow their bones whatever the proxies do.
+    // Vertices on bones alone follow them whatever the proxies do.
     let free: Vec<usize> = (0..set.vertex_count())
-        .filter(|&a| reduced.skin[a].iter().all(|&(e, _)| e < p))
+        .filter(|&a| reduced.skin[a].iter().any(|&(e, _)| e < p))
         .collect();
     let mut gram = Mat::<f64>::zeros(n4p, n4p);
     for &a in &free {
-        for &(e1, w1) in &reduced.skin[a] {
-            for &(e2, w2) in &reduced.skin[a] {
+        for &(e1, w1) in reduced.skin[a].iter().filter(|x| x.0 < p) {
+            for &(e2, w2) in reduced.skin[a].iter().filter(|x| x.0 < p) {
                 for r in 0..4 {
                     for c in 0..4 {
                         gram[(4 * e1 + r, 4 * e2 + c)] += w1 * w2 * h(a)[r] * h(a)[c];
@@ -50,13 +50,19 @@ pub fn oracle_transforms(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -
     poses
         .iter()
         .map(|&i| {
-            let y = &set.poses[i].vertices;
+            let pose = &set.poses[i];
             let mut rhs = Mat::<f64>::zeros(n4p, 3);
             for &a in &free {
-                for &(e, w) in &reduced.skin[a] {
+                let on_bones: DVec3 = reduced.skin[a]
+                    .iter()
+                    .filter(|x| x.0 >= p)
+                    .map(|&(e, w)| pose.bones[e - p].apply(set.rest[a]) * w)
+                    .sum();
+                let y = pose.vertices[a] - on_bones;
+                for &(e, w) in reduced.skin[a].iter().filter(|x| x.0 < p) {
                     for r in 0..4 {
                         for c in 0..3 {
-                            rhs[(4 * e + r, c)] += w * h(a)[r] * y[a][c];
+                            rhs[(4 * e + r, c)] += w * h(a)[r] * y[c];
                         }
                     }
                 }

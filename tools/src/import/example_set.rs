@@ -455,6 +455,17 @@ impl ExampleSet {
             let path = dir.join(name);
             write(&path).map_err(|e| bad(&path, format!("cannot write: {e}")))?;
         }
+        if let Some(weights) = &self.rig_weights {
+            let mut dense = vec![0.0f32; v * j];
+            for (a, inf) in weights.iter().enumerate() {
+                for &(b, w) in inf {
+                    dense[a * j + b] = w as f32;
+                }
+            }
+            let path = dir.join("skin_weights.npy");
+            crate::import::npy::write_f32(&path, &[v, j], &dense)
+                .map_err(|e| bad(&path, format!("cannot write: {e}")))?;
+        }
         Ok(())
     }
 

@@ -179,8 +179,9 @@ mod tests {
         let pivots = pivots(&set, &[0]);
         let bones = &set.poses[0].bones;
         for (b, t) in scaled_pose(&set, &order, &pivots, bones, 1.0).iter().enumerate() {
+            // The pivots come from a least-squares fit with a weak ridge: 1e-6 is its bias.
             assert!((t.q - bones[b].q).abs().to_cols_array().iter().all(|x| *x < 1e-9), "bone {b}");
-            assert!((t.d - bones[b].d).length() < 1e-9, "bone {b}: {:?} vs {:?}", t.d, bones[b].d);
+            assert!((t.d - bones[b].d).length() < 1e-6, "bone {b}: {:?} vs {:?}", t.d, bones[b].d);
         }
         for t in scaled_pose(&set, &order, &pivots, bones, 0.0) {
             assert!((t.q - DMat3::IDENTITY).abs().to_cols_array().iter().all(|x| *x < 1e-9));

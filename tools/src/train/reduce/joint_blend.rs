@@ -181,3 +181,47 @@ fn assemble(set: &ExampleSet, proxies: &[Proxy], skin: Vec<Vec<(usize, f64)>>, s
         baseline: ssd.influences.clone(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rrskin::predict::log_rotation;
+
+    /// A proxy at fraction w is the screw interpolation (ScLERP) of parent and child at w: it
+    /// turns about the joint's pivot by w of the joint's angle, and at w = ½ it is exactly dual
+    /// quaternion skinning's blend (DLB, which parametrises the angle differently elsewhere).
+    #[test]
+    fn a_proxy_is_the_screw_interpolation_of_its_joint() {
+        let parent = Bone {
+            q: exp_rotation(DVec3::new(0.2, -0.4, 0.3)),
+            d: DVec3::new(0.5, -1.0, 0.25),
+        };
+        let pivot = DVec3::new(0.1, 1.2, -0.3);
+        let joint = exp_rotation(DVec3::new(0.0, 1.1, 0.6));
+        let child = Bone {
+            q: parent.q * joint,
+            d: parent.apply(pivot - joint * pivot),
+        };
+        let feats = PoseFeatures {
+            q: vec![parent.q, child.q],
+            theta: vec![log_rotation(parent.q), log_rotation(parent.q.transpose() * child.q)],
+        };
+        let x = DVec3::new(-0.4, 0.9, 0.7);
+        for w in FRACTIONS {
+            let proxy = Proxy {
+                bone: 1,
+                parent: 0,
+                fraction: w,
+                pivot,
+            };
+            let t = proxy.transform(&feats, &[parent, child]);
+            assert!((t.apply(pivot) - parent.apply(pivot)).length() < 1e-12, "w = {w}");
+            let turned = log_rotation(parent.q.transpose() * t.q);
+            assert!((turned - feats.theta[1] * w).length() < 1e-12, "w = {w}");
+            if w == 0.5 {
+                let dqs = crate::eval::dqs::deform(&[x], &[vec![(0, 0.5), (1, 0.5)]], &[parent, child]);
+                assert!((t.apply(x) - dqs[0]).length() < 1e-12, "{:?} vs {:?}", t.apply(x), dqs[0]);
+            }
+        }
+    }
+}
