@@ -284,6 +284,12 @@ fn evaluate(
             .warnings
             .iter()
             .for_each(|w| eprintln!("warning: {w}"));
+        if examples.test().is_empty() && !loocv {
+            eprintln!(
+                "warning: {}: no test poses, so no held-out error (--loocv reports leave-one-out over the training poses)",
+                set.set.display()
+            );
+        }
     }
     let options = Options {
         train: train.options(),

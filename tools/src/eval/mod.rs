@@ -57,6 +57,7 @@ pub struct Report {
     pub choice: Choice,
     /// Mean weight of the regression in the triangles' blended gradients (1: the paper).
     pub mean_alpha: f64,
+    /// Folds of the cross-validation that made `choice` (below 2: none, fixed choices).
     pub folds: usize,
     /// Wall time per stage, in order.
     pub stages: Vec<(&'static str, f64)>,
@@ -145,9 +146,13 @@ impl Report {
             row(&mut s, "  runtime form, oracle proxies", &b.reduced_oracle);
             row(&mut s, "  runtime form, oracle keys", &b.reduced_oracle_keys);
         }
+        let chosen = match self.folds {
+            0 | 1 => "fixed: too few training poses to cross-validate".to_string(),
+            k => format!("chosen by {k}-fold cross-validation on the training poses"),
+        };
         s += &format!(
-            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {:.2}) (chosen by {}-fold cross-validation on the training poses)\nstages:",
-            self.choice.percentile, self.choice.ridge, self.choice.blend, self.mean_alpha, self.folds
+            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {:.2}) ({chosen})\nstages:",
+            self.choice.percentile, self.choice.ridge, self.choice.blend, self.mean_alpha
         );
         for (stage, t) in &self.stages {
             s += &format!(" {stage} {t:.2} s;");
@@ -286,7 +291,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         choice: trained.selection.choice,
         mean_alpha: trained.selection.alpha.iter().sum::<f64>()
             / trained.selection.alpha.len().max(1) as f64,
-        folds: options.train.folds,
+        folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,
     })

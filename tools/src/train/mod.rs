@@ -88,6 +88,8 @@ pub enum TrainError {
     Influences { influences: usize },
     /// The set has no training pose.
     NoTrainingPoses,
+    /// More proxy bones than the paper's reduction can make (one per triangle at most).
+    TooManyProxies { proxies: usize, triangles: usize },
     /// The Poisson system cannot be factored (a component without a fixed vertex).
     Poisson { problem: String },
     /// The runtime refused the trained model (a bug if it happens: training makes valid models).
@@ -101,6 +103,10 @@ impl fmt::Display for TrainError {
                 write!(f, "{influences} influences per vertex: the runtime supports 4 or 8")
             }
             TrainError::NoTrainingPoses => write!(f, "the example set has no training pose"),
+            TrainError::TooManyProxies { proxies, triangles } => write!(
+                f,
+                "--proxies {proxies}: the reduction makes at most one proxy per triangle ({triangles})"
+            ),
             TrainError::Poisson { problem } => write!(f, "Poisson system: {problem}"),
             TrainError::Model { source } => write!(f, "the trained model is invalid: {source}"),
         }
@@ -158,6 +164,12 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let train = set.train();
     if train.is_empty() {
         return Err(TrainError::NoTrainingPoses);
+    }
+    if options.method == Method::Paper && options.proxies > set.faces.len() {
+        return Err(TrainError::TooManyProxies {
+            proxies: options.proxies,
+            triangles: set.faces.len(),
+        });
     }
     let progress = Progress::new("training", options.folds + 3, options.quiet);
     let mut clock = Clock {
