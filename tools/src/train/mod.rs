@@ -14,6 +14,7 @@
 //! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
 //! | C1/C2 and the runtime model | [`reduce::c1c2`] | §4.3 |
 //! | or: joint-blend proxies, the default runtime model | [`reduce::joint_blend`] | beyond the paper |
+//! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
 
@@ -137,6 +138,8 @@ pub struct Trained {
     pub full: FullModel,
     /// The reduced model in f64 and the runtime model (None when P = 0).
     pub reduced: Option<Reduced>,
+    /// What the joint-blend model's local refit chose (None for the paper's reduction).
+    pub refit: Option<reduce::refit::Refit>,
     pub model: Option<rrskin::Model>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
@@ -197,6 +200,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     clock.lap("full model");
     progress.step();
 
+    let mut refit = None;
     let (reduced, model) = match options.proxies {
         0 => (None, None),
         proxies => {
@@ -210,7 +214,9 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             };
             let reduced = match options.method {
                 Method::JointBlend => {
-                    reduce::joint_blend::fit(set, &prep.feats, &train, &ssd, proxies, k)
+                    let mut r = reduce::joint_blend::fit(set, &prep.feats, &train, &ssd, proxies, k);
+                    refit = Some(reduce::refit::refit(set, &prep, &train, options.folds, &mut r));
+                    r
                 }
                 Method::Paper if options.gentle_scales.is_empty() => {
                     reduce::run(set, &prep, &train, &ssd, &full, &reduction)
@@ -234,6 +240,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         selection,
         full,
         reduced,
+        refit,
         model,
         seconds: clock.seconds,
     })

@@ -3,6 +3,7 @@
 
 pub mod c1c2;
 pub mod joint_blend;
+pub mod refit;
 pub mod predictor;
 pub mod vertex;
 

@@ -1,0 +1,318 @@
+//! A local end-to-end refit of the runtime form to the vertices (beyond the paper; METHOD.md
+//! §12). With the skinning weights fixed, a vertex moves by
+//! `y_a,c = Σ_e α_ae ŷh_aᵀ (C x_c)_e + (its bones' share)`, `x_c = [d_c(q); q_c]` (F = 3P + 4J,
+//! the predicted key gradients, then the bones), so the training vertex error is quadratic in
+//! C = [C1 C2] (4P x F):
+//!
+//! ```text
+//! min_Δ  Σ_i Σ_c |Φ (C0 + Δ) x_c^i − r_c^i|² + λ |Δ|²,   Δ zero off the mask S
+//!   ⇔   P_S(A Δ B) + λ Δ = P_S(E − A C0 B),   A = ΦᵀΦ (4P x 4P), B = Σ x xᵀ, E = Σ Φᵀ r xᵀ
+//! ```
+//!
+//! (r: the vertices less their bones' share), solved by conjugate gradients on the entries of
+//! S. S keeps C local: proxy e sees its own key and the bones its geometry already uses, so a
+//! fit on wide random poses cannot learn that one elbow bulges the other (STAR's lesson; a
+//! dense Δ measured worse on held-out animation). The features are projected off the bones'
+//! summed translations, so Δ cannot break translation equivariance (the training poses never
+//! move the root). λ is chosen by k-fold cross-validation over the training poses.
+
+use crate::import::example_set::ExampleSet;
+use crate::train::full_model::Prepared;
+use crate::train::reduce::c1c2::Reduced;
+use glam::{DVec3, DVec4};
+
+/// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0.
+pub const RIDGES: [Option<f64>; 8] = [
+    Some(1e-6),
+    Some(1e-5),
+    Some(1e-4),
+    Some(1e-3),
+    Some(1e-2),
+    Some(1e-1),
+    Some(1.0),
+    None,
+];
+const CG_ITERATIONS: usize = 100;
+
+/// What the refit chose: the relative ridge (None: C0 kept) and every candidate's held-out
+/// error (Σ squared distances over the folds), in `RIDGES` order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refit {
+    pub ridge: Option<f64>,
+    pub held_out: Vec<f64>,
+}
+
+/// One training pose's sufficient statistics.
+struct PoseTerms {
+    /// F x 3, row-major: x_c for c = x, y, z.
+    x: Vec<[f64; 3]>,
+    /// The same projected off the bones' summed translations.
+    projected: Vec<[f64; 3]>,
+    /// 4P x 3: Φᵀ r_c.
+    b: Vec<[f64; 3]>,
+    /// Σ_c |r_c|².
+    s: f64,
+}
+
+/// Row-major dense matrices of the fit.
+struct Problem {
+    n4p: usize,
+    f: usize,
+    /// A = ΦᵀΦ, 4P x 4P.
+    a: Vec<f64>,
+    /// C0, 4P x F.
+    c0: Vec<f64>,
+    /// The mask: (row, column) of every free entry.
+    mask: Vec<(usize, usize)>,
+    terms: Vec<PoseTerms>,
+}
+
+/// Refits `reduced`'s C1/C2 on the mask (its own non-zeros, and the bone each key turns).
+pub fn refit(set: &ExampleSet, prep: &Prepared, train: &[usize], folds: usize, reduced: &mut Reduced) -> Refit {
+    let problem = Problem::new(set, prep, train, reduced);
+    let folds = folds.min(train.len());
+    let mut held_out = vec![0.0; RIDGES.len()];
+    if folds < 2 || problem.mask.is_empty() {
+        return Refit { ridge: None, held_out };
+    }
+    let all: Vec<usize> = (0..train.len()).collect();
+    for fold in 0..folds {
+        let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
+        for (h, delta) in held_out.iter_mut().zip(problem.solve(&inner, &RIDGES)) {
+            *h += all.iter().filter(|n| *n % folds == fold).map(|&n| problem.error(&delta, n)).sum::<f64>();
+        }
+    }
+    let best = (0..RIDGES.len()).min_by(|&x, &y| held_out[x].total_cmp(&held_out[y])).unwrap_or(RIDGES.len() - 1);
+    let ridge = RIDGES[best];
+    if let Some(delta) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
+        // Δ acts on projected features: Δ x' = Δ x − (Δ n) nᵀ x, so each row's weight on a
+        // bone translation is spread back over all J bones (n = 1/√J on each).
+        let (p, j) = (reduced.proxies, reduced.bones);
+        let mut spread = vec![0.0; 4 * p];
+        for (&(r, c), v) in problem.mask.iter().zip(delta) {
+            match c < 3 * p {
+                true => reduced.c1[r * 3 * p + c] += v,
+                false => {
+                    reduced.c2[r * 4 * j + c - 3 * p] += v;
+                    if (c - 3 * p) % 4 == 3 {
+                        spread[r] += v / j as f64;
+                    }
+                }
+            }
+        }
+        for (r, s) in spread.iter().enumerate() {
+            (0..j).for_each(|b| reduced.c2[r * 4 * j + 4 * b + 3] -= s);
+        }
+    }
+    Refit { ridge, held_out }
+}
+
+impl Problem {
+    fn new(set: &ExampleSet, prep: &Prepared, train: &[usize], reduced: &Reduced) -> Problem {
+        let (p, j) = (reduced.proxies, reduced.bones);
+        let (n4p, f) = (4 * p, 3 * p + 4 * j);
+        let c0: Vec<f64> = (0..n4p)
+            .flat_map(|r| {
+                (0..f).map(move |c| match c < 3 * p {
+                    true => reduced.c1[r * 3 * p + c],
+                    false => reduced.c2[r * 4 * j + c - 3 * p],
+                })
+            })
+            .collect();
+        let mut mask = Vec::new();
+        for r in 0..n4p {
+            let e = r / 4;
+            let turned = reduced.predictors[e].rotation.map(|t| t.first.bone);
+            for c in 0..f {
+                let free = match c < 3 * p {
+                    true => c / 3 == e,
+                    false => {
+                        let b = (c - 3 * p) / 4;
+                        Some(b) == turned || (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0)
+                    }
+                };
+                if free {
+                    mask.push((r, c));
+                }
+            }
+        }
+        let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
+        let proxy_share = |a: usize| reduced.skin[a].iter().filter(|x| x.0 < p);
+        let moved: Vec<usize> = (0..set.vertex_count()).filter(|&a| proxy_share(a).next().is_some()).collect();
+        let mut a_mat = vec![0.0; n4p * n4p];
+        for &a in &moved {
+            for &(e1, w1) in proxy_share(a) {
+                for &(e2, w2) in proxy_share(a) {
+                    for r in 0..4 {
+                        for c in 0..4 {
+                            a_mat[(4 * e1 + r) * n4p + 4 * e2 + c] += w1 * w2 * h(a)[r] * h(a)[c];
+                        }
+                    }
+                }
+            }
+        }
+        let norm = 1.0 / (j as f64).sqrt();
+        let terms = train
+            .iter()
+            .map(|&i| {
+                let pose = &set.poses[i];
+                let mut x = vec![[0.0; 3]; f];
+                for (l, key) in reduced.predictors.iter().enumerate() {
+                    let d = key.predict(&prep.feats[i], &set.parents);
+                    for c in 0..3 {
+                        for k in 0..3 {
+                            x[3 * l + k][c] = d.row(c)[k];
+                        }
+                    }
+                }
+                for (b, bone) in pose.bones.iter().enumerate() {
+                    for c in 0..3 {
+                        let q = [bone.q.x_axis[c], bone.q.y_axis[c], bone.q.z_axis[c], bone.d[c]];
+                        for k in 0..4 {
+                            x[3 * p + 4 * b + k][c] = q[k];
+                        }
+                    }
+                }
+                let mut projected = x.clone();
+                for c in 0..3 {
+                    let along: f64 = (0..j).map(|b| x[3 * p + 4 * b + 3][c]).sum::<f64>() * norm;
+                    (0..j).for_each(|b| projected[3 * p + 4 * b + 3][c] -= along * norm);
+                }
+                let (mut bm, mut s) = (vec![[0.0; 3]; n4p], 0.0);
+                for &a in &moved {
+                    let on_bones: DVec3 = reduced.skin[a]
+                        .iter()
+                        .filter(|x| x.0 >= p)
+                        .map(|&(e, w)| pose.bones[e - p].apply(set.rest[a]) * w)
+                        .sum();
+                    let r = pose.vertices[a] - on_bones;
+                    s += r.length_squared();
+                    for &(e, w) in proxy_share(a) {
+                        for k in 0..4 {
+                            for c in 0..3 {
+                                bm[4 * e + k][c] += w * h(a)[k] * r[c];
+                            }
+                        }
+                    }
+                }
+                PoseTerms { x, projected, b: bm, s }
+            })
+            .collect();
+        Problem { n4p, f, a: a_mat, c0, mask, terms }
+    }
+
+    /// t = (C0 + Δ) x for pose n: 4P x 3.
+    fn transforms(&self, delta: &[f64], n: usize) -> Vec<[f64; 3]> {
+        let t = &self.terms[n];
+        let mut out = vec![[0.0; 3]; self.n4p];
+        for (r, row) in out.iter_mut().enumerate() {
+            for (c, x) in t.x.iter().enumerate() {
+                let v = self.c0[r * self.f + c];
+                if v != 0.0 {
+                    (0..3).for_each(|k| row[k] += v * x[k]);
+                }
+            }
+        }
+        for (&(r, c), v) in self.mask.iter().zip(delta) {
+            (0..3).for_each(|k| out[r][k] += v * t.projected[c][k]);
+        }
+        out
+    }
+
+    /// Σ_c |Φ t_c − r_c|² for pose n.
+    fn error(&self, delta: &[f64], n: usize) -> f64 {
+        let t = self.transforms(delta, n);
+        let mut e = self.terms[n].s;
+        for r in 0..self.n4p {
+            for k in 0..3 {
+                let at: f64 = (0..self.n4p).map(|q| self.a[r * self.n4p + q] * t[q][k]).sum();
+                e += t[r][k] * (at - 2.0 * self.terms[n].b[r][k]);
+            }
+        }
+        e
+    }
+
+    /// Δ on the mask for each ridge, fitted on `poses` (warm-started from the stronger ridge).
+    fn solve(&self, poses: &[usize], ridges: &[Option<f64>]) -> Vec<Vec<f64>> {
+        let (n4p, f, m) = (self.n4p, self.f, self.mask.len());
+        // B = Σ x' x'ᵀ over poses and coordinates (F x F).
+        let mut b = vec![0.0; f * f];
+        for &n in poses {
+            let x = &self.terms[n].projected;
+            for r in 0..f {
+                for c in 0..f {
+                    b[r * f + c] += (0..3).map(|k| x[r][k] * x[c][k]).sum::<f64>();
+                }
+            }
+        }
+        // Right-hand side on the mask: Σ (Φᵀ r − A C0 x) x'ᵀ.
+        let mut rhs = vec![0.0; m];
+        for &n in poses {
+            let t = &self.terms[n];
+            let c0x = self.transforms(&vec![0.0; m], n);
+            let residual: Vec<[f64; 3]> = (0..n4p)
+                .map(|r| {
+                    let mut v = t.b[r];
+                    for q in 0..n4p {
+                        (0..3).for_each(|k| v[k] -= self.a[r * n4p + q] * c0x[q][k]);
+                    }
+                    v
+                })
+                .collect();
+            for (slot, &(r, c)) in rhs.iter_mut().zip(&self.mask) {
+                *slot += (0..3).map(|k| residual[r][k] * t.projected[c][k]).sum::<f64>();
+            }
+        }
+        let mean_a = (0..n4p).map(|d| self.a[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
+        let mean_b = (0..f).map(|d| b[d * f + d]).sum::<f64>() / f.max(1) as f64;
+        // P_S(A Δ B) through G = Δ B (4P x F, stored column-major to read A's rows against).
+        let apply = |v: &[f64], lambda: f64| -> Vec<f64> {
+            let mut g = vec![0.0; f * n4p];
+            for (&(r, c), &x) in self.mask.iter().zip(v) {
+                for col in 0..f {
+                    g[col * n4p + r] += x * b[c * f + col];
+                }
+            }
+            self.mask
+                .iter()
+                .zip(v)
+                .map(|(&(r, c), &x)| {
+                    let a_row = &self.a[r * n4p..(r + 1) * n4p];
+                    let g_col = &g[c * n4p..(c + 1) * n4p];
+                    a_row.iter().zip(g_col).map(|(p, q)| p * q).sum::<f64>() + lambda * x
+                })
+                .collect()
+        };
+        let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
+        let mut order: Vec<usize> = (0..ridges.len()).collect();
+        order.sort_by(|&x, &y| ridges[y].unwrap_or(f64::INFINITY).total_cmp(&ridges[x].unwrap_or(f64::INFINITY)));
+        let mut out = vec![vec![0.0; m]; ridges.len()];
+        let mut delta = vec![0.0; m];
+        for idx in order {
+            let Some(rho) = ridges[idx] else { continue };
+            let lambda = rho * mean_a * mean_b;
+            let diag: Vec<f64> = self.mask.iter().map(|&(r, c)| self.a[r * n4p + r] * b[c * f + c] + lambda).collect();
+            let applied = apply(&delta, lambda);
+            let mut res: Vec<f64> = rhs.iter().zip(&applied).map(|(x, y)| x - y).collect();
+            let mut z: Vec<f64> = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
+            let mut dir = z.clone();
+            let mut rz = dot(&res, &z);
+            let floor = 1e-20 * dot(&rhs, &rhs).max(1e-300);
+            for _ in 0..CG_ITERATIONS {
+                if dot(&res, &res) < floor {
+                    break;
+                }
+                let ad = apply(&dir, lambda);
+                let step = rz / dot(&dir, &ad).max(1e-300);
+                delta.iter_mut().zip(&dir).for_each(|(x, d)| *x += step * d);
+                res.iter_mut().zip(&ad).for_each(|(x, d)| *x -= step * d);
+                z = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
+                let rz_next = dot(&res, &z);
+                dir = z.iter().zip(&dir).map(|(x, d)| x + d * (rz_next / rz)).collect();
+                rz = rz_next;
+            }
+            out[idx] = delta.clone();
+        }
+        out
+    }
+}
