@@ -206,9 +206,11 @@ impl PassDesc {
 
     /// Fails if the axes that depend only on the model need more workgroups than `max`.
     pub fn check_model_groups(&self, d: &Dims, max: [u32; 3]) -> Result<()> {
-        for (axis, limit) in self.groups.iter().zip(max) {
+        let model_axes =
+            (self.groups.iter().zip(max)).filter(|(a, _)| a.extent.per_character().is_none());
+        for (axis, limit) in model_axes {
             let needed = axis.groups(d, 0);
-            if axis.extent.per_character().is_none() && needed > limit as u64 {
+            if needed > limit as u64 {
                 return Err(Error::DeviceLimit {
                     what: axis.extent.what(),
                     needed,

@@ -60,6 +60,18 @@ impl Pass {
     }
 }
 
+/// One model of each kind the table tells apart: plain LBS (P = 0) or reduced, for each K.
+#[cfg(test)]
+pub fn model_kinds() -> impl Iterator<Item = Dims> {
+    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| [0, 3].map(|p| (k, p)));
+    kinds.into_iter().flatten().map(|(k, proxies)| Dims {
+        vertices: 10,
+        proxies,
+        bones: 2,
+        influences: k as usize,
+    })
+}
+
 /// Key gradients D_ℓ(q) for every (predictor, character), written with the bone transforms into
 /// B = [d; q], the right-hand side of the GEMM. Reduced models (P > 0) only.
 const PREDICT: PassDesc = PassDesc {
@@ -144,7 +156,6 @@ const PER_VERTEX: [Axis; 3] = [over(Vertices, 64), over(Characters, 1), ONE];
 mod tests {
     use super::super::pass::{Binding, CrowdBuffer};
     use super::*;
-    use crate::model::SUPPORTED_INFLUENCES;
 
     /// (binding index, declared `readonly`, block name) of every storage buffer, and the push
     /// block's member names, in source order.
@@ -250,28 +261,20 @@ mod tests {
     /// bound but never read: no palette index is below P).
     #[test]
     fn every_model_writes_its_outputs_once_and_reads_only_what_is_written() {
-        for influences in SUPPORTED_INFLUENCES {
-            for proxies in [0, 3] {
-                let d = Dims {
-                    vertices: 10,
-                    proxies,
-                    bones: 2,
-                    influences: influences as usize,
-                };
-                let writers = |b: CrowdBuffer| {
-                    Pass::of_model(&d)
-                        .filter(|p| p.desc().crowd_accesses().1 & b.bit() != 0)
-                        .count()
-                };
-                assert_eq!(writers(CrowdBuffer::Positions), 1, "{d:?}");
-                assert_eq!(writers(CrowdBuffer::Normals), 1, "{d:?}");
-                for p in Pass::of_model(&d) {
-                    for b in CrowdBuffer::ALL {
-                        let input =
-                            b == CrowdBuffer::Bones || (proxies == 0 && b == CrowdBuffer::Proxies);
-                        if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
-                            assert_eq!(writers(b), 1, "{p:?} reads {b:?} of {d:?}");
-                        }
+        for d in model_kinds() {
+            let writers = |b: CrowdBuffer| {
+                Pass::of_model(&d)
+                    .filter(|p| p.desc().crowd_accesses().1 & b.bit() != 0)
+                    .count()
+            };
+            assert_eq!(writers(CrowdBuffer::Positions), 1, "{d:?}");
+            assert_eq!(writers(CrowdBuffer::Normals), 1, "{d:?}");
+            for p in Pass::of_model(&d) {
+                for b in CrowdBuffer::ALL {
+                    let input =
+                        b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Proxies);
+                    if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
+                        assert_eq!(writers(b), 1, "{p:?} reads {b:?} of {d:?}");
                     }
                 }
             }
