@@ -13,6 +13,8 @@ macro_rules! spirv {
     };
 }
 
+/// A pipeline of the table; adding one means a variant here, in `ALL` and in `desc`, its
+/// entry below and its place in `batch.rs`'s schedule.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Pass {
     Predict,
