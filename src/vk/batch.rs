@@ -1,26 +1,49 @@
-//! Records the four passes of any number of crowds into ONE command buffer, pass-major, so a
-//! frame has four barriers whatever the number of crowds and chunks:
+//! Records the passes of any number of crowds into ONE command buffer, pass-major: the
+//! [`SCHEDULE`] is a list of phases, each dispatched for every crowd whose model runs it, so a
+//! frame has at most one barrier per phase whatever the number of crowds and chunks:
 //!
 //! ```text
 //! ts0 | barrier(prev. frame's reads/writes → compute) | predict (all crowds with P > 0)
 //! ts1 | barrier | blend GEMM (all crowds with P > 0)
-//! ts2 | barrier | skin (all crowds)
+//! ts2 | barrier | skin (all crowds, the pipeline of their K)
 //! ts3 | barrier | normals (all crowds)
 //! ts4 | barrier(compute writes → vertex input, transfer, compute reads)
 //! ```
-//! ts0..ts4 are GPU timestamps; [`Batch::timings`] turns them into per-pass milliseconds.
+//! A barrier between phases is recorded where a phase touches a crowd buffer written (or
+//! writes one read) since the last barrier, as the table's bindings say. ts0..ts4 are GPU
+//! timestamps; [`Batch::timings`] turns them into per-phase milliseconds.
 
-use super::buffer::memory_barrier;
+use super::barrier::{global_barrier, Access};
 use super::context::{Context, Shared};
-use super::crowd::{Chunk, Crowd};
-use super::gpu_model::Inner;
-use super::pipelines::PassPipeline;
-use super::{blend_gemm, normals, predict, skin};
+use super::crowd::Crowd;
+use super::passes::Pass;
 use crate::error::{Error, Result};
 use ash::vk;
 use std::sync::Arc;
 
-const TIMESTAMPS: u32 = 5;
+/// The frame: phases in order, each a set of passes without dependencies among them (one
+/// timestamp per phase, reported by [`PassTimings`]).
+const SCHEDULE: [&[Pass]; 4] = [
+    &[Pass::Predict],
+    &[Pass::BlendGemm],
+    &[Pass::SkinK4, Pass::SkinK8],
+    &[Pass::Normals],
+];
+
+/// Everything that meets a frame's buffers outside the batch: the next frame's compute
+/// writes, then the consumers of its outputs (compute reads, copies, and vertex fetch where the
+/// queue can draw).
+const OUTSIDE: [Access; 4] = [
+    Access::ComputeShaderWrite,
+    Access::ComputeShaderReadStorage,
+    Access::TransferRead,
+    Access::VertexBuffer,
+];
+
+/// What a pass does to its storage buffers.
+const PASS_ACCESSES: [Access; 2] = [Access::ComputeShaderReadStorage, Access::ComputeShaderWrite];
+
+const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;
 
 /// GPU time per pass of the last recorded frame, in milliseconds.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -116,97 +139,37 @@ impl Batch {
                 });
             }
         }
-        let s = &*self.shared;
-        let device = &s.device;
-        let compute = vk::PipelineStageFlags::COMPUTE_SHADER;
-        let (mut readers, mut reads) = (
-            compute | vk::PipelineStageFlags::TRANSFER,
-            vk::AccessFlags::SHADER_READ | vk::AccessFlags::TRANSFER_READ,
-        );
-        if s.queue_has_graphics {
-            readers |= vk::PipelineStageFlags::VERTEX_INPUT;
-            reads |= vk::AccessFlags::VERTEX_ATTRIBUTE_READ;
-        }
-        let to_compute = (
-            compute,
-            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
-        );
-        let after_compute = (compute, vk::AccessFlags::SHADER_WRITE);
-        // Crowds of reduced models (P > 0) run passes 1–2; plain LBS crowds only 3–4.
-        let reduced = || crowds.iter().filter(|c| c.model.proxy_count() > 0);
-        let any_reduced = reduced().next().is_some();
-        let p = &s.pipelines;
+        let device = &self.shared.device;
+        let outside = &OUTSIDE[..if self.shared.queue_has_graphics { 4 } else { 3 }];
+        let runs = |pass: Pass| {
+            crowds
+                .iter()
+                .filter(move |c| pass.runs_for(&c.model.inner.dims))
+        };
+        let barriers = barriers_before(|pass| runs(pass).next().is_some());
         // SAFETY: cmd is recording (caller's contract); every handle belongs to this device and
         // lives as long as the crowds.
         unsafe {
             if let Some(q) = self.queries {
                 device.cmd_reset_query_pool(cmd, q, 0, TIMESTAMPS);
             }
-            self.timestamp(cmd, 0);
-            // WAR against last frame's readers (vertex fetch, copies) and WAW against its writes.
-            memory_barrier(
-                device,
-                cmd,
-                (readers, vk::AccessFlags::SHADER_WRITE),
-                to_compute,
-            );
-            for crowd in reduced() {
-                dispatch_chunks(
-                    device,
-                    cmd,
-                    &p.predict,
-                    crowd,
-                    |c| c.predict,
-                    predict::push,
-                    predict::groups,
-                );
+            for (i, phase) in SCHEDULE.iter().enumerate() {
+                self.timestamp(cmd, i as u32);
+                if i == 0 {
+                    // WAR against last frame's readers (vertex fetch, copies) and WAW against
+                    // its writes.
+                    global_barrier(device, cmd, outside, &PASS_ACCESSES);
+                } else if barriers[i] {
+                    global_barrier(device, cmd, &[Access::ComputeShaderWrite], &PASS_ACCESSES);
+                }
+                for &pass in *phase {
+                    for crowd in runs(pass) {
+                        dispatch_chunks(device, cmd, pass, crowd);
+                    }
+                }
             }
-            self.timestamp(cmd, 1);
-            if any_reduced {
-                memory_barrier(device, cmd, after_compute, to_compute);
-            }
-            for crowd in reduced() {
-                dispatch_chunks(
-                    device,
-                    cmd,
-                    &p.blend_gemm,
-                    crowd,
-                    |c| c.blend_gemm,
-                    blend_gemm::push,
-                    blend_gemm::groups,
-                );
-            }
-            self.timestamp(cmd, 2);
-            if any_reduced {
-                memory_barrier(device, cmd, after_compute, to_compute);
-            }
-            for crowd in crowds {
-                let pass = p.skin(crowd.model.inner.influences);
-                dispatch_chunks(
-                    device,
-                    cmd,
-                    pass,
-                    crowd,
-                    |c| c.skin,
-                    skin::push,
-                    skin::groups,
-                );
-            }
-            self.timestamp(cmd, 3);
-            memory_barrier(device, cmd, after_compute, to_compute);
-            for crowd in crowds {
-                dispatch_chunks(
-                    device,
-                    cmd,
-                    &p.normals,
-                    crowd,
-                    |c| c.normals,
-                    normals::push,
-                    normals::groups,
-                );
-            }
-            self.timestamp(cmd, 4);
-            memory_barrier(device, cmd, after_compute, (readers, reads));
+            self.timestamp(cmd, SCHEDULE.len() as u32);
+            global_barrier(device, cmd, &[Access::ComputeShaderWrite], &outside[1..]);
         }
         self.recorded = true;
         Ok(())
@@ -268,11 +231,14 @@ impl Batch {
             },
         })?;
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
+        let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);
+        // One field per phase of the schedule (a new phase needs its field here).
+        let [predict_ms, blend_ms, skin_ms, normals_ms] = phases;
         Ok(PassTimings {
-            predict_ms: ms(0),
-            blend_ms: ms(1),
-            skin_ms: ms(2),
-            normals_ms: ms(3),
+            predict_ms,
+            blend_ms,
+            skin_ms,
+            normals_ms,
         })
     }
 
@@ -307,42 +273,128 @@ impl Drop for Batch {
     }
 }
 
+/// Whether each phase of the schedule must wait for the phases before it, given the passes
+/// that `dispatch` this frame: where it reads or writes a crowd buffer written since the last
+/// barrier, or writes one read since then. The first phase always waits (for the last frame).
+fn barriers_before(dispatch: impl Fn(Pass) -> bool) -> [bool; SCHEDULE.len()] {
+    let mut barriers = [false; SCHEDULE.len()];
+    // Crowd buffers read and written since the last barrier, as `CrowdBuffer::bit` sets.
+    let (mut read, mut written) = (0, 0);
+    for (barrier, phase) in barriers.iter_mut().zip(SCHEDULE) {
+        let (reads, writes) = (phase.iter().filter(|&&p| dispatch(p)))
+            .map(|p| p.desc().crowd_accesses())
+            .fold((0, 0), |(r, w), (pr, pw)| (r | pr, w | pw));
+        *barrier = (reads | writes) & written != 0 || writes & read != 0;
+        if *barrier {
+            (read, written) = (0, 0);
+        }
+        read |= reads;
+        written |= writes;
+    }
+    barriers[0] = true;
+    barriers
+}
+
 /// Binds `pass` and dispatches it once per chunk of `crowd`.
 ///
 /// # Safety
-/// `cmd` must be recording; the crowd's sets were written for `pass`.
-unsafe fn dispatch_chunks<P: bytemuck::Pod>(
-    device: &ash::Device,
-    cmd: vk::CommandBuffer,
-    pass: &PassPipeline,
-    crowd: &Crowd,
-    set_of: impl Fn(&Chunk) -> vk::DescriptorSet,
-    push: impl Fn(&Inner, u32) -> P,
-    groups: impl Fn(&Inner, u32) -> [u32; 3],
-) {
-    let m = &*crowd.model.inner;
+/// `cmd` must be recording; the crowd's model runs `pass`.
+unsafe fn dispatch_chunks(device: &ash::Device, cmd: vk::CommandBuffer, pass: Pass, crowd: &Crowd) {
+    let desc = pass.desc();
+    let pipeline = crowd.shared().pipelines.get(pass);
+    let dims = &crowd.model.inner.dims;
     // SAFETY: see the function's contract.
     unsafe {
-        device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pass.pipeline);
+        device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline.pipeline);
         for chunk in &crowd.chunks {
             device.cmd_bind_descriptor_sets(
                 cmd,
                 vk::PipelineBindPoint::COMPUTE,
-                pass.layout,
+                pipeline.layout,
                 0,
-                &[set_of(chunk)],
+                &[chunk.sets[pass as usize]],
                 &[],
             );
-            let constants = push(m, chunk.characters);
+            let words = desc.push_words(dims, chunk.characters);
             device.cmd_push_constants(
                 cmd,
-                pass.layout,
+                pipeline.layout,
                 vk::ShaderStageFlags::COMPUTE,
                 0,
-                bytemuck::bytes_of(&constants),
+                bytemuck::cast_slice(&words[..desc.push.len()]),
             );
-            let [x, y, z] = groups(m, chunk.characters);
+            let [x, y, z] = desc.dispatch(dims, chunk.characters);
             device.cmd_dispatch(cmd, x, y, z);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_schedule_runs_every_pass_of_the_table_once() {
+        for pass in Pass::ALL {
+            let places = SCHEDULE
+                .iter()
+                .flat_map(|phase| phase.iter())
+                .filter(|&&p| p == pass);
+            assert_eq!(places.count(), 1, "{pass:?}");
+        }
+    }
+
+    /// Whether `b` must wait for `a` on the buffers of one crowd: it touches what `a` wrote,
+    /// or writes what `a` read.
+    fn depends(a: Pass, b: Pass) -> bool {
+        let (ar, aw) = a.desc().crowd_accesses();
+        let (br, bw) = b.desc().crowd_accesses();
+        (br | bw) & aw != 0 || bw & ar != 0
+    }
+
+    /// Checked against a direct reading of the hazards, for every subset of the table
+    /// dispatching: every pair of passes in different phases where the later depends on the
+    /// earlier is separated by a barrier.
+    #[test]
+    fn a_barrier_separates_every_dependent_pair_of_passes() {
+        for subset in 0u32..1 << Pass::COUNT {
+            let dispatch = |p: Pass| subset & (1 << p as u32) != 0;
+            let barriers = barriers_before(dispatch);
+            let dispatched = |i: usize| SCHEDULE[i].iter().copied().filter(move |&p| dispatch(p));
+            for j in 0..SCHEDULE.len() {
+                for i in 0..j {
+                    for (a, b) in dispatched(i).flat_map(|a| dispatched(j).map(move |b| (a, b))) {
+                        if depends(a, b) {
+                            assert!(
+                                barriers[i + 1..=j].contains(&true),
+                                "{b:?} after {a:?} (passes {subset:#b})"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A phase has no barrier inside: no model runs two passes of one phase that depend on
+    /// each other (the skinning variants share a phase because a model runs only one).
+    #[test]
+    fn no_model_runs_dependent_passes_in_one_phase() {
+        for d in super::super::passes::model_kinds() {
+            for phase in SCHEDULE {
+                for &a in phase.iter().filter(|p| p.runs_for(&d)) {
+                    for &b in phase.iter().filter(|&&p| p != a && p.runs_for(&d)) {
+                        assert!(!depends(a, b), "{a:?} and {b:?} share a phase for {d:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn frames_without_reduced_models_skip_the_barriers_of_their_passes() {
+        let lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals);
+        assert_eq!(barriers_before(lbs), [true, false, false, true]);
+        assert_eq!(barriers_before(|_| true), [true; 4]);
     }
 }

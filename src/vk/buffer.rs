@@ -1,5 +1,6 @@
 //! A VkBuffer with its gpu-allocator allocation, freed in Drop. Holds the context alive.
 
+use super::barrier::{global_barrier, Access};
 use super::context::Shared;
 use crate::error::{Error, Result};
 use ash::vk;
@@ -162,49 +163,16 @@ pub fn upload(
         // submissions, but sync validation wants the memory dependency spelled out).
         // SAFETY: cmd is recording.
         unsafe {
-            memory_barrier(
+            global_barrier(
                 &shared.device,
                 cmd,
-                (
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                ),
-                (
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::AccessFlags::SHADER_READ,
-                ),
+                &[Access::TransferWrite],
+                &[Access::ComputeShaderReadStorage],
             )
         };
         Ok(())
     })?;
     Ok(buffers)
-}
-
-/// A global memory barrier from (stages, accesses) to (stages, accesses).
-///
-/// # Safety
-/// `cmd` must be recording.
-pub(crate) unsafe fn memory_barrier(
-    device: &ash::Device,
-    cmd: vk::CommandBuffer,
-    src: (vk::PipelineStageFlags, vk::AccessFlags),
-    dst: (vk::PipelineStageFlags, vk::AccessFlags),
-) {
-    let barrier = [vk::MemoryBarrier::default()
-        .src_access_mask(src.1)
-        .dst_access_mask(dst.1)];
-    // SAFETY: see the function's contract.
-    unsafe {
-        device.cmd_pipeline_barrier(
-            cmd,
-            src.0,
-            dst.0,
-            vk::DependencyFlags::empty(),
-            &barrier,
-            &[],
-            &[],
-        )
-    };
 }
 
 /// Copies (transfer writes) before the host reads them after the fence: the read-back barrier.
@@ -213,15 +181,5 @@ pub(crate) unsafe fn memory_barrier(
 /// `cmd` must be recording.
 pub(crate) unsafe fn transfer_to_host_barrier(device: &ash::Device, cmd: vk::CommandBuffer) {
     // SAFETY: see the function's contract.
-    unsafe {
-        memory_barrier(
-            device,
-            cmd,
-            (
-                vk::PipelineStageFlags::TRANSFER,
-                vk::AccessFlags::TRANSFER_WRITE,
-            ),
-            (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
-        )
-    };
+    unsafe { global_barrier(device, cmd, &[Access::TransferWrite], &[Access::HostRead]) };
 }

@@ -7,14 +7,13 @@
 //! descriptor sets whose ranges start at chunk offsets aligned to
 //! `minStorageBufferOffsetAlignment`, and the passes dispatch once per chunk.
 
-use super::blend_gemm;
-use super::buffer::{memory_barrier, transfer_to_host_barrier, Buffer};
+use super::barrier::{global_barrier, Access};
+use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
-use super::normals;
+use super::pass::{Binding, CrowdBuffer, Dims};
+use super::passes::Pass;
 use super::pipelines::PassPipeline;
-use super::predict;
-use super::skin;
 use crate::cpu::check_finite;
 use crate::error::{Error, Result};
 use crate::predict::Affine;
@@ -51,22 +50,12 @@ pub struct HostOutput {
 }
 
 /// The descriptor ranges of one chunk in the crowd's per-character buffers.
-#[derive(Clone, Copy)]
-pub(crate) struct ChunkViews {
-    pub bones: vk::DescriptorBufferInfo,
-    pub rhs: vk::DescriptorBufferInfo,
-    pub proxies: vk::DescriptorBufferInfo,
-    pub positions: vk::DescriptorBufferInfo,
-    pub normals: vk::DescriptorBufferInfo,
-}
+type ChunkViews = [vk::DescriptorBufferInfo; CrowdBuffer::COUNT];
 
 pub(crate) struct Chunk {
     pub characters: u32,
-    /// Descriptor sets of the four passes (predict and blend_gemm are null when P = 0).
-    pub predict: vk::DescriptorSet,
-    pub blend_gemm: vk::DescriptorSet,
-    pub skin: vk::DescriptorSet,
-    pub normals: vk::DescriptorSet,
+    /// Indexed by [`Pass`]; null for the passes the model does not run.
+    pub sets: [vk::DescriptorSet; Pass::COUNT],
 }
 
 pub struct Crowd {
@@ -107,18 +96,9 @@ impl Crowd {
             });
         }
         let c = characters as u64;
-        let per_character = [
-            m.bones as u64 * AFFINE_BYTES,
-            // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
-            if m.proxies > 0 {
-                (3 * m.proxies + 4 * m.bones) as u64 * 12
-            } else {
-                0
-            },
-            m.proxies as u64 * AFFINE_BYTES,
-            m.vertices as u64 * XYZ_BYTES,
-        ];
-        let chunk_characters = chunk_size(&shared, &per_character, c, options)?;
+        let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&m.dims, b));
+        let size = |b: CrowdBuffer| c * per_character[b as usize];
+        let chunk_characters = chunk_size(&shared, &m.dims, &per_character, c, options)?;
 
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let output =
@@ -127,24 +107,36 @@ impl Crowd {
         let mut bones = Buffer::new(
             &shared,
             "crowd bones",
-            c * per_character[0],
+            size(CrowdBuffer::Bones),
             storage,
             MemoryLocation::CpuToGpu,
         )?;
-        let rhs = Buffer::new(&shared, "crowd rhs", c * per_character[1], storage, gpu)?;
-        let proxies = Buffer::new(&shared, "crowd proxies", c * per_character[2], storage, gpu)?;
+        let rhs = Buffer::new(&shared, "crowd rhs", size(CrowdBuffer::Rhs), storage, gpu)?;
+        let proxies = Buffer::new(
+            &shared,
+            "crowd proxies",
+            size(CrowdBuffer::Proxies),
+            storage,
+            gpu,
+        )?;
         let positions = Buffer::new(
             &shared,
             "crowd positions",
-            c * per_character[3],
+            size(CrowdBuffer::Positions),
             output,
             gpu,
         )?;
-        let normals = Buffer::new(&shared, "crowd normals", c * per_character[3], output, gpu)?;
+        let normals = Buffer::new(
+            &shared,
+            "crowd normals",
+            size(CrowdBuffer::Normals),
+            output,
+            gpu,
+        )?;
         write_rest_pose(bones.mapped()?);
 
         let chunk_count = characters.div_ceil(chunk_characters as usize);
-        let pool = create_pool(&shared.device, chunk_count as u32)?;
+        let pool = create_pool(&shared.device, &m.dims, chunk_count as u32)?;
         let mut crowd = Crowd {
             model: model.clone(),
             characters: characters as u32,
@@ -165,13 +157,7 @@ impl Crowd {
                     buffer.descriptor(first * per, count * per)
                 }
             };
-            let views = ChunkViews {
-                bones: view(&crowd.bones, per_character[0]),
-                rhs: view(&crowd.rhs, per_character[1]),
-                proxies: view(&crowd.proxies, per_character[2]),
-                positions: view(&crowd.positions, per_character[3]),
-                normals: view(&crowd.normals, per_character[3]),
-            };
+            let views = CrowdBuffer::ALL.map(|b| view(crowd.buffer(b), per_character[b as usize]));
             let chunk = crowd.make_chunk(&shared, m, &views, count as u32)?;
             crowd.chunks.push(chunk);
         }
@@ -182,32 +168,31 @@ impl Crowd {
         &self,
         shared: &Shared,
         m: &Inner,
-        v: &ChunkViews,
+        views: &ChunkViews,
         characters: u32,
     ) -> Result<Chunk> {
-        let p = &shared.pipelines;
-        let mut chunk = Chunk {
-            characters,
-            predict: vk::DescriptorSet::null(),
-            blend_gemm: vk::DescriptorSet::null(),
-            skin: write_set(
-                shared,
-                self.pool,
-                p.skin(m.influences),
-                &skin::bindings(m, v),
-            )?,
-            normals: write_set(shared, self.pool, &p.normals, &normals::bindings(m, v))?,
-        };
-        if m.proxies > 0 {
-            chunk.predict = write_set(shared, self.pool, &p.predict, &predict::bindings(m, v))?;
-            chunk.blend_gemm = write_set(
-                shared,
-                self.pool,
-                &p.blend_gemm,
-                &blend_gemm::bindings(m, v),
-            )?;
+        let mut sets = [vk::DescriptorSet::null(); Pass::COUNT];
+        for pass in Pass::of_model(&m.dims) {
+            let buffers: Vec<vk::DescriptorBufferInfo> = (pass.desc().bindings.iter())
+                .map(|&binding| match binding {
+                    Binding::Model(b) => m.buffer(b).whole(),
+                    Binding::Reads(b) | Binding::Writes(b) => views[b as usize],
+                })
+                .collect();
+            let pipeline = shared.pipelines.get(pass);
+            sets[pass as usize] = write_set(shared, self.pool, pipeline, &buffers)?;
         }
-        Ok(chunk)
+        Ok(Chunk { characters, sets })
+    }
+
+    fn buffer(&self, b: CrowdBuffer) -> &Buffer {
+        match b {
+            CrowdBuffer::Bones => &self.bones,
+            CrowdBuffer::Rhs => &self.rhs,
+            CrowdBuffer::Proxies => &self.proxies,
+            CrowdBuffer::Positions => &self.positions,
+            CrowdBuffer::Normals => &self.normals,
+        }
     }
 
     pub fn character_count(&self) -> usize {
@@ -288,17 +273,11 @@ impl Crowd {
             let device = &shared.device;
             // SAFETY: cmd is recording; the buffers are alive.
             unsafe {
-                memory_barrier(
+                global_barrier(
                     device,
                     cmd,
-                    (
-                        vk::PipelineStageFlags::COMPUTE_SHADER,
-                        vk::AccessFlags::SHADER_WRITE,
-                    ),
-                    (
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::AccessFlags::TRANSFER_READ,
-                    ),
+                    &[Access::ComputeShaderWrite],
+                    &[Access::TransferRead],
                 );
                 for (src, at) in [(&self.positions, 0), (&self.normals, size)] {
                     let region = [vk::BufferCopy {
@@ -350,6 +329,7 @@ impl Drop for Crowd {
 /// that keeps every chunk offset aligned to minStorageBufferOffsetAlignment.
 fn chunk_size(
     shared: &Shared,
+    dims: &Dims,
     per_character: &[u64],
     characters: u64,
     options: CrowdOptions,
@@ -367,7 +347,10 @@ fn chunk_size(
             limit: range,
         });
     }
-    let max_groups = limits.max_workgroup_count[1] as u64;
+    let max_groups = Pass::of_model(dims)
+        .map(|p| p.desc().max_characters(limits.max_workgroup_count))
+        .min()
+        .unwrap_or(u64::MAX);
     let fit = (range / largest).min(max_groups);
     if characters <= fit {
         return Ok(characters);
@@ -406,17 +389,27 @@ fn write_rest_pose(bytes: &mut [u8]) {
     }
 }
 
-fn create_pool(device: &ash::Device, chunks: u32) -> Result<vk::DescriptorPool> {
-    let per_chunk = (predict::BINDINGS.len()
-        + blend_gemm::BINDINGS.len()
-        + skin::BINDINGS.len()
-        + normals::BINDINGS.len()) as u32;
+/// Bytes of one character in each crowd buffer; 0 where the model does not use it.
+fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
+    let (v, p, j) = (d.vertices as u64, d.proxies as u64, d.bones as u64);
+    match b {
+        CrowdBuffer::Bones => j * AFFINE_BYTES,
+        // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
+        CrowdBuffer::Rhs if p > 0 => (3 * p + 4 * j) * XYZ_BYTES,
+        CrowdBuffer::Rhs => 0,
+        CrowdBuffer::Proxies => p * AFFINE_BYTES,
+        CrowdBuffer::Positions | CrowdBuffer::Normals => v * XYZ_BYTES,
+    }
+}
+
+fn create_pool(device: &ash::Device, dims: &Dims, chunks: u32) -> Result<vk::DescriptorPool> {
+    let (sets, buffers) = Pass::descriptors_per_chunk(dims);
     let sizes = [vk::DescriptorPoolSize {
         ty: vk::DescriptorType::STORAGE_BUFFER,
-        descriptor_count: chunks * per_chunk,
+        descriptor_count: chunks * buffers,
     }];
     let info = vk::DescriptorPoolCreateInfo::default()
-        .max_sets(4 * chunks)
+        .max_sets(chunks * sets)
         .pool_sizes(&sizes);
     // SAFETY: valid device and create info.
     unsafe { device.create_descriptor_pool(&info, None) }
@@ -429,7 +422,6 @@ fn write_set(
     pass: &PassPipeline,
     buffers: &[vk::DescriptorBufferInfo],
 ) -> Result<vk::DescriptorSet> {
-    debug_assert_eq!(buffers.len(), pass.bindings as usize);
     let layouts = [pass.set_layout];
     let info = vk::DescriptorSetAllocateInfo::default()
         .descriptor_pool(pool)

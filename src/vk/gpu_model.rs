@@ -3,6 +3,8 @@
 
 use super::buffer::{upload, Buffer};
 use super::context::Context;
+use super::pass::{Dims, ModelBuffer};
+use super::passes::Pass;
 use crate::error::Result;
 use crate::model::{predictor_words, Model};
 use ash::vk;
@@ -16,11 +18,8 @@ pub struct GpuModel {
 
 pub(crate) struct Inner {
     pub context: Context,
-    pub vertices: u32,
+    pub dims: Dims,
     pub triangle_count: u32,
-    pub bones: u32,
-    pub proxies: u32,
-    pub influences: usize,
     /// V x 3 f32
     pub rest: Buffer,
     /// V x K u32
@@ -73,30 +72,16 @@ impl GpuModel {
                 });
             }
         }
-        // Dispatch sizes that do not depend on the crowd: x over vertices (skin, normals) and
-        // over predictors + bones (predict), y over 4-proxy row blocks (GEMM).
-        let groups = context.limits().max_workgroup_count;
-        let (v, p, j) = (
-            model.vertex_count() as u64,
-            model.proxy_count() as u64,
-            model.bone_count() as u64,
-        );
-        for (what, needed, limit) in [
-            ("workgroups over vertices", v.div_ceil(64), groups[0]),
-            (
-                "workgroups over predictors and bones",
-                (p + j).div_ceil(64),
-                groups[0],
-            ),
-            ("workgroups over proxy row blocks", p.div_ceil(4), groups[1]),
-        ] {
-            if needed > limit as u64 {
-                return Err(crate::Error::DeviceLimit {
-                    what,
-                    needed,
-                    limit: limit as u64,
-                });
-            }
+        let dims = Dims {
+            vertices: model.vertex_count() as u32,
+            proxies: model.proxy_count() as u32,
+            bones: model.bone_count() as u32,
+            influences: model.influences(),
+        };
+        // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
+        for pass in Pass::of_model(&dims) {
+            pass.desc()
+                .check_model_groups(&dims, context.limits().max_workgroup_count)?;
         }
         let buffers = upload(
             &context.shared,
@@ -111,11 +96,8 @@ impl GpuModel {
         Ok(GpuModel {
             inner: Arc::new(Inner {
                 context: context.clone(),
-                vertices: model.vertex_count() as u32,
+                dims,
                 triangle_count: model.triangle_count() as u32,
-                bones: model.bone_count() as u32,
-                proxies: model.proxy_count() as u32,
-                influences: model.influences(),
                 rest,
                 skin_index,
                 skin_weight,
@@ -130,14 +112,30 @@ impl GpuModel {
     }
 
     pub fn vertex_count(&self) -> usize {
-        self.inner.vertices as usize
+        self.inner.dims.vertices as usize
     }
 
     pub fn bone_count(&self) -> usize {
-        self.inner.bones as usize
+        self.inner.dims.bones as usize
     }
 
     pub fn proxy_count(&self) -> usize {
-        self.inner.proxies as usize
+        self.inner.dims.proxies as usize
+    }
+}
+
+impl Inner {
+    pub fn buffer(&self, b: ModelBuffer) -> &Buffer {
+        match b {
+            ModelBuffer::Rest => &self.rest,
+            ModelBuffer::SkinIndex => &self.skin_index,
+            ModelBuffer::SkinWeight => &self.skin_weight,
+            ModelBuffer::Parents => &self.parents,
+            ModelBuffer::Predictors => &self.predictors,
+            ModelBuffer::BlendMatrix => &self.blend_matrix,
+            ModelBuffer::IncidentOffsets => &self.incident_offsets,
+            ModelBuffer::IncidentTriangles => &self.incident_triangles,
+            ModelBuffer::Triangles => &self.triangles,
+        }
     }
 }

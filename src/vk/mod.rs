@@ -7,20 +7,21 @@
 //!   (all predictors, barrier, all GEMMs, barrier, all skinning, barrier, all normals), with GPU
 //!   timestamps per pass; `run` submits and waits, `record` writes into the caller's buffer.
 //!
-//! One file per pass (`predict.rs`, `blend_gemm.rs`, `skin.rs`, `normals.rs`) lists the bindings
-//! in the order of its shader in `glsl/`.
+//! Each pass is described once in `passes.rs` (its SPIR-V, its bindings in the order of its
+//! shader in `glsl/`, push words, workgroups; the types are in `pass.rs`); pipelines, layouts,
+//! descriptor pools, limit checks and dispatches are derived from that table, and `batch.rs`
+//! orders the passes into a schedule with barriers from named accesses (`barrier.rs`).
 
+mod barrier;
 mod batch;
-mod blend_gemm;
 mod buffer;
 mod context;
 mod crowd;
 mod gpu_model;
-mod normals;
+mod pass;
+mod passes;
 mod pipelines;
-mod predict;
 pub mod render;
-mod skin;
 
 pub use ash;
 pub use batch::{Batch, PassTimings};

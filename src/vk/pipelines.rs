@@ -1,14 +1,10 @@
-//! One compute pipeline per pass, each with an explicit descriptor set layout (storage buffers
-//! only, bindings 0..n in shader order) and one push-constant range. SPIR-V comes from build.rs.
+//! One compute pipeline per pass of the table (`passes.rs`), each with an explicit descriptor
+//! set layout (storage buffers only, bindings 0..n in shader order) and one push-constant range.
 
+use super::pass::PassDesc;
+use super::passes::Pass;
 use crate::error::{Error, Result};
 use ash::vk;
-
-macro_rules! spirv {
-    ($name:literal) => {
-        include_bytes!(concat!(env!("OUT_DIR"), "/", $name, ".spv"))
-    };
-}
 
 /// A pass's pipeline and the layouts it was made with.
 #[derive(Default, Clone, Copy)]
@@ -16,53 +12,20 @@ pub struct PassPipeline {
     pub set_layout: vk::DescriptorSetLayout,
     pub layout: vk::PipelineLayout,
     pub pipeline: vk::Pipeline,
-    pub bindings: u32,
 }
 
+/// Indexed by [`Pass`].
 #[derive(Default)]
-pub struct Pipelines {
-    pub predict: PassPipeline,
-    pub blend_gemm: PassPipeline,
-    pub skin_k4: PassPipeline,
-    pub skin_k8: PassPipeline,
-    pub normals: PassPipeline,
-}
+pub struct Pipelines([PassPipeline; Pass::COUNT]);
 
 impl Pipelines {
     pub fn new(device: &ash::Device) -> Result<Pipelines> {
         let mut made = Pipelines::default();
         // Assign one by one so that `destroy` can clean up a partial set on error.
-        let result = (|| {
-            made.predict = PassPipeline::new(
-                device,
-                spirv!("predict"),
-                super::predict::BINDINGS.len(),
-                size_of::<super::predict::Push>(),
-            )?;
-            made.blend_gemm = PassPipeline::new(
-                device,
-                spirv!("blend_gemm"),
-                super::blend_gemm::BINDINGS.len(),
-                size_of::<super::blend_gemm::Push>(),
-            )?;
-            let skin = |code: &[u8]| {
-                PassPipeline::new(
-                    device,
-                    code,
-                    super::skin::BINDINGS.len(),
-                    size_of::<super::skin::Push>(),
-                )
-            };
-            made.skin_k4 = skin(spirv!("skin_k4"))?;
-            made.skin_k8 = skin(spirv!("skin_k8"))?;
-            made.normals = PassPipeline::new(
-                device,
-                spirv!("normals"),
-                super::normals::BINDINGS.len(),
-                size_of::<super::normals::Push>(),
-            )?;
+        let result = Pass::ALL.into_iter().try_for_each(|pass| {
+            made.0[pass as usize] = PassPipeline::new(device, pass.desc())?;
             Ok(())
-        })();
+        });
         match result {
             Ok(()) => Ok(made),
             Err(e) => {
@@ -73,25 +36,14 @@ impl Pipelines {
         }
     }
 
-    /// The skinning pipeline for K influences (a model guarantees K is 4 or 8).
-    pub fn skin(&self, influences: usize) -> &PassPipeline {
-        if influences == 8 {
-            &self.skin_k8
-        } else {
-            &self.skin_k4
-        }
+    pub fn get(&self, pass: Pass) -> &PassPipeline {
+        &self.0[pass as usize]
     }
 
     /// # Safety
     /// No pipeline may be in use by the GPU; null handles are skipped.
     pub unsafe fn destroy(&self, device: &ash::Device) {
-        for p in [
-            &self.predict,
-            &self.blend_gemm,
-            &self.skin_k4,
-            &self.skin_k8,
-            &self.normals,
-        ] {
+        for p in &self.0 {
             // SAFETY: see the function's contract; destroying null handles is a no-op.
             unsafe {
                 device.destroy_pipeline(p.pipeline, None);
@@ -103,12 +55,9 @@ impl Pipelines {
 }
 
 impl PassPipeline {
-    fn new(device: &ash::Device, code: &[u8], bindings: usize, push_bytes: usize) -> Result<Self> {
-        let mut pass = PassPipeline {
-            bindings: bindings as u32,
-            ..Default::default()
-        };
-        let layout_bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..bindings as u32)
+    fn new(device: &ash::Device, desc: &PassDesc) -> Result<Self> {
+        let mut pass = PassPipeline::default();
+        let layout_bindings: Vec<vk::DescriptorSetLayoutBinding> = (0..desc.bindings.len() as u32)
             .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(b)
@@ -123,7 +72,7 @@ impl PassPipeline {
             .map_err(Error::vk("vkCreateDescriptorSetLayout"))?;
         let ranges = [vk::PushConstantRange::default()
             .stage_flags(vk::ShaderStageFlags::COMPUTE)
-            .size(push_bytes as u32)];
+            .size(desc.push_bytes())];
         let set_layouts = [pass.set_layout];
         let info = vk::PipelineLayoutCreateInfo::default()
             .set_layouts(&set_layouts)
@@ -132,7 +81,8 @@ impl PassPipeline {
             // SAFETY: valid device and create info.
             pass.layout = unsafe { device.create_pipeline_layout(&info, None) }
                 .map_err(Error::vk("vkCreatePipelineLayout"))?;
-            let words: Vec<u32> = code
+            let words: Vec<u32> = desc
+                .spirv
                 .chunks_exact(4)
                 .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
                 .collect();

@@ -1,0 +1,300 @@
+//! What describes a compute pass: its SPIR-V, its storage-buffer bindings in shader order, its
+//! push-constant words and its workgroup counts. Pipelines, descriptor layouts, pool sizes,
+//! dispatch sizes, device-limit checks and barriers are all derived from a [`PassDesc`]; the
+//! passes themselves are listed in `passes.rs`.
+
+use crate::error::{Error, Result};
+
+/// The sizes of a model that passes are dispatched and parameterised over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dims {
+    /// V
+    pub vertices: u32,
+    /// P
+    pub proxies: u32,
+    /// J
+    pub bones: u32,
+    /// K (4 or 8, checked when the model is loaded)
+    pub influences: usize,
+}
+
+/// A buffer of the GPU model, uploaded once and only ever read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelBuffer {
+    Rest,
+    SkinIndex,
+    SkinWeight,
+    Parents,
+    Predictors,
+    BlendMatrix,
+    IncidentOffsets,
+    IncidentTriangles,
+    Triangles,
+}
+
+/// A per-character buffer of a crowd, bound per chunk of characters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CrowdBuffer {
+    Bones,
+    Rhs,
+    Proxies,
+    Positions,
+    Normals,
+}
+
+impl CrowdBuffer {
+    pub const COUNT: usize = 5;
+    pub const ALL: [CrowdBuffer; Self::COUNT] = [
+        CrowdBuffer::Bones,
+        CrowdBuffer::Rhs,
+        CrowdBuffer::Proxies,
+        CrowdBuffer::Positions,
+        CrowdBuffer::Normals,
+    ];
+
+    /// This buffer's bit in a [`CrowdBuffer`] set.
+    pub const fn bit(self) -> u32 {
+        1 << self as u32
+    }
+}
+
+/// One `layout(std430, binding = i) buffer` of a shader; the GLSL declares it `readonly`
+/// unless it is `Writes`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Binding {
+    Model(ModelBuffer),
+    Reads(CrowdBuffer),
+    Writes(CrowdBuffer),
+}
+
+/// One `uint` of a pass's push-constant block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PushWord {
+    Vertices,
+    Proxies,
+    Bones,
+    /// The characters of the chunk being dispatched.
+    Characters,
+}
+
+/// Push blocks hold at most this many words (far below Vulkan's guaranteed 128 bytes).
+pub const MAX_PUSH_WORDS: usize = 4;
+
+impl PushWord {
+    pub fn value(self, d: &Dims, characters: u32) -> u32 {
+        match self {
+            PushWord::Vertices => d.vertices,
+            PushWord::Proxies => d.proxies,
+            PushWord::Bones => d.bones,
+            PushWord::Characters => characters,
+        }
+    }
+}
+
+/// What one axis of a dispatch counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Extent {
+    One,
+    Vertices,
+    /// P + J (predictors, then bones copied into the right-hand side)
+    PredictorsAndBones,
+    /// 4P rows of the proxy transforms T
+    ProxyRows,
+    Characters,
+    /// 3C columns of T, three per character
+    CharacterColumns,
+}
+
+impl Extent {
+    fn count(self, d: &Dims, characters: u32) -> u64 {
+        let (v, p, j, c) = (
+            d.vertices as u64,
+            d.proxies as u64,
+            d.bones as u64,
+            characters as u64,
+        );
+        match self {
+            Extent::One => 1,
+            Extent::Vertices => v,
+            Extent::PredictorsAndBones => p + j,
+            Extent::ProxyRows => 4 * p,
+            Extent::Characters => c,
+            Extent::CharacterColumns => 3 * c,
+        }
+    }
+
+    /// Units per character, for the extents that grow with the chunk.
+    fn per_character(self) -> Option<u64> {
+        match self {
+            Extent::Characters => Some(1),
+            Extent::CharacterColumns => Some(3),
+            _ => None,
+        }
+    }
+
+    fn what(self) -> &'static str {
+        match self {
+            Extent::One => "one workgroup",
+            Extent::Vertices => "workgroups over vertices",
+            Extent::PredictorsAndBones => "workgroups over predictors and bones",
+            Extent::ProxyRows => "workgroups over proxy row blocks",
+            Extent::Characters => "workgroups over characters",
+            Extent::CharacterColumns => "workgroups over character columns",
+        }
+    }
+}
+
+/// One dispatch axis: ceil(extent / per_group) workgroups.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Axis {
+    pub extent: Extent,
+    pub per_group: u32,
+}
+
+/// `per_group` items of `extent` per workgroup.
+pub const fn over(extent: Extent, per_group: u32) -> Axis {
+    Axis { extent, per_group }
+}
+
+/// An axis of a single workgroup.
+pub const ONE: Axis = over(Extent::One, 1);
+
+impl Axis {
+    fn groups(self, d: &Dims, characters: u32) -> u64 {
+        self.extent
+            .count(d, characters)
+            .div_ceil(self.per_group as u64)
+    }
+}
+
+/// A compute pass, described once.
+pub struct PassDesc {
+    /// The shader in `glsl/` (the table's test checks the bindings and push block against it).
+    #[cfg(test)]
+    pub glsl: &'static str,
+    /// Built by build.rs from `glsl`, with this variant's defines.
+    pub spirv: &'static [u8],
+    /// In shader order: binding i is `bindings[i]`.
+    pub bindings: &'static [Binding],
+    /// The push-constant block, in shader order.
+    pub push: &'static [PushWord],
+    /// Workgroups in x, y, z.
+    pub groups: [Axis; 3],
+    /// Whether a model of these sizes runs the pass (no sets, no dispatch otherwise).
+    pub runs: fn(&Dims) -> bool,
+}
+
+impl PassDesc {
+    pub fn push_bytes(&self) -> u32 {
+        4 * self.push.len() as u32
+    }
+
+    /// The push-constant words for a dispatch over `characters`, the first `push.len()` used.
+    pub fn push_words(&self, d: &Dims, characters: u32) -> [u32; MAX_PUSH_WORDS] {
+        let mut words = [0; MAX_PUSH_WORDS];
+        for (w, p) in words.iter_mut().zip(self.push) {
+            *w = p.value(d, characters);
+        }
+        words
+    }
+
+    /// Workgroup counts for `characters` (within the device's limits: see
+    /// [`PassDesc::check_model_groups`] and [`PassDesc::max_characters`]).
+    pub fn dispatch(&self, d: &Dims, characters: u32) -> [u32; 3] {
+        self.groups.map(|a| a.groups(d, characters) as u32)
+    }
+
+    /// Fails if the axes that depend only on the model need more workgroups than `max`.
+    pub fn check_model_groups(&self, d: &Dims, max: [u32; 3]) -> Result<()> {
+        let model_axes =
+            (self.groups.iter().zip(max)).filter(|(a, _)| a.extent.per_character().is_none());
+        for (axis, limit) in model_axes {
+            let needed = axis.groups(d, 0);
+            if needed > limit as u64 {
+                return Err(Error::DeviceLimit {
+                    what: axis.extent.what(),
+                    needed,
+                    limit: limit as u64,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The most characters one dispatch can cover within `max` workgroups per axis.
+    pub fn max_characters(&self, max: [u32; 3]) -> u64 {
+        self.groups
+            .iter()
+            .zip(max)
+            .filter_map(|(axis, limit)| {
+                let units = axis.extent.per_character()?;
+                Some(limit as u64 * axis.per_group as u64 / units)
+            })
+            .min()
+            .unwrap_or(u64::MAX)
+    }
+
+    /// The crowd buffers the pass reads and writes, as [`CrowdBuffer::bit`] sets.
+    pub fn crowd_accesses(&self) -> (u32, u32) {
+        self.bindings
+            .iter()
+            .fold((0, 0), |(reads, writes), b| match b {
+                Binding::Model(_) => (reads, writes),
+                Binding::Reads(c) => (reads | c.bit(), writes),
+                Binding::Writes(c) => (reads, writes | c.bit()),
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SKIN_LIKE: [Axis; 3] = [over(Extent::Vertices, 64), over(Extent::Characters, 1), ONE];
+    const GEMM_LIKE: [Axis; 3] = [
+        over(Extent::CharacterColumns, 256),
+        over(Extent::ProxyRows, 16),
+        ONE,
+    ];
+
+    fn desc(groups: [Axis; 3]) -> PassDesc {
+        PassDesc {
+            glsl: "",
+            spirv: &[],
+            bindings: &[],
+            push: &[],
+            groups,
+            runs: |_| true,
+        }
+    }
+
+    const DIMS: Dims = Dims {
+        vertices: 130,
+        proxies: 5,
+        bones: 3,
+        influences: 4,
+    };
+
+    #[test]
+    fn dispatch_rounds_each_axis_up() {
+        assert_eq!(desc(SKIN_LIKE).dispatch(&DIMS, 7), [3, 7, 1]);
+        // 3 x 100 columns / 256, 20 rows / 16
+        assert_eq!(desc(GEMM_LIKE).dispatch(&DIMS, 100), [2, 2, 1]);
+    }
+
+    #[test]
+    fn character_axes_bound_the_chunk_and_model_axes_the_model() {
+        assert_eq!(desc(SKIN_LIKE).max_characters([10, 20, 1]), 20);
+        assert_eq!(desc(GEMM_LIKE).max_characters([3, 1, 1]), 256);
+        assert_eq!(desc([ONE; 3]).max_characters([1; 3]), u64::MAX);
+        assert!(desc(SKIN_LIKE).check_model_groups(&DIMS, [3, 1, 1]).is_ok());
+        assert!(matches!(
+            desc(SKIN_LIKE).check_model_groups(&DIMS, [2, 1, 1]),
+            Err(Error::DeviceLimit {
+                what: "workgroups over vertices",
+                needed: 3,
+                limit: 2
+            })
+        ));
+    }
+}

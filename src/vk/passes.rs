@@ -1,0 +1,304 @@
+//! The table of compute passes: one [`PassDesc`] per pipeline. The order they run in, and the
+//! barriers between them, are the schedule in `batch.rs`.
+
+use super::pass::Binding::{Model, Reads, Writes};
+use super::pass::CrowdBuffer as Crowd;
+use super::pass::Extent::{CharacterColumns, Characters, PredictorsAndBones, ProxyRows, Vertices};
+use super::pass::ModelBuffer as M;
+use super::pass::{over, Axis, Dims, PassDesc, PushWord as W, ONE};
+
+macro_rules! spirv {
+    ($name:literal) => {
+        include_bytes!(concat!(env!("OUT_DIR"), "/", $name, ".spv"))
+    };
+}
+
+/// A pipeline of the table; adding one means a variant here, in `ALL` and in `desc`, its
+/// entry below and its place in `batch.rs`'s schedule.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pass {
+    Predict,
+    BlendGemm,
+    SkinK4,
+    SkinK8,
+    Normals,
+}
+
+impl Pass {
+    pub const COUNT: usize = 5;
+    /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
+    pub const ALL: [Pass; Self::COUNT] = [
+        Pass::Predict,
+        Pass::BlendGemm,
+        Pass::SkinK4,
+        Pass::SkinK8,
+        Pass::Normals,
+    ];
+
+    pub fn desc(self) -> &'static PassDesc {
+        match self {
+            Pass::Predict => &PREDICT,
+            Pass::BlendGemm => &BLEND_GEMM,
+            Pass::SkinK4 => &SKIN_K4,
+            Pass::SkinK8 => &SKIN_K8,
+            Pass::Normals => &NORMALS,
+        }
+    }
+
+    pub fn runs_for(self, d: &Dims) -> bool {
+        (self.desc().runs)(d)
+    }
+
+    /// The passes a model of sizes `d` runs.
+    pub fn of_model(d: &Dims) -> impl Iterator<Item = Pass> + '_ {
+        Pass::ALL.into_iter().filter(|p| p.runs_for(d))
+    }
+
+    /// Descriptor sets and storage-buffer descriptors of one chunk of a crowd of `d`.
+    pub fn descriptors_per_chunk(d: &Dims) -> (u32, u32) {
+        Pass::of_model(d).fold((0, 0), |(sets, buffers), p| {
+            (sets + 1, buffers + p.desc().bindings.len() as u32)
+        })
+    }
+}
+
+/// One model of each kind the table tells apart: plain LBS (P = 0) or reduced, for each K.
+#[cfg(test)]
+pub fn model_kinds() -> impl Iterator<Item = Dims> {
+    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| [0, 3].map(|p| (k, p)));
+    kinds.into_iter().flatten().map(|(k, proxies)| Dims {
+        vertices: 10,
+        proxies,
+        bones: 2,
+        influences: k as usize,
+    })
+}
+
+/// Key gradients D_ℓ(q) for every (predictor, character), written with the bone transforms into
+/// B = [d; q], the right-hand side of the GEMM. Reduced models (P > 0) only.
+const PREDICT: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "predict.comp",
+    spirv: spirv!("predict"),
+    bindings: &[
+        Reads(Crowd::Bones),
+        Model(M::Parents),
+        Model(M::Predictors),
+        Writes(Crowd::Rhs),
+    ],
+    push: &[W::Proxies, W::Bones, W::Characters],
+    // local_size_x = 64 over predictors then bones, one row of groups per character.
+    groups: [over(PredictorsAndBones, 64), over(Characters, 1), ONE],
+    runs: |d| d.proxies > 0,
+};
+
+/// Proxy transforms T (4P x 3C) = [C1 | C2] (4P x (3P + 4J)) · B ((3P + 4J) x 3C) for all
+/// characters of a chunk as one tiled matrix product.
+const BLEND_GEMM: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "blend_gemm.comp",
+    spirv: spirv!("blend_gemm"),
+    bindings: &[
+        Model(M::BlendMatrix),
+        Reads(Crowd::Rhs),
+        Writes(Crowd::Proxies),
+    ],
+    push: &[W::Proxies, W::Bones, W::Characters],
+    // Output tile of one workgroup: 256 columns x 16 rows (4 proxies), see the shader.
+    groups: [over(CharacterColumns, 256), over(ProxyRows, 16), ONE],
+    runs: |d| d.proxies > 0,
+};
+
+/// Matrix-palette skinning over the palette [proxies (P); bones (J)] (the bones are read in
+/// place, never copied); one pipeline per K.
+const SKIN_K4: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "skin.comp",
+    spirv: spirv!("skin_k4"),
+    bindings: &[
+        Model(M::Rest),
+        Model(M::SkinIndex),
+        Model(M::SkinWeight),
+        Reads(Crowd::Proxies),
+        Reads(Crowd::Bones),
+        Writes(Crowd::Positions),
+    ],
+    push: &[W::Vertices, W::Proxies, W::Bones, W::Characters],
+    groups: PER_VERTEX,
+    runs: |d| d.influences == 4,
+};
+
+const SKIN_K8: PassDesc = PassDesc {
+    spirv: spirv!("skin_k8"),
+    runs: |d| d.influences == 8,
+    ..SKIN_K4
+};
+
+/// Normals gathered from each vertex's incident triangles (no atomics).
+const NORMALS: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "normals.comp",
+    spirv: spirv!("normals"),
+    bindings: &[
+        Reads(Crowd::Positions),
+        Model(M::IncidentOffsets),
+        Model(M::IncidentTriangles),
+        Model(M::Triangles),
+        Writes(Crowd::Normals),
+    ],
+    push: &[W::Vertices, W::Characters],
+    groups: PER_VERTEX,
+    runs: |_| true,
+};
+
+/// local_size_x = 64 over vertices, one row of groups per character.
+const PER_VERTEX: [Axis; 3] = [over(Vertices, 64), over(Characters, 1), ONE];
+
+#[cfg(test)]
+mod tests {
+    use super::super::pass::{Binding, CrowdBuffer};
+    use super::*;
+
+    /// (binding index, declared `readonly`, block name) of every storage buffer, and the push
+    /// block's member names, in source order.
+    fn interface(source: &str) -> (Vec<(usize, bool, String)>, Vec<String>) {
+        let buffers = source
+            .lines()
+            .filter_map(|line| {
+                let at = line.find("binding = ")? + "binding = ".len();
+                let digits: String = line[at..]
+                    .chars()
+                    .take_while(char::is_ascii_digit)
+                    .collect();
+                let index = digits.parse().ok()?;
+                let (_, block) = line.split_once("buffer ")?;
+                let name = block.split_whitespace().next()?.to_string();
+                Some((index, line.contains(") readonly buffer"), name))
+            })
+            .collect();
+        let push = source
+            .split_once("layout(push_constant) uniform Push {")
+            .and_then(|(_, rest)| rest.split_once('}'))
+            .map(|(block, _)| {
+                block
+                    .split(';')
+                    .filter_map(|member| member.split_whitespace().nth(1))
+                    .map(str::to_string)
+                    .collect()
+            })
+            .unwrap_or_default();
+        (buffers, push)
+    }
+
+    fn block_name(binding: Binding) -> &'static str {
+        match binding {
+            Binding::Model(m) => match m {
+                M::Rest => "Rest",
+                M::SkinIndex => "SkinIndex",
+                M::SkinWeight => "SkinWeight",
+                M::Parents => "Parents",
+                M::Predictors => "Predictors",
+                M::BlendMatrix => "Matrix",
+                M::IncidentOffsets => "Offsets",
+                M::IncidentTriangles => "Incident",
+                M::Triangles => "Triangles",
+            },
+            Binding::Reads(c) | Binding::Writes(c) => match c {
+                CrowdBuffer::Bones => "Bones",
+                CrowdBuffer::Rhs => "Rhs",
+                CrowdBuffer::Proxies => "Proxies",
+                CrowdBuffer::Positions => "Positions",
+                CrowdBuffer::Normals => "Normals",
+            },
+        }
+    }
+
+    fn glsl_name(word: W) -> &'static str {
+        match word {
+            W::Vertices => "V",
+            W::Proxies => "P",
+            W::Bones => "J",
+            W::Characters => "chars",
+        }
+    }
+
+    #[test]
+    fn bindings_and_push_blocks_are_those_of_the_glsl() {
+        for pass in Pass::ALL {
+            let d = pass.desc();
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("glsl")
+                .join(d.glsl);
+            let source = std::fs::read_to_string(&path).expect("the pass's shader");
+            let (buffers, push) = interface(&source);
+            let expected: Vec<(usize, bool, String)> = (d.bindings.iter().enumerate())
+                .map(|(i, &b)| {
+                    (
+                        i,
+                        !matches!(b, Binding::Writes(_)),
+                        block_name(b).to_string(),
+                    )
+                })
+                .collect();
+            assert_eq!(
+                buffers, expected,
+                "{pass:?}: (binding, readonly, block) in {}",
+                d.glsl
+            );
+            let words: Vec<&str> = d.push.iter().map(|&w| glsl_name(w)).collect();
+            assert_eq!(push, words, "{pass:?}: push block of {}", d.glsl);
+            assert!(d.push.len() <= super::super::pass::MAX_PUSH_WORDS);
+        }
+    }
+
+    #[test]
+    fn passes_are_listed_in_declaration_order() {
+        for (i, pass) in Pass::ALL.into_iter().enumerate() {
+            assert_eq!(pass as usize, i);
+        }
+    }
+
+    /// Every model runs exactly one writer of each output, and every crowd buffer its passes
+    /// read is either the bone input or written by one of them (with P = 0 the proxies are
+    /// bound but never read: no palette index is below P).
+    #[test]
+    fn every_model_writes_its_outputs_once_and_reads_only_what_is_written() {
+        for d in model_kinds() {
+            let writers = |b: CrowdBuffer| {
+                Pass::of_model(&d)
+                    .filter(|p| p.desc().crowd_accesses().1 & b.bit() != 0)
+                    .count()
+            };
+            assert_eq!(writers(CrowdBuffer::Positions), 1, "{d:?}");
+            assert_eq!(writers(CrowdBuffer::Normals), 1, "{d:?}");
+            for p in Pass::of_model(&d) {
+                for b in CrowdBuffer::ALL {
+                    let input =
+                        b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Proxies);
+                    if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
+                        assert_eq!(writers(b), 1, "{p:?} reads {b:?} of {d:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_chunk_has_one_set_per_pass_the_model_runs() {
+        let lbs = Dims {
+            vertices: 10,
+            proxies: 0,
+            bones: 2,
+            influences: 4,
+        };
+        // skin (6 buffers) and normals (5)
+        assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
+        let reduced = Dims {
+            proxies: 3,
+            influences: 8,
+            ..lbs
+        };
+        // + predict (4) and the GEMM (3)
+        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 18));
+    }
+}
