@@ -5,9 +5,9 @@ use rrskin::synthetic::{random_model, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
 use rrskin_tools::eval::{Options, Report};
-use rrskin_tools::train::{Method, TrainOptions};
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
+use rrskin_tools::train::{Method, TrainOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -149,7 +149,11 @@ impl TrainArgs {
                 Reduction::JointBlend => Method::JointBlend,
                 Reduction::Paper => Method::Paper,
             },
-            gentle_scales: if self.no_gentle_poses { Vec::new() } else { defaults.gentle_scales },
+            gentle_scales: if self.no_gentle_poses {
+                Vec::new()
+            } else {
+                defaults.gentle_scales
+            },
             quiet: self.json,
             ..defaults
         }
@@ -321,11 +325,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let (report, _) = evaluate(&set, &train, model, loocv, diagnose)?;
             print_report(&report, &set, train.json);
         }
-        Command::Train {
-            set,
-            train,
-            output,
-        } => {
+        Command::Train { set, train, output } => {
             if train.proxies == 0 {
                 return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }

@@ -23,7 +23,9 @@ impl Progress {
             (false, false) => Mode::Log,
             (false, true) => {
                 let bar = ProgressBar::new(total as u64);
-                if let Ok(style) = ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})") {
+                if let Ok(style) = ProgressStyle::with_template(
+                    "{prefix} [{bar:30}] {pos}/{len} {msg} ({elapsed})",
+                ) {
                     bar.set_style(style.progress_chars("#>-"));
                 }
                 bar.set_prefix(label);

@@ -128,7 +128,12 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "the example data must be at {}",
         set.display()
     );
-    let e = json(&rrskin(&["eval", set.to_str().expect("utf-8"), "--json", "--diagnose"]));
+    let e = json(&rrskin(&[
+        "eval",
+        set.to_str().expect("utf-8"),
+        "--json",
+        "--diagnose",
+    ]));
     let keys: Vec<&str> = e
         .as_object()
         .expect("an object")
@@ -156,7 +161,10 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
     assert_eq!(keys.len(), 16, "{e}");
-    assert!(e["rig_lbs"].is_null() && e["rig_dqs"].is_null(), "no skin_weights.npy here");
+    assert!(
+        e["rig_lbs"].is_null() && e["rig_dqs"].is_null(),
+        "no skin_weights.npy here"
+    );
     let n = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
     assert_eq!(
         (n(&e["vertices"]), n(&e["triangles"]), n(&e["bones"])),
@@ -203,7 +211,11 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         n(&oracle["train"]) <= red_train + 1e-3,
         "oracle {oracle} vs rr_reduced {red_train}"
     );
-    for ceiling in ["full_exact_gradients", "reduced_oracle_proxies", "reduced_oracle_keys"] {
+    for ceiling in [
+        "full_exact_gradients",
+        "reduced_oracle_proxies",
+        "reduced_oracle_keys",
+    ] {
         assert!(n(&e["diagnose"][ceiling]["test"]) > 0.0, "{ceiling}: {e}");
     }
     for method in ["ssd", "rr_full", "rr_reduced"] {

@@ -5,8 +5,8 @@
 use rrskin::vk::render::{grid_scene, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_tools::eval;
-use rrskin_tools::train::TrainOptions;
 use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::train::TrainOptions;
 
 const SIDE: usize = 16;
 const BACKGROUND: [f32; 3] = [0.1, 0.12, 0.15];

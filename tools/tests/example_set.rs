@@ -215,18 +215,32 @@ fn the_rigs_own_weights_load_when_present() {
 #[test]
 fn bad_rig_weights_name_the_file_and_the_vertex() {
     let file = "skin_weights.npy";
-    let e = error_after("weights-shape", |d| write_f32(&d.join(file), &[V, 3], &[0.0; V * 3]));
+    let e = error_after("weights-shape", |d| {
+        write_f32(&d.join(file), &[V, 3], &[0.0; V * 3])
+    });
     assert_names(&e, file, "expected (V = 4, J = 2)");
     let e = error_after("weights-negative", |d| {
-        write_f32(&d.join(file), &[V, 2], &[1.0, 0.0, 1.5, -0.5, 0.0, 1.0, 0.5, 0.5])
+        write_f32(
+            &d.join(file),
+            &[V, 2],
+            &[1.0, 0.0, 1.5, -0.5, 0.0, 1.0, 0.5, 0.5],
+        )
     });
     assert_names(&e, file, "vertex 1, bone 1: negative weight");
     let e = error_after("weights-sum", |d| {
-        write_f32(&d.join(file), &[V, 2], &[1.0, 0.0, 0.5, 0.25, 0.0, 1.0, 0.5, 0.5])
+        write_f32(
+            &d.join(file),
+            &[V, 2],
+            &[1.0, 0.0, 0.5, 0.25, 0.0, 1.0, 0.5, 0.5],
+        )
     });
     assert_names(&e, file, "vertex 1: weights sum to 0.75");
     let e = error_after("weights-nan", |d| {
-        write_f32(&d.join(file), &[V, 2], &[1.0, 0.0, f32::NAN, 0.5, 0.0, 1.0, 0.5, 0.5])
+        write_f32(
+            &d.join(file),
+            &[V, 2],
+            &[1.0, 0.0, f32::NAN, 0.5, 0.0, 1.0, 0.5, 0.5],
+        )
     });
     assert_names(&e, file, "not finite");
 }

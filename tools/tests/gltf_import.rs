@@ -140,7 +140,8 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
     assert_eq!(model.triangle_count(), imported.triangles.len());
 
     // Evaluate held-out frame 50 over the glTF vertices.
-    let rig = rrskin_tools::import::gltf_rig::Rig::load(Path::new(&rig()), "examples").expect("rig");
+    let rig =
+        rrskin_tools::import::gltf_rig::Rig::load(Path::new(&rig()), "examples").expect("rig");
     let bones: Vec<rrskin::predict::Affine> = rig
         .bones_at(50.0 / 24.0)
         .iter()

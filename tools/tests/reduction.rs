@@ -87,7 +87,8 @@ fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
 fn the_runtime_reproduces_the_joint_blend_model() {
     let t = train(cesiumman(), 50.0);
     let feats = &t.prep.feats;
-    let reduced = rrskin_tools::train::reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, 30, 4);
+    let reduced =
+        rrskin_tools::train::reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, 30, 4);
     assert_runtime_reproduces(&t, &reduced, 30);
 }
 

@@ -5,8 +5,8 @@
 
 use glam::{DMat3, DVec3};
 use rrskin_tools::eval;
-use rrskin_tools::train::TrainOptions;
 use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::train::TrainOptions;
 
 const RINGS: usize = 25;
 const SEGMENTS: usize = 12;

@@ -19,7 +19,11 @@ use glam::{DMat3, DVec3, DVec4};
 
 /// Per pose, every proxy transform (3 rows of 4) fitting the vertices best, with the trained
 /// weights (the bones' share of each vertex is known): the ceiling of the runtime form.
-pub fn oracle_transforms(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> Vec<Vec<[DVec4; 3]>> {
+pub fn oracle_transforms(
+    set: &ExampleSet,
+    reduced: &Reduced,
+    poses: &[usize],
+) -> Vec<Vec<[DVec4; 3]>> {
     let p = reduced.proxies;
     let n4p = 4 * p;
     let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
@@ -69,7 +73,9 @@ pub fn oracle_transforms(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -
             }
             let t = llt.solve(&rhs);
             (0..p)
-                .map(|e| [0, 1, 2].map(|c| DVec4::from_array([0, 1, 2, 3].map(|r| t[(4 * e + r, c)]))))
+                .map(|e| {
+                    [0, 1, 2].map(|c| DVec4::from_array([0, 1, 2, 3].map(|r| t[(4 * e + r, c)])))
+                })
                 .collect()
         })
         .collect()
@@ -106,7 +112,10 @@ pub fn oracle_key_meshes(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -
         .map(|(&i, t)| {
             let keys: Vec<DMat3> = t
                 .iter()
-                .map(|rows| DMat3::from_cols(rows[0].truncate(), rows[1].truncate(), rows[2].truncate()).transpose())
+                .map(|rows| {
+                    DMat3::from_cols(rows[0].truncate(), rows[1].truncate(), rows[2].truncate())
+                        .transpose()
+                })
                 .collect();
             reduced.predict_with_keys(set, &keys, &set.poses[i].bones)
         })

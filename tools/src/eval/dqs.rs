@@ -42,9 +42,13 @@ fn blend(dq: &[DualQuat], inf: &[(usize, f64)], p: DVec3) -> DVec3 {
     let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
     let (mut real, mut dual) = (zero, zero);
     for &(b, w) in inf {
-        let s = if dq[b].real.dot(dq[pivot].real) < 0.0 { -w } else { w };
-        real = real + dq[b].real * s;
-        dual = dual + dq[b].dual * s;
+        let s = if dq[b].real.dot(dq[pivot].real) < 0.0 {
+            -w
+        } else {
+            w
+        };
+        real += dq[b].real * s;
+        dual += dq[b].dual * s;
     }
     let norm = real.length();
     if norm <= 0.0 {
@@ -81,7 +85,10 @@ mod tests {
         // A point on the unit circle around the x axis; the two bones twist by 0 and 170
         // degrees: LBS pulls it toward the axis, DQS keeps it on the circle at 85 degrees.
         let x = DVec3::X;
-        let bones = [bone(x, 0.0, DVec3::ZERO), bone(x, 170f64.to_radians(), DVec3::ZERO)];
+        let bones = [
+            bone(x, 0.0, DVec3::ZERO),
+            bone(x, 170f64.to_radians(), DVec3::ZERO),
+        ];
         let p = DVec3::Y;
         let moved = deform(&[p], &[vec![(0, 0.5), (1, 0.5)]], &bones)[0];
         assert!((moved.length() - 1.0).abs() < 1e-12, "{moved:?}");
@@ -96,11 +103,17 @@ mod tests {
         // q and −q are one motion: without the hemisphere flip their blend would cancel.
         let b = bone(DVec3::new(0.0, 1.0, 1.0), 2.5, DVec3::new(1.0, -0.5, 0.25));
         let q = DualQuat::of(&b);
-        let minus = DualQuat { real: -q.real, dual: -q.dual };
+        let minus = DualQuat {
+            real: -q.real,
+            dual: -q.dual,
+        };
         let p = DVec3::new(0.5, 0.25, -1.0);
         for weights in [[0.3, 0.7], [0.7, 0.3], [0.5, 0.5]] {
             let moved = blend(&[q, minus], &[(0, weights[0]), (1, weights[1])], p);
-            assert!((moved - b.apply(p)).length() < 1e-12, "{weights:?}: {moved:?}");
+            assert!(
+                (moved - b.apply(p)).length() < 1e-12,
+                "{weights:?}: {moved:?}"
+            );
         }
     }
 }

@@ -123,7 +123,11 @@ impl Report {
             test_label,
         );
         let row = |s: &mut String, label: &str, e: &Errors| {
-            *s += &format!("{label:<34} {:>10} {:>10}\n", pct(Some(e.train)), pct(e.test));
+            *s += &format!(
+                "{label:<34} {:>10} {:>10}\n",
+                pct(Some(e.train)),
+                pct(e.test)
+            );
         };
         row(&mut s, "rigid", &self.rigid);
         row(&mut s, "SSD (LBS, fitted weights)", &self.ssd);
@@ -144,7 +148,11 @@ impl Report {
             s += "error budget (oracle ceilings):\n";
             row(&mut s, "  full model, exact gradients", &b.full_exact);
             row(&mut s, "  runtime form, oracle proxies", &b.reduced_oracle);
-            row(&mut s, "  runtime form, oracle keys", &b.reduced_oracle_keys);
+            row(
+                &mut s,
+                "  runtime form, oracle keys",
+                &b.reduced_oracle_keys,
+            );
         }
         let chosen = match self.folds {
             0 | 1 => "fixed: too few training poses to cross-validate".to_string(),
@@ -225,14 +233,20 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let mut dqs_e = errors(&|p| dqs_all(set, &trained.ssd.influences, p));
     let rig = |f: &dyn Fn(&Skinning, &[usize]) -> Vec<Vec<DVec3>>| {
         set.rig_weights.as_ref().map(|w| {
-            let skin = Skinning { influences: w.clone() };
+            let skin = Skinning {
+                influences: w.clone(),
+            };
             errors(&|p| f(&skin, p))
         })
     };
     let rig_lbs = rig(&|s, p| deform_all(set, s, p));
     let rig_dqs = rig(&|s, p| dqs_all(set, &s.influences, p));
     let mut rr_e = errors(&|p| trained.full.predict(set, &trained.prep, &trained.ssd, p));
-    let runtime = options.model.as_ref().map(|m| &m.1).or(trained.model.as_ref());
+    let runtime = options
+        .model
+        .as_ref()
+        .map(|m| &m.1)
+        .or(trained.model.as_ref());
     let mut rr_reduced = runtime
         .map(|m| runtime_errors(set, m, &train, &test, rigid))
         .transpose()?;
@@ -305,10 +319,15 @@ struct LeaveOneOut {
     rr_full: f64,
 }
 
-fn leave_one_out(set: &ExampleSet, trained: &Trained, options: &TrainOptions) -> Result<LeaveOneOut> {
+fn leave_one_out(
+    set: &ExampleSet,
+    trained: &Trained,
+    options: &TrainOptions,
+) -> Result<LeaveOneOut> {
     let k = options.influences;
     let train = set.train();
-    let (mut ssd_p, mut dqs_p, mut rr_p, mut rigid_p) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut ssd_p, mut dqs_p, mut rr_p, mut rigid_p) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     let progress = crate::progress::Progress::new("leave-one-out", train.len(), options.quiet);
     for &i in &train {
         let others: Vec<usize> = train.iter().copied().filter(|&t| t != i).collect();
@@ -319,7 +338,11 @@ fn leave_one_out(set: &ExampleSet, trained: &Trained, options: &TrainOptions) ->
         rr_p.extend(full.predict(set, &trained.prep, &ssd, &[i]));
         ssd_p.extend(deform_all(set, &ssd, &[i]));
         dqs_p.extend(dqs_all(set, &ssd.influences, &[i]));
-        rigid_p.extend(deform_all(set, &Skinning::rigid(&ssd::rigid_bones(&rigid_errors)), &[i]));
+        rigid_p.extend(deform_all(
+            set,
+            &Skinning::rigid(&ssd::rigid_bones(&rigid_errors)),
+            &[i],
+        ));
         progress.step();
     }
     progress.finish();

@@ -428,7 +428,9 @@ impl ExampleSet {
         let files: [(&str, Writer); 6] = [
             (
                 "rest_vertices.npy",
-                Box::new(|p| crate::import::npy::write_f32(p, &[v, 3], &xyz(&mut self.rest.iter()))),
+                Box::new(|p| {
+                    crate::import::npy::write_f32(p, &[v, 3], &xyz(&mut self.rest.iter()))
+                }),
             ),
             (
                 "faces.npy",
@@ -503,19 +505,35 @@ pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
 /// `skin_weights.npy`: (V, J), every weight finite and ≥ 0, every row summing to one.
 fn read_rig_weights(path: &Path, v: usize, j: usize) -> Result<Vec<Vec<(usize, f64)>>, InputError> {
     let w = read_floats(path)?;
-    expect_shape(path, &w.shape, &[Some(v as u64), Some(j as u64)], &format!("(V = {v}, J = {j})"))?;
+    expect_shape(
+        path,
+        &w.shape,
+        &[Some(v as u64), Some(j as u64)],
+        &format!("(V = {v}, J = {j})"),
+    )?;
     w.data
         .chunks_exact(j)
         .enumerate()
         .map(|(a, row)| {
             if let Some(b) = row.iter().position(|&x| x < 0.0) {
-                return Err(bad(path, format!("vertex {a}, bone {b}: negative weight {}", row[b])));
+                return Err(bad(
+                    path,
+                    format!("vertex {a}, bone {b}: negative weight {}", row[b]),
+                ));
             }
             let sum: f64 = row.iter().sum();
             if (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
-                return Err(bad(path, format!("vertex {a}: weights sum to {sum}, not 1")));
+                return Err(bad(
+                    path,
+                    format!("vertex {a}: weights sum to {sum}, not 1"),
+                ));
             }
-            Ok(row.iter().enumerate().filter(|(_, &x)| x > 0.0).map(|(b, &x)| (b, x / sum)).collect())
+            Ok(row
+                .iter()
+                .enumerate()
+                .filter(|(_, &x)| x > 0.0)
+                .map(|(b, &x)| (b, x / sum))
+                .collect())
         })
         .collect()
 }

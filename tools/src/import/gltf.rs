@@ -5,7 +5,9 @@
 //! the Poisson solve; `weld` maps every glTF vertex to its training vertex, so a trained model
 //! can be expanded back to the file's own vertex order and count.
 
-use crate::import::example_set::{rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE};
+use crate::import::example_set::{
+    rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE,
+};
 use crate::import::gltf_rig::Rig;
 use crate::import::point_cache::PointCache;
 use glam::DVec3;
@@ -110,7 +112,12 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         poses,
         is_test,
         bone_names: Some(rig.names.clone()),
-        rig_weights: Some(representative.iter().map(|&g| rig.weights[g].clone()).collect()),
+        rig_weights: Some(
+            representative
+                .iter()
+                .map(|&g| rig.weights[g].clone())
+                .collect(),
+        ),
         warnings: Vec::new(),
     };
     Ok(Imported {

@@ -55,7 +55,13 @@ pub fn pivots(set: &ExampleSet, poses: &[usize]) -> Vec<DVec3> {
 }
 
 /// The pose with every joint rotation of `bones` scaled by `s`.
-pub fn scaled_pose(set: &ExampleSet, order: &[usize], pivots: &[DVec3], bones: &[Bone], s: f64) -> Vec<Bone> {
+pub fn scaled_pose(
+    set: &ExampleSet,
+    order: &[usize],
+    pivots: &[DVec3],
+    bones: &[Bone],
+    s: f64,
+) -> Vec<Bone> {
     let mut out = bones.to_vec();
     for &b in order {
         let t = bones[b];
@@ -69,7 +75,10 @@ pub fn scaled_pose(set: &ExampleSet, order: &[usize], pivots: &[DVec3], bones: &
                 let parent = out[p];
                 // x ↦ T_p(c + Q~ (x − c))
                 let q = parent.q * joint;
-                Bone { q, d: parent.apply(pivots[b] - joint * pivots[b]) }
+                Bone {
+                    q,
+                    d: parent.apply(pivots[b] - joint * pivots[b]),
+                }
             }
         };
     }
@@ -125,7 +134,9 @@ pub fn augment(
         feats: features_only.feats,
         polar: prep.polar.clone(),
     };
-    wide_prep.polar.extend(Prepared::polar_factors(&wide, &gentle));
+    wide_prep
+        .polar
+        .extend(Prepared::polar_factors(&wide, &gentle));
     Widened {
         set: wide,
         prep: wide_prep,
@@ -140,24 +151,56 @@ mod tests {
         // Three bones listed child first (2 → 1 → 0 is the chain 0 ← 1 ← 2 reversed): the
         // order must not matter.
         let parents = vec![Some(1), Some(2), None];
-        let pivot = [DVec3::new(0.0, 2.0, 0.0), DVec3::new(0.0, 1.0, 0.0), DVec3::ZERO];
+        let pivot = [
+            DVec3::new(0.0, 2.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::ZERO,
+        ];
         let turn = |axis: DVec3, angle: f64| exp_rotation(axis.normalize() * angle);
-        let joints = [turn(DVec3::new(1.0, 0.2, 0.0), 0.7), turn(DVec3::new(0.0, 0.3, 1.0), -0.9), DMat3::IDENTITY];
+        let joints = [
+            turn(DVec3::new(1.0, 0.2, 0.0), 0.7),
+            turn(DVec3::new(0.0, 0.3, 1.0), -0.9),
+            DMat3::IDENTITY,
+        ];
         // World transforms by forward kinematics, root (bone 2) first.
-        let mut bones = vec![Bone { q: DMat3::IDENTITY, d: DVec3::ZERO }; 3];
+        let mut bones = vec![
+            Bone {
+                q: DMat3::IDENTITY,
+                d: DVec3::ZERO
+            };
+            3
+        ];
         for b in [2, 1, 0] {
-            let parent = parents[b].map_or(Bone { q: DMat3::IDENTITY, d: DVec3::ZERO }, |p| bones[p]);
+            let parent = parents[b].map_or(
+                Bone {
+                    q: DMat3::IDENTITY,
+                    d: DVec3::ZERO,
+                },
+                |p| bones[p],
+            );
             let q = parent.q * joints[b];
-            bones[b] = Bone { q, d: parent.apply(pivot[b] - joints[b] * pivot[b]) };
+            bones[b] = Bone {
+                q,
+                d: parent.apply(pivot[b] - joints[b] * pivot[b]),
+            };
         }
-        let second: Vec<Bone> = bones.iter().map(|b| Bone { q: b.q * b.q, d: b.d }).collect();
+        let second: Vec<Bone> = bones
+            .iter()
+            .map(|b| Bone {
+                q: b.q * b.q,
+                d: b.d,
+            })
+            .collect();
         ExampleSet {
             rest: vec![DVec3::ZERO],
             faces: Vec::new(),
             parents,
             poses: [bones, second]
                 .into_iter()
-                .map(|bones| Pose { bones, vertices: vec![DVec3::ZERO] })
+                .map(|bones| Pose {
+                    bones,
+                    vertices: vec![DVec3::ZERO],
+                })
                 .collect(),
             is_test: vec![false, false],
             bone_names: None,
@@ -169,7 +212,10 @@ mod tests {
     #[test]
     fn parents_come_first_whatever_the_listed_order() {
         assert_eq!(topological_order(&[Some(1), Some(2), None]), vec![2, 1, 0]);
-        assert_eq!(topological_order(&[None, Some(0), Some(0), Some(2)]), vec![0, 1, 2, 3]);
+        assert_eq!(
+            topological_order(&[None, Some(0), Some(0), Some(2)]),
+            vec![0, 1, 2, 3]
+        );
     }
 
     #[test]
@@ -178,13 +224,32 @@ mod tests {
         let order = topological_order(&set.parents);
         let pivots = pivots(&set, &[0]);
         let bones = &set.poses[0].bones;
-        for (b, t) in scaled_pose(&set, &order, &pivots, bones, 1.0).iter().enumerate() {
+        for (b, t) in scaled_pose(&set, &order, &pivots, bones, 1.0)
+            .iter()
+            .enumerate()
+        {
             // The pivots come from a least-squares fit with a weak ridge: 1e-6 is its bias.
-            assert!((t.q - bones[b].q).abs().to_cols_array().iter().all(|x| *x < 1e-9), "bone {b}");
-            assert!((t.d - bones[b].d).length() < 1e-6, "bone {b}: {:?} vs {:?}", t.d, bones[b].d);
+            assert!(
+                (t.q - bones[b].q)
+                    .abs()
+                    .to_cols_array()
+                    .iter()
+                    .all(|x| *x < 1e-9),
+                "bone {b}"
+            );
+            assert!(
+                (t.d - bones[b].d).length() < 1e-6,
+                "bone {b}: {:?} vs {:?}",
+                t.d,
+                bones[b].d
+            );
         }
         for t in scaled_pose(&set, &order, &pivots, bones, 0.0) {
-            assert!((t.q - DMat3::IDENTITY).abs().to_cols_array().iter().all(|x| *x < 1e-9));
+            assert!((t.q - DMat3::IDENTITY)
+                .abs()
+                .to_cols_array()
+                .iter()
+                .all(|x| *x < 1e-9));
             assert!(t.d.length() < 1e-9);
         }
     }

@@ -3,8 +3,8 @@
 //! near-rigid vertices F fixed to SSD (§4.2). The quality reference for the reduced model.
 
 use crate::import::example_set::ExampleSet;
-use crate::train::gradients::{gradients, rest_inverses};
 use crate::linalg::polar;
+use crate::train::gradients::{gradients, rest_inverses};
 use crate::train::poisson::{anchor_components, Poisson, PoissonError};
 use crate::train::rotreg::{self, PoseFeatures, RotationPredictor};
 use crate::train::scale_shear::{self, ScaleShear};
@@ -60,7 +60,14 @@ pub fn fit(
     let stretches = fit_stretches(set, prep, poses, &rotations, ridge);
     let ssd_error = crate::train::ssd::per_vertex_error(set, poses, ssd);
     let fixed = near_rigid(set, &ssd_error, selection.choice.percentile);
-    FullModel::new(set, rotations, stretches, fixed, selection.alpha.clone(), ridge)
+    FullModel::new(
+        set,
+        rotations,
+        stretches,
+        fixed,
+        selection.alpha.clone(),
+        ridge,
+    )
 }
 
 /// Per triangle: its rotation predictor (None when no nearby bone moves: then R = I).
@@ -229,7 +236,12 @@ impl FullModel {
         poses: &[usize],
     ) -> Vec<Vec<DVec3>> {
         self.reconstruct(set, ssd, poses, |i, k| {
-            predict_gradient(set, &prep.feats[i], &self.rotations.0[k], &self.stretches[k])
+            predict_gradient(
+                set,
+                &prep.feats[i],
+                &self.rotations.0[k],
+                &self.stretches[k],
+            )
         })
     }
 

@@ -153,7 +153,8 @@ struct Clock {
 
 impl Clock {
     fn lap(&mut self, stage: &'static str) {
-        self.seconds.push((stage, self.last.elapsed().as_secs_f64()));
+        self.seconds
+            .push((stage, self.last.elapsed().as_secs_f64()));
         self.last = Instant::now();
     }
 }
@@ -214,8 +215,15 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             };
             let reduced = match options.method {
                 Method::JointBlend => {
-                    let mut r = reduce::joint_blend::fit(set, &prep.feats, &train, &ssd, proxies, k);
-                    refit = Some(reduce::refit::refit(set, &prep, &train, options.folds, &mut r));
+                    let mut r =
+                        reduce::joint_blend::fit(set, &prep.feats, &train, &ssd, proxies, k);
+                    refit = Some(reduce::refit::refit(
+                        set,
+                        &prep,
+                        &train,
+                        options.folds,
+                        &mut r,
+                    ));
                     r
                 }
                 Method::Paper if options.gentle_scales.is_empty() => {
@@ -223,7 +231,14 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                 }
                 Method::Paper => {
                     let wider = augment::augment(set, &prep, &full, &ssd, &options.gentle_scales);
-                    reduce::run(&wider.set, &wider.prep, &wider.set.train(), &ssd, &full, &reduction)
+                    reduce::run(
+                        &wider.set,
+                        &wider.prep,
+                        &wider.set.train(),
+                        &ssd,
+                        &full,
+                        &reduction,
+                    )
                 }
             };
             let model = reduced.to_runtime(set, k)?;

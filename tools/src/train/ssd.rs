@@ -60,7 +60,11 @@ pub fn rigid_errors(set: &ExampleSet, poses: &[usize]) -> Vec<Vec<f64>> {
 pub fn per_vertex_error(set: &ExampleSet, poses: &[usize], skin: &Skinning) -> Vec<f64> {
     let mut sum = vec![0.0; set.vertex_count()];
     for &i in poses {
-        for (a, p) in skin.deform(&set.rest, &set.poses[i].bones).iter().enumerate() {
+        for (a, p) in skin
+            .deform(&set.rest, &set.poses[i].bones)
+            .iter()
+            .enumerate()
+        {
             sum[a] += (*p - set.poses[i].vertices[a]).length_squared();
         }
     }

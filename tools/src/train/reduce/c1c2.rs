@@ -18,9 +18,9 @@
 use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::DenseCholesky;
 use crate::train::reduce::predictor::{KeyPredictor, KeySequences};
+use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::Skinning;
-use crate::train::reduce::vertex::Proxies;
 use glam::{DMat3, DVec3, DVec4};
 
 /// The reduced model in f64, as trained: what the runtime model stores in f32.

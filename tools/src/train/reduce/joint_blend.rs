@@ -119,7 +119,9 @@ fn weights(
                 train
                     .iter()
                     .enumerate()
-                    .map(|(n, &i)| (palette[n][e].apply(rest) - set.poses[i].vertices[a]).length_squared())
+                    .map(|(n, &i)| {
+                        (palette[n][e].apply(rest) - set.poses[i].vertices[a]).length_squared()
+                    })
                     .sum()
             };
             // Candidates: the vertex's SSD bones and the proxies between two of them. Offering
@@ -145,7 +147,12 @@ fn weights(
 }
 
 /// The runtime form of the proxies: keys, C1, C2 (module docs) and the skinning.
-fn assemble(set: &ExampleSet, proxies: &[Proxy], skin: Vec<Vec<(usize, f64)>>, ssd: &Skinning) -> Reduced {
+fn assemble(
+    set: &ExampleSet,
+    proxies: &[Proxy],
+    skin: Vec<Vec<(usize, f64)>>,
+    ssd: &Skinning,
+) -> Reduced {
     let (p, j) = (proxies.len(), set.bone_count());
     let (mut c1, mut c2) = (vec![0.0; 4 * p * 3 * p], vec![0.0; 4 * p * 4 * j]);
     for (e, proxy) in proxies.iter().enumerate() {
@@ -204,7 +211,10 @@ mod tests {
         };
         let feats = PoseFeatures {
             q: vec![parent.q, child.q],
-            theta: vec![log_rotation(parent.q), log_rotation(parent.q.transpose() * child.q)],
+            theta: vec![
+                log_rotation(parent.q),
+                log_rotation(parent.q.transpose() * child.q),
+            ],
         };
         let x = DVec3::new(-0.4, 0.9, 0.7);
         for w in FRACTIONS {
@@ -215,12 +225,21 @@ mod tests {
                 pivot,
             };
             let t = proxy.transform(&feats, &[parent, child]);
-            assert!((t.apply(pivot) - parent.apply(pivot)).length() < 1e-12, "w = {w}");
+            assert!(
+                (t.apply(pivot) - parent.apply(pivot)).length() < 1e-12,
+                "w = {w}"
+            );
             let turned = log_rotation(parent.q.transpose() * t.q);
             assert!((turned - feats.theta[1] * w).length() < 1e-12, "w = {w}");
             if w == 0.5 {
-                let dqs = crate::eval::dqs::deform(&[x], &[vec![(0, 0.5), (1, 0.5)]], &[parent, child]);
-                assert!((t.apply(x) - dqs[0]).length() < 1e-12, "{:?} vs {:?}", t.apply(x), dqs[0]);
+                let dqs =
+                    crate::eval::dqs::deform(&[x], &[vec![(0, 0.5), (1, 0.5)]], &[parent, child]);
+                assert!(
+                    (t.apply(x) - dqs[0]).length() < 1e-12,
+                    "{:?} vs {:?}",
+                    t.apply(x),
+                    dqs[0]
+                );
             }
         }
     }

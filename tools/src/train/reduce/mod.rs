@@ -3,8 +3,8 @@
 
 pub mod c1c2;
 pub mod joint_blend;
-pub mod refit;
 pub mod predictor;
+pub mod refit;
 pub mod vertex;
 
 use crate::import::example_set::ExampleSet;
@@ -30,7 +30,13 @@ pub fn run(
     full: &FullModel,
     reduction: &Reduction,
 ) -> Reduced {
-    let groups = vertex::reduce(set, train, &full.fixed, reduction.stop, reduction.influences);
+    let groups = vertex::reduce(
+        set,
+        train,
+        &full.fixed,
+        reduction.stop,
+        reduction.influences,
+    );
     let keys = predictor::reduce(set, prep, train, &groups);
     let nearby = full_model::nearby_bones(set, ssd);
     let mut key_bones = vec![Vec::<usize>::new(); groups.count()];
@@ -41,7 +47,14 @@ pub fn run(
             }
         }
     }
-    let predictors =
-        predictor::train_predictors(set, prep, train, &keys, &key_bones, full.ridge);
-    c1c2::assemble(set, ssd, &full.fixed, &full.alpha, &groups, &keys, predictors)
+    let predictors = predictor::train_predictors(set, prep, train, &keys, &key_bones, full.ridge);
+    c1c2::assemble(
+        set,
+        ssd,
+        &full.fixed,
+        &full.alpha,
+        &groups,
+        &keys,
+        predictors,
+    )
 }

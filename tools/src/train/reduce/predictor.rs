@@ -9,12 +9,12 @@
 //! keys are then exactly the triangles' gradients.
 
 use crate::import::example_set::ExampleSet;
+use crate::linalg::{cholesky_solve, polar, DenseCholesky};
 use crate::train::full_model::Prepared;
 use crate::train::gradients::frame;
-use crate::linalg::{cholesky_solve, polar, DenseCholesky};
+use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::{self, PoseFeatures, RotationPredictor};
 use crate::train::scale_shear::{self, ScaleShear};
-use crate::train::reduce::vertex::Proxies;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 

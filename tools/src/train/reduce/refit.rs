@@ -68,21 +68,36 @@ struct Problem {
 }
 
 /// Refits `reduced`'s C1/C2 on the mask (its own non-zeros, and the bone each key turns).
-pub fn refit(set: &ExampleSet, prep: &Prepared, train: &[usize], folds: usize, reduced: &mut Reduced) -> Refit {
+pub fn refit(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    folds: usize,
+    reduced: &mut Reduced,
+) -> Refit {
     let problem = Problem::new(set, prep, train, reduced);
     let folds = folds.min(train.len());
     let mut held_out = vec![0.0; RIDGES.len()];
     if folds < 2 || problem.mask.is_empty() {
-        return Refit { ridge: None, held_out };
+        return Refit {
+            ridge: None,
+            held_out,
+        };
     }
     let all: Vec<usize> = (0..train.len()).collect();
     for fold in 0..folds {
         let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
         for (h, delta) in held_out.iter_mut().zip(problem.solve(&inner, &RIDGES)) {
-            *h += all.iter().filter(|n| *n % folds == fold).map(|&n| problem.error(&delta, n)).sum::<f64>();
+            *h += all
+                .iter()
+                .filter(|n| *n % folds == fold)
+                .map(|&n| problem.error(&delta, n))
+                .sum::<f64>();
         }
     }
-    let best = (0..RIDGES.len()).min_by(|&x, &y| held_out[x].total_cmp(&held_out[y])).unwrap_or(RIDGES.len() - 1);
+    let best = (0..RIDGES.len())
+        .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
+        .unwrap_or(RIDGES.len() - 1);
     let ridge = RIDGES[best];
     if let Some(delta) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
         // Δ acts on projected features: Δ x' = Δ x − (Δ n) nᵀ x, so each row's weight on a
@@ -128,7 +143,8 @@ impl Problem {
                     true => c / 3 == e,
                     false => {
                         let b = (c - 3 * p) / 4;
-                        Some(b) == turned || (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0)
+                        Some(b) == turned
+                            || (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0)
                     }
                 };
                 if free {
@@ -138,7 +154,9 @@ impl Problem {
         }
         let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
         let proxy_share = |a: usize| reduced.skin[a].iter().filter(|x| x.0 < p);
-        let moved: Vec<usize> = (0..set.vertex_count()).filter(|&a| proxy_share(a).next().is_some()).collect();
+        let moved: Vec<usize> = (0..set.vertex_count())
+            .filter(|&a| proxy_share(a).next().is_some())
+            .collect();
         let mut a_mat = vec![0.0; n4p * n4p];
         for &a in &moved {
             for &(e1, w1) in proxy_share(a) {
@@ -167,7 +185,12 @@ impl Problem {
                 }
                 for (b, bone) in pose.bones.iter().enumerate() {
                     for c in 0..3 {
-                        let q = [bone.q.x_axis[c], bone.q.y_axis[c], bone.q.z_axis[c], bone.d[c]];
+                        let q = [
+                            bone.q.x_axis[c],
+                            bone.q.y_axis[c],
+                            bone.q.z_axis[c],
+                            bone.d[c],
+                        ];
                         for k in 0..4 {
                             x[3 * p + 4 * b + k][c] = q[k];
                         }
@@ -195,10 +218,22 @@ impl Problem {
                         }
                     }
                 }
-                PoseTerms { x, projected, b: bm, s }
+                PoseTerms {
+                    x,
+                    projected,
+                    b: bm,
+                    s,
+                }
             })
             .collect();
-        Problem { n4p, f, a: a_mat, c0, mask, terms }
+        Problem {
+            n4p,
+            f,
+            a: a_mat,
+            c0,
+            mask,
+            terms,
+        }
     }
 
     /// t = (C0 + Δ) x for pose n: 4P x 3.
@@ -225,7 +260,9 @@ impl Problem {
         let mut e = self.terms[n].s;
         for r in 0..self.n4p {
             for k in 0..3 {
-                let at: f64 = (0..self.n4p).map(|q| self.a[r * self.n4p + q] * t[q][k]).sum();
+                let at: f64 = (0..self.n4p)
+                    .map(|q| self.a[r * self.n4p + q] * t[q][k])
+                    .sum();
                 e += t[r][k] * (at - 2.0 * self.terms[n].b[r][k]);
             }
         }
@@ -260,7 +297,9 @@ impl Problem {
                 })
                 .collect();
             for (slot, &(r, c)) in rhs.iter_mut().zip(&self.mask) {
-                *slot += (0..3).map(|k| residual[r][k] * t.projected[c][k]).sum::<f64>();
+                *slot += (0..3)
+                    .map(|k| residual[r][k] * t.projected[c][k])
+                    .sum::<f64>();
             }
         }
         let mean_a = (0..n4p).map(|d| self.a[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
@@ -285,13 +324,21 @@ impl Problem {
         };
         let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
         let mut order: Vec<usize> = (0..ridges.len()).collect();
-        order.sort_by(|&x, &y| ridges[y].unwrap_or(f64::INFINITY).total_cmp(&ridges[x].unwrap_or(f64::INFINITY)));
+        order.sort_by(|&x, &y| {
+            ridges[y]
+                .unwrap_or(f64::INFINITY)
+                .total_cmp(&ridges[x].unwrap_or(f64::INFINITY))
+        });
         let mut out = vec![vec![0.0; m]; ridges.len()];
         let mut delta = vec![0.0; m];
         for idx in order {
             let Some(rho) = ridges[idx] else { continue };
             let lambda = rho * mean_a * mean_b;
-            let diag: Vec<f64> = self.mask.iter().map(|&(r, c)| self.a[r * n4p + r] * b[c * f + c] + lambda).collect();
+            let diag: Vec<f64> = self
+                .mask
+                .iter()
+                .map(|&(r, c)| self.a[r * n4p + r] * b[c * f + c] + lambda)
+                .collect();
             let applied = apply(&delta, lambda);
             let mut res: Vec<f64> = rhs.iter().zip(&applied).map(|(x, y)| x - y).collect();
             let mut z: Vec<f64> = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
@@ -308,7 +355,11 @@ impl Problem {
                 res.iter_mut().zip(&ad).for_each(|(x, d)| *x -= step * d);
                 z = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
                 let rz_next = dot(&res, &z);
-                dir = z.iter().zip(&dir).map(|(x, d)| x + d * (rz_next / rz)).collect();
+                dir = z
+                    .iter()
+                    .zip(&dir)
+                    .map(|(x, d)| x + d * (rz_next / rz))
+                    .collect();
                 rz = rz_next;
             }
             out[idx] = delta.clone();
