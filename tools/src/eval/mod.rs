@@ -231,16 +231,15 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let mut rigid_e = errors(&|p| deform_all(set, rigid, p));
     let mut ssd_e = errors(&|p| deform_all(set, &trained.ssd, p));
     let mut dqs_e = errors(&|p| dqs_all(set, &trained.ssd.influences, p));
-    let rig = |f: &dyn Fn(&Skinning, &[usize]) -> Vec<Vec<DVec3>>| {
-        set.rig_weights.as_ref().map(|w| {
-            let skin = Skinning {
-                influences: w.clone(),
-            };
-            errors(&|p| f(&skin, p))
-        })
-    };
-    let rig_lbs = rig(&|s, p| deform_all(set, s, p));
-    let rig_dqs = rig(&|s, p| dqs_all(set, &s.influences, p));
+    let rig_skin = set.rig_weights.as_ref().map(|w| Skinning {
+        influences: w.clone(),
+    });
+    let rig_lbs = rig_skin
+        .as_ref()
+        .map(|s| errors(&|p| deform_all(set, s, p)));
+    let rig_dqs = rig_skin
+        .as_ref()
+        .map(|s| errors(&|p| dqs_all(set, &s.influences, p)));
     let mut rr_e = errors(&|p| trained.full.predict(set, &trained.prep, &trained.ssd, p));
     let runtime = options
         .model
