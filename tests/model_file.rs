@@ -3,7 +3,7 @@
 
 use proptest::prelude::*;
 use rrskin::model::{FORMAT_VERSION, MAGIC};
-use rrskin::synthetic::{random_model, Spec};
+use rrskin_render::synthetic::{random_model, Spec};
 use rrskin::{Error, Model, ModelProblem};
 
 fn model(proxies: usize, influences: u32) -> Model {

@@ -7,7 +7,7 @@ use crate::swapchain::{Frame, Presenter};
 use crate::{Args, Error, Show};
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use rrskin::vk::ash::{self, vk};
-use rrskin::vk::render::{grid_scene, GridScene, Renderer, CROWD_BACKGROUND};
+use rrskin_render::{grid_scene, GridScene, Renderer, CROWD_BACKGROUND};
 use rrskin::vk::{Context, ContextDesc, PassTimings};
 use rrskin::Model;
 use std::time::{Duration, Instant};

@@ -19,7 +19,6 @@ mod gpu_model;
 mod normals;
 mod pipelines;
 mod predict;
-pub mod render;
 mod skin;
 
 pub use ash;

@@ -7,7 +7,7 @@
 use crate::eval::{self, Report};
 use crate::example_set::ExampleSet;
 use crate::image::write_png;
-use rrskin::vk::render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};
+use rrskin_render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! The `rrskin` command line (contract: ../shared/ARCHITECTURE.md, "Command-line contract").
 
 use clap::{Parser, Subcommand};
-use rrskin::synthetic::{random_model, Spec};
+use rrskin_render::synthetic::{random_model, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
 use rrskin_tools::eval::{Options, Report};

@@ -3,7 +3,7 @@
 //! buffer, submits and waits.
 
 use crate::progress::Progress;
-use rrskin::synthetic::random_poses;
+use rrskin_render::synthetic::random_poses;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, DeviceChoice, GpuModel, PassTimings};
 use rrskin::Model;
 

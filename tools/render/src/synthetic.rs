@@ -7,9 +7,8 @@
 //! follows one bone through C2 plus a small key-gradient correction through C1; predictors have
 //! random bones, scales, rotations, second bones and scale/shear matrices near identity.
 
-use crate::model::{KeyPredictor, Model, ModelParts, SecondBone};
-use crate::predict::{exp_rotation, Affine};
-use crate::{Error, ModelProblem, Result};
+use rrskin::predict::{exp_rotation, Affine};
+use rrskin::{Error, KeyPredictor, Model, ModelParts, ModelProblem, Result, SecondBone};
 use glam::{DMat3, DVec3};
 
 /// xorshift64*: deterministic, no dependency.
