@@ -16,9 +16,9 @@
 mod swapchain;
 mod window;
 
-use rrskin_render::{phased_poses, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel, PassTimings};
 use rrskin::Model;
+use rrskin_render::{phased_poses, CROWD_BACKGROUND};
 
 type Error = Box<dyn std::error::Error>;
 

@@ -2,9 +2,9 @@
 #![allow(dead_code)] // each test binary uses a different subset
 
 use glam::DVec3;
-pub use rrskin_render::synthetic::{random_poses, Spec};
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
+pub use rrskin_render::synthetic::{random_poses, Spec};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

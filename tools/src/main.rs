@@ -1,9 +1,9 @@
 //! The `rrskin` command line (contract: ../shared/ARCHITECTURE.md, "Command-line contract").
 
 use clap::{Parser, Subcommand};
-use rrskin_render::synthetic::{random_model, renumber_bones, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
+use rrskin_render::synthetic::{random_model, renumber_bones, Spec};
 use rrskin_tools::eval::{Options, Report};
 use rrskin_tools::example_set::ExampleSet;
 use rrskin_tools::import::{Imported, Options as ImportOptions};

@@ -4,10 +4,10 @@
 //! command buffer, submits and waits.
 
 use crate::progress::Progress;
-use rrskin_render::phased_poses;
-use rrskin_render::synthetic::random_poses;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, DeviceChoice, GpuModel, PassTimings};
 use rrskin::Model;
+use rrskin_render::phased_poses;
+use rrskin_render::synthetic::random_poses;
 
 /// Frames run (and discarded) before measuring: the first dispatch pays lavapipe's JIT.
 pub const WARM_UP_FRAMES: usize = 3;

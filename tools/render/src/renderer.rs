@@ -524,7 +524,12 @@ impl Renderer {
                 let at = out.offset + d.character as u64 * out.character_stride;
                 device.cmd_bind_vertex_buffers(cmd, 0, &[out.positions, out.normals], &[at, at]);
                 let model = d.crowd.model();
-                device.cmd_bind_index_buffer(cmd, model.triangle_buffer(), 0, vk::IndexType::UINT32);
+                device.cmd_bind_index_buffer(
+                    cmd,
+                    model.triangle_buffer(),
+                    0,
+                    vk::IndexType::UINT32,
+                );
                 self.push(cmd, camera, d.offset, d.color);
                 device.cmd_draw_indexed(cmd, model.triangle_count() as u32 * 3, 1, 0, 0, 0);
             }

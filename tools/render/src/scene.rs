@@ -55,11 +55,7 @@ pub const CROWD_BACKGROUND: [f32; 3] = [0.09, 0.1, 0.12];
 /// The bone transforms (C x J) of `characters` playing `model`'s animation at its frame `frame`,
 /// character c 7c frames ahead, so that neighbours are out of step. Empty if the model carries
 /// no animation.
-pub fn phased_poses(
-    model: &Model,
-    characters: usize,
-    frame: usize,
-) -> Vec<Affine> {
+pub fn phased_poses(model: &Model, characters: usize, frame: usize) -> Vec<Affine> {
     let frames: Vec<&[Affine]> = model.animation().collect();
     if frames.is_empty() {
         return Vec::new();

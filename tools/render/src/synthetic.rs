@@ -8,9 +8,9 @@
 //! follows one bone through C2 plus a small key-gradient correction through C1; predictors have
 //! random bones, scales, rotations, second bones and scale/shear matrices near identity.
 
+use glam::{DMat3, DVec3};
 use rrskin::predict::{exp_rotation, Affine};
 use rrskin::{Error, KeyPredictor, Model, ModelParts, ModelProblem, Result, SecondBone};
-use glam::{DMat3, DVec3};
 
 /// xorshift64*: deterministic, no dependency.
 pub struct Rng(u64);
@@ -205,12 +205,13 @@ pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> 
     let order = parents_first(model);
     let mut out = Vec::with_capacity(characters * j);
     for _ in 0..characters {
-        let local: Vec<(DMat3, DVec3)> = (0..j)
-            .map(|_| (rng.rotation(2.0), rng.vec3(0.5)))
-            .collect();
+        let local: Vec<(DMat3, DVec3)> =
+            (0..j).map(|_| (rng.rotation(2.0), rng.vec3(0.5))).collect();
         let mut world = vec![DMat3::IDENTITY; j];
         for &b in &order {
-            world[b] = model.parent(b).map_or(local[b].0, |p| world[p] * local[b].0);
+            world[b] = model
+                .parent(b)
+                .map_or(local[b].0, |p| world[p] * local[b].0);
         }
         out.extend(world.iter().zip(&local).map(|(q, (_, d))| {
             let r = rows(*q);
