@@ -15,6 +15,7 @@ mod blend_gemm;
 mod buffer;
 mod context;
 mod crowd;
+mod device_ext;
 mod gpu_model;
 mod normals;
 mod pipelines;

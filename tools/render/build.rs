@@ -8,8 +8,9 @@
 #[path = "../../build.rs"]
 mod runtime_build;
 
-/// (source file, output name, defines), as the runtime's list.
-const SHADERS: &[(&str, &str, &[(&str, &str)])] = &[
+/// (source file, output name, defines), as in the runtime's list.
+type Shader = (&'static str, &'static str, &'static [(&'static str, &'static str)]);
+const SHADERS: &[Shader] = &[
     ("shade.vert", "shade_vert", &[]),
     ("shade.vert", "shade_colors_vert", &[("VERTEX_COLORS", "1")]),
     ("shade.frag", "shade_frag", &[]),

@@ -72,7 +72,10 @@ impl Gpu {
     }
 
     /// A command pool of the context's queue family.
-    pub fn create_command_pool(&self, flags: vk::CommandPoolCreateFlags) -> Result<vk::CommandPool> {
+    pub fn create_command_pool(
+        &self,
+        flags: vk::CommandPoolCreateFlags,
+    ) -> Result<vk::CommandPool> {
         let info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(self.context.queue_family_index())
             .flags(flags);
@@ -117,14 +120,23 @@ impl Gpu {
         self.allocator.lock().unwrap_or_else(|p| p.into_inner())
     }
 
-    fn allocate(
+    /// Allocates memory in `location` for a resource just created on this device and binds it.
+    fn bind_memory(
         &self,
         name: &'static str,
-        requirements: vk::MemoryRequirements,
+        resource: Unbound,
         location: MemoryLocation,
-        linear: bool,
     ) -> Result<Allocation> {
-        self.allocator()
+        let device = self.device();
+        // SAFETY: the resource is this device's (the caller just created it).
+        let (requirements, linear) = unsafe {
+            match resource {
+                Unbound::Buffer(b) => (device.get_buffer_memory_requirements(b), true),
+                Unbound::Image(i) => (device.get_image_memory_requirements(i), false),
+            }
+        };
+        let allocation = self
+            .allocator()
             .allocate(&AllocationCreateDesc {
                 name,
                 requirements,
@@ -135,7 +147,27 @@ impl Gpu {
             .map_err(|e| Error::Allocation {
                 what: name,
                 message: e.to_string(),
-            })
+            })?;
+        // SAFETY: the resource has no memory yet; the allocation was made for its requirements,
+        // and its memory block is used only at its own offset.
+        let bound = unsafe {
+            let (memory, offset) = (allocation.memory(), allocation.offset());
+            match resource {
+                Unbound::Buffer(b) => device
+                    .bind_buffer_memory(b, memory, offset)
+                    .map_err(Error::vk("vkBindBufferMemory")),
+                Unbound::Image(i) => device
+                    .bind_image_memory(i, memory, offset)
+                    .map_err(Error::vk("vkBindImageMemory")),
+            }
+        };
+        match bound {
+            Ok(()) => Ok(allocation),
+            Err(e) => {
+                self.free(Some(allocation));
+                Err(e)
+            }
+        }
     }
 
     fn free(&self, allocation: Option<Allocation>) {
@@ -144,6 +176,13 @@ impl Gpu {
             let _ = self.allocator().free(a);
         }
     }
+}
+
+/// A buffer or image created on the device, without memory yet.
+#[derive(Clone, Copy)]
+enum Unbound {
+    Buffer(vk::Buffer),
+    Image(vk::Image),
 }
 
 /// A 2D image (one mip, one layer) in device memory, with a view of it.
@@ -187,14 +226,11 @@ impl Image {
             view: vk::ImageView::null(),
             allocation: None,
         };
-        // SAFETY: the image was just created on this device.
-        let requirements = unsafe { device.get_image_memory_requirements(image) };
-        let allocation =
-            gpu.allocate("render target", requirements, MemoryLocation::GpuOnly, false)?;
-        // SAFETY: the image is unbound; the allocation was made for its requirements.
-        unsafe { device.bind_image_memory(image, allocation.memory(), allocation.offset()) }
-            .map_err(Error::vk("vkBindImageMemory"))?;
-        target.allocation = Some(allocation);
+        target.allocation = Some(gpu.bind_memory(
+            "render target",
+            Unbound::Image(image),
+            MemoryLocation::GpuOnly,
+        )?);
         let view_info = vk::ImageViewCreateInfo::default()
             .image(image)
             .view_type(vk::ImageViewType::TYPE_2D)
@@ -253,13 +289,7 @@ impl HostBuffer {
             handle,
             allocation: None,
         };
-        // SAFETY: the buffer was just created on this device.
-        let requirements = unsafe { device.get_buffer_memory_requirements(handle) };
-        let allocation = gpu.allocate(name, requirements, location, true)?;
-        // SAFETY: the buffer is unbound; the allocation was made for its requirements.
-        unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) }
-            .map_err(Error::vk("vkBindBufferMemory"))?;
-        buffer.allocation = Some(allocation);
+        buffer.allocation = Some(gpu.bind_memory(name, Unbound::Buffer(handle), location)?);
         Ok(buffer)
     }
 

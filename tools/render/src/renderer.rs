@@ -332,13 +332,14 @@ impl Renderer {
         let info = vk::CommandBufferAllocateInfo::default()
             .command_pool(self.pool)
             .command_buffer_count(1);
-        // SAFETY: our pool; every command below uses objects alive until the wait returns.
+        // SAFETY: the renderer's own pool, used only under `&mut self` (externally synchronised).
         let cmd = unsafe { device.allocate_command_buffers(&info) }
             .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
         let recorded = (|| -> Result<()> {
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            // SAFETY: cmd is fresh.
+            // SAFETY: `cmd` was just allocated (initial state); every object the commands below
+            // use lives until the wait returns.
             unsafe { device.begin_command_buffer(cmd, &begin) }
                 .map_err(Error::vk("vkBeginCommandBuffer"))?;
             self.record_pass(cmd, camera, draws, background, |cmd| {
