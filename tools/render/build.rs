@@ -9,7 +9,11 @@
 mod runtime_build;
 
 /// (source file, output name, defines), as in the runtime's list.
-type Shader = (&'static str, &'static str, &'static [(&'static str, &'static str)]);
+type Shader = (
+    &'static str,
+    &'static str,
+    &'static [(&'static str, &'static str)],
+);
 const SHADERS: &[Shader] = &[
     ("shade.vert", "shade_vert", &[]),
     ("shade.vert", "shade_colors_vert", &[("VERTEX_COLORS", "1")]),
