@@ -19,17 +19,27 @@ fn check(
     options: CrowdOptions,
     seed: u64,
 ) -> Crowd {
-    let poses = random_poses(model, characters, seed);
+    check_poses(ctx, model, &random_poses(model, characters, seed), options)
+}
+
+/// As [`check`], for given poses (C x J transforms).
+fn check_poses(
+    ctx: &Context,
+    model: &Model,
+    poses: &[rrskin::predict::Affine],
+    options: CrowdOptions,
+) -> Crowd {
+    let characters = poses.len() / model.bone_count();
     let v = model.vertex_count();
     let mut cpu_pos = vec![[0.0; 3]; characters * v];
     let mut cpu_nrm = vec![[0.0; 3]; characters * v];
     CpuEvaluator::new(model)
-        .evaluate(&poses, &mut cpu_pos, &mut cpu_nrm)
+        .evaluate(poses, &mut cpu_pos, &mut cpu_nrm)
         .expect("CPU evaluation");
 
     let gpu_model = GpuModel::new(ctx, model).expect("upload");
     let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
-    crowd.set_bones(&poses).expect("bones");
+    crowd.set_bones(poses).expect("bones");
     let mut batch = Batch::new(ctx).expect("batch");
     batch.run(&[&crowd]).expect("run");
     let rrskin::vk::HostOutput {
@@ -160,6 +170,24 @@ fn a_rig_listing_children_before_parents_matches_cpu() {
         .all(|after| after);
     assert!(children_first, "every parent comes after its children");
     check(&validated_context(), &model, 3, CrowdOptions::default(), 5);
+}
+
+/// A trained model file (e.g. one trained from human_heavy, whose joint order lists children
+/// first: training it takes minutes, too long for the suite) playing its own animation, against
+/// the CPU reference: `RRSKIN_MODEL=model.rrs cargo test --test vulkan -- --ignored`.
+#[test]
+#[ignore = "needs RRSKIN_MODEL, a trained model file"]
+fn a_trained_model_file_playing_its_animation_matches_cpu() {
+    let path = std::env::var_os("RRSKIN_MODEL").expect("RRSKIN_MODEL names a .rrs file");
+    let model = Model::load(&path).expect("a valid model file");
+    let poses = rrskin_render::phased_poses(&model, 4, 0);
+    assert!(!poses.is_empty(), "the model carries no animation");
+    check_poses(
+        &validated_context(),
+        &model,
+        &poses,
+        CrowdOptions::default(),
+    );
 }
 
 #[test]
