@@ -1,8 +1,8 @@
-//! Compiles every shader in `glsl/` to SPIR-V with naga (pure Rust, no shaderc): the compute
-//! passes and the renderer's vertex/fragment stages (the stage follows the file extension).
-//! The SPIR-V lands in OUT_DIR and is embedded by `src/vk/pipelines.rs` and `src/vk/render.rs`;
-//! it is never committed.
+//! Compiles the runtime's compute passes in `glsl/` to SPIR-V with naga (pure Rust, no shaderc).
+//! The SPIR-V lands in OUT_DIR and is embedded by the pass table, `src/vk/passes.rs`; it is never committed.
 //! A shader may be built in several variants, each with its own `#define`s (skinning: K = 4, 8).
+//! rrskin-render's build script (`tools/render/build.rs`) includes this file for [`build`]
+//! (the stage follows the file extension: `.vert`, `.frag`, else compute).
 
 use std::path::Path;
 
@@ -18,15 +18,18 @@ const SHADERS: &[Shader] = &[
     ("skin.comp", "skin_k4", &[("K", "4")]),
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),
-    ("shade.vert", "shade_vert", &[]),
-    ("shade.vert", "shade_colors_vert", &[("VERTEX_COLORS", "1")]),
-    ("shade.frag", "shade_frag", &[]),
 ];
 
 fn main() {
+    build(Path::new("glsl"), SHADERS);
+}
+
+/// Compiles each of `shaders` from `dir` to `OUT_DIR/<output name>.spv`. A build script fails by
+/// panicking: the message names the file and gives naga's diagnostic.
+pub fn build(dir: &Path, shaders: &[Shader]) {
     let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
-    for (src, name, defines) in SHADERS {
-        let path = Path::new("glsl").join(src);
+    for (src, name, defines) in shaders {
+        let path = dir.join(src);
         println!("cargo:rerun-if-changed={}", path.display());
         let source = std::fs::read_to_string(&path)
             .unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));

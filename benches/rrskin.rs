@@ -3,6 +3,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
+use rrskin_render::phased_poses;
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::train::{self, TrainOptions};
 use std::time::Duration;
@@ -32,14 +33,11 @@ fn runtime(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(5))
         .warm_up_time(Duration::from_secs(1));
     for (name, m) in [("rr", &model), ("ssd", &baseline)] {
-        let frames: Vec<&[rrskin::predict::Affine]> = model.animation().collect();
         for characters in [1usize, 16, 256, 1024] {
             let mut crowd =
                 Crowd::new(&GpuModel::new(&ctx, m).expect("upload"), characters).expect("crowd");
             let mut batch = Batch::new(&ctx).expect("batch");
-            let bones: Vec<rrskin::predict::Affine> = (0..characters)
-                .flat_map(|i| frames[(i * 7) % frames.len()].iter().copied())
-                .collect();
+            let bones = phased_poses(&model, characters, 0);
             group.bench_with_input(BenchmarkId::new(name, characters), &characters, |b, _| {
                 b.iter(|| {
                     crowd.set_bones(&bones).expect("bones");

@@ -132,6 +132,9 @@ const char *rrskin_last_error(void);
 // `validation` != 0 enables the Khronos validation layer with synchronization validation and
 // fails with RRSKIN_ERROR_MISSING_LAYER if it is not installed. Destroy with
 // `rrskin_context_destroy`.
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_context`.
 rrskin_status rrskin_context_create_headless(uint32_t validation, struct rrskin_context *out);
 
 // Creates a context on the engine's instance, device and queue. The engine keeps ownership:
@@ -140,7 +143,11 @@ rrskin_status rrskin_context_create_headless(uint32_t validation, struct rrskin_
 // `rrskin_crowd_read_back`; the engine must not use the queue concurrently with those.
 //
 // # Safety
-// `device` must point to valid handles that belong together.
+// `device` is NULL or points to a readable `rrskin_engine_device` whose handles are valid and
+// belong together (the instance's physical device; a device made from it with a queue of
+// `queue_family_index`; `get_instance_proc_addr` is `vkGetInstanceProcAddr` for the instance)
+// and outlive the context and every model and crowd made from it. `out` is NULL or points to
+// writable memory for one `rrskin_context`.
 rrskin_status rrskin_context_create_from_engine(const struct rrskin_engine_device *device,
                                                 struct rrskin_context *out);
 
@@ -150,12 +157,16 @@ rrskin_status rrskin_context_destroy(struct rrskin_context context);
 
 // The number of validation-layer warnings and errors a headless context created with
 // validation has collected (0 otherwise).
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `uint32_t`.
 rrskin_status rrskin_context_validation_message_count(struct rrskin_context context, uint32_t *out);
 
 // Loads and validates a `.rrs` file (UTF-8 path) and uploads it to `context`.
 //
 // # Safety
-// `path` must be a NUL-terminated string.
+// `path` is NULL or a NUL-terminated string readable during the call; `out` is NULL or points
+// to writable memory for one `rrskin_model`.
 rrskin_status rrskin_model_load_file(struct rrskin_context context,
                                      const char *path,
                                      struct rrskin_model *out);
@@ -163,18 +174,26 @@ rrskin_status rrskin_model_load_file(struct rrskin_context context,
 // Validates a `.rrs` image of `size` bytes and uploads it to `context` (the bytes are copied).
 //
 // # Safety
-// `data` must point to `size` readable bytes.
+// `data` is NULL or points to `size` readable bytes; `out` is NULL or points to writable memory
+// for one `rrskin_model`.
 rrskin_status rrskin_model_load_memory(struct rrskin_context context,
                                        const uint8_t *data,
                                        size_t size,
                                        struct rrskin_model *out);
 
+// The model's sizes.
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_model_info`.
 rrskin_status rrskin_model_get_info(struct rrskin_model model, struct rrskin_model_info *out);
 
 // Destroys a model handle; crowds made from it keep working until destroyed themselves.
 rrskin_status rrskin_model_destroy(struct rrskin_model model);
 
 // Creates a crowd of `characters` characters of `model`, all in the rest pose.
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_crowd`.
 rrskin_status rrskin_crowd_create(struct rrskin_model model,
                                   uint32_t characters,
                                   struct rrskin_crowd *out);
@@ -183,7 +202,8 @@ rrskin_status rrskin_crowd_create(struct rrskin_model model,
 // transform 3x4 row-major, world space, relative to the rest pose.
 //
 // # Safety
-// `transforms` must point to `float_count` readable floats.
+// `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
+// other thread writes during the call.
 rrskin_status rrskin_crowd_set_bones(struct rrskin_crowd crowd,
                                      const float *transforms,
                                      size_t float_count);
@@ -191,12 +211,17 @@ rrskin_status rrskin_crowd_set_bones(struct rrskin_crowd crowd,
 // Sets one character's bone transforms: `float_count` = bones x 12.
 //
 // # Safety
-// `transforms` must point to `float_count` readable floats.
+// `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
+// other thread writes during the call.
 rrskin_status rrskin_crowd_set_character_bones(struct rrskin_crowd crowd,
                                                uint32_t character,
                                                const float *transforms,
                                                size_t float_count);
 
+// The crowd's output buffers, to draw from.
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_crowd_output`.
 rrskin_status rrskin_crowd_get_output(struct rrskin_crowd crowd, struct rrskin_crowd_output *out);
 
 // Copies the outputs to host memory: `float_count` = characters x vertices x 3 for each of
@@ -204,7 +229,8 @@ rrskin_status rrskin_crowd_get_output(struct rrskin_crowd crowd, struct rrskin_c
 // tests, not the per-frame path.
 //
 // # Safety
-// Non-null pointers must have room for `float_count` floats.
+// `positions` and `normals` are each NULL or point to `float_count` writable floats (4-byte
+// aligned), not overlapping each other.
 rrskin_status rrskin_crowd_read_back(struct rrskin_crowd crowd,
                                      float *positions,
                                      float *normals,
@@ -217,7 +243,10 @@ rrskin_status rrskin_crowd_destroy(struct rrskin_crowd crowd);
 // with a barrier making the outputs visible to vertex input, transfer and compute.
 //
 // # Safety
-// `crowds` must point to `count` handles; `command_buffer` must be a valid VkCommandBuffer.
+// `crowds` is NULL or points to `count` readable `rrskin_crowd` handles. `command_buffer` is
+// NULL or a VkCommandBuffer of the context's device, in the recording state, that no other
+// thread records into during the call; the engine submits it, and keeps the crowds alive and
+// their bones unchanged until it completed.
 rrskin_status rrskin_crowds_record(struct rrskin_context context,
                                    void *command_buffer,
                                    const struct rrskin_crowd *crowds,
@@ -226,13 +255,16 @@ rrskin_status rrskin_crowds_record(struct rrskin_context context,
 // Records all passes of `count` crowds, submits them and waits (headless path).
 //
 // # Safety
-// `crowds` must point to `count` handles.
+// `crowds` is NULL or points to `count` readable `rrskin_crowd` handles.
 rrskin_status rrskin_crowds_run(struct rrskin_context context,
                                 const struct rrskin_crowd *crowds,
                                 uint32_t count);
 
 // GPU time per pass of the context's last recorded frame (after `rrskin_crowds_record`, only
 // once the command buffer completed; RRSKIN_ERROR_NOT_READY otherwise).
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_pass_timings`.
 rrskin_status rrskin_context_get_timings(struct rrskin_context context,
                                          struct rrskin_pass_timings *out);
 

@@ -211,7 +211,9 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {}
 
 impl Error {
-    pub(crate) fn vk(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
+    /// Turns a failed Vulkan call's result into [`Error::Vulkan`] naming the call, for
+    /// `map_err` (public for crates that record on a runtime context, such as rrskin-render).
+    pub fn vk(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
         move |result| Error::Vulkan { call, result }
     }
 }

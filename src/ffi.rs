@@ -9,6 +9,9 @@
 //!   stale handle gives `RRSKIN_ERROR_INVALID_HANDLE` instead of touching freed memory.
 //! - Null pointers give `RRSKIN_ERROR_NULL_POINTER`; array lengths are passed explicitly and
 //!   checked (`RRSKIN_ERROR_WRONG_LENGTH`).
+//! - Every function that takes a pointer is `unsafe`: what a non-null pointer must be is what the
+//!   library cannot check, and its `# Safety` section (copied into the header) says it. Pointers
+//!   are used only during the call, never kept.
 //! - Threads: any function may be called from any thread; calls are serialised by one lock.
 //!   The Vulkan rules of the Rust crate's contract (src/lib.rs) apply: no submitted work reading
 //!   a crowd may be executing when its bones are set or it is destroyed.
@@ -297,25 +300,31 @@ fn guard(body: impl FnOnce() -> Result<(), Failure>) -> RrskinStatus {
     status
 }
 
-/// Writes through an out-pointer the caller gave.
-fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
+/// Writes through an out-pointer the caller gave (NULL: an error, nothing written).
+///
+/// # Safety
+/// `out` is NULL or valid for writing one aligned `T`.
+unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
     if out.is_null() {
         return Err(Failure::null(what));
     }
-    // SAFETY: non-null; the caller guarantees it points to writable memory for a T.
+    // SAFETY: non-null, and valid for the write by the function's contract.
     unsafe { out.write(value) };
     Ok(())
 }
 
-/// A caller's (pointer, count) as a slice.
-fn slice<'a, T>(data: *const T, count: usize, what: &str) -> Result<&'a [T], Failure> {
+/// A caller's (pointer, count) as a slice (count 0: empty, whatever the pointer).
+///
+/// # Safety
+/// `data` is NULL or points to `count` readable, aligned `T` that nothing writes during `'a`.
+unsafe fn slice<'a, T>(data: *const T, count: usize, what: &str) -> Result<&'a [T], Failure> {
     if count == 0 {
         return Ok(&[]);
     }
     if data.is_null() {
         return Err(Failure::null(what));
     }
-    // SAFETY: non-null; the caller guarantees `count` readable elements.
+    // SAFETY: non-null, and `count` readable elements by the function's contract.
     Ok(unsafe { std::slice::from_raw_parts(data, count) })
 }
 
@@ -330,8 +339,11 @@ pub extern "C" fn rrskin_last_error() -> *const c_char {
 /// `validation` != 0 enables the Khronos validation layer with synchronization validation and
 /// fails with RRSKIN_ERROR_MISSING_LAYER if it is not installed. Destroy with
 /// `rrskin_context_destroy`.
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `rrskin_context`.
 #[no_mangle]
-pub extern "C" fn rrskin_context_create_headless(
+pub unsafe extern "C" fn rrskin_context_create_headless(
     validation: u32,
     out: *mut RrskinContext,
 ) -> RrskinStatus {
@@ -345,7 +357,8 @@ pub extern "C" fn rrskin_context_create_headless(
         })?;
         let batch = Batch::new(&context)?;
         let id = registry().contexts.insert(ContextEntry { context, batch });
-        put(out, RrskinContext { id }, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, RrskinContext { id }, "out") }
     })
 }
 
@@ -355,7 +368,11 @@ pub extern "C" fn rrskin_context_create_headless(
 /// `rrskin_crowd_read_back`; the engine must not use the queue concurrently with those.
 ///
 /// # Safety
-/// `device` must point to valid handles that belong together.
+/// `device` is NULL or points to a readable `rrskin_engine_device` whose handles are valid and
+/// belong together (the instance's physical device; a device made from it with a queue of
+/// `queue_family_index`; `get_instance_proc_addr` is `vkGetInstanceProcAddr` for the instance)
+/// and outlive the context and every model and crowd made from it. `out` is NULL or points to
+/// writable memory for one `rrskin_context`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_context_create_from_engine(
     device: *const RrskinEngineDevice,
@@ -400,7 +417,8 @@ pub unsafe extern "C" fn rrskin_context_create_from_engine(
         let context = unsafe { Context::from_engine(engine) }?;
         let batch = Batch::new(&context)?;
         let id = registry().contexts.insert(ContextEntry { context, batch });
-        put(out, RrskinContext { id }, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, RrskinContext { id }, "out") }
     })
 }
 
@@ -413,8 +431,11 @@ pub extern "C" fn rrskin_context_destroy(context: RrskinContext) -> RrskinStatus
 
 /// The number of validation-layer warnings and errors a headless context created with
 /// validation has collected (0 otherwise).
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `uint32_t`.
 #[no_mangle]
-pub extern "C" fn rrskin_context_validation_message_count(
+pub unsafe extern "C" fn rrskin_context_validation_message_count(
     context: RrskinContext,
     out: *mut u32,
 ) -> RrskinStatus {
@@ -425,11 +446,20 @@ pub extern "C" fn rrskin_context_validation_message_count(
             .context
             .validation_messages()
             .len();
-        put(out, count as u32, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, count as u32, "out") }
     })
 }
 
-fn add_model(context: RrskinContext, model: Model, out: *mut RrskinModel) -> Result<(), Failure> {
+/// Uploads `model` to `context` and hands out its handle.
+///
+/// # Safety
+/// `out` is NULL or valid for writing one `RrskinModel`.
+unsafe fn add_model(
+    context: RrskinContext,
+    model: Model,
+    out: *mut RrskinModel,
+) -> Result<(), Failure> {
     if out.is_null() {
         return Err(Failure::null("out"));
     }
@@ -440,13 +470,15 @@ fn add_model(context: RrskinContext, model: Model, out: *mut RrskinModel) -> Res
         model,
         gpu,
     });
-    put(out, RrskinModel { id }, "out")
+    // SAFETY: `out` as the function's contract requires.
+    unsafe { put(out, RrskinModel { id }, "out") }
 }
 
 /// Loads and validates a `.rrs` file (UTF-8 path) and uploads it to `context`.
 ///
 /// # Safety
-/// `path` must be a NUL-terminated string.
+/// `path` is NULL or a NUL-terminated string readable during the call; `out` is NULL or points
+/// to writable memory for one `rrskin_model`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_model_load_file(
     context: RrskinContext,
@@ -461,14 +493,17 @@ pub unsafe extern "C" fn rrskin_model_load_file(
         let path = unsafe { CStr::from_ptr(path) }
             .to_str()
             .map_err(|_| Failure::new(RrskinStatus::ErrorInvalidArgument, "path is not UTF-8"))?;
-        add_model(context, Model::load(path)?, out)
+        let model = Model::load(path)?;
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { add_model(context, model, out) }
     })
 }
 
 /// Validates a `.rrs` image of `size` bytes and uploads it to `context` (the bytes are copied).
 ///
 /// # Safety
-/// `data` must point to `size` readable bytes.
+/// `data` is NULL or points to `size` readable bytes; `out` is NULL or points to writable memory
+/// for one `rrskin_model`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_model_load_memory(
     context: RrskinContext,
@@ -476,11 +511,18 @@ pub unsafe extern "C" fn rrskin_model_load_memory(
     size: usize,
     out: *mut RrskinModel,
 ) -> RrskinStatus {
-    guard(|| add_model(context, Model::from_bytes(slice(data, size, "data")?)?, out))
+    guard(|| {
+        // SAFETY: `data` and `out` as the function's contract requires.
+        unsafe { add_model(context, Model::from_bytes(slice(data, size, "data")?)?, out) }
+    })
 }
 
+/// The model's sizes.
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `rrskin_model_info`.
 #[no_mangle]
-pub extern "C" fn rrskin_model_get_info(
+pub unsafe extern "C" fn rrskin_model_get_info(
     model: RrskinModel,
     out: *mut RrskinModelInfo,
 ) -> RrskinStatus {
@@ -494,7 +536,8 @@ pub extern "C" fn rrskin_model_get_info(
             proxies: m.proxy_count() as u32,
             influences: m.influences() as u32,
         };
-        put(out, info, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, info, "out") }
     })
 }
 
@@ -505,8 +548,11 @@ pub extern "C" fn rrskin_model_destroy(model: RrskinModel) -> RrskinStatus {
 }
 
 /// Creates a crowd of `characters` characters of `model`, all in the rest pose.
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `rrskin_crowd`.
 #[no_mangle]
-pub extern "C" fn rrskin_crowd_create(
+pub unsafe extern "C" fn rrskin_crowd_create(
     model: RrskinModel,
     characters: u32,
     out: *mut RrskinCrowd,
@@ -519,18 +565,24 @@ pub extern "C" fn rrskin_crowd_create(
         let entry = reg.models.get(model.id)?;
         let (context, crowd) = (entry.context, Crowd::new(&entry.gpu, characters as usize)?);
         let id = reg.crowds.insert(CrowdEntry { context, crowd });
-        put(out, RrskinCrowd { id }, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, RrskinCrowd { id }, "out") }
     })
 }
 
-fn affines<'a>(transforms: *const f32, float_count: usize) -> Result<&'a [Affine], Failure> {
+/// A caller's floats as 3x4 transforms.
+///
+/// # Safety
+/// As [`slice`]: `transforms` is NULL or points to `float_count` readable floats.
+unsafe fn affines<'a>(transforms: *const f32, float_count: usize) -> Result<&'a [Affine], Failure> {
     if float_count % 12 != 0 {
         return Err(Failure::new(
             RrskinStatus::ErrorWrongLength,
             format!("{float_count} floats is not a whole number of 3x4 transforms"),
         ));
     }
-    let floats = slice(transforms, float_count, "transforms")?;
+    // SAFETY: the function's contract.
+    let floats = unsafe { slice(transforms, float_count, "transforms")? };
     Ok(bytemuck::cast_slice(floats))
 }
 
@@ -538,7 +590,8 @@ fn affines<'a>(transforms: *const f32, float_count: usize) -> Result<&'a [Affine
 /// transform 3x4 row-major, world space, relative to the rest pose.
 ///
 /// # Safety
-/// `transforms` must point to `float_count` readable floats.
+/// `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
+/// other thread writes during the call.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowd_set_bones(
     crowd: RrskinCrowd,
@@ -546,7 +599,8 @@ pub unsafe extern "C" fn rrskin_crowd_set_bones(
     float_count: usize,
 ) -> RrskinStatus {
     guard(|| {
-        let bones = affines(transforms, float_count)?;
+        // SAFETY: `transforms` as the function's contract requires.
+        let bones = unsafe { affines(transforms, float_count)? };
         Ok(registry()
             .crowds
             .get_mut(crowd.id)?
@@ -558,7 +612,8 @@ pub unsafe extern "C" fn rrskin_crowd_set_bones(
 /// Sets one character's bone transforms: `float_count` = bones x 12.
 ///
 /// # Safety
-/// `transforms` must point to `float_count` readable floats.
+/// `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
+/// other thread writes during the call.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
     crowd: RrskinCrowd,
@@ -567,7 +622,8 @@ pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
     float_count: usize,
 ) -> RrskinStatus {
     guard(|| {
-        let bones = affines(transforms, float_count)?;
+        // SAFETY: `transforms` as the function's contract requires.
+        let bones = unsafe { affines(transforms, float_count)? };
         Ok(registry()
             .crowds
             .get_mut(crowd.id)?
@@ -576,8 +632,12 @@ pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
     })
 }
 
+/// The crowd's output buffers, to draw from.
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `rrskin_crowd_output`.
 #[no_mangle]
-pub extern "C" fn rrskin_crowd_get_output(
+pub unsafe extern "C" fn rrskin_crowd_get_output(
     crowd: RrskinCrowd,
     out: *mut RrskinCrowdOutput,
 ) -> RrskinStatus {
@@ -591,7 +651,8 @@ pub extern "C" fn rrskin_crowd_get_output(
             vertex_stride: o.vertex_stride,
             character_stride: o.character_stride,
         };
-        put(out, output, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, output, "out") }
     })
 }
 
@@ -600,7 +661,8 @@ pub extern "C" fn rrskin_crowd_get_output(
 /// tests, not the per-frame path.
 ///
 /// # Safety
-/// Non-null pointers must have room for `float_count` floats.
+/// `positions` and `normals` are each NULL or point to `float_count` writable floats (4-byte
+/// aligned), not overlapping each other.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowd_read_back(
     crowd: RrskinCrowd,
@@ -622,7 +684,7 @@ pub unsafe extern "C" fn rrskin_crowd_read_back(
         let out = c.read_back()?;
         for (dst, src) in [(positions, &out.positions), (normals, &out.normals)] {
             if !dst.is_null() {
-                // SAFETY: the caller guarantees room for `float_count` floats.
+                // SAFETY: non-null, room for `float_count` floats (the function's contract).
                 let dst = unsafe { std::slice::from_raw_parts_mut(dst, float_count) };
                 dst.copy_from_slice(src.as_flattened());
             }
@@ -661,7 +723,10 @@ fn crowds_of<'r>(
 /// with a barrier making the outputs visible to vertex input, transfer and compute.
 ///
 /// # Safety
-/// `crowds` must point to `count` handles; `command_buffer` must be a valid VkCommandBuffer.
+/// `crowds` is NULL or points to `count` readable `rrskin_crowd` handles. `command_buffer` is
+/// NULL or a VkCommandBuffer of the context's device, in the recording state, that no other
+/// thread records into during the call; the engine submits it, and keeps the crowds alive and
+/// their bones unchanged until it completed.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowds_record(
     context: RrskinContext,
@@ -673,7 +738,8 @@ pub unsafe extern "C" fn rrskin_crowds_record(
         if command_buffer.is_null() {
             return Err(Failure::null("command_buffer"));
         }
-        let handles = slice(crowds, count as usize, "crowds")?;
+        // SAFETY: `crowds` as the function's contract requires.
+        let handles = unsafe { slice(crowds, count as usize, "crowds")? };
         let mut reg = registry();
         let reg = &mut *reg;
         let list = crowds_of(&reg.crowds, context.id, handles)?;
@@ -688,7 +754,7 @@ pub unsafe extern "C" fn rrskin_crowds_record(
 /// Records all passes of `count` crowds, submits them and waits (headless path).
 ///
 /// # Safety
-/// `crowds` must point to `count` handles.
+/// `crowds` is NULL or points to `count` readable `rrskin_crowd` handles.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowds_run(
     context: RrskinContext,
@@ -696,7 +762,8 @@ pub unsafe extern "C" fn rrskin_crowds_run(
     count: u32,
 ) -> RrskinStatus {
     guard(|| {
-        let handles = slice(crowds, count as usize, "crowds")?;
+        // SAFETY: `crowds` as the function's contract requires.
+        let handles = unsafe { slice(crowds, count as usize, "crowds")? };
         let mut reg = registry();
         let reg = &mut *reg;
         let list = crowds_of(&reg.crowds, context.id, handles)?;
@@ -706,8 +773,11 @@ pub unsafe extern "C" fn rrskin_crowds_run(
 
 /// GPU time per pass of the context's last recorded frame (after `rrskin_crowds_record`, only
 /// once the command buffer completed; RRSKIN_ERROR_NOT_READY otherwise).
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `rrskin_pass_timings`.
 #[no_mangle]
-pub extern "C" fn rrskin_context_get_timings(
+pub unsafe extern "C" fn rrskin_context_get_timings(
     context: RrskinContext,
     out: *mut RrskinPassTimings,
 ) -> RrskinStatus {
@@ -719,6 +789,7 @@ pub extern "C" fn rrskin_context_get_timings(
             skin_ms: t.skin_ms,
             normals_ms: t.normals_ms,
         };
-        put(out, timings, "out")
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, timings, "out") }
     })
 }

@@ -44,7 +44,6 @@ pub mod error;
 pub mod ffi;
 pub mod model;
 pub mod predict;
-pub mod synthetic;
 pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};

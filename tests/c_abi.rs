@@ -158,7 +158,8 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
 
     let ok = RrskinStatus::Ok;
     let mut ctx = RrskinContext { id: 0 };
-    assert_eq!(rrskin_context_create_headless(1, &mut ctx), ok);
+    // SAFETY: `out` points to a live value (so in every call below that writes one).
+    assert_eq!(unsafe { rrskin_context_create_headless(1, &mut ctx) }, ok);
     let mut m = RrskinModel { id: 0 };
     // SAFETY: valid pointers and lengths.
     assert_eq!(
@@ -166,7 +167,11 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         ok
     );
     let mut crowd = RrskinCrowd { id: 0 };
-    assert_eq!(rrskin_crowd_create(m, characters, &mut crowd), ok);
+    // SAFETY: `out` points to a live value.
+    assert_eq!(
+        unsafe { rrskin_crowd_create(m, characters, &mut crowd) },
+        ok
+    );
     let floats = poses.as_flattened();
     // SAFETY: valid pointers and lengths.
     unsafe {
@@ -195,7 +200,8 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         );
     }
     let mut timings = RrskinPassTimings::default();
-    assert_eq!(rrskin_context_get_timings(ctx, &mut timings), ok);
+    // SAFETY: `out` points to a live value.
+    assert_eq!(unsafe { rrskin_context_get_timings(ctx, &mut timings) }, ok);
     assert!(timings.skin_ms > 0.0);
     // A read-back buffer of the wrong size is refused, and the message says why.
     // SAFETY: the length is checked before anything is written.
@@ -208,7 +214,11 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         .into_owned();
     assert!(message.contains("read-back floats"), "{message}");
     let mut count = u32::MAX;
-    assert_eq!(rrskin_context_validation_message_count(ctx, &mut count), ok);
+    // SAFETY: `out` points to a live value.
+    assert_eq!(
+        unsafe { rrskin_context_validation_message_count(ctx, &mut count) },
+        ok
+    );
     assert_eq!(count, 0, "validation messages");
     assert_eq!(rrskin_crowd_destroy(crowd), ok);
     assert_eq!(rrskin_model_destroy(m), ok);

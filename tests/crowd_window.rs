@@ -8,7 +8,7 @@
 mod common;
 
 use common::{random_model, random_poses, Spec};
-use rrskin::vk::render::CROWD_BACKGROUND;
+use rrskin_render::CROWD_BACKGROUND;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};

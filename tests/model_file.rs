@@ -3,8 +3,8 @@
 
 use proptest::prelude::*;
 use rrskin::model::{FORMAT_VERSION, MAGIC};
-use rrskin::synthetic::{random_model, Spec};
 use rrskin::{Error, Model, ModelProblem};
+use rrskin_render::synthetic::{random_model, Spec};
 
 fn model(proxies: usize, influences: u32) -> Model {
     random_model(

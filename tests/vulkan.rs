@@ -8,6 +8,7 @@ use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, Crowd, CrowdOptions, GpuModel};
 use rrskin::{Error, Model};
+use rrskin_render::synthetic::renumber_bones;
 
 /// Evaluates `characters` random poses on the CPU and in `crowds` crowds on the GPU (one batch,
 /// one command buffer) and compares every vertex.
@@ -18,17 +19,27 @@ fn check(
     options: CrowdOptions,
     seed: u64,
 ) -> Crowd {
-    let poses = random_poses(model, characters, seed);
+    check_poses(ctx, model, &random_poses(model, characters, seed), options)
+}
+
+/// As [`check`], for given poses (C x J transforms).
+fn check_poses(
+    ctx: &Context,
+    model: &Model,
+    poses: &[rrskin::predict::Affine],
+    options: CrowdOptions,
+) -> Crowd {
+    let characters = poses.len() / model.bone_count();
     let v = model.vertex_count();
     let mut cpu_pos = vec![[0.0; 3]; characters * v];
     let mut cpu_nrm = vec![[0.0; 3]; characters * v];
     CpuEvaluator::new(model)
-        .evaluate(&poses, &mut cpu_pos, &mut cpu_nrm)
+        .evaluate(poses, &mut cpu_pos, &mut cpu_nrm)
         .expect("CPU evaluation");
 
     let gpu_model = GpuModel::new(ctx, model).expect("upload");
     let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
-    crowd.set_bones(&poses).expect("bones");
+    crowd.set_bones(poses).expect("bones");
     let mut batch = Batch::new(ctx).expect("batch");
     batch.run(&[&crowd]).expect("run");
     let rrskin::vk::HostOutput {
@@ -136,6 +147,47 @@ fn ten_thousand_characters_beyond_the_device_storage_range() {
     if bytes > ctx.limits().max_storage_buffer_range {
         assert!(crowd.chunk_count() >= 2);
     }
+}
+
+/// A rig whose joint order lists every child before its parent (as many glTF skins do), of
+/// the size of the human_heavy set (13,456 vertices, 53 bones, 60 proxies): posing walks the
+/// hierarchy in a computed order, and the GPU matches the CPU reference.
+#[test]
+fn a_rig_listing_children_before_parents_matches_cpu() {
+    let model = random_model(
+        Spec {
+            grid: 116,
+            bones: 53,
+            proxies: 60,
+            influences: 4,
+        },
+        21,
+    );
+    let reversed: Vec<usize> = (0..model.bone_count()).rev().collect();
+    let model = renumber_bones(&model, &reversed).expect("a permutation");
+    let children_first = (0..model.bone_count())
+        .filter_map(|b| model.parent(b).map(|p| p > b))
+        .all(|after| after);
+    assert!(children_first, "every parent comes after its children");
+    check(&validated_context(), &model, 3, CrowdOptions::default(), 5);
+}
+
+/// A trained model file (e.g. one trained from human_heavy, whose joint order lists children
+/// first: training it takes minutes, too long for the suite) playing its own animation, against
+/// the CPU reference: `RRSKIN_MODEL=model.rrs cargo test --test vulkan -- --ignored`.
+#[test]
+#[ignore = "needs RRSKIN_MODEL, a trained model file"]
+fn a_trained_model_file_playing_its_animation_matches_cpu() {
+    let path = std::env::var_os("RRSKIN_MODEL").expect("RRSKIN_MODEL names a .rrs file");
+    let model = Model::load(&path).expect("a valid model file");
+    let poses = rrskin_render::phased_poses(&model, 4, 0);
+    assert!(!poses.is_empty(), "the model carries no animation");
+    check_poses(
+        &validated_context(),
+        &model,
+        &poses,
+        CrowdOptions::default(),
+    );
 }
 
 #[test]

@@ -16,9 +16,9 @@
 mod swapchain;
 mod window;
 
-use rrskin::vk::render::{phased_poses, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel, PassTimings};
 use rrskin::Model;
+use rrskin_render::{phased_poses, CROWD_BACKGROUND};
 
 type Error = Box<dyn std::error::Error>;
 
@@ -206,7 +206,7 @@ impl Show {
 
 /// Offscreen: `--frames` frames (30 unless given), one animation frame each; writes the last.
 fn headless(args: &Args, model: &Model) -> Result<(), Error> {
-    use rrskin::vk::render::{grid_scene, Renderer};
+    use rrskin_render::{grid_scene, Renderer};
     let ctx = Context::new(&ContextDesc {
         validation: args.validate,
         ..Default::default()

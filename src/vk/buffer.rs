@@ -27,22 +27,14 @@ impl Buffer {
         location: MemoryLocation,
     ) -> Result<Buffer> {
         let size = size.max(MIN_BYTES);
-        let info = vk::BufferCreateInfo::default()
-            .size(size)
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
-        let device = &shared.device;
-        // SAFETY: valid device and create info.
-        let handle =
-            unsafe { device.create_buffer(&info, None) }.map_err(Error::vk("vkCreateBuffer"))?;
+        let (handle, requirements) = shared.create_buffer(size, usage)?;
+        // Owned at once, so that Drop destroys the buffer if allocating fails.
         let mut buffer = Buffer {
             shared: shared.clone(),
             handle,
             allocation: None,
             size,
         };
-        // SAFETY: valid buffer.
-        let requirements = unsafe { device.get_buffer_memory_requirements(handle) };
         let allocation = shared
             .allocator()
             .as_mut()
@@ -61,9 +53,13 @@ impl Buffer {
                 what: name,
                 message: e.to_string(),
             })?;
-        // SAFETY: fresh allocation satisfying the buffer's requirements.
-        unsafe { device.bind_buffer_memory(handle, allocation.memory(), allocation.offset()) }
-            .map_err(Error::vk("vkBindBufferMemory"))?;
+        // SAFETY: the buffer is unbound; the allocation was made for its requirements.
+        unsafe {
+            shared
+                .device
+                .bind_buffer_memory(handle, allocation.memory(), allocation.offset())
+        }
+        .map_err(Error::vk("vkBindBufferMemory"))?;
         buffer.allocation = Some(allocation);
         Ok(buffer)
     }

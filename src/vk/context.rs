@@ -4,6 +4,7 @@
 //! `Arc<Shared>`, so the device, allocator and pipelines are destroyed only after the last of
 //! them is gone: nothing can outlive what it was allocated from.
 
+use super::device_ext::Physical;
 use super::pipelines::Pipelines;
 use crate::error::{Error, Result};
 use ash::vk;
@@ -104,21 +105,10 @@ impl Context {
         let (instance, debug) = create_instance(&entry, desc, &messages)?;
         let owned = Owned { debug, messages };
         let picked = (|| {
-            let physical_device = pick_device(&instance, &desc.device, &desc.device_extensions)?;
-            let queue_family_index = pick_queue_family(&instance, physical_device)?;
-            let priorities = [1.0f32];
-            let queue_info = [vk::DeviceQueueCreateInfo::default()
-                .queue_family_index(queue_family_index)
-                .queue_priorities(&priorities)];
-            let extensions: Vec<*const c_char> =
-                desc.device_extensions.iter().map(|e| e.as_ptr()).collect();
-            let device_info = vk::DeviceCreateInfo::default()
-                .queue_create_infos(&queue_info)
-                .enabled_extension_names(&extensions);
-            // SAFETY: valid physical device and create info.
-            let device = unsafe { instance.create_device(physical_device, &device_info, None) }
-                .map_err(Error::vk("vkCreateDevice"))?;
-            Ok((physical_device, queue_family_index, device))
+            let physical = pick_device(&instance, &desc.device, &desc.device_extensions)?;
+            let queue_family_index = pick_queue_family(physical)?;
+            let device = physical.create_device(queue_family_index, &desc.device_extensions)?;
+            Ok((physical.handle, queue_family_index, device))
         })();
         let (physical_device, queue_family_index, device) = match picked {
             Ok(picked) => picked,
@@ -159,9 +149,9 @@ impl Context {
         let instance = unsafe { ash::Instance::load(&static_fn, engine.instance) };
         // SAFETY: as above.
         let device = unsafe { ash::Device::load(instance.fp_v1_0(), engine.device) };
-        // SAFETY: valid physical device.
+        // SAFETY: the engine's physical device is of its instance (the caller's guarantee).
         let families =
-            unsafe { instance.get_physical_device_queue_family_properties(engine.physical_device) };
+            unsafe { Physical::from_raw(&instance, engine.physical_device) }.queue_families();
         let family = families
             .get(engine.queue_family_index as usize)
             .ok_or(Error::OutOfRange {
@@ -194,12 +184,12 @@ impl Context {
         queue: vk::Queue,
         owned: Option<Owned>,
     ) -> Result<Context> {
-        // SAFETY: valid physical device.
-        let props = unsafe { instance.get_physical_device_properties(physical_device) };
-        // SAFETY: valid physical device.
-        let family =
-            unsafe { instance.get_physical_device_queue_family_properties(physical_device) }
-                [queue_family_index as usize];
+        // SAFETY: both callers pass a device of this instance: enumerated by `new`, or the
+        // engine's under `from_engine`'s contract.
+        let physical = unsafe { Physical::from_raw(&instance, physical_device) };
+        let props = physical.properties();
+        // Both callers checked the index against these families.
+        let family = physical.queue_families()[queue_family_index as usize];
         let limits = Limits {
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
             min_storage_buffer_offset_alignment: props.limits.min_storage_buffer_offset_alignment,
@@ -240,13 +230,8 @@ impl Context {
             message: e.to_string(),
         })?;
         *lock(&shared.allocator) = Some(allocator);
-        let pool_info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(queue_family_index)
-            .flags(vk::CommandPoolCreateFlags::TRANSIENT);
-        // SAFETY: valid device.
-        let pool = unsafe { shared.device.create_command_pool(&pool_info, None) }
-            .map_err(Error::vk("vkCreateCommandPool"))?;
-        *lock(&shared.transient_pool) = pool;
+        *lock(&shared.transient_pool) =
+            shared.create_command_pool(vk::CommandPoolCreateFlags::TRANSIENT)?;
         shared.pipelines = Pipelines::new(&shared.device)?;
         Ok(Context {
             shared: Arc::new(shared),
@@ -330,18 +315,14 @@ impl Shared {
     ) -> Result<()> {
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: fresh command buffer from our pool.
+        // SAFETY: `cmd` was just allocated from the transient pool, whose lock the caller holds:
+        // in the initial state, recorded by no one else.
         unsafe { self.device.begin_command_buffer(cmd, &begin) }
             .map_err(Error::vk("vkBeginCommandBuffer"))?;
         record(cmd)?;
-        // SAFETY: recording.
+        // SAFETY: as above, and begun.
         unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"))?;
-        // SAFETY: valid device.
-        let fence = unsafe {
-            self.device
-                .create_fence(&vk::FenceCreateInfo::default(), None)
-        }
-        .map_err(Error::vk("vkCreateFence"))?;
+        let fence = self.create_fence()?;
         let result = self.submit_wait(cmd, fence);
         // SAFETY: the fence is signalled or was never submitted.
         unsafe { self.device.destroy_fence(fence, None) };
@@ -424,7 +405,7 @@ fn create_instance(
         .map(|e| e.as_ptr())
         .collect();
     if validation {
-        // SAFETY: plain query.
+        // SAFETY: the entry holds the loaded Vulkan library; a global query needs nothing else.
         let available = unsafe { entry.enumerate_instance_layer_properties() }
             .map_err(Error::vk("vkEnumerateInstanceLayerProperties"))?;
         if !available
@@ -465,7 +446,8 @@ fn create_instance(
             .push_next(&mut features)
             .push_next(&mut instance_messenger);
     }
-    // SAFETY: valid create info; the pointers it holds live until the call returns.
+    // SAFETY: the entry holds the loaded library; the names, layers and chained structures the
+    // create info points to live until the call returns.
     let instance =
         unsafe { entry.create_instance(&info, None) }.map_err(Error::vk("vkCreateInstance"))?;
     if !validation {
@@ -503,31 +485,18 @@ unsafe extern "system" fn on_validation_message(
     vk::FALSE
 }
 
-fn pick_device(
-    instance: &ash::Instance,
+fn pick_device<'a>(
+    instance: &'a ash::Instance,
     choice: &DeviceChoice,
     extensions: &[&CStr],
-) -> Result<vk::PhysicalDevice> {
-    // SAFETY: valid instance.
-    let devices = unsafe { instance.enumerate_physical_devices() }
-        .map_err(Error::vk("vkEnumeratePhysicalDevices"))?;
-    let has_extensions = |d: vk::PhysicalDevice| {
-        // SAFETY: valid physical device.
-        let available =
-            unsafe { instance.enumerate_device_extension_properties(d) }.unwrap_or_default();
-        extensions.iter().all(|&wanted| {
-            available
-                .iter()
-                .any(|e| e.extension_name_as_c_str() == Ok(wanted))
-        })
-    };
-    let usable: Vec<(usize, vk::PhysicalDevice, vk::PhysicalDeviceProperties)> = devices
-        .iter()
-        .enumerate()
-        .filter(|(_, &d)| pick_queue_family(instance, d).is_ok() && has_extensions(d))
-        // SAFETY: valid physical device.
-        .map(|(i, &d)| (i, d, unsafe { instance.get_physical_device_properties(d) }))
-        .collect();
+) -> Result<Physical<'a>> {
+    let usable: Vec<(usize, Physical, vk::PhysicalDeviceProperties)> =
+        Physical::enumerate(instance)?
+            .into_iter()
+            .enumerate()
+            .filter(|(_, d)| pick_queue_family(*d).is_ok() && d.has_extensions(extensions))
+            .map(|(i, d)| (i, d, d.properties()))
+            .collect();
     let name_of = |p: &vk::PhysicalDeviceProperties| {
         p.device_name_as_c_str()
             .map(|s| s.to_string_lossy().to_lowercase())
@@ -568,9 +537,8 @@ fn pick_device(
 
 /// A queue family with compute; one with graphics too is preferred so that the crowd sample can
 /// draw from the outputs on the same queue.
-fn pick_queue_family(instance: &ash::Instance, device: vk::PhysicalDevice) -> Result<u32> {
-    // SAFETY: valid physical device.
-    let families = unsafe { instance.get_physical_device_queue_family_properties(device) };
+fn pick_queue_family(device: Physical) -> Result<u32> {
+    let families = device.queue_families();
     let compute = |f: &vk::QueueFamilyProperties| f.queue_flags.contains(vk::QueueFlags::COMPUTE);
     let both = vk::QueueFlags::COMPUTE | vk::QueueFlags::GRAPHICS;
     families

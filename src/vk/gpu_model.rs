@@ -86,7 +86,7 @@ impl GpuModel {
         let buffers = upload(
             &context.shared,
             &items,
-            // The triangles double as the index buffer of the renderer (src/vk/render.rs).
+            // The triangles double as an index buffer ([`GpuModel::triangle_buffer`]).
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDEX_BUFFER,
         )?;
         let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, incident_offsets, incident_triangles, triangles] =
@@ -137,5 +137,24 @@ impl Inner {
             ModelBuffer::IncidentTriangles => &self.incident_triangles,
             ModelBuffer::Triangles => &self.triangles,
         }
+    }
+}
+
+impl GpuModel {
+    pub fn triangle_count(&self) -> usize {
+        self.inner.triangle_count as usize
+    }
+
+    /// The context the model was uploaded to.
+    pub fn context(&self) -> &Context {
+        &self.inner.context
+    }
+
+    /// The model's triangles as an index buffer: `triangle_count() * 3` `u32` corner indices
+    /// (usage `INDEX_BUFFER`), to draw a crowd's outputs with (one character's vertices start at
+    /// [`super::CrowdOutput`]'s `offset + c * character_stride`). Read-only, alive as long as
+    /// the model.
+    pub fn triangle_buffer(&self) -> vk::Buffer {
+        self.inner.triangles.handle
     }
 }

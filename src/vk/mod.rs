@@ -17,11 +17,11 @@ mod batch;
 mod buffer;
 mod context;
 mod crowd;
+mod device_ext;
 mod gpu_model;
 mod pass;
 mod passes;
 mod pipelines;
-pub mod render;
 
 pub use ash;
 pub use batch::{Batch, PassTimings};

@@ -2,14 +2,14 @@
 #![allow(dead_code)] // each test binary uses a different subset
 
 use glam::DVec3;
-pub use rrskin::synthetic::{random_poses, Spec};
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
+pub use rrskin_render::synthetic::{random_poses, Spec};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 pub fn random_model(spec: Spec, seed: u64) -> Model {
-    rrskin::synthetic::random_model(spec, seed).expect("the generator makes valid models")
+    rrskin_render::synthetic::random_model(spec, seed).expect("the generator makes valid models")
 }
 
 /// A headless context on the default device with validation + synchronization validation.

@@ -1,9 +1,9 @@
 //! The `rrskin` command line (contract: ../shared/ARCHITECTURE.md, "Command-line contract").
 
 use clap::{Parser, Subcommand};
-use rrskin::synthetic::{random_model, Spec};
 use rrskin::vk::DeviceChoice;
 use rrskin::Model;
+use rrskin_render::synthetic::{random_model, renumber_bones, Spec};
 use rrskin_tools::eval::{Options, Report};
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
@@ -80,6 +80,10 @@ enum Command {
         influences: u32,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// List every bone after its children (bones renumbered J−1, …, 0), as many glTF skins
+        /// order their joints.
+        #[arg(long)]
+        children_first: bool,
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -406,9 +410,10 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             proxies,
             influences,
             seed,
+            children_first,
             output,
         } => {
-            let m = random_model(
+            let mut m = random_model(
                 Spec {
                     grid,
                     bones,
@@ -417,6 +422,10 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 },
                 seed,
             )?;
+            if children_first {
+                let reversed: Vec<usize> = (0..m.bone_count()).rev().collect();
+                m = renumber_bones(&m, &reversed)?;
+            }
             m.save(&output)?;
             eprintln!("wrote {} ({} vertices)", output.display(), m.vertex_count());
         }

@@ -326,3 +326,84 @@ fn the_demo_writes_the_model_and_both_images() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `profile` and `bench` on a rig that lists every bone after its children (issue 13: this
+/// panicked in posing): `profile` on a synthetic one (random poses), `bench` on one carrying an
+/// animation and an SSD baseline (it plays the animation).
+#[test]
+fn profile_and_bench_run_a_rig_listing_children_first() {
+    use rrskin_render::synthetic::{random_model, random_poses, renumber_bones, Spec};
+    let dir = temp_dir("children-first");
+    let plain = dir.join("plain.rrs");
+    let p = plain.to_str().expect("utf-8 path");
+    let synth = rrskin(&[
+        "synth",
+        "--grid",
+        "8",
+        "--bones",
+        "9",
+        "--proxies",
+        "4",
+        "--children-first",
+        "-o",
+        p,
+    ]);
+    assert!(
+        synth.status.success(),
+        "{}",
+        String::from_utf8_lossy(&synth.stderr)
+    );
+    let model = rrskin::Model::load(&plain).expect("a valid model");
+    assert!((0..9).all(|b| model.parent(b).is_none_or(|parent| parent > b)));
+    let profile = json(&rrskin(&[
+        "profile",
+        p,
+        "--characters",
+        "3",
+        "--frames",
+        "2",
+        "--json",
+    ]));
+    assert_eq!(
+        (profile["characters"].as_u64(), profile["bones"].as_u64()),
+        (Some(3), Some(9))
+    );
+
+    let generated = random_model(
+        Spec {
+            grid: 8,
+            bones: 9,
+            proxies: 4,
+            influences: 4,
+        },
+        6,
+    )
+    .expect("valid spec");
+    let mut parts = generated.parts().clone();
+    parts.animation = random_poses(&generated, 5, 2);
+    // The baseline skins to the bones alone: palette entry P + b is bone b, proxies go to bone 0.
+    parts.baseline_indices = parts
+        .skin_indices
+        .iter()
+        .map(|i| i.saturating_sub(4))
+        .collect();
+    parts.baseline_weights = parts.skin_weights.clone();
+    let reversed: Vec<usize> = (0..9).rev().collect();
+    let animated = renumber_bones(&rrskin::Model::new(parts).expect("valid"), &reversed)
+        .expect("a permutation");
+    let path = dir.join("animated.rrs");
+    animated.save(&path).expect("save");
+    let a = path.to_str().expect("utf-8 path");
+    let bench = json(&rrskin(&[
+        "bench",
+        a,
+        "--characters",
+        "3",
+        "--frames",
+        "2",
+        "--json",
+    ]));
+    assert_eq!(bench["characters"], 3);
+    assert!(bench["ratio"].as_f64().is_some_and(|r| r > 0.0), "{bench}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -2,8 +2,8 @@
 //! phase (the held-out walk frames), deformed in one command buffer and drawn straight from the
 //! runtime's output buffers, on lavapipe with the validation layer on.
 
-use rrskin::vk::render::{grid_scene, Renderer};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
+use rrskin_render::{grid_scene, Renderer};
 use rrskin_tools::eval;
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::train::TrainOptions;

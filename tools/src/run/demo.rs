@@ -7,9 +7,9 @@
 use crate::eval::{self, Report};
 use crate::import::example_set::ExampleSet;
 use crate::run::image::write_png;
-use rrskin::vk::render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
+use rrskin_render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};
 use std::path::{Path, PathBuf};
 
 /// Errors at or above this fraction of the mesh's height show as full red.

@@ -1,11 +1,13 @@
 //! `rrskin profile`: per-pass GPU time of one model's crowd, from timestamp queries, median over
-//! frames after warm-up. Each frame uploads new poses, records all passes into one command
-//! buffer, submits and waits.
+//! frames after warm-up. Each frame uploads new poses (the model's own animation, each character
+//! at its own phase, when it carries one; random poses otherwise), records all passes into one
+//! command buffer, submits and waits.
 
 use crate::progress::Progress;
-use rrskin::synthetic::random_poses;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, DeviceChoice, GpuModel, PassTimings};
 use rrskin::Model;
+use rrskin_render::phased_poses;
+use rrskin_render::synthetic::random_poses;
 
 /// Frames run (and discarded) before measuring: the first dispatch pays lavapipe's JIT.
 pub const WARM_UP_FRAMES: usize = 3;
@@ -97,7 +99,7 @@ pub fn measure(
     let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
     for frame in 0..WARM_UP_FRAMES + frames {
-        crowd.set_bones(&random_poses(model, characters, frame as u64))?;
+        crowd.set_bones(&poses(model, characters, frame))?;
         batch.run(&[&crowd])?;
         if frame >= WARM_UP_FRAMES {
             samples.push(batch.timings()?);
@@ -119,6 +121,15 @@ pub fn measure(
         median,
         total_ms,
     })
+}
+
+/// The bone transforms of frame `frame`: the model's animation if it has one (as the crowd
+/// sample plays it), else random poses. Neither assumes parents come before children.
+fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::predict::Affine> {
+    match phased_poses(model, characters, frame) {
+        none if none.is_empty() => random_poses(model, characters, frame as u64),
+        animated => animated,
+    }
 }
 
 /// `rrskin bench`: the whole per-frame pipeline of rotational regression against plain

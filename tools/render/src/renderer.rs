@@ -1,136 +1,22 @@
 //! An offscreen renderer for crowds (`glsl/shade.vert`, `glsl/shade.frag`): the crowd sample's
-//! headless mode and the demo's images. It draws straight from the crowds' output buffers
-//! (positions and normals as vertex buffers, the model's triangles as the index buffer), one
-//! draw per character placed by a push-constant offset, and reads the image back as RGBA8.
+//! window and headless modes, and the demo's images. It draws straight from the crowds' output
+//! buffers (positions and normals as vertex buffers, the model's triangles as the index buffer),
+//! one draw per character placed by a push-constant offset, and reads the image back as RGBA8.
 //!
 //! Synchronisation: the batch's last barrier makes the compute outputs visible to vertex input;
 //! the render pass's external dependencies order this frame's attachment writes after the last
 //! frame's read-back and the read-back after the writes.
 
-use super::buffer::{transfer_to_host_barrier, Buffer};
-use super::context::{Context, Shared};
-use super::crowd::Crowd;
-use crate::error::{Error, Result};
+use crate::gpu::{Gpu, HostBuffer, Image};
+use crate::scene::Camera;
 use ash::vk;
-use glam::{Mat4, Vec3};
-use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
+use rrskin::vk::{Context, Crowd};
+use rrskin::{Error, Result};
 use std::sync::Arc;
 
 const COLOR_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
 const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
-
-/// A perspective camera in Vulkan clip space (y down, depth 0..1).
-#[derive(Debug, Clone, Copy)]
-pub struct Camera {
-    pub view_proj: Mat4,
-}
-
-impl Camera {
-    /// Looking from `eye` at `target` (y up), vertical field of view in radians.
-    pub fn looking_at(
-        eye: Vec3,
-        target: Vec3,
-        fov_y: f32,
-        aspect: f32,
-        near: f32,
-        far: f32,
-    ) -> Camera {
-        // View: right-handed, looking down −z.
-        let f = (target - eye).normalize();
-        let s = f.cross(Vec3::Y).normalize();
-        let u = s.cross(f);
-        let view = Mat4::from_cols(
-            s.extend(-s.dot(eye)),
-            u.extend(-u.dot(eye)),
-            (-f).extend(f.dot(eye)),
-            glam::Vec4::W,
-        )
-        .transpose();
-        // Projection to Vulkan clip space: y down, depth 0 (near) .. 1 (far).
-        let h = 1.0 / (0.5 * fov_y).tan();
-        let proj = Mat4::from_cols(
-            glam::Vec4::new(h / aspect, 0.0, 0.0, 0.0),
-            glam::Vec4::new(0.0, -h, 0.0, 0.0),
-            glam::Vec4::new(0.0, 0.0, far / (near - far), -1.0),
-            glam::Vec4::new(0.0, 0.0, near * far / (near - far), 0.0),
-        );
-        Camera {
-            view_proj: proj * view,
-        }
-    }
-}
-
-/// The clear colour of the crowd images (the crowd sample, the demo).
-pub const CROWD_BACKGROUND: [f32; 3] = [0.09, 0.1, 0.12];
-
-/// The bone transforms (C x J) of `characters` playing `model`'s animation at its frame `frame`,
-/// character c 7c frames ahead, so that neighbours are out of step. Empty if the model carries
-/// no animation.
-pub fn phased_poses(
-    model: &crate::Model,
-    characters: usize,
-    frame: usize,
-) -> Vec<crate::predict::Affine> {
-    let frames: Vec<&[crate::predict::Affine]> = model.animation().collect();
-    if frames.is_empty() {
-        return Vec::new();
-    }
-    (0..characters)
-        .flat_map(|c| frames[(frame + 7 * c) % frames.len()].iter().copied())
-        .collect()
-}
-
-/// A crowd laid out in a square grid, framed by a camera: where each character stands.
-pub struct GridScene {
-    pub camera: Camera,
-    pub offsets: Vec<[f32; 3]>,
-}
-
-/// Lays out `characters` of `model` (y up) on a square grid spaced by its rest mesh's footprint
-/// and frames them from the front, above, for an image of `aspect` width / height.
-pub fn grid_scene(model: &crate::Model, characters: usize, aspect: f32) -> GridScene {
-    let rest = &model.parts().rest_positions;
-    let (lo, hi) = rest
-        .iter()
-        .fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
-            (
-                std::array::from_fn(|i| lo[i].min(p[i])),
-                std::array::from_fn(|i| hi[i].max(p[i])),
-            )
-        });
-    let size = (hi[0] - lo[0]).max(hi[2] - lo[2]).max(1e-3) * 1.15;
-    let tall = (hi[1] - lo[1]).max(1e-3);
-    let side = (characters as f32).sqrt().ceil().max(1.0) as usize;
-    let extent = size * (side - 1) as f32;
-    let center = Vec3::new(extent * 0.5, tall * 0.4, extent * 0.5);
-    let eye = center + Vec3::new(0.0, extent * 0.45 + tall * 2.0, extent * 0.85 + tall * 3.0);
-    let far = 10.0 * (extent + tall * 4.0);
-    GridScene {
-        camera: Camera::looking_at(eye, center, 0.8, aspect, 0.05 * tall, far),
-        offsets: (0..characters)
-            .map(|c| [size * (c % side) as f32, 0.0, size * (c / side) as f32])
-            .collect(),
-    }
-}
-
-impl GridScene {
-    /// Every character of `crowd` (up to the grid's size) at its place, each with its own tint.
-    pub fn draws<'a>(&self, crowd: &'a Crowd) -> Vec<Draw<'a>> {
-        (0..self.offsets.len().min(crowd.character_count()))
-            .map(|c| Draw {
-                crowd,
-                character: c,
-                offset: self.offsets[c],
-                color: [
-                    0.55 + 0.35 * ((c * 37 % 11) as f32 / 10.0),
-                    0.62,
-                    0.78 - 0.2 * ((c * 13 % 7) as f32 / 6.0),
-                ],
-            })
-            .collect()
-    }
-}
 
 /// A mesh from host memory (e.g. a ground truth, or an error map), with a colour per vertex.
 #[derive(Clone, Copy)]
@@ -159,107 +45,11 @@ struct Push {
     color: [f32; 4],
 }
 
-/// An image with its memory and view, freed in Drop.
-struct Target {
-    shared: Arc<Shared>,
-    image: vk::Image,
-    view: vk::ImageView,
-    allocation: Option<Allocation>,
-}
-
-impl Target {
-    fn new(
-        shared: &Arc<Shared>,
-        format: vk::Format,
-        usage: vk::ImageUsageFlags,
-        aspect: vk::ImageAspectFlags,
-        extent: vk::Extent2D,
-    ) -> Result<Target> {
-        let info = vk::ImageCreateInfo::default()
-            .image_type(vk::ImageType::TYPE_2D)
-            .format(format)
-            .extent(vk::Extent3D {
-                width: extent.width,
-                height: extent.height,
-                depth: 1,
-            })
-            .mip_levels(1)
-            .array_layers(1)
-            .samples(vk::SampleCountFlags::TYPE_1)
-            .tiling(vk::ImageTiling::OPTIMAL)
-            .usage(usage)
-            .initial_layout(vk::ImageLayout::UNDEFINED);
-        let device = &shared.device;
-        // SAFETY: valid device and create info.
-        let image =
-            unsafe { device.create_image(&info, None) }.map_err(Error::vk("vkCreateImage"))?;
-        let mut target = Target {
-            shared: shared.clone(),
-            image,
-            view: vk::ImageView::null(),
-            allocation: None,
-        };
-        // SAFETY: valid image.
-        let requirements = unsafe { device.get_image_memory_requirements(image) };
-        let allocation = shared
-            .allocator()
-            .as_mut()
-            .ok_or(Error::Allocation {
-                what: "render target",
-                message: "the allocator is gone".into(),
-            })?
-            .allocate(&AllocationCreateDesc {
-                name: "render target",
-                requirements,
-                location: MemoryLocation::GpuOnly,
-                linear: false,
-                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-            })
-            .map_err(|e| Error::Allocation {
-                what: "render target",
-                message: e.to_string(),
-            })?;
-        // SAFETY: fresh allocation meeting the image's requirements.
-        unsafe { device.bind_image_memory(image, allocation.memory(), allocation.offset()) }
-            .map_err(Error::vk("vkBindImageMemory"))?;
-        target.allocation = Some(allocation);
-        let view_info = vk::ImageViewCreateInfo::default()
-            .image(image)
-            .view_type(vk::ImageViewType::TYPE_2D)
-            .format(format)
-            .subresource_range(
-                vk::ImageSubresourceRange::default()
-                    .aspect_mask(aspect)
-                    .level_count(1)
-                    .layer_count(1),
-            );
-        // SAFETY: the image is bound to memory.
-        target.view = unsafe { device.create_image_view(&view_info, None) }
-            .map_err(Error::vk("vkCreateImageView"))?;
-        Ok(target)
-    }
-}
-
-impl Drop for Target {
-    fn drop(&mut self) {
-        // SAFETY: the renderer waits for its submissions; null handles are no-ops.
-        unsafe {
-            self.shared.device.destroy_image_view(self.view, None);
-            self.shared.device.destroy_image(self.image, None);
-        }
-        if let (Some(a), Some(allocator)) =
-            (self.allocation.take(), self.shared.allocator().as_mut())
-        {
-            let _ = allocator.free(a);
-        }
-    }
-}
-
 pub struct Renderer {
-    shared: Arc<Shared>,
+    gpu: Arc<Gpu>,
     extent: vk::Extent2D,
-    color: Target,
-    _depth: Target,
+    color: Image,
+    _depth: Image,
     render_pass: vk::RenderPass,
     framebuffer: vk::Framebuffer,
     layout: vk::PipelineLayout,
@@ -267,7 +57,7 @@ pub struct Renderer {
     pipeline: vk::Pipeline,
     /// Host meshes: positions, normals and per-vertex colours.
     mesh_pipeline: vk::Pipeline,
-    readback: Buffer,
+    readback: HostBuffer,
     pool: vk::CommandPool,
     fence: vk::Fence,
 }
@@ -276,8 +66,8 @@ impl Renderer {
     /// An offscreen renderer of `width` x `height` pixels. The context's queue must support
     /// graphics.
     pub fn new(context: &Context, width: u32, height: u32) -> Result<Renderer> {
-        let shared = context.shared.clone();
-        if !shared.queue_has_graphics {
+        let gpu = Gpu::new(context)?;
+        if !gpu.queue_has_graphics() {
             return Err(Error::NoDevice {
                 reason: "the context's queue has no graphics".into(),
             });
@@ -290,29 +80,29 @@ impl Renderer {
             });
         }
         let extent = vk::Extent2D { width, height };
-        let color = Target::new(
-            &shared,
+        let color = Image::new(
+            &gpu,
             COLOR_FORMAT,
             vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::TRANSFER_SRC,
             vk::ImageAspectFlags::COLOR,
             extent,
         )?;
-        let depth = Target::new(
-            &shared,
+        let depth = Image::new(
+            &gpu,
             DEPTH_FORMAT,
             vk::ImageUsageFlags::DEPTH_STENCIL_ATTACHMENT,
             vk::ImageAspectFlags::DEPTH,
             extent,
         )?;
-        let readback = Buffer::new(
-            &shared,
+        let readback = HostBuffer::new(
+            &gpu,
             "rendered image",
             width as u64 * height as u64 * 4,
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
         let mut r = Renderer {
-            shared: shared.clone(),
+            gpu,
             extent,
             color,
             _depth: depth,
@@ -331,7 +121,7 @@ impl Renderer {
     }
 
     fn create_objects(&mut self) -> Result<()> {
-        let device = &self.shared.device;
+        let device = self.gpu.device();
         let attachments = [
             vk::AttachmentDescription::default()
                 .format(COLOR_FORMAT)
@@ -389,7 +179,8 @@ impl Renderer {
             .attachments(&attachments)
             .subpasses(&subpass)
             .dependencies(&dependencies);
-        // SAFETY: valid device and create info.
+        // SAFETY: the device is live (crate::gpu); the attachments, subpass and dependencies the
+        // info points to live through the call.
         self.render_pass = unsafe { device.create_render_pass(&info, None) }
             .map_err(Error::vk("vkCreateRenderPass"))?;
         let views = [self.color.view, self._depth.view];
@@ -402,13 +193,7 @@ impl Renderer {
         // SAFETY: the views match the render pass's attachments.
         self.framebuffer = unsafe { device.create_framebuffer(&info, None) }
             .map_err(Error::vk("vkCreateFramebuffer"))?;
-        let ranges = [vk::PushConstantRange::default()
-            .stage_flags(vk::ShaderStageFlags::VERTEX)
-            .size(size_of::<Push>() as u32)];
-        let info = vk::PipelineLayoutCreateInfo::default().push_constant_ranges(&ranges);
-        // SAFETY: valid device and create info.
-        self.layout = unsafe { device.create_pipeline_layout(&info, None) }
-            .map_err(Error::vk("vkCreatePipelineLayout"))?;
+        self.layout = self.gpu.create_pipeline_layout(size_of::<Push>() as u32)?;
         self.pipeline = self.create_pipeline(
             include_bytes!(concat!(env!("OUT_DIR"), "/shade_vert.spv")),
             2,
@@ -417,38 +202,22 @@ impl Renderer {
             include_bytes!(concat!(env!("OUT_DIR"), "/shade_colors_vert.spv")),
             3,
         )?;
-        let info = vk::CommandPoolCreateInfo::default()
-            .queue_family_index(self.shared.queue_family_index)
-            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        // SAFETY: valid device and create info.
-        self.pool = unsafe { device.create_command_pool(&info, None) }
-            .map_err(Error::vk("vkCreateCommandPool"))?;
-        // SAFETY: valid device.
-        self.fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
-            .map_err(Error::vk("vkCreateFence"))?;
+        self.pool = self
+            .gpu
+            .create_command_pool(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER)?;
+        self.fence = self.gpu.create_fence()?;
         Ok(())
     }
 
     /// A pipeline with `streams` vertex bindings (positions, normals[, colours]), 12 bytes each.
     fn create_pipeline(&self, vertex_code: &[u8], streams: u32) -> Result<vk::Pipeline> {
-        let device = &self.shared.device;
-        let module = |code: &[u8]| -> Result<vk::ShaderModule> {
-            let words: Vec<u32> = code
-                .chunks_exact(4)
-                .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
-                .collect();
-            // SAFETY: SPIR-V produced and validated by naga in build.rs.
-            unsafe {
-                device
-                    .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
-            }
-            .map_err(Error::vk("vkCreateShaderModule"))
-        };
-        let vert = module(vertex_code)?;
-        let frag = match module(include_bytes!(concat!(env!("OUT_DIR"), "/shade_frag.spv"))) {
+        let device = self.gpu.device();
+        let vert = self.gpu.create_shader_module(vertex_code)?;
+        let fragment_code = include_bytes!(concat!(env!("OUT_DIR"), "/shade_frag.spv"));
+        let frag = match self.gpu.create_shader_module(fragment_code) {
             Ok(m) => m,
             Err(e) => {
-                // SAFETY: unused module.
+                // SAFETY: no pipeline was made from the module.
                 unsafe { device.destroy_shader_module(vert, None) };
                 return Err(e);
             }
@@ -558,18 +327,19 @@ impl Renderer {
     ) -> Result<Vec<u8>> {
         self.check_draws(draws)?;
         let uploaded = self.upload_meshes(meshes)?;
-        let shared = self.shared.clone();
-        let device = &shared.device;
+        let gpu = self.gpu.clone();
+        let device = gpu.device();
         let info = vk::CommandBufferAllocateInfo::default()
             .command_pool(self.pool)
             .command_buffer_count(1);
-        // SAFETY: our pool; every command below uses objects alive until the wait returns.
+        // SAFETY: the renderer's own pool, used only under `&mut self` (externally synchronised).
         let cmd = unsafe { device.allocate_command_buffers(&info) }
             .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
         let recorded = (|| -> Result<()> {
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            // SAFETY: cmd is fresh.
+            // SAFETY: `cmd` was just allocated (initial state); every object the commands below
+            // use lives until the wait returns.
             unsafe { device.begin_command_buffer(cmd, &begin) }
                 .map_err(Error::vk("vkBeginCommandBuffer"))?;
             self.record_pass(cmd, camera, draws, background, |cmd| {
@@ -600,7 +370,7 @@ impl Renderer {
                     .end_command_buffer(cmd)
                     .map_err(Error::vk("vkEndCommandBuffer"))?;
             }
-            shared.submit_wait(cmd, self.fence)
+            submit_wait(&gpu.context, cmd, self.fence)
         })();
         // SAFETY: the command buffer finished (or never ran).
         unsafe { device.free_command_buffers(self.pool, &[cmd]) };
@@ -633,7 +403,7 @@ impl Renderer {
 
     fn check_draws(&self, draws: &[Draw]) -> Result<()> {
         for d in draws {
-            if !Arc::ptr_eq(d.crowd.shared(), &self.shared) {
+            if d.crowd.model().context().device().handle() != self.gpu.device().handle() {
                 return Err(Error::Mismatch {
                     what: "a crowd of another context",
                 });
@@ -651,7 +421,7 @@ impl Renderer {
 
     /// Host meshes go to host-visible vertex and index buffers: positions, normals, colours,
     /// triangles per mesh. The caller keeps them alive until the submission completes.
-    fn upload_meshes(&self, meshes: &[HostMesh]) -> Result<Vec<[Buffer; 4]>> {
+    fn upload_meshes(&self, meshes: &[HostMesh]) -> Result<Vec<[HostBuffer; 4]>> {
         let mut uploaded = Vec::with_capacity(meshes.len());
         for m in meshes {
             let v = m.positions.len();
@@ -698,8 +468,8 @@ impl Renderer {
                 ),
             ];
             let upload = |(name, data, usage): (&'static str, &[u8], vk::BufferUsageFlags)| {
-                let mut b = Buffer::new(
-                    &self.shared,
+                let mut b = HostBuffer::new(
+                    &self.gpu,
                     name,
                     data.len() as u64,
                     usage,
@@ -723,7 +493,7 @@ impl Renderer {
         background: [f32; 3],
         extra: impl FnOnce(vk::CommandBuffer),
     ) {
-        let device = &self.shared.device;
+        let device = self.gpu.device();
         let clear = [
             vk::ClearValue {
                 color: vk::ClearColorValue {
@@ -754,10 +524,15 @@ impl Renderer {
                 let out = d.crowd.output();
                 let at = out.offset + d.character as u64 * out.character_stride;
                 device.cmd_bind_vertex_buffers(cmd, 0, &[out.positions, out.normals], &[at, at]);
-                let model = &d.crowd.model.inner;
-                device.cmd_bind_index_buffer(cmd, model.triangles.handle, 0, vk::IndexType::UINT32);
+                let model = d.crowd.model();
+                device.cmd_bind_index_buffer(
+                    cmd,
+                    model.triangle_buffer(),
+                    0,
+                    vk::IndexType::UINT32,
+                );
                 self.push(cmd, camera, d.offset, d.color);
-                device.cmd_draw_indexed(cmd, model.triangle_count * 3, 1, 0, 0, 0);
+                device.cmd_draw_indexed(cmd, model.triangle_count() as u32 * 3, 1, 0, 0, 0);
             }
             extra(cmd);
             device.cmd_end_render_pass(cmd);
@@ -769,9 +544,9 @@ impl Renderer {
         cmd: vk::CommandBuffer,
         camera: &Camera,
         meshes: &[HostMesh],
-        uploaded: &[[Buffer; 4]],
+        uploaded: &[[HostBuffer; 4]],
     ) {
-        let device = &self.shared.device;
+        let device = self.gpu.device();
         // SAFETY: inside the render pass of `record_pass`; the buffers outlive the submission.
         unsafe {
             device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.mesh_pipeline);
@@ -800,7 +575,7 @@ impl Renderer {
         };
         // SAFETY: see the function's contract.
         unsafe {
-            self.shared.device.cmd_push_constants(
+            self.gpu.device().cmd_push_constants(
                 cmd,
                 self.layout,
                 vk::ShaderStageFlags::VERTEX,
@@ -815,7 +590,7 @@ impl Drop for Renderer {
     fn drop(&mut self) {
         // SAFETY: `render` waits for its submission; null handles are no-ops.
         unsafe {
-            let d = &self.shared.device;
+            let d = self.gpu.device();
             d.destroy_fence(self.fence, None);
             d.destroy_command_pool(self.pool, None);
             d.destroy_pipeline(self.pipeline, None);
@@ -825,4 +600,49 @@ impl Drop for Renderer {
             d.destroy_render_pass(self.render_pass, None);
         }
     }
+}
+
+/// Submits `cmd` on the context's queue (taken through `with_queue`, so never racing the
+/// runtime's own submissions), waits on `fence` (unsignalled) and resets it.
+fn submit_wait(context: &Context, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
+    let cmds = [cmd];
+    let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+    let device = context.device();
+    context.with_queue(|queue| {
+        // SAFETY: the queue is held exclusively inside `with_queue`; `cmd` is executable and
+        // every object it uses outlives the wait; the fence is this device's and unsignalled.
+        unsafe {
+            device
+                .queue_submit(queue, &submit, fence)
+                .map_err(Error::vk("vkQueueSubmit"))?;
+            device
+                .wait_for_fences(&[fence], true, u64::MAX)
+                .map_err(Error::vk("vkWaitForFences"))?;
+            device
+                .reset_fences(&[fence])
+                .map_err(Error::vk("vkResetFences"))
+        }
+    })
+}
+
+/// The copy's transfer writes made visible to the host, which reads them after the fence.
+///
+/// # Safety
+/// `cmd` must be recording, outside a render pass.
+unsafe fn transfer_to_host_barrier(device: &ash::Device, cmd: vk::CommandBuffer) {
+    let barrier = [vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+        .dst_access_mask(vk::AccessFlags::HOST_READ)];
+    // SAFETY: see the function's contract.
+    unsafe {
+        device.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::HOST,
+            vk::DependencyFlags::empty(),
+            &barrier,
+            &[],
+            &[],
+        )
+    };
 }

@@ -1,8 +1,8 @@
 #version 450
-// The renderer's vertex stage (src/vk/render.rs): one draw per character, straight from the
-// crowd's output buffers (binding 0 positions, binding 1 normals, 12-byte stride), placed by a
-// per-draw offset. Built a second time with VERTEX_COLORS for meshes with a per-vertex colour
-// (binding 2), e.g. the demo's error maps.
+// The renderer's vertex stage (rrskin-render's src/renderer.rs): one draw per character, straight
+// from the crowd's output buffers (binding 0 positions, binding 1 normals, 12-byte stride),
+// placed by a per-draw offset. Built a second time with VERTEX_COLORS for meshes with a
+// per-vertex colour (binding 2), e.g. the demo's error maps.
 layout(location = 0) in vec3 position;
 layout(location = 1) in vec3 normal;
 #ifdef VERTEX_COLORS
