@@ -22,6 +22,16 @@ impl Bone {
         self.q * x + self.d
     }
 
+    /// Row c of the 3x4 transform `[Q | d]`: what C2 multiplies (METHOD.md §8, `q_c`).
+    pub fn row(&self, c: usize) -> [f64; 4] {
+        [
+            self.q.x_axis[c],
+            self.q.y_axis[c],
+            self.q.z_axis[c],
+            self.d[c],
+        ]
+    }
+
     /// The 3x4 row-major form the runtime takes.
     pub fn to_affine(&self) -> rrskin::predict::Affine {
         let (q, d) = (self.q, self.d);

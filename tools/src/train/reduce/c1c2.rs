@@ -204,12 +204,7 @@ impl Reduced {
                     }
                 }
                 for (b, bone) in bones.iter().enumerate() {
-                    let q = [
-                        bone.q.x_axis[c],
-                        bone.q.y_axis[c],
-                        bone.q.z_axis[c],
-                        bone.d[c],
-                    ];
+                    let q = bone.row(c);
                     for x in 0..4 {
                         v += self.c2[r * 4 * j + 4 * b + x] * q[x];
                     }

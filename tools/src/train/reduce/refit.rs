@@ -185,12 +185,7 @@ impl Problem {
                 }
                 for (b, bone) in pose.bones.iter().enumerate() {
                     for c in 0..3 {
-                        let q = [
-                            bone.q.x_axis[c],
-                            bone.q.y_axis[c],
-                            bone.q.z_axis[c],
-                            bone.d[c],
-                        ];
+                        let q = bone.row(c);
                         for k in 0..4 {
                             x[3 * p + 4 * b + k][c] = q[k];
                         }
