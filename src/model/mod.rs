@@ -95,6 +95,29 @@ pub struct Model {
     incident_triangles: Vec<u32>,
 }
 
+/// The bones 0..j in an order where every parent comes before its children, whatever order the
+/// rig lists them in (glTF skins list joints freely); `parent(b)` is bone b's parent. A cycle
+/// (which validated models and example sets never have) cannot loop: each walk up stops after
+/// j steps.
+pub fn parents_first(j: usize, parent: impl Fn(usize) -> Option<usize>) -> Vec<usize> {
+    let mut placed = vec![false; j];
+    let mut order = Vec::with_capacity(j);
+    let mut chain = Vec::new();
+    for b in 0..j {
+        let mut at = Some(b);
+        while let Some(a) = at.filter(|&a| !placed[a] && chain.len() < j) {
+            chain.push(a);
+            at = parent(a);
+        }
+        for &a in chain.iter().rev() {
+            placed[a] = true;
+            order.push(a);
+        }
+        chain.clear();
+    }
+    order
+}
+
 /// The influence counts the runtime has shaders for.
 pub const SUPPORTED_INFLUENCES: [u32; 2] = [4, 8];
 

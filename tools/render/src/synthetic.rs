@@ -202,7 +202,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
 pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> {
     let mut rng = Rng::new(seed ^ 0xB0E5);
     let j = model.bone_count();
-    let order = parents_first(model);
+    let order = rrskin::model::parents_first(model.bone_count(), |b| model.parent(b));
     let mut out = Vec::with_capacity(characters * j);
     for _ in 0..characters {
         let local: Vec<(DMat3, DVec3)> =
@@ -222,29 +222,6 @@ pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> 
         }));
     }
     out
-}
-
-/// The bones in an order where every parent comes before its children, whatever the model's
-/// own order. A [`Model`] has no cycles (it is validated), so each walk up ends at a root or at
-/// a bone already placed within J steps.
-pub fn parents_first(model: &Model) -> Vec<usize> {
-    let j = model.bone_count();
-    let mut placed = vec![false; j];
-    let mut order = Vec::with_capacity(j);
-    let mut chain = Vec::new();
-    for b in 0..j {
-        let mut at = Some(b);
-        while let Some(a) = at.filter(|&a| !placed[a] && chain.len() < j) {
-            chain.push(a);
-            at = model.parent(a);
-        }
-        for &a in chain.iter().rev() {
-            placed[a] = true;
-            order.push(a);
-        }
-        chain.clear();
-    }
-    order
 }
 
 /// `model` with its bones renumbered: bone b becomes bone `new_index[b]` (parents, skinning and
@@ -338,7 +315,7 @@ mod tests {
     #[test]
     fn parents_come_first_in_the_order_of_a_children_first_rig() {
         let (_, model) = children_first();
-        let order = parents_first(&model);
+        let order = rrskin::model::parents_first(model.bone_count(), |b| model.parent(b));
         let mut position = vec![usize::MAX; model.bone_count()];
         for (i, &b) in order.iter().enumerate() {
             position[b] = i;

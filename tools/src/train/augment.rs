@@ -9,50 +9,12 @@
 
 use crate::import::example_set::{Bone, ExampleSet, Pose};
 use crate::train::full_model::{FullModel, Prepared};
+use crate::train::pivots::pivots;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::Skinning;
-use glam::{DMat3, DVec3};
+use glam::DVec3;
+use rrskin::model::parents_first;
 use rrskin::predict::{exp_rotation, log_rotation};
-
-/// Parents before children, whatever order the rig lists its bones in.
-pub fn topological_order(parents: &[Option<usize>]) -> Vec<usize> {
-    let mut order = Vec::with_capacity(parents.len());
-    let mut placed = vec![false; parents.len()];
-    while order.len() < parents.len() {
-        let before = order.len();
-        for b in 0..parents.len() {
-            if !placed[b] && parents[b].is_none_or(|p| placed[p]) {
-                placed[b] = true;
-                order.push(b);
-            }
-        }
-        if order.len() == before {
-            break; // a cycle: the loader refuses those
-        }
-    }
-    order
-}
-
-/// Each bone's pivot: argmin_c Σ_i |(Q_b − Q_p) c − (d_p − d_b)|² (roots: the origin).
-pub fn pivots(set: &ExampleSet, poses: &[usize]) -> Vec<DVec3> {
-    (0..set.bone_count())
-        .map(|b| {
-            let Some(p) = set.parents[b] else {
-                return DVec3::ZERO;
-            };
-            let (mut g, mut h) = (DMat3::ZERO, DVec3::ZERO);
-            for &i in poses {
-                let (tb, tp) = (set.poses[i].bones[b], set.poses[i].bones[p]);
-                let m = tb.q - tp.q;
-                g += m.transpose() * m;
-                h += m.transpose() * (tp.d - tb.d);
-            }
-            // Weak pull to the origin of the bone's frame where the joint never turns.
-            let ridge = 1e-9 * (g.x_axis.x + g.y_axis.y + g.z_axis.z).max(1e-300);
-            (g + DMat3::from_diagonal(DVec3::splat(ridge))).inverse() * h
-        })
-        .collect()
-}
 
 /// The pose with every joint rotation of `bones` scaled by `s`.
 pub fn scaled_pose(
@@ -106,7 +68,7 @@ pub fn augment(
     scales: &[f64],
 ) -> Widened {
     let train = set.train();
-    let order = topological_order(&set.parents);
+    let order = parents_first(set.bone_count(), |b| set.parents[b]);
     let pivots = pivots(set, &train);
     let mut wide = set.clone();
     let first = wide.poses.len();
@@ -146,6 +108,8 @@ pub fn augment(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::train::pivots::pivots;
+    use glam::DMat3;
 
     fn chain_set() -> ExampleSet {
         // Three bones listed child first (2 → 1 → 0 is the chain 0 ← 1 ← 2 reversed): the
@@ -211,17 +175,15 @@ mod tests {
 
     #[test]
     fn parents_come_first_whatever_the_listed_order() {
-        assert_eq!(topological_order(&[Some(1), Some(2), None]), vec![2, 1, 0]);
-        assert_eq!(
-            topological_order(&[None, Some(0), Some(0), Some(2)]),
-            vec![0, 1, 2, 3]
-        );
+        let order = |p: &[Option<usize>]| parents_first(p.len(), |b| p[b]);
+        assert_eq!(order(&[Some(1), Some(2), None]), vec![2, 1, 0]);
+        assert_eq!(order(&[None, Some(0), Some(0), Some(2)]), vec![0, 1, 2, 3]);
     }
 
     #[test]
     fn scale_one_rebuilds_the_pose_and_scale_zero_the_rest_pose() {
         let set = chain_set();
-        let order = topological_order(&set.parents);
+        let order = parents_first(set.bone_count(), |b| set.parents[b]);
         let pivots = pivots(&set, &[0]);
         let bones = &set.poses[0].bones;
         for (b, t) in scaled_pose(&set, &order, &pivots, bones, 1.0)
@@ -257,7 +219,7 @@ mod tests {
     #[test]
     fn half_scale_halves_each_joint_angle() {
         let set = chain_set();
-        let order = topological_order(&set.parents);
+        let order = parents_first(set.bone_count(), |b| set.parents[b]);
         let pivots = pivots(&set, &[0]);
         let bones = &set.poses[0].bones;
         let half = scaled_pose(&set, &order, &pivots, bones, 0.5);

@@ -9,6 +9,7 @@
 //! | rotational regression | [`rotreg`] | §3.2 |
 //! | scale/shear regression | [`scale_shear`] | §3.3 |
 //! | Poisson reconstruction: the full model | [`poisson`], [`full_model`] | §4.1 |
+//! | joint pivots from the poses | [`pivots`] | beyond the paper |
 //! | gentle poses meshed by the full model | [`augment`] | beyond the paper |
 //! | vertex reduction to P proxy bones | [`reduce::vertex`] | §5.1 |
 //! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
@@ -21,6 +22,7 @@
 pub mod augment;
 pub mod full_model;
 pub mod gradients;
+pub mod pivots;
 pub mod poisson;
 pub mod reduce;
 pub mod rotreg;

@@ -15,7 +15,7 @@
 //! a regression fitted on wide range-of-motion poses cannot bend it on gentle ones.
 
 use crate::import::example_set::{Bone, ExampleSet};
-use crate::train::augment::pivots;
+use crate::train::pivots::pivots;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::predictor::KeyPredictor;
 use crate::train::rotreg::{BoneTerm, PoseFeatures, RotationPredictor};
