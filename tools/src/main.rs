@@ -117,8 +117,8 @@ struct TrainArgs {
     /// Proxy bones P (the model's size and per-frame cost grow with it; 0: no reduction).
     #[arg(long, default_value_t = TrainOptions::default().proxies)]
     proxies: usize,
-    /// Stop merging proxy bones earlier, when the RMS fitting error of the groups (mesh
-    /// units) would pass this (the paper's ε).
+    /// --reduction paper: stop merging proxy bones earlier, when the RMS fitting error of the
+    /// groups (mesh units) would pass this (the paper's ε).
     #[arg(long)]
     epsilon: Option<f64>,
     /// Influences per vertex (SSD and the runtime model): 4 or 8.

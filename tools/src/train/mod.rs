@@ -59,7 +59,8 @@ pub struct TrainOptions {
     pub influences: usize,
     /// P: proxy bones of the runtime model (0: train the full model only).
     pub proxies: usize,
-    /// Stop merging proxies earlier at this RMS fitting error (mesh units; the paper's ε).
+    /// The paper's reduction: stop merging proxies earlier at this RMS fitting error (mesh
+    /// units; the paper's ε).
     pub epsilon: Option<f64>,
     /// Folds of the cross-validation over the training poses.
     pub folds: usize,
