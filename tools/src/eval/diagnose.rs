@@ -26,23 +26,8 @@ pub fn oracle_transforms(
 ) -> Vec<Vec<[DVec4; 3]>> {
     let p = reduced.proxies;
     let n4p = 4 * p;
-    let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
-    // Vertices on bones alone follow them whatever the proxies do.
-    let free: Vec<usize> = (0..set.vertex_count())
-        .filter(|&a| reduced.skin[a].iter().any(|&(e, _)| e < p))
-        .collect();
-    let mut gram = Mat::<f64>::zeros(n4p, n4p);
-    for &a in &free {
-        for &(e1, w1) in reduced.skin[a].iter().filter(|x| x.0 < p) {
-            for &(e2, w2) in reduced.skin[a].iter().filter(|x| x.0 < p) {
-                for r in 0..4 {
-                    for c in 0..4 {
-                        gram[(4 * e1 + r, 4 * e2 + c)] += w1 * w2 * h(a)[r] * h(a)[c];
-                    }
-                }
-            }
-        }
-    }
+    let normal = reduced.proxy_normal_matrix(set);
+    let mut gram = Mat::<f64>::from_fn(n4p, n4p, |r, c| normal[r * n4p + c]);
     // A weak ridge keeps proxies without free vertices determined (at zero: they move nothing).
     let trace = (0..n4p).map(|d| gram[(d, d)]).sum::<f64>() / n4p.max(1) as f64;
     for d in 0..n4p {
@@ -54,23 +39,8 @@ pub fn oracle_transforms(
     poses
         .iter()
         .map(|&i| {
-            let pose = &set.poses[i];
-            let mut rhs = Mat::<f64>::zeros(n4p, 3);
-            for &a in &free {
-                let on_bones: DVec3 = reduced.skin[a]
-                    .iter()
-                    .filter(|x| x.0 >= p)
-                    .map(|&(e, w)| pose.bones[e - p].apply(set.rest[a]) * w)
-                    .sum();
-                let y = pose.vertices[a] - on_bones;
-                for &(e, w) in reduced.skin[a].iter().filter(|x| x.0 < p) {
-                    for r in 0..4 {
-                        for c in 0..3 {
-                            rhs[(4 * e + r, c)] += w * h(a)[r] * y[c];
-                        }
-                    }
-                }
-            }
+            let (targets, _) = reduced.proxy_targets(set, &set.poses[i]);
+            let rhs = Mat::<f64>::from_fn(n4p, 3, |r, c| targets[r][c]);
             let t = llt.solve(&rhs);
             (0..p)
                 .map(|e| {

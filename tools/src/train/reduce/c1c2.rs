@@ -15,7 +15,7 @@
 //! proxy toward its best-matching bone, which keeps proxies touching only fixed vertices
 //! determined while staying linear in q.
 
-use crate::import::example_set::{Bone, ExampleSet};
+use crate::import::example_set::{Bone, ExampleSet, Pose};
 use crate::linalg::DenseCholesky;
 use crate::train::reduce::predictor::{KeyPredictor, KeySequences};
 use crate::train::reduce::vertex::Proxies;
@@ -180,6 +180,59 @@ fn proxy_bones(set: &ExampleSet, ssd: &Skinning, proxies: &Proxies) -> Vec<usize
 }
 
 impl Reduced {
+    /// The proxy share of vertex a: its (proxy, weight) entries.
+    fn proxy_share(&self, a: usize) -> impl Iterator<Item = &(usize, f64)> {
+        self.skin[a].iter().filter(move |x| x.0 < self.proxies)
+    }
+
+    /// `A = ΦᵀΦ` (4P x 4P, row-major) over every vertex's proxy share: the normal matrix of
+    /// fitting the proxy transforms to vertex positions with these weights.
+    pub fn proxy_normal_matrix(&self, set: &ExampleSet) -> Vec<f64> {
+        let n4p = 4 * self.proxies;
+        let mut a_mat = vec![0.0; n4p * n4p];
+        for a in 0..set.vertex_count() {
+            let h = DVec4::from((set.rest[a], 1.0)).to_array();
+            for &(e1, w1) in self.proxy_share(a) {
+                for &(e2, w2) in self.proxy_share(a) {
+                    for r in 0..4 {
+                        for c in 0..4 {
+                            a_mat[(4 * e1 + r) * n4p + 4 * e2 + c] += w1 * w2 * h[r] * h[c];
+                        }
+                    }
+                }
+            }
+        }
+        a_mat
+    }
+
+    /// For one pose, with r_a = the vertex less its bones' share: `Φᵀ r_c` (4P rows, c = x, y,
+    /// z) and `Σ |r|²` over the vertices with a proxy share.
+    pub fn proxy_targets(&self, set: &ExampleSet, pose: &Pose) -> (Vec<[f64; 3]>, f64) {
+        let p = self.proxies;
+        let (mut rhs, mut s) = (vec![[0.0; 3]; 4 * p], 0.0);
+        for a in 0..set.vertex_count() {
+            if self.proxy_share(a).next().is_none() {
+                continue;
+            }
+            let on_bones: DVec3 = self.skin[a]
+                .iter()
+                .filter(|x| x.0 >= p)
+                .map(|&(e, w)| pose.bones[e - p].apply(set.rest[a]) * w)
+                .sum();
+            let r = pose.vertices[a] - on_bones;
+            s += r.length_squared();
+            let h = DVec4::from((set.rest[a], 1.0)).to_array();
+            for &(e, w) in self.proxy_share(a) {
+                for k in 0..4 {
+                    for c in 0..3 {
+                        rhs[4 * e + k][c] += w * h[k] * r[c];
+                    }
+                }
+            }
+        }
+        (rhs, s)
+    }
+
     /// The mesh in one pose, in f64: predictors, t = C1 d + C2 q, palette skinning.
     pub fn predict(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<DVec3> {
         let d: Vec<DMat3> = self

@@ -19,7 +19,6 @@
 use crate::import::example_set::ExampleSet;
 use crate::train::full_model::Prepared;
 use crate::train::reduce::c1c2::Reduced;
-use glam::{DVec3, DVec4};
 
 /// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0.
 pub const RIDGES: [Option<f64>; 8] = [
@@ -152,23 +151,7 @@ impl Problem {
                 }
             }
         }
-        let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
-        let proxy_share = |a: usize| reduced.skin[a].iter().filter(|x| x.0 < p);
-        let moved: Vec<usize> = (0..set.vertex_count())
-            .filter(|&a| proxy_share(a).next().is_some())
-            .collect();
-        let mut a_mat = vec![0.0; n4p * n4p];
-        for &a in &moved {
-            for &(e1, w1) in proxy_share(a) {
-                for &(e2, w2) in proxy_share(a) {
-                    for r in 0..4 {
-                        for c in 0..4 {
-                            a_mat[(4 * e1 + r) * n4p + 4 * e2 + c] += w1 * w2 * h(a)[r] * h(a)[c];
-                        }
-                    }
-                }
-            }
-        }
+        let a_mat = reduced.proxy_normal_matrix(set);
         let norm = 1.0 / (j as f64).sqrt();
         let terms = train
             .iter()
@@ -196,23 +179,7 @@ impl Problem {
                     let along: f64 = (0..j).map(|b| x[3 * p + 4 * b + 3][c]).sum::<f64>() * norm;
                     (0..j).for_each(|b| projected[3 * p + 4 * b + 3][c] -= along * norm);
                 }
-                let (mut bm, mut s) = (vec![[0.0; 3]; n4p], 0.0);
-                for &a in &moved {
-                    let on_bones: DVec3 = reduced.skin[a]
-                        .iter()
-                        .filter(|x| x.0 >= p)
-                        .map(|&(e, w)| pose.bones[e - p].apply(set.rest[a]) * w)
-                        .sum();
-                    let r = pose.vertices[a] - on_bones;
-                    s += r.length_squared();
-                    for &(e, w) in proxy_share(a) {
-                        for k in 0..4 {
-                            for c in 0..3 {
-                                bm[4 * e + k][c] += w * h(a)[k] * r[c];
-                            }
-                        }
-                    }
-                }
+                let (bm, s) = reduced.proxy_targets(set, pose);
                 PoseTerms {
                     x,
                     projected,
