@@ -271,6 +271,7 @@ fn parse_range(text: &str) -> Result<(f64, f64), String> {
 fn evaluate(
     set: &SetArgs,
     train: &TrainArgs,
+    options: TrainOptions,
     model: Option<PathBuf>,
     loocv: bool,
     diagnose: bool,
@@ -300,7 +301,7 @@ fn evaluate(
         }
     }
     let options = Options {
-        train: train.options(),
+        train: options,
         model,
         loocv,
         diagnose,
@@ -326,14 +327,19 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             diagnose,
             model,
         } => {
-            let (report, _) = evaluate(&set, &train, model, loocv, diagnose)?;
+            let (report, _) = evaluate(&set, &train, train.options(), model, loocv, diagnose)?;
             print_report(&report, &set, train.json);
         }
         Command::Train { set, train, output } => {
             if train.proxies == 0 {
                 return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }
-            let (report, imported) = evaluate(&set, &train, None, false, false)?;
+            // The runtime model only: joint-blend proxies need no full model.
+            let options = TrainOptions {
+                full_model: false,
+                ..train.options()
+            };
+            let (report, imported) = evaluate(&set, &train, options, None, false, false)?;
             let model = report.model.as_ref().ok_or("training produced no model")?;
             // A glTF rig's model is written over the file's own vertices (order and count).
             let model = match &imported {

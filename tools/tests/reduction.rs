@@ -11,6 +11,7 @@ use rrskin_tools::train::full_model::{self, FullModel, Prepared};
 use rrskin_tools::train::reduce::c1c2::Reduced;
 use rrskin_tools::train::reduce::vertex::{self, Stop};
 use rrskin_tools::train::reduce::{self, Reduction};
+use rrskin_tools::train::rotreg::PoseFeatures;
 use rrskin_tools::train::selection::{Blend, Choice, Selection};
 use rrskin_tools::train::ssd::{self, Skinning};
 
@@ -26,7 +27,7 @@ struct Trained {
 const RIDGE: f64 = 1e-3;
 
 fn train(set: ExampleSet, percentile: f64) -> Trained {
-    let prep = Prepared::new(&set);
+    let prep = Prepared::new(&set, PoseFeatures::all(&set));
     let train = set.train();
     let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
     let selection = Selection {

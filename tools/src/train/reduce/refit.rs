@@ -17,8 +17,8 @@
 //! move the root). λ is chosen by k-fold cross-validation over the training poses.
 
 use crate::import::example_set::ExampleSet;
-use crate::train::full_model::Prepared;
 use crate::train::reduce::c1c2::Reduced;
+use crate::train::rotreg::PoseFeatures;
 
 /// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0.
 pub const RIDGES: [Option<f64>; 8] = [
@@ -69,12 +69,12 @@ struct Problem {
 /// Refits `reduced`'s C1/C2 on the mask (its own non-zeros, and the bone each key turns).
 pub fn refit(
     set: &ExampleSet,
-    prep: &Prepared,
+    feats: &[PoseFeatures],
     train: &[usize],
     folds: usize,
     reduced: &mut Reduced,
 ) -> Refit {
-    let problem = Problem::new(set, prep, train, reduced);
+    let problem = Problem::new(set, feats, train, reduced);
     let folds = folds.min(train.len());
     let mut held_out = vec![0.0; RIDGES.len()];
     if folds < 2 || problem.mask.is_empty() {
@@ -122,7 +122,12 @@ pub fn refit(
 }
 
 impl Problem {
-    fn new(set: &ExampleSet, prep: &Prepared, train: &[usize], reduced: &Reduced) -> Problem {
+    fn new(
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        train: &[usize],
+        reduced: &Reduced,
+    ) -> Problem {
         let (p, j) = (reduced.proxies, reduced.bones);
         let (n4p, f) = (4 * p, 3 * p + 4 * j);
         let c0: Vec<f64> = (0..n4p)
@@ -159,7 +164,7 @@ impl Problem {
                 let pose = &set.poses[i];
                 let mut x = vec![[0.0; 3]; f];
                 for (l, key) in reduced.predictors.iter().enumerate() {
-                    let d = key.predict(&prep.feats[i], &set.parents);
+                    let d = key.predict(&feats[i], &set.parents);
                     for c in 0..3 {
                         for k in 0..3 {
                             x[3 * l + k][c] = d.row(c)[k];
