@@ -5,16 +5,21 @@
 //! C = [C1 C2] (4P x F):
 //!
 //! ```text
-//! min_Δ  Σ_i Σ_c |Φ (C0 + Δ) x_c^i − r_c^i|² + λ |Δ|²,   Δ zero off the mask S
-//!   ⇔   P_S(A Δ B) + λ Δ = P_S(E − A C0 B),   A = ΦᵀΦ (4P x 4P), B = Σ x xᵀ, E = Σ Φᵀ r xᵀ
+//! min_v  Σ_i Σ_c |Φ (C0 + S v) x_c^i − r_c^i|² + λ |v|²
+//!   ⇔   Sᵀ(A (S v) B) + λ v = Sᵀ(E − A C0 B),   A = ΦᵀΦ (4P x 4P), B = Σ x xᵀ, E = Σ Φᵀ r xᵀ
 //! ```
 //!
-//! (r: the vertices less their bones' share), solved by conjugate gradients on the entries of
-//! S. S keeps C local: proxy e sees its own key and the bones its geometry already uses, so a
-//! fit on wide random poses cannot learn that one elbow bulges the other (STAR's lesson; a
-//! dense Δ measured worse on held-out animation). The features are projected off the bones'
-//! summed translations, so Δ cannot break translation equivariance (the training poses never
-//! move the root). λ is chosen by k-fold cross-validation over the training poses.
+//! (r: the vertices less their bones' share), solved by conjugate gradients. Δ = S v is local:
+//! proxy e sees its own key and the bones its geometry already uses, so a fit on wide random
+//! poses cannot learn that one elbow bulges the other (STAR's lesson; a dense Δ measured worse
+//! on held-out animation). And Δ is invariant to rigid motion: a column of Δ multiplies one
+//! entry of one frame's matrix, and within each row the entries that multiply the same entry
+//! k of different frames sum to zero, so when all the frames a proxy sees move together by any
+//! rigid motion (the rest pose, a global turn or step, a stiff spine) Δ adds nothing and the
+//! proxy follows them exactly. Δ only corrects *relative* motion, which is what the training
+//! poses sample. Without that constraint the fit traded the near-rest spine of a walk for the
+//! wide training poses (human_heavy spine vertices: 5x SSD's held-out error). λ is chosen by
+//! k-fold cross-validation over the training poses.
 
 use crate::import::example_set::ExampleSet;
 use crate::train::reduce::c1c2::Reduced;
@@ -45,12 +50,19 @@ pub struct Refit {
 struct PoseTerms {
     /// F x 3, row-major: x_c for c = x, y, z.
     x: Vec<[f64; 3]>,
-    /// The same projected off the bones' summed translations.
-    projected: Vec<[f64; 3]>,
     /// 4P x 3: Φᵀ r_c.
     b: Vec<[f64; 3]>,
     /// Σ_c |r_c|².
     s: f64,
+}
+
+/// One column of S: +1 on entry (row, col) of Δ, −1 on (row, reference), the entry of the
+/// row's first frame that multiplies the same matrix entry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Free {
+    row: usize,
+    col: usize,
+    reference: usize,
 }
 
 /// Row-major dense matrices of the fit.
@@ -61,12 +73,13 @@ struct Problem {
     a: Vec<f64>,
     /// C0, 4P x F.
     c0: Vec<f64>,
-    /// The mask: (row, column) of every free entry.
-    mask: Vec<(usize, usize)>,
+    /// The columns of S.
+    free: Vec<Free>,
     terms: Vec<PoseTerms>,
 }
 
-/// Refits `reduced`'s C1/C2 on the mask (its own non-zeros, and the bone each key turns).
+/// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
+/// uses and the bone its key turns.
 pub fn refit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -77,7 +90,7 @@ pub fn refit(
     let problem = Problem::new(set, feats, train, reduced);
     let folds = folds.min(train.len());
     let mut held_out = vec![0.0; RIDGES.len()];
-    if folds < 2 || problem.mask.is_empty() {
+    if folds < 2 || problem.free.is_empty() {
         return Refit {
             ridge: None,
             held_out,
@@ -98,24 +111,13 @@ pub fn refit(
         .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
         .unwrap_or(RIDGES.len() - 1);
     let ridge = RIDGES[best];
-    if let Some(delta) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
-        // Δ acts on projected features: Δ x' = Δ x − (Δ n) nᵀ x, so each row's weight on a
-        // bone translation is spread back over all J bones (n = 1/√J on each).
+    if let Some(v) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
         let (p, j) = (reduced.proxies, reduced.bones);
-        let mut spread = vec![0.0; 4 * p];
-        for (&(r, c), v) in problem.mask.iter().zip(delta) {
+        for (r, c, x) in problem.entries(&v) {
             match c < 3 * p {
-                true => reduced.c1[r * 3 * p + c] += v,
-                false => {
-                    reduced.c2[r * 4 * j + c - 3 * p] += v;
-                    if (c - 3 * p) % 4 == 3 {
-                        spread[r] += v / j as f64;
-                    }
-                }
+                true => reduced.c1[r * 3 * p + c] += x,
+                false => reduced.c2[r * 4 * j + c - 3 * p] += x,
             }
-        }
-        for (r, s) in spread.iter().enumerate() {
-            (0..j).for_each(|b| reduced.c2[r * 4 * j + 4 * b + 3] -= s);
         }
     }
     Refit { ridge, held_out }
@@ -138,26 +140,31 @@ impl Problem {
                 })
             })
             .collect();
-        let mut mask = Vec::new();
+        // Per row, the frames it sees (key e, then bones), each as the column of its entry 0.
+        let mut free = Vec::new();
         for r in 0..n4p {
             let e = r / 4;
             let turned = reduced.predictors[e].rotation.map(|t| t.first.bone);
-            for c in 0..f {
-                let free = match c < 3 * p {
-                    true => c / 3 == e,
-                    false => {
-                        let b = (c - 3 * p) / 4;
-                        Some(b) == turned
-                            || (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0)
-                    }
-                };
-                if free {
-                    mask.push((r, c));
+            let uses = |b: usize| (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0);
+            let frames: Vec<(usize, usize)> = std::iter::once((3 * e, 3))
+                .chain(
+                    (0..j)
+                        .filter(|&b| Some(b) == turned || uses(b))
+                        .map(|b| (3 * p + 4 * b, 4)),
+                )
+                .collect();
+            for k in 0..4 {
+                let mut seeing = frames.iter().filter(|f| k < f.1).map(|f| f.0 + k);
+                if let Some(reference) = seeing.next() {
+                    free.extend(seeing.map(|col| Free {
+                        row: r,
+                        col,
+                        reference,
+                    }));
                 }
             }
         }
         let a_mat = reduced.proxy_normal_matrix(set);
-        let norm = 1.0 / (j as f64).sqrt();
         let terms = train
             .iter()
             .map(|&i| {
@@ -179,18 +186,8 @@ impl Problem {
                         }
                     }
                 }
-                let mut projected = x.clone();
-                for c in 0..3 {
-                    let along: f64 = (0..j).map(|b| x[3 * p + 4 * b + 3][c]).sum::<f64>() * norm;
-                    (0..j).for_each(|b| projected[3 * p + 4 * b + 3][c] -= along * norm);
-                }
                 let (bm, s) = reduced.proxy_targets(set, pose);
-                PoseTerms {
-                    x,
-                    projected,
-                    b: bm,
-                    s,
-                }
+                PoseTerms { x, b: bm, s }
             })
             .collect();
         Problem {
@@ -198,9 +195,17 @@ impl Problem {
             f,
             a: a_mat,
             c0,
-            mask,
+            free,
             terms,
         }
+    }
+
+    /// The non-zeros (row, column, value) of Δ = S v.
+    fn entries<'a>(&'a self, v: &'a [f64]) -> impl Iterator<Item = (usize, usize, f64)> + 'a {
+        self.free
+            .iter()
+            .zip(v)
+            .flat_map(|(s, &x)| [(s.row, s.col, x), (s.row, s.reference, -x)])
     }
 
     /// t = (C0 + Δ) x for pose n: 4P x 3.
@@ -215,8 +220,8 @@ impl Problem {
                 }
             }
         }
-        for (&(r, c), v) in self.mask.iter().zip(delta) {
-            (0..3).for_each(|k| out[r][k] += v * t.projected[c][k]);
+        for (r, c, v) in self.entries(delta) {
+            (0..3).for_each(|k| out[r][k] += v * t.x[c][k]);
         }
         out
     }
@@ -236,20 +241,20 @@ impl Problem {
         e
     }
 
-    /// Δ on the mask for each ridge, fitted on `poses` (warm-started from the stronger ridge).
+    /// v for each ridge, fitted on `poses` (warm-started from the stronger ridge).
     fn solve(&self, poses: &[usize], ridges: &[Option<f64>]) -> Vec<Vec<f64>> {
-        let (n4p, f, m) = (self.n4p, self.f, self.mask.len());
-        // B = Σ x' x'ᵀ over poses and coordinates (F x F).
+        let (n4p, f, m) = (self.n4p, self.f, self.free.len());
+        // B = Σ x xᵀ over poses and coordinates (F x F).
         let mut b = vec![0.0; f * f];
         for &n in poses {
-            let x = &self.terms[n].projected;
+            let x = &self.terms[n].x;
             for r in 0..f {
                 for c in 0..f {
                     b[r * f + c] += (0..3).map(|k| x[r][k] * x[c][k]).sum::<f64>();
                 }
             }
         }
-        // Right-hand side on the mask: Σ (Φᵀ r − A C0 x) x'ᵀ.
+        // Right-hand side: Sᵀ Σ (Φᵀ r − A C0 x) xᵀ.
         let mut rhs = vec![0.0; m];
         for &n in poses {
             let t = &self.terms[n];
@@ -263,30 +268,30 @@ impl Problem {
                     v
                 })
                 .collect();
-            for (slot, &(r, c)) in rhs.iter_mut().zip(&self.mask) {
-                *slot += (0..3)
-                    .map(|k| residual[r][k] * t.projected[c][k])
-                    .sum::<f64>();
+            let at = |r: usize, c: usize| (0..3).map(|k| residual[r][k] * t.x[c][k]).sum::<f64>();
+            for (slot, s) in rhs.iter_mut().zip(&self.free) {
+                *slot += at(s.row, s.col) - at(s.row, s.reference);
             }
         }
         let mean_a = (0..n4p).map(|d| self.a[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
         let mean_b = (0..f).map(|d| b[d * f + d]).sum::<f64>() / f.max(1) as f64;
-        // P_S(A Δ B) through G = Δ B (4P x F, stored column-major to read A's rows against).
+        // Sᵀ(A (S v) B) through G = Δ B (4P x F, stored column-major to read A's rows against).
         let apply = |v: &[f64], lambda: f64| -> Vec<f64> {
             let mut g = vec![0.0; f * n4p];
-            for (&(r, c), &x) in self.mask.iter().zip(v) {
+            for (r, c, x) in self.entries(v) {
                 for col in 0..f {
                     g[col * n4p + r] += x * b[c * f + col];
                 }
             }
-            self.mask
+            let agb = |r: usize, c: usize| -> f64 {
+                let a_row = &self.a[r * n4p..(r + 1) * n4p];
+                let g_col = &g[c * n4p..(c + 1) * n4p];
+                a_row.iter().zip(g_col).map(|(p, q)| p * q).sum()
+            };
+            self.free
                 .iter()
                 .zip(v)
-                .map(|(&(r, c), &x)| {
-                    let a_row = &self.a[r * n4p..(r + 1) * n4p];
-                    let g_col = &g[c * n4p..(c + 1) * n4p];
-                    a_row.iter().zip(g_col).map(|(p, q)| p * q).sum::<f64>() + lambda * x
-                })
+                .map(|(s, &x)| agb(s.row, s.col) - agb(s.row, s.reference) + lambda * x)
                 .collect()
         };
         let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
@@ -302,9 +307,13 @@ impl Problem {
             let Some(rho) = ridges[idx] else { continue };
             let lambda = rho * mean_a * mean_b;
             let diag: Vec<f64> = self
-                .mask
+                .free
                 .iter()
-                .map(|&(r, c)| self.a[r * n4p + r] * b[c * f + c] + lambda)
+                .map(|s| {
+                    let (c, o) = (s.col, s.reference);
+                    let bb = b[c * f + c] - 2.0 * b[c * f + o] + b[o * f + o];
+                    self.a[s.row * n4p + s.row] * bb + lambda
+                })
                 .collect();
             let applied = apply(&delta, lambda);
             let mut res: Vec<f64> = rhs.iter().zip(&applied).map(|(x, y)| x - y).collect();
