@@ -84,12 +84,13 @@ fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     assert_runtime_reproduces(&t, &reduced, 30);
 }
 
-/// The shipped form: joint-blend proxies with their local refit.
+/// The shipped form: joint-blend proxies, their local refit, the weights refitted to them.
 fn joint_blend(t: &Trained, proxies: usize) -> Reduced {
     let feats = &t.prep.feats;
     let mut reduced = reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, proxies, 4);
     let refit = reduce::refit::refit(&t.set, feats, &t.train, 4, &mut reduced);
     assert!(refit.ridge.is_some(), "the refit kept C0: {refit:?}");
+    reduce::joint_blend::reweight(&t.set, feats, &t.train, &t.ssd, 4, &mut reduced);
     reduced
 }
 

@@ -267,6 +267,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                         options.folds,
                         &mut r,
                     ));
+                    reduce::joint_blend::reweight(set, &feats, &train, &ssd, k, &mut r);
                     r
                 }
             };
