@@ -24,6 +24,7 @@
 use crate::import::example_set::ExampleSet;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
+use rayon::prelude::*;
 
 /// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0.
 pub const RIDGES: [Option<f64>; 8] = [
@@ -65,16 +66,20 @@ struct Free {
     reference: usize,
 }
 
-/// Row-major dense matrices of the fit.
+/// The fit's matrices. A is sparse: two proxies meet only where a vertex weights both.
 struct Problem {
     n4p: usize,
     f: usize,
-    /// A = ΦᵀΦ, 4P x 4P.
-    a: Vec<f64>,
-    /// C0, 4P x F.
+    /// A = ΦᵀΦ (4P x 4P): per row, its non-zeros (column, value).
+    a: Vec<Vec<(usize, f64)>>,
+    /// C0, 4P x F, row-major.
     c0: Vec<f64>,
     /// The columns of S.
     free: Vec<Free>,
+    /// Per row of Δ, its entries of `free`.
+    free_of_row: Vec<Vec<usize>>,
+    /// Per row r, the columns where (A Δ)[r, ·] can be non-zero.
+    pattern: Vec<Vec<usize>>,
     terms: Vec<PoseTerms>,
 }
 
@@ -89,23 +94,32 @@ pub fn refit(
 ) -> Refit {
     let problem = Problem::new(set, feats, train, reduced);
     let folds = folds.min(train.len());
-    let mut held_out = vec![0.0; RIDGES.len()];
     if folds < 2 || problem.free.is_empty() {
         return Refit {
             ridge: None,
-            held_out,
+            held_out: vec![0.0; RIDGES.len()],
         };
     }
     let all: Vec<usize> = (0..train.len()).collect();
-    for fold in 0..folds {
-        let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
-        for (h, delta) in held_out.iter_mut().zip(problem.solve(&inner, &RIDGES)) {
-            *h += all
+    let per_fold: Vec<Vec<f64>> = (0..folds)
+        .into_par_iter()
+        .map(|fold| {
+            let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
+            problem
+                .solve(&inner, &RIDGES)
                 .iter()
-                .filter(|n| *n % folds == fold)
-                .map(|&n| problem.error(&delta, n))
-                .sum::<f64>();
-        }
+                .map(|v| {
+                    all.iter()
+                        .filter(|n| *n % folds == fold)
+                        .map(|&n| problem.error(v, n))
+                        .sum::<f64>()
+                })
+                .collect()
+        })
+        .collect();
+    let mut held_out = vec![0.0; RIDGES.len()];
+    for fold in &per_fold {
+        held_out.iter_mut().zip(fold).for_each(|(h, e)| *h += e);
     }
     let best = (0..RIDGES.len())
         .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
@@ -164,7 +178,34 @@ impl Problem {
                 }
             }
         }
-        let a_mat = reduced.proxy_normal_matrix(set);
+        let dense = reduced.proxy_normal_matrix(set);
+        let a: Vec<Vec<(usize, f64)>> = dense
+            .chunks(n4p)
+            .map(|row| {
+                row.iter()
+                    .enumerate()
+                    .filter(|x| *x.1 != 0.0)
+                    .map(|(q, &v)| (q, v))
+                    .collect()
+            })
+            .collect();
+        let mut free_of_row = vec![Vec::new(); n4p];
+        for (idx, s) in free.iter().enumerate() {
+            free_of_row[s.row].push(idx);
+        }
+        let pattern = a
+            .iter()
+            .map(|row| {
+                let mut cols: Vec<usize> = row
+                    .iter()
+                    .flat_map(|&(q, _)| free_of_row[q].iter())
+                    .flat_map(|&idx| [free[idx].col, free[idx].reference])
+                    .collect();
+                cols.sort_unstable();
+                cols.dedup();
+                cols
+            })
+            .collect();
         let terms = train
             .iter()
             .map(|&i| {
@@ -193,9 +234,11 @@ impl Problem {
         Problem {
             n4p,
             f,
-            a: a_mat,
+            a,
             c0,
             free,
+            free_of_row,
+            pattern,
             terms,
         }
     }
@@ -230,11 +273,9 @@ impl Problem {
     fn error(&self, delta: &[f64], n: usize) -> f64 {
         let t = self.transforms(delta, n);
         let mut e = self.terms[n].s;
-        for r in 0..self.n4p {
+        for (r, row) in self.a.iter().enumerate() {
             for k in 0..3 {
-                let at: f64 = (0..self.n4p)
-                    .map(|q| self.a[r * self.n4p + q] * t[q][k])
-                    .sum();
+                let at: f64 = row.iter().map(|&(q, a)| a * t[q][k]).sum();
                 e += t[r][k] * (at - 2.0 * self.terms[n].b[r][k]);
             }
         }
@@ -262,8 +303,8 @@ impl Problem {
             let residual: Vec<[f64; 3]> = (0..n4p)
                 .map(|r| {
                     let mut v = t.b[r];
-                    for q in 0..n4p {
-                        (0..3).for_each(|k| v[k] -= self.a[r * n4p + q] * c0x[q][k]);
+                    for &(q, a) in &self.a[r] {
+                        (0..3).for_each(|k| v[k] -= a * c0x[q][k]);
                     }
                     v
                 })
@@ -273,25 +314,34 @@ impl Problem {
                 *slot += at(s.row, s.col) - at(s.row, s.reference);
             }
         }
-        let mean_a = (0..n4p).map(|d| self.a[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
+        let diag_a = |r: usize| self.a[r].iter().find(|x| x.0 == r).map_or(0.0, |x| x.1);
+        let mean_a = (0..n4p).map(diag_a).sum::<f64>() / n4p.max(1) as f64;
         let mean_b = (0..f).map(|d| b[d * f + d]).sum::<f64>() / f.max(1) as f64;
-        // Sᵀ(A (S v) B) through G = Δ B (4P x F, stored column-major to read A's rows against).
-        let apply = |v: &[f64], lambda: f64| -> Vec<f64> {
-            let mut g = vec![0.0; f * n4p];
-            for (r, c, x) in self.entries(v) {
-                for col in 0..f {
-                    g[col * n4p + r] += x * b[c * f + col];
+        // Sᵀ(A (S v) B) through H = A Δ (4P x F, sparse rows: `pattern`); B is symmetric.
+        let mut h = vec![0.0; n4p * f];
+        let mut apply = |v: &[f64], lambda: f64| -> Vec<f64> {
+            for (r, row) in self.a.iter().enumerate() {
+                let hr = &mut h[r * f..(r + 1) * f];
+                self.pattern[r].iter().for_each(|&c| hr[c] = 0.0);
+                for &(q, a) in row {
+                    for &idx in &self.free_of_row[q] {
+                        let s = self.free[idx];
+                        hr[s.col] += a * v[idx];
+                        hr[s.reference] -= a * v[idx];
+                    }
                 }
             }
-            let agb = |r: usize, c: usize| -> f64 {
-                let a_row = &self.a[r * n4p..(r + 1) * n4p];
-                let g_col = &g[c * n4p..(c + 1) * n4p];
-                a_row.iter().zip(g_col).map(|(p, q)| p * q).sum()
-            };
             self.free
                 .iter()
                 .zip(v)
-                .map(|(s, &x)| agb(s.row, s.col) - agb(s.row, s.reference) + lambda * x)
+                .map(|(s, &x)| {
+                    let (hr, bc, bo) = (&h[s.row * f..], &b[s.col * f..], &b[s.reference * f..]);
+                    let hb: f64 = self.pattern[s.row]
+                        .iter()
+                        .map(|&c| hr[c] * (bc[c] - bo[c]))
+                        .sum();
+                    hb + lambda * x
+                })
                 .collect()
         };
         let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
@@ -312,7 +362,7 @@ impl Problem {
                 .map(|s| {
                     let (c, o) = (s.col, s.reference);
                     let bb = b[c * f + c] - 2.0 * b[c * f + o] + b[o * f + o];
-                    self.a[s.row * n4p + s.row] * bb + lambda
+                    diag_a(s.row) * bb + lambda
                 })
                 .collect();
             let applied = apply(&delta, lambda);
