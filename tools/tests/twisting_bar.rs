@@ -134,3 +134,26 @@ fn leave_one_out_reports_held_out_training_poses() {
     );
     assert!(rr < ssd, "leave-one-out: RR {rr} vs SSD {ssd}");
 }
+
+/// The runtime model (joint-blend proxies, refit, reweight) twists too: proxies turning by
+/// fractions of the joint's twist are what linear blend skinning lacks.
+#[test]
+fn the_runtime_model_twists_where_skinning_collapses() {
+    let set = bar_set(&[0.0, 45.0, 90.0, 120.0], &[70.0, 105.0]);
+    let options = eval::Options {
+        train: TrainOptions {
+            full_model: false,
+            quiet: true,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let report = eval::run(&set, &options).expect("training");
+    let ssd = report.ssd.test.expect("test poses");
+    let reduced = report.rr_reduced.and_then(|e| e.test).expect("a runtime model");
+    assert!(ssd > 10.0, "SSD should fail on the twist: test EE {ssd}");
+    assert!(
+        reduced < 0.25 * ssd,
+        "runtime model test EE {reduced} vs SSD {ssd}"
+    );
+}
