@@ -114,6 +114,80 @@ fn bad_model_files_fail_with_the_file_and_the_problem() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A closed pipe on stdout and stderr (`rrskin … 2>&1 | head`) ends output quietly: the exit
+/// status is the command's, not a panic's 101.
+#[test]
+fn closed_pipes_end_output_quietly() {
+    let dir = temp_dir("pipe");
+    let model = dir.join("m.rrs");
+    let m = model.to_str().expect("utf-8 path");
+    let closed = |args: &[&str]| {
+        let (reader, writer) = std::io::pipe().expect("a pipe");
+        drop(reader);
+        Command::new(env!("CARGO_BIN_EXE_rrskin"))
+            .args(args)
+            .stdout(writer.try_clone().expect("dup"))
+            .stderr(writer)
+            .status()
+            .expect("the binary runs")
+            .code()
+    };
+    assert_eq!(closed(&["synth", "--grid", "5", "-o", m]), Some(0));
+    assert_eq!(closed(&["info", m]), Some(0));
+    assert_eq!(closed(&["info", "absent.rrs"]), Some(1));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Counts of zero, a crowd past the device's memory and unwritable outputs fail at once, exit 1,
+/// naming the flag or the path.
+#[test]
+fn bad_counts_and_outputs_fail_before_any_work() {
+    let dir = temp_dir("counts");
+    let model = dir.join("m.rrs");
+    let m = model.to_str().expect("utf-8 path");
+    assert!(rrskin(&["synth", "--grid", "5", "-o", m]).status.success());
+    let failed = |args: &[&str]| {
+        let out = rrskin(args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = failed(&["profile", m, "--frames", "0"]);
+    assert!(
+        err.contains("--frames") && err.contains("at least 1"),
+        "{err}"
+    );
+    let err = failed(&["profile", m, "--characters", "0"]);
+    assert!(err.contains("--characters"), "{err}");
+    // 2e9 characters of 5 bones: 480 GB of bone transforms alone.
+    let err = failed(&["profile", m, "--characters", "2000000000", "--frames", "1"]);
+    assert!(
+        err.contains("--characters 2000000000")
+            && err.contains("allocates at most")
+            && err.contains("lower --characters"),
+        "{err}"
+    );
+    // Outputs under a file: no folder can be made there.
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").expect("write");
+    let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
+    let set = set.to_str().expect("utf-8");
+    let under = file.join("out");
+    let under = under.to_str().expect("utf-8");
+    for args in [
+        vec!["demo", "--out", under],
+        vec!["train", set, "-o", &*format!("{under}/m.rrs")],
+    ] {
+        let started = std::time::Instant::now();
+        let err = failed(&args);
+        assert!(
+            err.contains("a-file") && !err.contains("training:"),
+            "{err}"
+        );
+        assert!(started.elapsed().as_secs() < 10, "{args:?} trained first");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of ARCHITECTURE.md and the
 /// figures of METHOD.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good as the
 /// reference's best row, 35.1 / 49.3), with every choice made on the training poses; the
@@ -286,6 +360,12 @@ fn a_trained_model_file_evaluates_as_trained() {
         "{b}"
     );
     assert_eq!(b["vertices"], 2338);
+    let text = rrskin(&["bench", m, "--characters", "1", "--frames", "1"]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains(": 1 character x 2338 vertices, median of 1 frame\n"),
+        "{text}"
+    );
     // A model of another mesh is refused with both sizes named.
     let other = dir.join("other.rrs");
     let o = other.to_str().expect("utf-8");
@@ -314,6 +394,10 @@ fn the_demo_writes_the_model_and_both_images() {
     );
     assert!(
         stdout.contains("rotational regression") && stdout.contains("comparison.png"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("rendered with the Vulkan runtime on ") && !stdout.contains("/../"),
         "{stdout}"
     );
     assert!(rrskin::Model::load(dir.join("model.rrs")).is_ok());

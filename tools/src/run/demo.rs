@@ -21,6 +21,8 @@ pub struct Outputs {
     pub model: PathBuf,
     pub comparison: PathBuf,
     pub crowd: PathBuf,
+    /// The Vulkan device that rendered the images.
+    pub device: String,
     /// The pose shown in the comparison and the RMS errors there (SSD, RR), in mesh units.
     pub pose: usize,
     pub rms: (f64, f64),
@@ -28,6 +30,7 @@ pub struct Outputs {
 
 pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn std::error::Error>> {
     let set = ExampleSet::load(set_dir)?;
+    crate::output::check_writable(out)?;
     let options = eval::Options {
         train: crate::train::TrainOptions {
             quiet,
@@ -39,7 +42,6 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
     };
     let report = eval::run(&set, &options)?;
     let model = report.model.clone().ok_or("training produced no model")?;
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let model_path = out.join("model.rrs");
     model.save(&model_path)?;
 
@@ -117,6 +119,7 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
         model: model_path,
         comparison,
         crowd: crowd_path,
+        device: ctx.device_name().to_string(),
         pose,
         rms: (rms(&e_ssd), rms(&e_rr)),
     })
