@@ -93,6 +93,17 @@ enum Command {
     Bench(RunArgs),
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
     Profile(RunArgs),
+    /// Write a crowd's bone transforms and the CPU evaluator's positions for them
+    /// (DIR/poses.bin, DIR/expected.bin, little-endian f32): the inputs of examples/c/crowd.c.
+    Reference {
+        model: PathBuf,
+        #[arg(long, default_value_t = 3, value_parser = at_least_one)]
+        frames: usize,
+        #[arg(long, default_value_t = 64, value_parser = at_least_one)]
+        characters: usize,
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// Prints to stdout; a closed pipe (`rrskin eval … | head`) ends output quietly, not in a panic.
@@ -462,6 +473,26 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             out!("rendered with the Vulkan runtime on {}", o.device);
             out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  ({} characters on the runtime)", shown(&o.model), shown(&o.comparison), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, shown(&o.crowd), rrskin_tools::run::demo::CROWD);
             out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
+        }
+        Command::Reference {
+            model,
+            frames,
+            characters,
+            out,
+        } => {
+            let m = Model::load(&model)?;
+            let (poses, expected) =
+                rrskin_tools::run::reference::write(&m, frames, characters, &out)?;
+            note(format_args!(
+                "wrote {} and {} ({} x {} of {}: J = {}, V = {})",
+                poses.display(),
+                expected.display(),
+                count(frames, "frame"),
+                count(characters, "character"),
+                model.display(),
+                m.bone_count(),
+                m.vertex_count()
+            ));
         }
         Command::Info { model, json } => {
             let m = Model::load(&model)?;

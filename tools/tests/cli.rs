@@ -188,6 +188,66 @@ fn bad_counts_and_outputs_fail_before_any_work() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `rrskin reference` writes the C example's inputs: the poses, and the CPU evaluator's positions
+/// for exactly those poses.
+#[test]
+fn reference_writes_the_c_examples_inputs() {
+    let dir = temp_dir("reference");
+    let model = dir.join("m.rrs");
+    let m = model.to_str().expect("utf-8 path");
+    assert!(rrskin(&[
+        "synth",
+        "--grid",
+        "5",
+        "--bones",
+        "4",
+        "--proxies",
+        "3",
+        "-o",
+        m
+    ])
+    .status
+    .success());
+    let out = rrskin(&[
+        "reference",
+        m,
+        "--frames",
+        "2",
+        "--characters",
+        "3",
+        "--out",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let floats = |name: &str| -> Vec<f32> {
+        std::fs::read(dir.join(name))
+            .expect(name)
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
+    };
+    let (poses, expected) = (floats("poses.bin"), floats("expected.bin"));
+    assert_eq!(
+        (poses.len(), expected.len()),
+        (2 * 3 * 4 * 12, 2 * 3 * 25 * 3)
+    );
+    let model = rrskin::Model::load(&model).expect("valid");
+    let bones: Vec<[f32; 12]> = poses[3 * 4 * 12..]
+        .chunks_exact(12)
+        .map(|t| t.try_into().expect("12 floats"))
+        .collect();
+    let (mut p, mut n) = (vec![[0.0; 3]; 3 * 25], vec![[0.0; 3]; 3 * 25]);
+    rrskin::cpu::CpuEvaluator::new(&model)
+        .evaluate(&bones, &mut p, &mut n)
+        .expect("CPU evaluator");
+    assert_eq!(p.as_flattened(), &expected[3 * 25 * 3..], "frame 1");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of ARCHITECTURE.md and the
 /// figures of METHOD.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good as the
 /// reference's best row, 35.1 / 49.3), with every choice made on the training poses; the

@@ -124,7 +124,7 @@ pub fn measure(
 
 /// The bone transforms of frame `frame`: the model's animation if it has one (as the crowd
 /// sample plays it), else random poses. Neither assumes parents come before children.
-fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::predict::Affine> {
+pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::predict::Affine> {
     match phased_poses(model, characters, frame) {
         none if none.is_empty() => random_poses(model, characters, frame as u64),
         animated => animated,
