@@ -439,10 +439,10 @@ fn a_trained_model_file_evaluates_as_trained() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `rrskin demo` (the README's main job) trains on the bundled example and writes the model
-/// and both images.
+/// `rrskin demo` (the README's main job) trains on the bundled example and writes the model,
+/// the images and the report page.
 #[test]
-fn the_demo_writes_the_model_and_both_images() {
+fn the_demo_writes_the_model_the_images_and_the_report() {
     let dir = temp_dir("demo");
     let out = rrskin(&["demo", "--out", dir.to_str().expect("utf-8")]);
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -461,13 +461,24 @@ fn the_demo_writes_the_model_and_both_images() {
         "{stdout}"
     );
     assert!(rrskin::Model::load(dir.join("model.rrs")).is_ok());
-    for (name, size) in [("comparison.png", (1200, 600)), ("crowd.png", (1280, 720))] {
+    for (name, size) in [
+        ("comparison.png", (1200, 600)),
+        ("closeup.png", (800, 400)),
+        ("crowd.png", (1280, 720)),
+    ] {
         let decoder = png::Decoder::new(std::io::BufReader::new(
             std::fs::File::open(dir.join(name)).expect(name),
         ));
         let info = decoder.read_info().expect("a PNG").info().clone();
         assert_eq!((info.width, info.height), size, "{name}");
     }
+    let report = std::fs::read_to_string(dir.join("report.html")).expect("report.html");
+    assert!(
+        ["comparison.png", "closeup.png", "crowd.png", "runtime model", "mesh units"]
+            .iter()
+            .all(|s| report.contains(s)),
+        "{report}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -5,8 +5,9 @@ use std::path::Path;
 
 /// Refuses a header whose shape cannot be the file's: dimensions that are not whole numbers, an
 /// element count past u64 (npyz's own product overflows on it), or more data than the file
-/// holds (which would otherwise be allocated before the read finds it missing). Headers too
-/// broken to find a shape in are left to npyz, which refuses them.
+/// holds (which would otherwise be allocated before the read finds it missing), or a header
+/// longer than the file. Headers too broken to find a shape in are left to npyz, which refuses
+/// them.
 pub fn check_shape(bytes: &[u8]) -> Result<(), String> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
         return Ok(());
@@ -19,8 +20,12 @@ pub fn check_shape(bytes: &[u8]) -> Result<(), String> {
         ),
         _ => return Ok(()),
     };
+    // npyz allocates the declared header length before reading it.
     let Some(header) = bytes.get(start..start.saturating_add(len)) else {
-        return Ok(());
+        return Err(format!(
+            "not a valid .npy file: its header declares {len} bytes, the file holds {}",
+            bytes.len() - start
+        ));
     };
     let header = String::from_utf8_lossy(header);
     let Some(tuple) = header

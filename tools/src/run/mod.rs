@@ -3,6 +3,8 @@
 
 pub mod capacity;
 pub mod demo;
+pub mod figure;
 pub mod image;
 pub mod profile;
 pub mod reference;
+pub mod report;
