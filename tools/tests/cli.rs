@@ -474,9 +474,15 @@ fn the_demo_writes_the_model_the_images_and_the_report() {
     }
     let report = std::fs::read_to_string(dir.join("report.html")).expect("report.html");
     assert!(
-        ["comparison.png", "closeup.png", "crowd.png", "runtime model", "mesh units"]
-            .iter()
-            .all(|s| report.contains(s)),
+        [
+            "comparison.png",
+            "closeup.png",
+            "crowd.png",
+            "runtime model",
+            "mesh units"
+        ]
+        .iter()
+        .all(|s| report.contains(s)),
         "{report}"
     );
     std::fs::remove_dir_all(&dir).ok();
