@@ -213,5 +213,20 @@ fn the_crowd_sample_presents_moving_characters_in_a_window_and_headless() {
         character_pixels(&rgb) > 200,
         "the headless image shows no characters"
     );
+
+    // Without a display the window mode fails with the reason and the way out, not winit's
+    // source location.
+    let out = Command::new(&sample)
+        .args([model, "--frames", "1"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("WAYLAND_SOCKET")
+        .output()
+        .expect("run the crowd sample");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.code() == Some(1) && stderr.contains("--headless") && !stderr.contains(".rs:"),
+        "{stderr}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -79,7 +79,7 @@ fn truncated_files_are_reported_as_truncated() {
         assert_eq!(
             problem(Model::from_bytes(&bytes[..cut])),
             ModelProblem::Truncated {
-                what: "the file".into(),
+                what: "the file (or its header's length field is corrupted)".into(),
                 expected: bytes.len() as u64,
                 actual: cut as u64
             }
@@ -91,6 +91,28 @@ fn truncated_files_are_reported_as_truncated() {
         problem(Model::from_bytes(&longer)),
         ModelProblem::TrailingBytes { .. }
     ));
+}
+
+/// A flipped byte in the header's length field is corruption, not a truncated file of absurd
+/// size (issue 13): said so, since the checksum holds for the real length.
+#[test]
+fn a_damaged_length_field_is_reported_as_corruption() {
+    let bytes = model(3, 4).to_bytes();
+    for (at, flip) in [(20, 0x01), (16, 0x40), (17, 0x80)] {
+        let mut bad = bytes.clone();
+        bad[at] ^= flip;
+        let text = problem(Model::from_bytes(&bad)).to_string();
+        assert!(
+            text.contains("length in the header") && text.contains("corrupted"),
+            "flip at {at}: {text}"
+        );
+    }
+    // Cut short, a file with a damaged length could be either: both are named.
+    let text = problem(Model::from_bytes(&bytes[..bytes.len() - 8])).to_string();
+    assert!(
+        text.contains("truncated") && text.contains("corrupted"),
+        "{text}"
+    );
 }
 
 #[test]

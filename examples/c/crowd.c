@@ -10,8 +10,15 @@
  *
  * POSES.bin: FRAMES x CHARACTERS x BONES x 12 floats (3x4 row-major bone transforms).
  * EXPECTED.bin: FRAMES x CHARACTERS x VERTICES x 3 floats (positions).
+ * `rrskin reference MODEL.rrs --frames 3 --characters 64 --out DIR` writes both (DIR/poses.bin,
+ * DIR/expected.bin) for any model, e.g. one of `rrskin synth`.
  *
- * Build: cc crowd.c -I include target/debug/librrskin.a -lvulkan -lpthread -ldl -lm
+ * Build and run, from the repository root after `cargo build --release`:
+ *   cc -std=c11 -o crowd examples/c/crowd.c -I include -L target/release -lrrskin -lvulkan -lm
+ *   LD_LIBRARY_PATH=target/release ./crowd MODEL.rrs DIR/poses.bin DIR/expected.bin 3 64
+ * or statically:
+ *   cc -std=c11 -o crowd examples/c/crowd.c -I include target/release/librrskin.a \
+ *      -lvulkan -lgcc_s -lutil -lrt -lpthread -lm -ldl
  */
 #include <math.h>
 #include <stdio.h>

@@ -22,7 +22,16 @@ const ANIMATION_FPS: f64 = 30.0;
 const TITLE_EVERY: Duration = Duration::from_millis(500);
 
 pub fn run(args: &Args, model: &Model) -> Result<(), Error> {
-    let event_loop = EventLoop::new()?;
+    let event_loop = EventLoop::new().map_err(|e| {
+        // winit prefixes its own source location ("os error at …/winit-…/mod.rs:765: "): keep
+        // the reason, and say what works without a display.
+        let text = e.to_string();
+        let reason = text
+            .rsplit_once(".rs:")
+            .and_then(|(_, rest)| rest.split_once(": "))
+            .map_or(text.as_str(), |(_, reason)| reason);
+        format!("cannot open a window: {reason}\n  without a display, render offscreen: --headless [--out crowd.png]")
+    })?;
     let display = event_loop.display_handle()?.as_raw();
     let instance_extensions = ash_window::enumerate_required_extensions(display)?
         .iter()

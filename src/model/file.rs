@@ -174,9 +174,18 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
     }
     let declared = le_u64(bytes, 16);
     if declared != bytes.len() as u64 {
+        // A cut (or extended) file and a damaged length field look alike; the checksum,
+        // recomputed with the real length, tells them apart when only the field is damaged.
+        if only_the_length_is_damaged(bytes) {
+            return Err(ModelProblem::Dimension {
+                what: "the file length in the header",
+                value: declared,
+                reason: "corrupted (the checksum holds for the file's real length)",
+            });
+        }
         if declared > bytes.len() as u64 {
             return Err(ModelProblem::Truncated {
-                what: "the file".into(),
+                what: "the file (or its header's length field is corrupted)".into(),
                 expected: declared,
                 actual: bytes.len() as u64,
             });
@@ -343,6 +352,17 @@ impl SectionTable {
         }
         Ok(&body[offset as usize..(offset + length) as usize])
     }
+}
+
+/// Whether the file checks out once its length field (bytes 16..24) says its real length.
+fn only_the_length_is_damaged(bytes: &[u8]) -> bool {
+    if bytes.len() < HEADER_BYTES + CHECKSUM_BYTES {
+        return false;
+    }
+    let mut fixed = bytes.to_vec();
+    fixed[16..24].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+    let body = fixed.len() - CHECKSUM_BYTES;
+    le_u32(&fixed, body) == crc32fast::hash(&fixed[..body])
 }
 
 fn need(len: usize, at: usize, count: usize, what: &str) -> Result<(), ModelProblem> {

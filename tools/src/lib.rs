@@ -5,6 +5,7 @@
 //! - [`train`]: the training pipeline of the paper, one module per stage, and [`train::run`];
 //! - [`eval`]: the enveloping error (§7.1), the baselines, the error budget, leave-one-out;
 //! - [`run`]: what runs a trained model on the Vulkan runtime: bench, profile, the demo;
+//! - [`output`]: outputs checked before long work, and paths shown as a user types them;
 //! - [`cylinder_chain`]: a synthetic example set of any size, for timing training.
 //!
 //! The `rrskin` binary is a thin CLI over these modules.
@@ -21,6 +22,7 @@ pub mod error;
 pub mod eval;
 pub mod import;
 pub mod linalg;
+pub mod output;
 pub mod progress;
 pub mod run;
 pub mod train;

@@ -7,8 +7,10 @@ use rrskin_render::synthetic::{random_model, renumber_bones, Spec};
 use rrskin_tools::eval::{Options, Report};
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
+use rrskin_tools::output::{check_writable, shown};
+use rrskin_tools::progress::note;
 use rrskin_tools::train::{Method, TrainOptions};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -91,6 +93,17 @@ enum Command {
     Bench(RunArgs),
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
     Profile(RunArgs),
+    /// Write a crowd's bone transforms and the CPU evaluator's positions for them
+    /// (DIR/poses.bin, DIR/expected.bin, little-endian f32): the inputs of examples/c/crowd.c.
+    Reference {
+        model: PathBuf,
+        #[arg(long, default_value_t = 3, value_parser = at_least_one)]
+        frames: usize,
+        #[arg(long, default_value_t = 64, value_parser = at_least_one)]
+        characters: usize,
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// Prints to stdout; a closed pipe (`rrskin eval … | head`) ends output quietly, not in a panic.
@@ -101,14 +114,40 @@ macro_rules! out {
     }};
 }
 
+/// Exit 1 on every failure, a bad flag (clap's usage errors) included; 0 for --help.
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return match e.use_stderr() {
+                true => ExitCode::FAILURE,
+                false => ExitCode::SUCCESS,
+            };
+        }
+    };
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("rrskin: {e}");
+            note(format_args!("rrskin: {e}"));
             ExitCode::FAILURE
         }
     }
+}
+
+/// A count that must be at least 1 (`--frames 0` would measure nothing).
+fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "expected a whole number of at least 1, got '{text}'"
+        )),
+    }
+}
+
+/// "1 character", "2 characters".
+fn count(n: usize, noun: &str) -> String {
+    format!("{n} {noun}{}", if n == 1 { "" } else { "s" })
 }
 
 /// What training is asked for (defaults: [`TrainOptions::default`]).
@@ -168,9 +207,10 @@ impl TrainArgs {
 #[derive(clap::Args)]
 struct RunArgs {
     model: PathBuf,
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, value_parser = at_least_one)]
     characters: usize,
-    #[arg(long, default_value_t = 20)]
+    /// Frames measured (after the warm-up).
+    #[arg(long, default_value_t = 20, value_parser = at_least_one)]
     frames: usize,
     /// Use the first Vulkan device whose name contains this text.
     #[arg(long)]
@@ -277,11 +317,28 @@ fn evaluate(
     diagnose: bool,
 ) -> Result<(Report, Option<Imported>), Box<dyn std::error::Error>> {
     let (examples, imported) = set.load()?;
+    let (poses, folds) = (examples.train().len(), train.options().folds);
+    if poses < MIN_TRAINING_POSES {
+        return Err(format!(
+            "{}: {} training pose: training needs at least {MIN_TRAINING_POSES} (and {folds} to choose its settings by {folds}-fold cross-validation)",
+            set.set.display(), poses
+        )
+        .into());
+    }
     let model = match model {
         Some(path) => {
             let m = Model::load(&path)?;
             let m = match &imported {
-                Some(imported) => imported.collapse(&m)?,
+                // Refused here, before training, with the file named.
+                Some(imported) => {
+                    imported
+                        .collapse(&m)
+                        .map_err(|_| rrskin_tools::Error::ModelMismatch {
+                            model: path.clone(),
+                            model_size: (m.vertex_count(), m.bone_count()),
+                            set_size: (imported.rest.len(), examples.bone_count()),
+                        })?
+                }
                 None => m,
             };
             Some((path, m))
@@ -292,12 +349,21 @@ fn evaluate(
         examples
             .warnings
             .iter()
-            .for_each(|w| eprintln!("warning: {w}"));
+            .for_each(|w| note(format_args!("warning: {w}")));
         if examples.test().is_empty() && !loocv {
-            eprintln!(
+            note(format_args!(
                 "warning: {}: no test poses, so no held-out error (--loocv reports leave-one-out over the training poses)",
                 set.set.display()
-            );
+            ));
+        }
+        if poses < folds {
+            note(format_args!(
+                "warning: {}: {poses} training poses, fewer than the {folds} the cross-validation needs (one per fold): F, the ridge and the blend are fixed, not chosen",
+                set.set.display()
+            ));
+        }
+        if let Some(w) = past_gain(train, &examples) {
+            note(format_args!("warning: {w}"));
         }
     }
     let options = Options {
@@ -307,6 +373,26 @@ fn evaluate(
         diagnose,
     };
     Ok((rrskin_tools::eval::run(&examples, &options)?, imported))
+}
+
+/// One pose has no variation to regress on.
+const MIN_TRAINING_POSES: usize = 2;
+
+/// Proxies per bone past which the paper's reduction gained nothing measurable (README,
+/// "Reduction trade-off": CesiumMan's test EE flat from P = 60, J = 19), while the model's size
+/// and the C1/C2 product grow as P².
+const PROXIES_PER_BONE_OF_GAIN: usize = 3;
+
+/// A warning when `--proxies` is past the point of no gain. Joint-blend proxies need none: they
+/// stop at three per moving joint whatever P asks.
+fn past_gain(train: &TrainArgs, set: &ExampleSet) -> Option<String> {
+    let gain = PROXIES_PER_BONE_OF_GAIN * set.bone_count();
+    (matches!(train.reduction, Reduction::Paper) && train.proxies > gain && train.proxies <= set.faces.len()).then(|| {
+        format!(
+            "--proxies {}: past {PROXIES_PER_BONE_OF_GAIN} per bone ({gain} here) the paper's reduction measurably gains nothing, while training time, model size and the per-frame C1/C2 product grow as P²",
+            train.proxies
+        )
+    })
 }
 
 fn print_report(report: &Report, set: &SetArgs, json: bool) {
@@ -334,6 +420,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             if train.proxies == 0 {
                 return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }
+            check_writable(output.parent().unwrap_or(Path::new("")))?;
             // The runtime model only: joint-blend proxies need no full model.
             let options = TrainOptions {
                 full_model: false,
@@ -349,11 +436,11 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             model.save(&output)?;
             print_report(&report, &set, train.json);
             if !train.json {
-                eprintln!(
+                note(format_args!(
                     "wrote {} ({} bytes)",
                     output.display(),
                     model.to_bytes().len()
-                );
+                ));
             }
         }
         Command::Bench(args) => {
@@ -364,8 +451,8 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 out!("{}", b.to_json());
             } else {
                 out!(
-                    "{}: {} characters x {} vertices, median of {} frames\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2}",
-                    b.rr.device, b.rr.characters, b.rr.vertices, b.rr.frames,
+                    "{}: {} x {} vertices, median of {}\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2}",
+                    b.rr.device, count(b.rr.characters, "character"), b.rr.vertices, count(b.rr.frames, "frame"),
                     b.rr.total_ms, b.rr.pipeline_mverts_per_s(), b.ssd.total_ms, b.ssd.pipeline_mverts_per_s(),
                     b.rr.total_ms / b.ssd.total_ms
                 );
@@ -373,11 +460,14 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         }
         Command::Demo { out, set } => {
             let set = set.unwrap_or_else(|| {
-                PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman"))
+                Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .parent()
+                    .unwrap_or(Path::new(".."))
+                    .join("data/cesiumman")
             });
             let start = std::time::Instant::now();
             let o = rrskin_tools::run::demo::run(&set, &out, false)?;
-            out!("{}", o.report.table(&set.display().to_string()));
+            out!("{}", o.report.table(&shown(&set)));
             out!(
                 "training (all methods, including the cross-validation): {:.1} s",
                 o.report.stages.iter().map(|s| s.1).sum::<f64>()
@@ -386,8 +476,29 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 "held-out pose {}: RMS vertex error SSD {:.4}, rotational regression {:.4} (mesh units)",
                 o.pose, o.rms.0, o.rms.1
             );
-            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  ({} characters on the runtime)", o.model.display(), o.comparison.display(), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, o.crowd.display(), rrskin_tools::run::demo::CROWD);
+            out!("rendered with the Vulkan runtime on {}", o.device);
+            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  (SSD | rotational regression where it gains most)\n  {}  ({} characters on the runtime)\n  {}  (the table and the images)", shown(&o.model), shown(&o.comparison), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, shown(&o.closeup), shown(&o.crowd), rrskin_tools::run::demo::CROWD, shown(&o.model.with_file_name("report.html")));
             out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
+        }
+        Command::Reference {
+            model,
+            frames,
+            characters,
+            out,
+        } => {
+            let m = Model::load(&model)?;
+            let (poses, expected) =
+                rrskin_tools::run::reference::write(&m, frames, characters, &out)?;
+            note(format_args!(
+                "wrote {} and {} ({} x {} of {}: J = {}, V = {})",
+                poses.display(),
+                expected.display(),
+                count(frames, "frame"),
+                count(characters, "character"),
+                model.display(),
+                m.bone_count(),
+                m.vertex_count()
+            ));
         }
         Command::Info { model, json } => {
             let m = Model::load(&model)?;
@@ -433,7 +544,11 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 m = renumber_bones(&m, &reversed)?;
             }
             m.save(&output)?;
-            eprintln!("wrote {} ({} vertices)", output.display(), m.vertex_count());
+            note(format_args!(
+                "wrote {} ({} vertices)",
+                output.display(),
+                m.vertex_count()
+            ));
         }
         Command::Profile(args) => {
             let (m, choice) = args.load()?;
@@ -444,14 +559,14 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             } else {
                 let t = &p.median;
                 out!(
-                    "{}: {} characters x {} vertices (J = {}, P = {}, K = {}), median of {} frames",
+                    "{}: {} x {} vertices (J = {}, P = {}, K = {}), median of {}",
                     p.device,
-                    p.characters,
+                    count(p.characters, "character"),
                     p.vertices,
                     p.bones,
                     p.proxies,
                     p.influences,
-                    p.frames
+                    count(p.frames, "frame")
                 );
                 for (name, ms) in [
                     ("predictors", t.predict_ms),

@@ -2,7 +2,13 @@
 //! log (CI, a pipe), nothing under `--json`.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
+
+/// A line on stderr. A closed pipe (`rrskin train … 2>&1 | head`) drops it instead of
+/// panicking as `eprintln!` does.
+pub fn note(line: impl std::fmt::Display) {
+    let _ = writeln!(std::io::stderr(), "{line}");
+}
 
 pub struct Progress {
     label: &'static str,
@@ -39,7 +45,7 @@ impl Progress {
     pub fn stage(&self, name: &str) {
         match &self.mode {
             Mode::Bar(bar) => bar.set_message(name.to_string()),
-            Mode::Log => eprintln!("{}: {name}", self.label),
+            Mode::Log => note(format_args!("{}: {name}", self.label)),
             Mode::Quiet => {}
         }
     }

@@ -114,6 +114,140 @@ fn bad_model_files_fail_with_the_file_and_the_problem() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A closed pipe on stdout and stderr (`rrskin … 2>&1 | head`) ends output quietly: the exit
+/// status is the command's, not a panic's 101.
+#[test]
+fn closed_pipes_end_output_quietly() {
+    let dir = temp_dir("pipe");
+    let model = dir.join("m.rrs");
+    let m = model.to_str().expect("utf-8 path");
+    let closed = |args: &[&str]| {
+        let (reader, writer) = std::io::pipe().expect("a pipe");
+        drop(reader);
+        Command::new(env!("CARGO_BIN_EXE_rrskin"))
+            .args(args)
+            .stdout(writer.try_clone().expect("dup"))
+            .stderr(writer)
+            .status()
+            .expect("the binary runs")
+            .code()
+    };
+    assert_eq!(closed(&["synth", "--grid", "5", "-o", m]), Some(0));
+    assert_eq!(closed(&["info", m]), Some(0));
+    assert_eq!(closed(&["info", "absent.rrs"]), Some(1));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Counts of zero, a crowd past the device's memory and unwritable outputs fail at once, exit 1,
+/// naming the flag or the path.
+#[test]
+fn bad_counts_and_outputs_fail_before_any_work() {
+    let dir = temp_dir("counts");
+    let model = dir.join("m.rrs");
+    let m = model.to_str().expect("utf-8 path");
+    assert!(rrskin(&["synth", "--grid", "5", "-o", m]).status.success());
+    let failed = |args: &[&str]| {
+        let out = rrskin(args);
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = failed(&["profile", m, "--frames", "0"]);
+    assert!(
+        err.contains("--frames") && err.contains("at least 1"),
+        "{err}"
+    );
+    let err = failed(&["profile", m, "--characters", "0"]);
+    assert!(err.contains("--characters"), "{err}");
+    // 2e9 characters of 5 bones: 480 GB of bone transforms alone.
+    let err = failed(&["profile", m, "--characters", "2000000000", "--frames", "1"]);
+    assert!(
+        err.contains("--characters 2000000000")
+            && err.contains("allocates at most")
+            && err.contains("lower --characters"),
+        "{err}"
+    );
+    // Outputs under a file: no folder can be made there.
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").expect("write");
+    let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
+    let set = set.to_str().expect("utf-8");
+    let under = file.join("out");
+    let under = under.to_str().expect("utf-8");
+    for args in [
+        vec!["demo", "--out", under],
+        vec!["train", set, "-o", &*format!("{under}/m.rrs")],
+    ] {
+        let started = std::time::Instant::now();
+        let err = failed(&args);
+        assert!(
+            err.contains("a-file") && !err.contains("training:"),
+            "{err}"
+        );
+        assert!(started.elapsed().as_secs() < 10, "{args:?} trained first");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `rrskin reference` writes the C example's inputs: the poses, and the CPU evaluator's positions
+/// for exactly those poses.
+#[test]
+fn reference_writes_the_c_examples_inputs() {
+    let dir = temp_dir("reference");
+    let model = dir.join("m.rrs");
+    let m = model.to_str().expect("utf-8 path");
+    assert!(rrskin(&[
+        "synth",
+        "--grid",
+        "5",
+        "--bones",
+        "4",
+        "--proxies",
+        "3",
+        "-o",
+        m
+    ])
+    .status
+    .success());
+    let out = rrskin(&[
+        "reference",
+        m,
+        "--frames",
+        "2",
+        "--characters",
+        "3",
+        "--out",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let floats = |name: &str| -> Vec<f32> {
+        std::fs::read(dir.join(name))
+            .expect(name)
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
+    };
+    let (poses, expected) = (floats("poses.bin"), floats("expected.bin"));
+    assert_eq!(
+        (poses.len(), expected.len()),
+        (2 * 3 * 4 * 12, 2 * 3 * 25 * 3)
+    );
+    let model = rrskin::Model::load(&model).expect("valid");
+    let bones: Vec<[f32; 12]> = poses[3 * 4 * 12..]
+        .chunks_exact(12)
+        .map(|t| t.try_into().expect("12 floats"))
+        .collect();
+    let (mut p, mut n) = (vec![[0.0; 3]; 3 * 25], vec![[0.0; 3]; 3 * 25]);
+    rrskin::cpu::CpuEvaluator::new(&model)
+        .evaluate(&bones, &mut p, &mut n)
+        .expect("CPU evaluator");
+    assert_eq!(p.as_flattened(), &expected[3 * 25 * 3..], "frame 1");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of ARCHITECTURE.md and the
 /// figures of METHOD.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good as the
 /// reference's best row, 35.1 / 49.3), with every choice made on the training poses; the
@@ -290,6 +424,12 @@ fn a_trained_model_file_evaluates_as_trained() {
         "{b}"
     );
     assert_eq!(b["vertices"], 2338);
+    let text = rrskin(&["bench", m, "--characters", "1", "--frames", "1"]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains(": 1 character x 2338 vertices, median of 1 frame\n"),
+        "{text}"
+    );
     // A model of another mesh is refused with both sizes named.
     let other = dir.join("other.rrs");
     let o = other.to_str().expect("utf-8");
@@ -303,10 +443,10 @@ fn a_trained_model_file_evaluates_as_trained() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `rrskin demo` (the README's main job) trains on the bundled example and writes the model
-/// and both images.
+/// `rrskin demo` (the README's main job) trains on the bundled example and writes the model,
+/// the images and the report page.
 #[test]
-fn the_demo_writes_the_model_and_both_images() {
+fn the_demo_writes_the_model_the_images_and_the_report() {
     let dir = temp_dir("demo");
     let out = rrskin(&["demo", "--out", dir.to_str().expect("utf-8")]);
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -320,14 +460,35 @@ fn the_demo_writes_the_model_and_both_images() {
         stdout.contains("rotational regression") && stdout.contains("comparison.png"),
         "{stdout}"
     );
+    assert!(
+        stdout.contains("rendered with the Vulkan runtime on ") && !stdout.contains("/../"),
+        "{stdout}"
+    );
     assert!(rrskin::Model::load(dir.join("model.rrs")).is_ok());
-    for (name, size) in [("comparison.png", (1200, 600)), ("crowd.png", (1280, 720))] {
+    for (name, size) in [
+        ("comparison.png", (1200, 600)),
+        ("closeup.png", (800, 400)),
+        ("crowd.png", (1280, 720)),
+    ] {
         let decoder = png::Decoder::new(std::io::BufReader::new(
             std::fs::File::open(dir.join(name)).expect(name),
         ));
         let info = decoder.read_info().expect("a PNG").info().clone();
         assert_eq!((info.width, info.height), size, "{name}");
     }
+    let report = std::fs::read_to_string(dir.join("report.html")).expect("report.html");
+    assert!(
+        [
+            "comparison.png",
+            "closeup.png",
+            "crowd.png",
+            "runtime model",
+            "mesh units"
+        ]
+        .iter()
+        .all(|s| report.contains(s)),
+        "{report}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -249,6 +249,85 @@ fn bad_clips_and_caches_are_refused_with_their_numbers() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Examples that are not the clip's keyframes (a wrong `--fps`), test frames outside the cache
+/// or between its samples, a single training pose, and a model of another mesh are refused
+/// before any training, with the file and the numbers named.
+#[test]
+fn frames_off_the_keys_or_the_cache_are_refused_before_training() {
+    let dir = temp_dir("gltf-frames");
+    let (rig, cache) = (rig(), cache());
+    let refused = |o: Options| match import(Path::new(&rig), &o) {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("expected an error"),
+    };
+    let o = options(Path::new(&cache));
+    let e = refused(Options {
+        fps: 30.0,
+        ..o.clone()
+    });
+    assert!(
+        e.contains("CesiumMan_examples.pc2")
+            && e.contains("sample 1 (frame 1")
+            && e.contains("--fps 30")
+            && e.contains("is it --fps 24?"),
+        "{e}"
+    );
+    let e = refused(Options {
+        test_frames: Some((100.0, 200.0)),
+        ..o.clone()
+    });
+    assert!(
+        e.contains("outside the cache") && e.contains("0..60"),
+        "{e}"
+    );
+    let e = refused(Options {
+        test_frames: Some((10.2, 10.5)),
+        ..o.clone()
+    });
+    assert!(e.contains("no test poses"), "{e}");
+
+    let good = PointCache::load(Path::new(&cache), 24.0).expect("cache");
+    let one = PointCache {
+        frames: good.frames[..1].to_vec(),
+        times: good.times[..1].to_vec(),
+        positions: good.positions[..1].to_vec(),
+    };
+    let one_path = dir.join("one.pc2");
+    std::fs::write(&one_path, one.to_pc2()).expect("write");
+    let run = rrskin(&[
+        "eval",
+        &rig,
+        "--clip",
+        "examples",
+        "--cache",
+        one_path.to_str().expect("utf-8"),
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.code() == Some(1)
+            && err.contains("1 training pose")
+            && err.contains("at least 2"),
+        "{err}"
+    );
+    let other = dir.join("other.rrs");
+    let o = other.to_str().expect("utf-8");
+    assert!(rrskin(&["synth", "--grid", "5", "-o", o]).status.success());
+    let started = std::time::Instant::now();
+    let run = rrskin(&[
+        "eval", &rig, "--clip", "examples", "--cache", &cache, "--model", o,
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.code() == Some(1) && err.contains("other.rrs") && err.contains("3273"),
+        "{err}"
+    );
+    assert!(
+        started.elapsed().as_secs() < 20 && !err.contains("training:"),
+        "refused only after training: {err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// A one-triangle rig with one joint, written as .gltf + .bin: `skin` says whether the mesh
 /// node has the skin, `joint_scale` is the joint's scale.
 fn tiny_rig(dir: &Path, skin: bool, joint_scale: f32) -> PathBuf {

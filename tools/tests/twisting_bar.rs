@@ -150,7 +150,10 @@ fn the_runtime_model_twists_where_skinning_collapses() {
     };
     let report = eval::run(&set, &options).expect("training");
     let ssd = report.ssd.test.expect("test poses");
-    let reduced = report.rr_reduced.and_then(|e| e.test).expect("a runtime model");
+    let reduced = report
+        .rr_reduced
+        .and_then(|e| e.test)
+        .expect("a runtime model");
     assert!(ssd > 10.0, "SSD should fail on the twist: test EE {ssd}");
     assert!(
         reduced < 0.25 * ssd,

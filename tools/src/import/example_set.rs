@@ -98,9 +98,10 @@ struct Array<T> {
     data: Vec<T>,
 }
 
-fn open(path: &Path) -> Result<npyz::NpyFile<std::io::BufReader<std::fs::File>>, InputError> {
-    let file = std::fs::File::open(path).map_err(|e| bad(path, format!("cannot open: {e}")))?;
-    let npy = npyz::NpyFile::new(std::io::BufReader::new(file))
+fn open(path: &Path) -> Result<npyz::NpyFile<std::io::Cursor<Vec<u8>>>, InputError> {
+    let bytes = std::fs::read(path).map_err(|e| bad(path, format!("cannot open: {e}")))?;
+    crate::import::npy::check_shape(&bytes).map_err(|m| bad(path, m))?;
+    let npy = npyz::NpyFile::new(std::io::Cursor::new(bytes))
         .map_err(|e| bad(path, format!("not a valid .npy file: {e}")))?;
     if npy.order() == npyz::Order::Fortran {
         return Err(bad(path, "Fortran-ordered array; save it in C order"));

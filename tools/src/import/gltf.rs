@@ -8,7 +8,7 @@
 use crate::import::example_set::{
     rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE,
 };
-use crate::import::gltf_rig::Rig;
+use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::PointCache;
 use glam::DVec3;
 use std::collections::HashMap;
@@ -58,6 +58,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
             rig.rest.len()
         )));
     }
+    check_frames(rig_path, options, &cache, &rig.key_times())?;
     let weld = weld(&rig.rest, &cache.positions);
     let welded = weld.iter().max().map_or(0, |m| m + 1);
     let mut representative = vec![usize::MAX; welded];
@@ -94,11 +95,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     let is_test: Vec<bool> = cache
         .frames
         .iter()
-        .map(|&f| {
-            options
-                .test_frames
-                .is_some_and(|(a, b)| f >= a - 1e-6 && f <= b + 1e-6)
-        })
+        .map(|&f| options.test_frames.is_some_and(|r| in_range(f, r)))
         .collect();
     if is_test.iter().all(|&t| t) {
         return Err(bad(
@@ -126,6 +123,82 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         rest: rig.rest,
         triangles: rig.triangles,
     })
+}
+
+/// Every cache sample must land on a key of the clip (else `--fps` or the cache's frame numbers
+/// are off, and the poses would not be the ones the cache baked), and `--test-frames` must
+/// select samples inside the cache.
+fn check_frames(
+    rig_path: &Path,
+    options: &Options,
+    cache: &PointCache,
+    keys: &[f64],
+) -> Result<(), InputError> {
+    let (clip, fps) = (&options.clip, options.fps);
+    let bad = |message: String| InputError {
+        file: options.cache.clone(),
+        message,
+    };
+    let (Some(&first), Some(&last)) = (keys.first(), keys.last()) else {
+        return Err(InputError {
+            file: rig_path.to_path_buf(),
+            message: format!("animation '{clip}' has no key times"),
+        });
+    };
+    let mut gaps: Vec<f64> = keys.windows(2).map(|w| w[1] - w[0]).collect();
+    gaps.sort_by(f64::total_cmp);
+    let spacing = gaps.get(gaps.len() / 2).copied();
+    for (s, (&time, &frame)) in cache.times.iter().zip(&cache.frames).enumerate() {
+        let k = keys.partition_point(|&t| t < time);
+        let on_key = [k.wrapping_sub(1), k]
+            .iter()
+            .filter_map(|&i| keys.get(i))
+            .any(|&t| (t - time).abs() <= TIME_SLACK);
+        if on_key {
+            continue;
+        }
+        let hint = match spacing.map(|d| 1.0 / d) {
+            Some(key_fps) if (key_fps - key_fps.round()).abs() < 1e-3 && key_fps.round() != fps => {
+                format!(
+                    "; the keys are 1/{} s apart: is it --fps {}?",
+                    key_fps.round(),
+                    key_fps.round()
+                )
+            }
+            _ => String::new(),
+        };
+        return Err(bad(format!(
+            "sample {s} (frame {frame}, t = {time:.4} s at --fps {fps}) lands on no key of animation '{clip}' in {} ({} keys, {first:.4}..{last:.4} s){hint}",
+            rig_path.display(),
+            keys.len()
+        )));
+    }
+    if let Some((a, b)) = options.test_frames {
+        let lo = cache.frames.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = cache
+            .frames
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        if a < lo - FRAME_SLACK || b > hi + FRAME_SLACK {
+            return Err(bad(format!(
+                "--test-frames {a}..{b} reaches outside the cache, whose frames are {lo}..{hi}"
+            )));
+        }
+        if !cache.frames.iter().any(|&f| in_range(f, (a, b))) {
+            return Err(bad(format!(
+                "--test-frames {a}..{b} holds none of the cache's frames: no test poses"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Frame numbers are compared with this slack (f32 start and rate in PC2 headers).
+const FRAME_SLACK: f64 = 1e-6;
+
+fn in_range(frame: f64, (a, b): (f64, f64)) -> bool {
+    frame >= a - FRAME_SLACK && frame <= b + FRAME_SLACK
 }
 
 impl Imported {

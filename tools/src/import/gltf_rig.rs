@@ -11,7 +11,7 @@ use std::path::Path;
 
 /// Key times are compared with this slack (seconds): STEP keys at i/24 s stored as f32 must
 /// be hit by frame times computed in f64.
-const TIME_SLACK: f64 = 1e-5;
+pub const TIME_SLACK: f64 = 1e-5;
 
 fn bad(file: &Path, message: impl Into<String>) -> InputError {
     InputError {
@@ -373,6 +373,14 @@ impl Rig {
             default_inverse,
             channels,
         })
+    }
+
+    /// The clip's key times (seconds) over all its channels, increasing, without repeats.
+    pub fn key_times(&self) -> Vec<f64> {
+        let mut times: Vec<f64> = self.channels.iter().flat_map(|c| c.times.clone()).collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup_by(|a, b| (*a - *b).abs() <= TIME_SLACK);
+        times
     }
 
     /// Every bone's transform at `time` (seconds) relative to the rest pose.

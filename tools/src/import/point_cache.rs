@@ -74,10 +74,11 @@ impl PointCache {
             return Err(format!("PC2 version {version} is not supported (1 is)"));
         }
         let (points, samples) = counts(points, samples)?;
+        // The data first: its length bounds what the header's counts may allocate.
+        let positions = read_points(&b[32..], points, samples, f32::from_le_bytes)?;
         let frames: Vec<f64> = (0..samples)
             .map(|s| start as f64 + s as f64 * rate as f64)
             .collect();
-        let positions = read_points(&b[32..], points, samples, f32::from_le_bytes)?;
         Ok(PointCache {
             times: frames.iter().map(|f| f / fps).collect(),
             frames,

@@ -1,11 +1,14 @@
 //! `rrskin demo`: the main job on the bundled example. Trains every method, prints the error
-//! table and the training time, writes the runtime model, and renders two images with the
-//! Vulkan runtime: the held-out pose where SSD errs most, as ground truth | SSD | rotational
-//! regression coloured by per-vertex error, and a crowd of 256 characters playing the model's
-//! animation.
+//! table and the training time, writes the runtime model, and renders with the Vulkan runtime:
+//! the held-out pose where SSD errs most, as ground truth | SSD | rotational regression
+//! coloured by per-vertex error (each panel from the same camera on the figure, labelled, with
+//! the colour scale), a close-up of SSD and the runtime model where the runtime model gains
+//! most, and a crowd of 256 characters playing the model's animation; and a report page
+//! (report.html) with the error table and the images.
 
 use crate::eval::{self, Report};
 use crate::import::example_set::ExampleSet;
+use crate::run::figure::Image;
 use crate::run::image::write_png;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
@@ -20,14 +23,23 @@ pub struct Outputs {
     pub report: Report,
     pub model: PathBuf,
     pub comparison: PathBuf,
+    /// SSD | the runtime model where the runtime model gains most on SSD.
+    pub closeup: PathBuf,
     pub crowd: PathBuf,
+    /// The Vulkan device that rendered the images.
+    pub device: String,
     /// The pose shown in the comparison and the RMS errors there (SSD, RR), in mesh units.
     pub pose: usize,
     pub rms: (f64, f64),
+    /// Error (mesh units) shown as full red.
+    pub scale: f32,
+    /// The example set, as shown to the user.
+    pub set: String,
 }
 
 pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn std::error::Error>> {
     let set = ExampleSet::load(set_dir)?;
+    crate::output::check_writable(out)?;
     let options = eval::Options {
         train: crate::train::TrainOptions {
             quiet,
@@ -39,7 +51,6 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
     };
     let report = eval::run(&set, &options)?;
     let model = report.model.clone().ok_or("training produced no model")?;
-    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let model_path = out.join("model.rrs");
     model.save(&model_path)?;
 
@@ -75,51 +86,123 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
     let gray = vec![[0.8f32, 0.8, 0.8]; truth.len()];
     let (c_ssd, c_rr) = (heat(&e_ssd, scale), heat(&e_rr, scale));
     let truth_normals = vertex_normals(&truth, &triangles);
-    let width = set.rest.iter().map(|p| p.x).fold(f64::MIN, f64::max)
-        - set.rest.iter().map(|p| p.x).fold(f64::MAX, f64::min);
-    let step = 1.15 * width as f32;
-    let meshes = [
-        HostMesh {
-            positions: &truth,
-            normals: &truth_normals,
-            colors: &gray,
-            triangles: &triangles,
-            offset: [-step, 0.0, 0.0],
-        },
-        HostMesh {
-            positions: &ssd.0,
-            normals: &ssd.1,
-            colors: &c_ssd,
-            triangles: &triangles,
-            offset: [0.0, 0.0, 0.0],
-        },
-        HostMesh {
-            positions: &rr.0,
-            normals: &rr.1,
-            colors: &c_rr,
-            triangles: &triangles,
-            offset: [step, 0.0, 0.0],
-        },
+    let proxies = model.proxy_count();
+    let panels = [
+        (&truth, &truth_normals, &gray, "GROUND TRUTH".to_string()),
+        (&ssd.0, &ssd.1, &c_ssd, "SSD (LBS)".to_string()),
+        (&rr.0, &rr.1, &c_rr, format!("RUNTIME MODEL, P = {proxies}")),
     ];
-    let (w, h) = (1200, 600);
-    let mut renderer = Renderer::new(&ctx, w, h)?;
-    let center = glam::Vec3::new(0.0, 0.5 * height as f32, 0.0);
-    let eye = center + glam::Vec3::new(0.0, 0.1 * height as f32, 2.2 * step);
-    let camera = Camera::looking_at(eye, center, 0.9, w as f32 / h as f32, 0.01, 100.0);
-    let image = renderer.render(&camera, &[], &meshes, [1.0, 1.0, 1.0])?;
+    let h = height as f32;
+
+    // One camera for every panel, on the pose's own centre: the three copies are seen alike.
+    let (lo, hi) = truth.iter().fold(
+        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+        |(lo, hi), p| (lo.min((*p).into()), hi.max((*p).into())),
+    );
+    let center = 0.5 * (lo + hi);
+    let (pw, ph) = (400, 600);
+    let eye = center + glam::Vec3::new(0.0, 0.1 * h, 1.35 * h);
+    let camera = Camera::looking_at(eye, center, 0.9, pw as f32 / ph as f32, 0.01, 100.0);
+    let mut renderer = Renderer::new(&ctx, pw, ph)?;
+    let mut images = Vec::new();
+    for (positions, normals, colors, label) in &panels {
+        let mut image = panel(
+            &mut renderer,
+            &camera,
+            positions,
+            normals,
+            colors,
+            &triangles,
+        )?;
+        tag(&mut image, label);
+        images.push(image);
+    }
+    let mut figure = Image::side_by_side(&images);
+    legend(&mut figure, pw as i64, scale);
     let comparison = out.join("comparison.png");
-    write_png(&comparison, w, h, &image)?;
+    write_png(&comparison, figure.width, figure.height, &figure.rgba)?;
+
+    // A close-up of SSD and the runtime model where the runtime model gains most on SSD, seen
+    // along the surface normal there.
+    let gain = (0..truth.len())
+        .max_by(|&a, &b| (e_ssd[a] - e_rr[a]).total_cmp(&(e_ssd[b] - e_rr[b])))
+        .unwrap_or(0);
+    let at = glam::Vec3::from(truth[gain]);
+    let normal = glam::Vec3::from(truth_normals[gain])
+        .try_normalize()
+        .unwrap_or(glam::Vec3::Z);
+    let near_eye = at + normal * 0.35 * h + glam::Vec3::Y * 0.05 * h;
+    let near = Camera::looking_at(near_eye, at, 0.9, 1.0, 0.001, 100.0);
+    let mut renderer = Renderer::new(&ctx, 400, 400)?;
+    let mut images = Vec::new();
+    for (positions, normals, colors, label) in &panels[1..] {
+        let mut image = panel(&mut renderer, &near, positions, normals, colors, &triangles)?;
+        tag(&mut image, &format!("{label}, CLOSE-UP"));
+        images.push(image);
+    }
+    let close = Image::side_by_side(&images);
+    let closeup = out.join("closeup.png");
+    write_png(&closeup, close.width, close.height, &close.rgba)?;
 
     let crowd_path = out.join("crowd.png");
     render_crowd(&ctx, &model, &crowd_path)?;
-    Ok(Outputs {
+    let outputs = Outputs {
         report,
         model: model_path,
         comparison,
+        closeup,
         crowd: crowd_path,
+        device: ctx.device_name().to_string(),
         pose,
         rms: (rms(&e_ssd), rms(&e_rr)),
+        scale,
+        set: crate::output::shown(set_dir),
+    };
+    crate::run::report::write(&out.join("report.html"), &outputs)?;
+    Ok(outputs)
+}
+
+/// Dark grey of the labels.
+const INK: [u8; 3] = [40, 40, 40];
+
+/// A panel's label, top left, on white (a close-up's mesh may fill the panel).
+fn tag(image: &mut Image, text: &str) {
+    image.bar(8, 8, Image::label_width(text, 2) + 8, 22, |_| [1.0; 3]);
+    image.label(12, 12, 2, text, INK);
+}
+
+/// One mesh rendered alone on white.
+fn panel(
+    renderer: &mut Renderer,
+    camera: &Camera,
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    colors: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+) -> rrskin::Result<Image> {
+    let mesh = HostMesh {
+        positions,
+        normals,
+        colors,
+        triangles,
+        offset: [0.0; 3],
+    };
+    let rgba = renderer.render(camera, &[], &[mesh], [1.0, 1.0, 1.0])?;
+    Ok(Image {
+        width: renderer.width(),
+        height: renderer.height(),
+        rgba,
     })
+}
+
+/// The colour scale under the two coloured panels, with its unit.
+fn legend(figure: &mut Image, panel_width: i64, scale: f32) {
+    let (x, w) = (panel_width + 40, 2 * panel_width - 80);
+    let y = figure.height as i64 - 44;
+    figure.bar(x, y, w, 12, |t| heat(&[t], 1.0)[0]);
+    figure.label(x, y + 18, 2, "0", INK);
+    let text = format!(">= {scale:.4} MESH UNITS (2% OF HEIGHT)");
+    figure.label(x + w - Image::label_width(&text, 2), y + 18, 2, &text, INK);
 }
 
 /// The held-out pose (or, without any, the training pose) where SSD's total error is largest.

@@ -1,5 +1,10 @@
-//! Running trained models on the Vulkan runtime: `rrskin bench`, `rrskin profile`, `rrskin demo`.
+//! Running trained models on the Vulkan runtime: `rrskin bench`, `rrskin profile`, `rrskin demo`;
+//! and the CPU reference frames of `rrskin reference`.
 
+pub mod capacity;
 pub mod demo;
+pub mod figure;
 pub mod image;
 pub mod profile;
+pub mod reference;
+pub mod report;

@@ -4,7 +4,7 @@
 //! command buffer, submits and waits.
 
 use crate::progress::Progress;
-use rrskin::vk::{Batch, Context, ContextDesc, Crowd, DeviceChoice, GpuModel, PassTimings};
+use rrskin::vk::{Batch, Context, ContextDesc, DeviceChoice, GpuModel, PassTimings};
 use rrskin::Model;
 use rrskin_render::phased_poses;
 use rrskin_render::synthetic::random_poses;
@@ -64,7 +64,7 @@ pub fn run(
     frames: usize,
     device: DeviceChoice,
     quiet: bool,
-) -> rrskin::Result<Profile> {
+) -> Result<Profile, Box<dyn std::error::Error>> {
     measure(
         &context(device)?,
         model,
@@ -91,10 +91,9 @@ pub fn measure(
     frames: usize,
     label: &'static str,
     quiet: bool,
-) -> rrskin::Result<Profile> {
-    let frames = frames.max(1);
+) -> Result<Profile, Box<dyn std::error::Error>> {
     let gpu_model = GpuModel::new(ctx, model)?;
-    let mut crowd = Crowd::new(&gpu_model, characters)?;
+    let mut crowd = crate::run::capacity::crowd(ctx, &gpu_model, model, characters)?;
     let mut batch = Batch::new(ctx)?;
     let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
@@ -125,7 +124,7 @@ pub fn measure(
 
 /// The bone transforms of frame `frame`: the model's animation if it has one (as the crowd
 /// sample plays it), else random poses. Neither assumes parents come before children.
-fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::predict::Affine> {
+pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::predict::Affine> {
     match phased_poses(model, characters, frame) {
         none if none.is_empty() => random_poses(model, characters, frame as u64),
         animated => animated,

@@ -1,0 +1,76 @@
+//! How many characters of a model a Vulkan device holds, for the error of a `--characters` too
+//! large: the runtime only says that an allocation failed.
+
+use rrskin::vk::ash::vk;
+use rrskin::vk::{Context, Crowd, GpuModel};
+use rrskin::Model;
+
+/// Bytes per character of the crowd's buffers (as `rrskin::vk::Crowd` sizes them): bones
+/// (3x4 f32), B = [d; q] and proxy transforms when P > 0, positions and normals.
+fn bytes_per_character(m: &Model) -> (u64, u64) {
+    let (v, j, p) = (
+        m.vertex_count() as u64,
+        m.bone_count() as u64,
+        m.proxy_count() as u64,
+    );
+    let rhs = if p > 0 { (3 * p + 4 * j) * 12 } else { 0 };
+    let buffers = [48 * j, rhs, 48 * p, 12 * v, 12 * v];
+    (
+        buffers.iter().sum(),
+        buffers.iter().copied().max().unwrap_or(1),
+    )
+}
+
+/// The bounds on a crowd of `m` on the device: characters whose largest buffer fits its largest
+/// single allocation, and characters whose buffers fit its largest device-local heap.
+fn limits(ctx: &Context, m: &Model) -> String {
+    let instance = ctx.instance();
+    // SAFETY: the physical device belongs to the context's live instance.
+    let memory = unsafe { instance.get_physical_device_memory_properties(ctx.physical_device()) };
+    let heap = memory.memory_heaps[..memory.memory_heap_count as usize]
+        .iter()
+        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+        .map(|h| h.size)
+        .max()
+        .unwrap_or(0);
+    let mut maintenance = vk::PhysicalDeviceMaintenance3Properties::default();
+    let mut properties = vk::PhysicalDeviceProperties2::default().push_next(&mut maintenance);
+    // SAFETY: as above; the chained struct lives across the call.
+    unsafe { instance.get_physical_device_properties2(ctx.physical_device(), &mut properties) };
+    let allocation = maintenance.max_memory_allocation_size;
+    let (total, largest) = bytes_per_character(m);
+    let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    format!(
+        "{} allocates at most {:.1} GiB at once ({} characters of this model's largest buffer) and has {:.1} GiB of device memory (about {} characters, {total} bytes each)",
+        ctx.device_name(),
+        gib(allocation),
+        allocation / largest.max(1),
+        gib(heap),
+        heap / total.max(1)
+    )
+}
+
+/// A crowd of `characters`; when the device cannot hold it, an error that names the flag and
+/// the device's bounds.
+pub fn crowd(
+    ctx: &Context,
+    gpu_model: &GpuModel,
+    m: &Model,
+    characters: usize,
+) -> Result<Crowd, Box<dyn std::error::Error>> {
+    use vk::Result as R;
+    match Crowd::new(gpu_model, characters) {
+        Err(
+            e @ (rrskin::Error::Allocation { .. }
+            | rrskin::Error::Vulkan {
+                result: R::ERROR_OUT_OF_DEVICE_MEMORY | R::ERROR_OUT_OF_HOST_MEMORY,
+                ..
+            }),
+        ) => Err(format!(
+            "--characters {characters}: {e}: {}; lower --characters",
+            limits(ctx, m)
+        )
+        .into()),
+        other => Ok(other?),
+    }
+}
