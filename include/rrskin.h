@@ -50,6 +50,10 @@ enum rrskin_status
   RRSKIN_STATUS_ERROR_MISMATCH = 15,
   RRSKIN_STATUS_ERROR_INVALID_ARGUMENT = 16,
   RRSKIN_STATUS_ERROR_PANIC = 17,
+  // An optional output asked for from a crowd created without it.
+  RRSKIN_STATUS_ERROR_NOT_ENABLED = 18,
+  // A Vulkan function the runtime calls is NULL from the engine's `vkGetInstanceProcAddr`.
+  RRSKIN_STATUS_ERROR_MISSING_FUNCTION = 19,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -100,16 +104,37 @@ typedef struct rrskin_crowd {
   uint64_t id;
 } rrskin_crowd;
 
-// Where the engine finds a crowd's outputs: character c, vertex a is at
-// `offset + c * character_stride + a * vertex_stride` bytes in each buffer, as 3 floats.
+// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
+// 2 frames in flight and no optional output.
+typedef struct rrskin_crowd_options {
+  // F, 1 to 4: the crowd keeps F slots of its bone transforms and bounds, so that frame slot
+  // f is set and recorded while the other F - 1 frames still execute.
+  uint32_t frames_in_flight;
+  // Nonzero: keep last frame's positions in a second buffer (the two alternate, no copy).
+  uint32_t previous_positions;
+  // Nonzero: write each character's axis-aligned box every frame.
+  uint32_t bounds;
+} rrskin_crowd_options;
+
+// Where the engine finds one frame slot's outputs: character c, vertex a is at
+// `offset + c * character_stride + a * vertex_stride` bytes in each vertex buffer, as
+// 3 floats; character c's box at `c * bounds_stride` in `bounds`.
 typedef struct rrskin_crowd_output {
-  // VkBuffer of positions (usage: vertex buffer, storage, transfer source).
+  // VkBuffer of positions written by the frame (usage: vertex buffer, storage, transfer
+  // source).
   uint64_t positions;
+  // VkBuffer of the positions of the frame recorded before it (same layout and usage), or 0
+  // without previous positions. Undefined until two frames were recorded.
+  uint64_t previous_positions;
   // VkBuffer of normals.
   uint64_t normals;
+  // VkBuffer of the frame slot's boxes (storage, host-visible): per character 8 floats, min
+  // x, y, z, pad, max x, y, z, pad; 0 without bounds.
+  uint64_t bounds;
   uint64_t offset;
   uint64_t vertex_stride;
   uint64_t character_stride;
+  uint64_t bounds_stride;
 } rrskin_crowd_output;
 
 // GPU time per pass of the last recorded frame, in milliseconds.
@@ -190,7 +215,8 @@ rrskin_status rrskin_model_get_info(struct rrskin_model model, struct rrskin_mod
 // Destroys a model handle; crowds made from it keep working until destroyed themselves.
 rrskin_status rrskin_model_destroy(struct rrskin_model model);
 
-// Creates a crowd of `characters` characters of `model`, all in the rest pose.
+// Creates a crowd of `characters` characters of `model` for 2 frames in flight, all in the
+// rest pose.
 //
 // # Safety
 // `out` is NULL or points to writable memory for one `rrskin_crowd`.
@@ -198,31 +224,48 @@ rrskin_status rrskin_crowd_create(struct rrskin_model model,
                                   uint32_t characters,
                                   struct rrskin_crowd *out);
 
-// Sets every character's bone transforms: `float_count` = characters x bones x 12 floats, each
-// transform 3x4 row-major, world space, relative to the rest pose.
+// Creates a crowd as `rrskin_crowd_create` does, with `options` (frames in flight out of 1..4:
+// RRSKIN_STATUS_ERROR_OUT_OF_RANGE).
+//
+// # Safety
+// `options` is NULL or points to a readable `rrskin_crowd_options`; `out` is NULL or points to
+// writable memory for one `rrskin_crowd`.
+rrskin_status rrskin_crowd_create_with_options(struct rrskin_model model,
+                                               uint32_t characters,
+                                               const struct rrskin_crowd_options *options,
+                                               struct rrskin_crowd *out);
+
+// Sets every character's bone transforms of frame slot `frame` (0 to F - 1): `float_count` =
+// characters x bones x 12 floats, each transform 3x4 row-major, world space, relative to the
+// rest pose. The frame slot must not be executing; the other F - 1 may be.
 //
 // # Safety
 // `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
 // other thread writes during the call.
 rrskin_status rrskin_crowd_set_bones(struct rrskin_crowd crowd,
+                                     uint32_t frame,
                                      const float *transforms,
                                      size_t float_count);
 
-// Sets one character's bone transforms: `float_count` = bones x 12.
+// Sets one character's bone transforms of frame slot `frame`: `float_count` = bones x 12.
 //
 // # Safety
 // `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
 // other thread writes during the call.
 rrskin_status rrskin_crowd_set_character_bones(struct rrskin_crowd crowd,
+                                               uint32_t frame,
                                                uint32_t character,
                                                const float *transforms,
                                                size_t float_count);
 
-// The crowd's output buffers, to draw from.
+// The output buffers of frame slot `frame` as last recorded (which positions buffer it
+// writes alternates with previous positions: ask after recording the frame), to draw from.
 //
 // # Safety
 // `out` is NULL or points to writable memory for one `rrskin_crowd_output`.
-rrskin_status rrskin_crowd_get_output(struct rrskin_crowd crowd, struct rrskin_crowd_output *out);
+rrskin_status rrskin_crowd_get_output(struct rrskin_crowd crowd,
+                                      uint32_t frame,
+                                      struct rrskin_crowd_output *out);
 
 // Copies the outputs to host memory: `float_count` = characters x vertices x 3 for each of
 // `positions` and `normals` (either may be NULL to skip it). Submits and waits: for tools and
@@ -236,36 +279,53 @@ rrskin_status rrskin_crowd_read_back(struct rrskin_crowd crowd,
                                      float *normals,
                                      size_t float_count);
 
+// Reads frame slot `frame`'s boxes from host-visible memory, once the frame's submission
+// completed: `float_count` = characters x 6 floats (min x, y, z, max x, y, z per character).
+// RRSKIN_STATUS_ERROR_NOT_ENABLED for a crowd created without bounds.
+//
+// # Safety
+// `boxes` is NULL or points to `float_count` writable floats (4-byte aligned).
+rrskin_status rrskin_crowd_read_bounds(struct rrskin_crowd crowd,
+                                       uint32_t frame,
+                                       float *boxes,
+                                       size_t float_count);
+
 rrskin_status rrskin_crowd_destroy(struct rrskin_crowd crowd);
 
-// Records all passes of `count` crowds into the engine's command buffer (VkCommandBuffer,
-// recording, outside a render pass, on the context's queue family). The recorded commands end
-// with a barrier making the outputs visible to vertex input, transfer and compute.
+// Records frame slot `frame` (0 to F - 1 of every crowd) of all passes of `count` crowds into
+// the engine's command buffer (VkCommandBuffer, recording, outside a render pass, on the
+// context's queue family). The recorded commands end with a barrier making the outputs visible
+// to vertex input, transfer, compute and host reads.
 //
 // # Safety
 // `crowds` is NULL or points to `count` readable `rrskin_crowd` handles. `command_buffer` is
 // NULL or a VkCommandBuffer of the context's device, in the recording state, that no other
 // thread records into during the call; the engine submits it, and keeps the crowds alive and
-// their bones unchanged until it completed.
+// the frame slot's bones unchanged until it completed.
 rrskin_status rrskin_crowds_record(struct rrskin_context context,
                                    void *command_buffer,
+                                   uint32_t frame,
                                    const struct rrskin_crowd *crowds,
                                    uint32_t count);
 
-// Records all passes of `count` crowds, submits them and waits (headless path).
+// Records frame slot `frame` of all passes of `count` crowds, submits them and waits
+// (headless path).
 //
 // # Safety
 // `crowds` is NULL or points to `count` readable `rrskin_crowd` handles.
 rrskin_status rrskin_crowds_run(struct rrskin_context context,
+                                uint32_t frame,
                                 const struct rrskin_crowd *crowds,
                                 uint32_t count);
 
-// GPU time per pass of the context's last recorded frame (after `rrskin_crowds_record`, only
-// once the command buffer completed; RRSKIN_ERROR_NOT_READY otherwise).
+// GPU time per pass of the context's frame slot `frame` as last recorded (after
+// `rrskin_crowds_record`, only once the command buffer completed; RRSKIN_ERROR_NOT_READY
+// otherwise).
 //
 // # Safety
 // `out` is NULL or points to writable memory for one `rrskin_pass_timings`.
 rrskin_status rrskin_context_get_timings(struct rrskin_context context,
+                                         uint32_t frame,
                                          struct rrskin_pass_timings *out);
 
 #ifdef __cplusplus

@@ -176,10 +176,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     // SAFETY: valid pointers and lengths.
     unsafe {
         assert_eq!(
-            rrskin_crowd_set_bones(crowd, floats.as_ptr(), floats.len()),
+            rrskin_crowd_set_bones(crowd, 0, floats.as_ptr(), floats.len()),
             ok
         );
-        assert_eq!(rrskin_crowds_run(ctx, &crowd, 1), ok);
+        assert_eq!(rrskin_crowds_run(ctx, 0, &crowd, 1), ok);
     }
     let mut positions = vec![0.0f32; characters as usize * v * 3];
     // SAFETY: room for the floats; normals skipped.
@@ -201,7 +201,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     }
     let mut timings = RrskinPassTimings::default();
     // SAFETY: `out` points to a live value.
-    assert_eq!(unsafe { rrskin_context_get_timings(ctx, &mut timings) }, ok);
+    assert_eq!(
+        unsafe { rrskin_context_get_timings(ctx, 0, &mut timings) },
+        ok
+    );
     assert!(timings.skin_ms > 0.0);
     // A read-back buffer of the wrong size is refused, and the message says why.
     // SAFETY: the length is checked before anything is written.

@@ -171,10 +171,10 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
                 .expect("fence");
             for frame in 0..3u64 {
                 let poses = random_poses(&model, characters, frame);
-                crowd.set_bones(&poses).expect("bones");
+                crowd.set_bones(0, &poses).expect("bones");
                 d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
                     .expect("begin");
-                batch.record(cmd, &[&crowd]).expect("record");
+                batch.record(cmd, 0, &[&crowd]).expect("record");
                 d.end_command_buffer(cmd).expect("end");
                 let cmds = [cmd];
                 d.queue_submit(
@@ -198,9 +198,9 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
                     normals: gn,
                 } = crowd.read_back().expect("read back");
                 compare(&model, (&p, &n), (&gp, &gn));
-                assert!(batch.timings().expect("timings").total_ms() > 0.0);
+                assert!(batch.timings(0).expect("timings").total_ms() > 0.0);
             }
-            let out = crowd.output();
+            let out = crowd.output(0).expect("frame 0");
             assert_eq!(
                 (out.vertex_stride, out.character_stride),
                 (12, 12 * model.vertex_count() as u64)

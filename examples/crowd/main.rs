@@ -161,12 +161,12 @@ impl Show {
     pub fn pose(&mut self, frame: usize) -> rrskin::Result<()> {
         let m = &mut self.methods[self.current];
         m.crowd
-            .set_bones(&phased_poses(&m.model, self.characters, frame))
+            .set_bones(0, &phased_poses(&m.model, self.characters, frame))
     }
 
     /// After the frame that ran the shown crowd has completed: keep its pass timings.
     pub fn sample(&mut self) -> rrskin::Result<PassTimings> {
-        let t = self.batch.timings()?;
+        let t = self.batch.timings(0)?;
         self.methods[self.current].samples.push(t);
         Ok(t)
     }
@@ -219,7 +219,7 @@ fn headless(args: &Args, model: &Model) -> Result<(), Error> {
     let mut image = Vec::new();
     for frame in 0..frames {
         show.pose(frame)?;
-        show.batch.run(&[&show.methods[show.current].crowd])?;
+        show.batch.run(0, &[&show.methods[show.current].crowd])?;
         show.sample()?;
         if frame + 1 == frames {
             let draws = scene.draws(&show.shown().crowd);

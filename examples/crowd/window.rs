@@ -174,7 +174,7 @@ impl App {
                 height: renderer.height(),
             },
             |cmd| {
-                batch.record(cmd, &[crowd])?;
+                batch.record(cmd, 0, &[crowd])?;
                 renderer.record(cmd, camera, &draws, CROWD_BACKGROUND)?;
                 Ok(())
             },

@@ -77,6 +77,7 @@ impl GpuModel {
             proxies: model.proxy_count() as u32,
             bones: model.bone_count() as u32,
             influences: model.influences(),
+            bounds: false,
         };
         // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
         for pass in Pass::of_model(&dims) {

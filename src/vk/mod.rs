@@ -26,5 +26,7 @@ mod pipelines;
 pub use ash;
 pub use batch::{Batch, PassTimings};
 pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits};
-pub use crowd::{Crowd, CrowdOptions, CrowdOutput, HostOutput};
+pub use crowd::{
+    Aabb, Crowd, CrowdOptions, CrowdOutput, HostOutput, BOUNDS_STRIDE, MAX_FRAMES_IN_FLIGHT,
+};
 pub use gpu_model::GpuModel;

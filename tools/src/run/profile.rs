@@ -99,10 +99,10 @@ pub fn measure(
     let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
     for frame in 0..WARM_UP_FRAMES + frames {
-        crowd.set_bones(&poses(model, characters, frame))?;
-        batch.run(&[&crowd])?;
+        crowd.set_bones(0, &poses(model, characters, frame))?;
+        batch.run(0, &[&crowd])?;
         if frame >= WARM_UP_FRAMES {
-            samples.push(batch.timings()?);
+            samples.push(batch.timings(0)?);
         }
         progress.step();
     }
