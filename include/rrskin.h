@@ -13,9 +13,20 @@
  * command buffers) stay the engine's. Pointers passed in are only read during the call.
  *
  * Threads: every function may be called from any thread; the library serialises its calls. The
- * Vulkan rules are the engine's: a crowd's bones may only be set, and a crowd destroyed, when no
- * submitted command buffer that reads it is still executing; the library submits to the queue
- * only inside rrskin_model_load_*, rrskin_crowds_run and rrskin_crowd_read_back.
+ * Vulkan rules are the engine's: a crowd made for F frames in flight (1 to 4, default 2) keeps F
+ * slots of its bones and bounds; set slot f's bones and record slot f only once the last
+ * submission that recorded slot f completed (the other F - 1 may be executing). Destroy a crowd
+ * only when nothing that reads it is executing. The library submits to the queue only inside
+ * rrskin_model_load_*, rrskin_crowds_run and rrskin_crowd_read_back.
+ *
+ * Recording (rrskin_crowds_record) needs no prior buffer state: it starts with a global barrier
+ * from earlier compute writes/reads, transfer reads and vertex-attribute reads to its compute
+ * work, and ends with one from its compute writes to compute, transfer, host and vertex-attribute
+ * reads. It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at the
+ * compute bind point only. Buffers are VK_SHARING_MODE_EXCLUSIVE on the context's queue family;
+ * reading outputs on another family takes the engine's release/acquire, and nothing needs to
+ * come back (rrskin never reads an output an earlier recording wrote). Queries before any
+ * device: rrskin_get_requirements (Vulkan 1.1, no extensions or features), rrskin_query_memory.
  *
  * Bone transforms: 3x4 row-major floats per bone, world space, relative to the rest pose.
  */
@@ -63,6 +74,46 @@ typedef int32_t rrskin_status;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// What the runtime needs of a Vulkan implementation (`rrskin_get_requirements`): no device
+// feature beyond core Vulkan 1.1 is enabled or used.
+typedef struct rrskin_requirements {
+  // The lowest VkPhysicalDeviceProperties::apiVersion (VK_MAKE_API_VERSION) it runs on.
+  uint32_t api_version;
+  // VkQueueFlags the context's queue family must have.
+  uint32_t queue_flags;
+  // The maxPerStageDescriptorStorageBuffers it needs (Vulkan guarantees only 4).
+  uint32_t storage_buffers_per_stage;
+  uint32_t instance_extension_count;
+  // `instance_extension_count` extension names to enable on the instance (NULL when 0);
+  // static strings.
+  const char *const *instance_extensions;
+  uint32_t device_extension_count;
+  // `device_extension_count` extension names to enable on the device (NULL when 0).
+  const char *const *device_extensions;
+} rrskin_requirements;
+
+typedef struct rrskin_model_info {
+  uint32_t vertices;
+  uint32_t triangles;
+  uint32_t bones;
+  // P; 0 for a plain linear-blend-skinning model.
+  uint32_t proxies;
+  // K: 4 or 8.
+  uint32_t influences;
+} rrskin_model_info;
+
+// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
+// 2 frames in flight and no optional output.
+typedef struct rrskin_crowd_options {
+  // F, 1 to 4: the crowd keeps F slots of its bone transforms and bounds, so that frame slot
+  // f is set and recorded while the other F - 1 frames still execute.
+  uint32_t frames_in_flight;
+  // Nonzero: keep last frame's positions in a second buffer (the two alternate, no copy).
+  uint32_t previous_positions;
+  // Nonzero: write each character's axis-aligned box every frame.
+  uint32_t bounds;
+} rrskin_crowd_options;
+
 // A Vulkan context (headless, or wrapping an engine's device).
 typedef struct rrskin_context {
   uint64_t id;
@@ -89,32 +140,10 @@ typedef struct rrskin_model {
   uint64_t id;
 } rrskin_model;
 
-typedef struct rrskin_model_info {
-  uint32_t vertices;
-  uint32_t triangles;
-  uint32_t bones;
-  // P; 0 for a plain linear-blend-skinning model.
-  uint32_t proxies;
-  // K: 4 or 8.
-  uint32_t influences;
-} rrskin_model_info;
-
 // C characters of one model.
 typedef struct rrskin_crowd {
   uint64_t id;
 } rrskin_crowd;
-
-// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
-// 2 frames in flight and no optional output.
-typedef struct rrskin_crowd_options {
-  // F, 1 to 4: the crowd keeps F slots of its bone transforms and bounds, so that frame slot
-  // f is set and recorded while the other F - 1 frames still execute.
-  uint32_t frames_in_flight;
-  // Nonzero: keep last frame's positions in a second buffer (the two alternate, no copy).
-  uint32_t previous_positions;
-  // Nonzero: write each character's axis-aligned box every frame.
-  uint32_t bounds;
-} rrskin_crowd_options;
 
 // Where the engine finds one frame slot's outputs: character c, vertex a is at
 // `offset + c * character_stride + a * vertex_stride` bytes in each vertex buffer, as
@@ -148,6 +177,30 @@ typedef struct rrskin_pass_timings {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+// What the runtime needs of the engine's instance, device and queue, before any exists: fill
+// `VkInstanceCreateInfo` / `VkDeviceCreateInfo` from it. `rrskin_context_create_from_engine`
+// checks the same (RRSKIN_STATUS_ERROR_NO_DEVICE, _DEVICE_LIMIT or _MISSING_FUNCTION).
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_requirements`.
+rrskin_status rrskin_get_requirements(struct rrskin_requirements *out);
+
+// The bytes of GPU memory a model of `sizes` and a crowd of `characters` of it made with
+// `options` (NULL: those of `rrskin_crowd_create`) will take, before either is created (no
+// context needed): the sizes of the buffers they create. Either out pointer may be NULL.
+// A crowd beyond the largest device-local heap is refused at creation
+// (RRSKIN_STATUS_ERROR_DEVICE_LIMIT).
+//
+// # Safety
+// `sizes` is NULL or points to a readable `rrskin_model_info`; `options` is NULL or points to
+// a readable `rrskin_crowd_options`; `model_bytes` and `crowd_bytes` are each NULL or point to
+// writable memory for one `uint64_t`.
+rrskin_status rrskin_query_memory(const struct rrskin_model_info *sizes,
+                                  uint32_t characters,
+                                  const struct rrskin_crowd_options *options,
+                                  uint64_t *model_bytes,
+                                  uint64_t *crowd_bytes);
 
 // The calling thread's message for the last failed call ("" after a success). Valid until the
 // next rrskin call on this thread; never NULL.

@@ -622,3 +622,158 @@ fn frame_slots_out_of_range_are_errors() {
     assert!(batch.timings(1).is_ok());
     assert_no_validation_messages(&ctx);
 }
+
+#[test]
+fn previous_positions_and_bounds_of_three_frames_in_flight_match_cpu() {
+    let options = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(RR, 34), 6, options);
+}
+
+/// Bounds and previous positions of a crowd split into chunks (descriptor ranges at chunk
+/// offsets of every per-frame buffer).
+#[test]
+fn previous_positions_and_bounds_across_chunks_match_cpu() {
+    let options = CrowdOptions {
+        previous_positions: true,
+        bounds: true,
+        max_binding_bytes: Some(64 * 1024),
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(LBS, 35), 300, options);
+}
+
+#[test]
+fn optional_outputs_are_absent_unless_asked_for() {
+    let ctx = validated_context();
+    let model = random_model(LBS, 36);
+    let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    let mut crowd = Crowd::new(&gpu, 2).expect("crowd");
+    let out = crowd.output(0).expect("frame 0");
+    assert!(out.previous_positions.is_none() && out.bounds.is_none());
+    let mut boxes = [Aabb::default(); 2];
+    assert!(matches!(
+        crowd.read_bounds(0, &mut boxes),
+        Err(Error::NotEnabled { .. })
+    ));
+    assert!(matches!(
+        crowd.read_bounds(0, &mut boxes[..1]),
+        Err(Error::WrongLength { .. })
+    ));
+    // With previous positions, frames write the two buffers in turn, whatever their slot.
+    let options = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        ..CrowdOptions::default()
+    };
+    let crowd = Crowd::with_options(&gpu, 2, options).expect("crowd");
+    let mut batch = Batch::new(&ctx).expect("batch");
+    let mut written = Vec::new();
+    for frame in [0, 1, 2, 0] {
+        batch.run(frame, &[&crowd]).expect("run");
+        let out = crowd.output(frame).expect("output");
+        assert_eq!(out.positions, crowd.latest_output().positions);
+        if let Some(&last) = written.last() {
+            assert_eq!(out.previous_positions, Some(last));
+            assert_ne!(out.positions, last);
+        }
+        written.push(out.positions);
+    }
+    assert_no_validation_messages(&ctx);
+}
+
+/// The memory queries, made from sizes before anything exists, are the bytes of the buffers
+/// then created.
+#[test]
+fn memory_queries_are_the_bytes_created() {
+    use rrskin::vk::{crowd_bytes, model_bytes, ModelSizes};
+    let ctx = validated_context();
+    let with_everything = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        ..CrowdOptions::default()
+    };
+    for (spec, seed) in [(LBS, 41), (RR, 42)] {
+        let model = random_model(spec, seed);
+        let sizes = ModelSizes::of(&model);
+        let gpu = GpuModel::new(&ctx, &model).expect("upload");
+        assert_eq!(model_bytes(&sizes), gpu.memory_bytes(), "{spec:?}");
+        for options in [CrowdOptions::default(), with_everything] {
+            let expected = crowd_bytes(&sizes, 9, &options).expect("query");
+            let crowd = Crowd::with_options(&gpu, 9, options).expect("crowd");
+            assert_eq!(expected, crowd.memory_bytes(), "{spec:?} {options:?}");
+        }
+    }
+    // Every option costs what it says: F bone slots, a second positions buffer, F bounds slots.
+    let model = random_model(RR, 43);
+    let sizes = ModelSizes::of(&model);
+    let bytes = |o: CrowdOptions| crowd_bytes(&sizes, 10, &o).expect("query");
+    let plain = CrowdOptions {
+        frames_in_flight: 1,
+        ..CrowdOptions::default()
+    };
+    let (j, v) = (model.bone_count() as u64, model.vertex_count() as u64);
+    let previous = CrowdOptions {
+        previous_positions: true,
+        ..plain
+    };
+    assert_eq!(bytes(previous) - bytes(plain), 10 * v * 12);
+    let two = CrowdOptions {
+        frames_in_flight: 2,
+        ..plain
+    };
+    assert_eq!(bytes(two) - bytes(plain), 10 * j * 48);
+    let bounded = CrowdOptions {
+        bounds: true,
+        ..two
+    };
+    assert_eq!(bytes(bounded) - bytes(two), 2 * 10 * 32);
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn a_crowd_beyond_the_device_heap_is_refused_before_allocating() {
+    let ctx = validated_context();
+    let model = random_model(LBS, 44);
+    let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    let bytes = |c: usize| {
+        rrskin::vk::crowd_bytes(
+            &rrskin::vk::ModelSizes::of(&model),
+            c,
+            &CrowdOptions::default(),
+        )
+        .expect("query")
+    };
+    // Per character (the fixed minimum sizes of unused buffers aside).
+    let per_character = bytes(2) - bytes(1);
+    let characters = (ctx.limits().device_local_bytes / per_character + 1) as usize;
+    let made = Crowd::new(&gpu, characters).map(|_| ());
+    assert!(
+        matches!(&made, Err(Error::DeviceLimit { what, .. }) if what.contains("device-local heap")),
+        "{made:?}"
+    );
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn requirements_are_known_before_any_device_and_met_here() {
+    let r = rrskin::vk::requirements();
+    assert_eq!(r.api_version, vk::API_VERSION_1_1);
+    assert!(r.instance_extensions.is_empty() && r.device_extensions.is_empty());
+    assert_eq!(r.queue_flags, vk::QueueFlags::COMPUTE);
+    // The skinning pass binds 6 storage buffers, beyond Vulkan's guaranteed 4.
+    assert_eq!(r.storage_buffers_per_stage, 6);
+    let ctx = validated_context();
+    // SAFETY: the context's live instance and physical device.
+    let props = unsafe {
+        ctx.instance()
+            .get_physical_device_properties(ctx.physical_device())
+    };
+    assert!(props.api_version >= r.api_version);
+    assert!(props.limits.max_per_stage_descriptor_storage_buffers >= r.storage_buffers_per_stage);
+}

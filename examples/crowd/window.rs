@@ -1,7 +1,8 @@
 //! The window mode: a winit window (X11 or Wayland) presenting with the runtime's own device.
 //! Each frame is one command buffer: the crowd's four compute passes (`Batch::record`), the
 //! draw straight from the crowd's output buffers (`Renderer::record`), and a blit to the
-//! swapchain image (`swapchain.rs`). The animation plays at 30 frames per second of wall time.
+//! swapchain image (`swapchain.rs`), with two frames in flight (the crowd's frame slots). The
+//! animation plays at 30 frames per second of wall time.
 
 use crate::swapchain::{Frame, Presenter};
 use crate::{Args, Error, Show};
@@ -52,6 +53,8 @@ pub fn run(args: &Args, model: &Model) -> Result<(), Error> {
             shown.presenter.extent.height
         );
     }
+    // The presenter waits for the frames in flight before the crowds go.
+    drop(app.shown.take());
     match app.error.take() {
         Some(e) => Err(e),
         None => app.show.finish(),
@@ -162,20 +165,20 @@ impl App {
             return Ok(()); // minimised
         };
         let show = &mut self.show;
-        show.pose(shown.clock.frame())?;
-        let crowd = &show.methods[show.current].crowd;
-        let draws = shown.scene.draws(crowd);
-        let batch = &mut show.batch;
-        let camera = &shown.scene.camera;
+        let (scene, time) = (&shown.scene, shown.clock.frame());
         let frame = shown.presenter.frame(
             renderer.color_image(),
             vk::Extent2D {
                 width: renderer.width(),
                 height: renderer.height(),
             },
-            |cmd| {
-                batch.record(cmd, 0, &[crowd])?;
-                renderer.record(cmd, camera, &draws, CROWD_BACKGROUND)?;
+            |cmd, slot| {
+                // The slot's last frame completed: keep its timings, pose it anew.
+                show.sample(slot)?;
+                show.pose(slot, time)?;
+                let crowd = &show.methods[show.current].crowd;
+                show.batch.record(cmd, slot, &[crowd])?;
+                renderer.record(cmd, &scene.camera, &scene.draws(crowd), CROWD_BACKGROUND)?;
                 Ok(())
             },
         )?;
@@ -183,7 +186,6 @@ impl App {
             Frame::Presented { stale } => {
                 shown.stale = stale;
                 shown.presented += 1;
-                self.show.sample()?;
             }
             Frame::Skipped => shown.stale = true,
         }

@@ -11,6 +11,7 @@ use super::barrier::{global_barrier, Access};
 use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
+use super::memory::{crowd_buffer_copies, crowd_bytes, ModelSizes};
 use super::pass::{Binding, CrowdBuffer, Dims};
 use super::passes::Pass;
 use super::pipelines::PassPipeline;
@@ -158,6 +159,16 @@ impl Crowd {
             bounds: options.bounds,
             ..m.dims
         };
+        let bytes = crowd_bytes(&ModelSizes::of_gpu(model), characters, &options)?;
+        let heap = shared.limits.device_local_bytes;
+        if bytes > heap {
+            return Err(Error::DeviceLimit {
+                what: "crowd bytes (vk::crowd_bytes) in the largest device-local heap",
+                needed: bytes,
+                limit: heap,
+            });
+        }
+
         let c = characters as u64;
         let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&dims, b));
         let size = |b: CrowdBuffer| c * per_character[b as usize];
@@ -172,15 +183,14 @@ impl Crowd {
         let new = |name, b: CrowdBuffer, usage, location| {
             Buffer::new(&shared, name, size(b), usage, location)
         };
-        let bones = (0..frames)
-            .map(|_| new("crowd bones", CrowdBuffer::Bones, storage, host))
-            .collect::<Result<Vec<_>>>()?;
-        let positions = (0..1 + usize::from(options.previous_positions))
-            .map(|_| new("crowd positions", CrowdBuffer::Positions, output, gpu))
-            .collect::<Result<Vec<_>>>()?;
-        let bounds = (0..if options.bounds { frames } else { 0 })
-            .map(|_| new("crowd bounds", CrowdBuffer::Bounds, storage, host))
-            .collect::<Result<Vec<_>>>()?;
+        let copies = |name, b: CrowdBuffer, usage, location| {
+            (0..crowd_buffer_copies(b, &options))
+                .map(|_| new(name, b, usage, location))
+                .collect::<Result<Vec<_>>>()
+        };
+        let bones = copies("crowd bones", CrowdBuffer::Bones, storage, host)?;
+        let positions = copies("crowd positions", CrowdBuffer::Positions, output, gpu)?;
+        let bounds = copies("crowd bounds", CrowdBuffer::Bounds, storage, host)?;
         let mut crowd = Crowd {
             model: model.clone(),
             dims,
@@ -277,6 +287,15 @@ impl Crowd {
 
     pub fn model(&self) -> &GpuModel {
         &self.model
+    }
+
+    /// Bytes of the crowd's buffers: what [`super::crowd_bytes`] said before creating it.
+    pub fn memory_bytes(&self) -> u64 {
+        let buffers = (self.bones.iter())
+            .chain(&self.positions)
+            .chain(&self.bounds)
+            .chain([&self.rhs, &self.proxies, &self.normals]);
+        buffers.map(|b| b.size).sum()
     }
 
     /// F, the frames in flight the crowd was made for.
@@ -552,7 +571,7 @@ fn write_rest_pose(bytes: &mut [u8]) {
 }
 
 /// Bytes of one character in each crowd buffer; 0 where the model does not use it.
-fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
+pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
     let (v, p, j) = (d.vertices as u64, d.proxies as u64, d.bones as u64);
     match b {
         CrowdBuffer::Bones => j * AFFINE_BYTES,

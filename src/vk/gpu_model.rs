@@ -123,6 +123,14 @@ impl GpuModel {
     pub fn proxy_count(&self) -> usize {
         self.inner.dims.proxies as usize
     }
+
+    /// Bytes of the model's buffers: what [`super::model_bytes`] said before the upload.
+    pub fn memory_bytes(&self) -> u64 {
+        ModelBuffer::ALL
+            .iter()
+            .map(|&b| self.inner.buffer(b).size)
+            .sum()
+    }
 }
 
 impl Inner {

@@ -35,6 +35,20 @@ pub enum ModelBuffer {
     Triangles,
 }
 
+impl ModelBuffer {
+    pub const ALL: [ModelBuffer; 9] = [
+        ModelBuffer::Rest,
+        ModelBuffer::SkinIndex,
+        ModelBuffer::SkinWeight,
+        ModelBuffer::Parents,
+        ModelBuffer::Predictors,
+        ModelBuffer::BlendMatrix,
+        ModelBuffer::IncidentOffsets,
+        ModelBuffer::IncidentTriangles,
+        ModelBuffer::Triangles,
+    ];
+}
+
 /// A per-character buffer of a crowd, bound per chunk of characters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CrowdBuffer {

@@ -358,10 +358,12 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 out!("{}", b.to_json());
             } else {
                 out!(
-                    "{}: {} characters x {} vertices, median of {} frames\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2}",
+                    "{}: {} characters x {} vertices, median of {} frames\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2}\n  RR + previous positions {:.3} ms ({:.2} x RR)\n  RR + bounds             {:.3} ms ({:.2} x RR)",
                     b.rr.device, b.rr.characters, b.rr.vertices, b.rr.frames,
                     b.rr.total_ms, b.rr.pipeline_mverts_per_s(), b.ssd.total_ms, b.ssd.pipeline_mverts_per_s(),
-                    b.rr.total_ms / b.ssd.total_ms
+                    b.rr.total_ms / b.ssd.total_ms,
+                    b.previous_positions.total_ms, b.cost(&b.previous_positions),
+                    b.bounds.total_ms, b.cost(&b.bounds)
                 );
             }
         }
