@@ -24,8 +24,9 @@
  * work, and ends with one from its compute writes to compute, transfer, host and vertex-attribute
  * reads. It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at the
  * compute bind point only. Buffers are VK_SHARING_MODE_EXCLUSIVE on the context's queue family;
- * reading outputs on another family takes the engine's release/acquire, and nothing needs to
- * come back (rrskin never reads an output an earlier recording wrote). Queries before any
+ * to read outputs on another family, create the crowd with release_outputs (the recording ends
+ * with the releases) and acquire them there; nothing needs to come back (rrskin never reads an
+ * output an earlier recording wrote). Queries before any
  * device: rrskin_get_requirements (Vulkan 1.1, no extensions or features), rrskin_query_memory.
  *
  * Bone transforms: 3x4 row-major floats per bone, world space, relative to the rest pose.
@@ -112,6 +113,12 @@ typedef struct rrskin_crowd_options {
   uint32_t previous_positions;
   // Nonzero: write each character's axis-aligned box every frame.
   uint32_t bounds;
+  // Nonzero: end each recording with a queue family ownership release of the frame's
+  // outputs (its positions, the normals, its bounds; whole buffers) from the context's family
+  // to `release_queue_family` (another family of the device, or VK_QUEUE_FAMILY_EXTERNAL),
+  // for the engine to acquire there. Nothing needs to come back.
+  uint32_t release_outputs;
+  uint32_t release_queue_family;
 } rrskin_crowd_options;
 
 // A Vulkan context (headless, or wrapping an engine's device).

@@ -117,6 +117,12 @@ pub struct RrskinCrowdOptions {
     pub previous_positions: u32,
     /// Nonzero: write each character's axis-aligned box every frame.
     pub bounds: u32,
+    /// Nonzero: end each recording with a queue family ownership release of the frame's
+    /// outputs (its positions, the normals, its bounds; whole buffers) from the context's family
+    /// to `release_queue_family` (another family of the device, or VK_QUEUE_FAMILY_EXTERNAL),
+    /// for the engine to acquire there. Nothing needs to come back.
+    pub release_outputs: u32,
+    pub release_queue_family: u32,
 }
 
 /// Where the engine finds one frame slot's outputs: character c, vertex a is at
@@ -737,6 +743,7 @@ fn crowd_options(o: &RrskinCrowdOptions) -> CrowdOptions {
         frames_in_flight: o.frames_in_flight as usize,
         previous_positions: o.previous_positions != 0,
         bounds: o.bounds != 0,
+        release_to_queue_family: (o.release_outputs != 0).then_some(o.release_queue_family),
         ..CrowdOptions::default()
     }
 }

@@ -57,11 +57,13 @@
 //! ends or submits the command buffer. The engine re-binds its own compute state after it.
 //!
 //! **Queue family ownership.** Every buffer is created `VK_SHARING_MODE_EXCLUSIVE` and used on
-//! the context's queue family only: outputs drawn on that family need nothing more. An engine
-//! that reads outputs on another family transfers ownership itself (a release barrier after the
-//! recording, an acquire on its queue); the runtime never reads an output a previous recording
-//! wrote, so nothing needs to come back: the next recording overwrites it (undefined old
-//! contents are never read).
+//! the context's queue family only: outputs drawn on that family need nothing more. For an
+//! engine that reads outputs on another family,
+//! [`vk::CrowdOptions::release_to_queue_family`] ends each recording with the release barriers
+//! of the frame's outputs (its positions, the normals, its bounds; whole buffers, compute
+//! writes); the engine records the matching acquires on its queue after a semaphore wait. The
+//! runtime never reads an output a previous recording wrote, so nothing needs to come back:
+//! the next recording overwrites it (undefined old contents are never read).
 //!
 //! **Memory and requirements before creation.** [`vk::model_bytes`] and [`vk::crowd_bytes`]
 //! give the bytes a model and a crowd of C characters will take, from their sizes alone;

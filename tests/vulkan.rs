@@ -461,6 +461,30 @@ fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
             }
             batch.record(cmd, frame, &[&crowd]).expect("record");
             let out = crowd.output(frame).expect("the frame's output");
+            if let Some(family) = options.release_to_queue_family {
+                // The engine's side of the ownership transfer, back on this queue: acquire what
+                // the recording released (the copies below then read defined contents).
+                let released = [Some(out.positions), Some(out.normals), out.bounds];
+                let acquire: Vec<vk::BufferMemoryBarrier> = (released.into_iter().flatten())
+                    .map(|buffer| {
+                        vk::BufferMemoryBarrier::default()
+                            .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                            .src_queue_family_index(family)
+                            .dst_queue_family_index(ctx.queue_family_index())
+                            .buffer(buffer)
+                            .size(vk::WHOLE_SIZE)
+                    })
+                    .collect();
+                d.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TOP_OF_PIPE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::DependencyFlags::empty(),
+                    &[],
+                    &acquire,
+                    &[],
+                );
+            }
             let bytes = n as u64 * 12;
             let sources = [
                 Some(out.positions),
@@ -776,4 +800,28 @@ fn requirements_are_known_before_any_device_and_met_here() {
     };
     assert!(props.api_version >= r.api_version);
     assert!(props.limits.max_per_stage_descriptor_storage_buffers >= r.storage_buffers_per_stage);
+}
+
+/// Outputs released to another queue family each frame (`VK_QUEUE_FAMILY_EXTERNAL`: lavapipe has
+/// one family) and acquired back by the test's own barrier before it copies them: every frame
+/// still matches the CPU, and the validation layer sees matching release/acquire pairs.
+#[test]
+fn outputs_released_to_another_queue_family_each_frame_match_cpu() {
+    let options = CrowdOptions {
+        previous_positions: true,
+        bounds: true,
+        release_to_queue_family: Some(vk::QUEUE_FAMILY_EXTERNAL),
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(RR, 37), 4, options);
+    let ctx = validated_context();
+    let gpu = GpuModel::new(&ctx, &random_model(LBS, 38)).expect("upload");
+    let own = CrowdOptions {
+        release_to_queue_family: Some(ctx.queue_family_index()),
+        ..CrowdOptions::default()
+    };
+    assert!(matches!(
+        Crowd::with_options(&gpu, 1, own),
+        Err(Error::OutOfRange { .. })
+    ));
 }

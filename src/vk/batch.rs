@@ -196,6 +196,9 @@ impl Batch {
             }
             self.timestamp(cmd, first + SCHEDULE.len() as u32);
             global_barrier(device, cmd, &[Access::ComputeShaderWrite], after);
+            for crowd in crowds {
+                crowd.release_outputs(cmd, frame);
+            }
         }
         self.recorded[frame] = true;
         Ok(())

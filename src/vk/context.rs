@@ -61,6 +61,8 @@ pub struct Limits {
     pub max_workgroup_count: [u32; 3],
     /// The largest device-local heap: no crowd larger than this is attempted.
     pub device_local_bytes: u64,
+    /// Queue families of the physical device (the outputs may be released to any other).
+    pub queue_family_count: u32,
     /// Nanoseconds per timestamp tick; `None` if the queue has no timestamps.
     pub timestamp_period_ns: Option<f64>,
 }
@@ -205,6 +207,7 @@ impl Context {
             min_storage_buffer_offset_alignment: props.limits.min_storage_buffer_offset_alignment,
             max_workgroup_count: props.limits.max_compute_work_group_count,
             device_local_bytes: physical.device_local_bytes(),
+            queue_family_count: physical.queue_families().len() as u32,
             timestamp_period_ns: (family.timestamp_valid_bits > 0)
                 .then_some(props.limits.timestamp_period as f64),
         };

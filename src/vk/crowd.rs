@@ -41,6 +41,12 @@ pub struct CrowdOptions {
     pub previous_positions: bool,
     /// Write each character's axis-aligned box every frame ([`CrowdOutput::bounds`]).
     pub bounds: bool,
+    /// Release each frame's outputs (its positions, the normals, its bounds) to this queue
+    /// family at the end of the recording: a queue family ownership release barrier, which the
+    /// engine matches with an acquire on its queue (same buffers, whole range, families
+    /// reversed). Nothing comes back: a recording never reads an output an earlier one wrote.
+    /// Another family of the device, or `VK_QUEUE_FAMILY_EXTERNAL`.
+    pub release_to_queue_family: Option<u32>,
     /// Largest descriptor range to use, below the device's maxStorageBufferRange: forces smaller
     /// chunks (tests use it to exercise chunking without gigabytes of output).
     pub max_binding_bytes: Option<u64>,
@@ -52,6 +58,7 @@ impl Default for CrowdOptions {
             frames_in_flight: 2,
             previous_positions: false,
             bounds: false,
+            release_to_queue_family: None,
             max_binding_bytes: None,
         }
     }
@@ -122,6 +129,7 @@ pub struct Crowd {
     written: [AtomicU8; MAX_FRAMES_IN_FLIGHT],
     last: AtomicU8,
     last_frame: AtomicU8,
+    release_to: Option<u32>,
     pool: vk::DescriptorPool,
     pub(crate) chunks: Vec<Chunk>,
 }
@@ -154,6 +162,18 @@ impl Crowd {
                 index: frames,
                 count: MAX_FRAMES_IN_FLIGHT + 1,
             });
+        }
+        if let Some(family) = options.release_to_queue_family {
+            let count = shared.limits.queue_family_count;
+            let other = family != shared.queue_family_index
+                && (family < count || family == vk::QUEUE_FAMILY_EXTERNAL);
+            if !other {
+                return Err(Error::OutOfRange {
+                    what: "queue family to release outputs to (another of the device's)",
+                    index: family as usize,
+                    count: count as usize,
+                });
+            }
         }
         let dims = Dims {
             bounds: options.bounds,
@@ -204,6 +224,7 @@ impl Crowd {
             written: Default::default(),
             last: AtomicU8::new(0),
             last_frame: AtomicU8::new(0),
+            release_to: options.release_to_queue_family,
             pool: vk::DescriptorPool::null(),
             chunks: Vec::new(),
         };
@@ -410,6 +431,48 @@ impl Crowd {
             vertex_stride: XYZ_BYTES,
             character_stride: self.model.vertex_count() as u64 * XYZ_BYTES,
         }
+    }
+
+    /// Records the release of frame slot `frame`'s outputs (as last begun) to the family of
+    /// [`CrowdOptions::release_to_queue_family`], if any.
+    ///
+    /// # Safety
+    /// `cmd` is recording, after the frame's passes; `frame` is one of the crowd's slots.
+    pub(crate) unsafe fn release_outputs(&self, cmd: vk::CommandBuffer, frame: usize) {
+        let Some(family) = self.release_to else {
+            return;
+        };
+        let written = self.written[frame].load(Ordering::Relaxed) as usize;
+        let release = |b: &Buffer| {
+            vk::BufferMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                .src_queue_family_index(self.shared().queue_family_index)
+                .dst_queue_family_index(family)
+                .buffer(b.handle)
+                .offset(0)
+                .size(vk::WHOLE_SIZE)
+        };
+        // A fixed array, no allocation: the third is the bounds when the crowd has them.
+        let normals = release(&self.normals);
+        let mut barriers = [release(&self.positions[written]), normals, normals];
+        let mut count = 2;
+        if let Some(bounds) = self.bounds.get(frame) {
+            barriers[2] = release(bounds);
+            count = 3;
+        }
+        let used = &barriers[..count];
+        // SAFETY: see the function's contract; the buffers are the crowd's, alive.
+        unsafe {
+            self.shared().device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                vk::DependencyFlags::empty(),
+                &[],
+                used,
+                &[],
+            )
+        };
     }
 
     /// Frame slot `frame`'s boxes, one per character, read from host-visible memory: call it
