@@ -4,7 +4,7 @@
 //! swapchain image (`swapchain.rs`), with two frames in flight (the crowd's frame slots). The
 //! animation plays at 30 frames per second of wall time.
 
-use crate::swapchain::{Frame, Presenter};
+use crate::swapchain::{Frame, Presenter, FRAMES_IN_FLIGHT};
 use crate::{Args, Error, Show};
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use rrskin::vk::ash::{self, vk};
@@ -53,8 +53,12 @@ pub fn run(args: &Args, model: &Model) -> Result<(), Error> {
             shown.presenter.extent.height
         );
     }
-    // The presenter waits for the frames in flight before the crowds go.
+    // The presenter waits for the frames in flight before the crowds go; then the last frame of
+    // each slot has completed, and its timings are kept too.
     drop(app.shown.take());
+    for slot in 0..FRAMES_IN_FLIGHT {
+        app.show.sample(slot)?;
+    }
     match app.error.take() {
         Some(e) => Err(e),
         None => app.show.finish(),
