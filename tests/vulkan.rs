@@ -623,6 +623,7 @@ fn frame_slots_out_of_range_are_errors() {
         ));
     }
     let mut crowd = Crowd::new(&gpu, 2).expect("crowd");
+    assert_eq!(crowd.frames_in_flight(), 2, "the default");
     let poses = random_poses(&model, 2, 1);
     let past = Err(Error::OutOfRange {
         what: "frame in flight",
