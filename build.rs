@@ -18,6 +18,7 @@ const SHADERS: &[Shader] = &[
     ("skin.comp", "skin_k4", &[("K", "4")]),
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),
+    ("bounds.comp", "bounds", &[]),
 ];
 
 fn main() {

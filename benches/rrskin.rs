@@ -41,8 +41,8 @@ fn runtime(c: &mut Criterion) {
             let bones = phased_poses(&model, characters, 0);
             group.bench_with_input(BenchmarkId::new(name, characters), &characters, |b, _| {
                 b.iter(|| {
-                    crowd.set_bones(&bones).expect("bones");
-                    batch.run(&[&crowd]).expect("run");
+                    crowd.set_bones(0, &bones).expect("bones");
+                    batch.run(0, &[&crowd]).expect("run");
                 })
             });
         }

@@ -13,9 +13,21 @@
  * command buffers) stay the engine's. Pointers passed in are only read during the call.
  *
  * Threads: every function may be called from any thread; the library serialises its calls. The
- * Vulkan rules are the engine's: a crowd's bones may only be set, and a crowd destroyed, when no
- * submitted command buffer that reads it is still executing; the library submits to the queue
- * only inside rrskin_model_load_*, rrskin_crowds_run and rrskin_crowd_read_back.
+ * Vulkan rules are the engine's: a crowd made for F frames in flight (1 to 4, default 2) keeps F
+ * slots of its bones and bounds; set slot f's bones and record slot f only once the last
+ * submission that recorded slot f completed (the other F - 1 may be executing). Destroy a crowd
+ * only when nothing that reads it is executing. The library submits to the queue only inside
+ * rrskin_model_load_*, rrskin_crowds_run and rrskin_crowd_read_back.
+ *
+ * Recording (rrskin_crowds_record) needs no prior buffer state: it starts with a global barrier
+ * from earlier compute writes/reads, transfer reads and vertex-attribute reads to its compute
+ * work, and ends with one from its compute writes to compute, transfer, host and vertex-attribute
+ * reads. It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at the
+ * compute bind point only. Buffers are VK_SHARING_MODE_EXCLUSIVE on the context's queue family;
+ * to read outputs on another family, create the crowd with release_outputs (the recording ends
+ * with the releases) and acquire them there; nothing needs to come back (rrskin never reads an
+ * output an earlier recording wrote). Queries before any
+ * device: rrskin_get_requirements (Vulkan 1.1, no extensions or features), rrskin_query_memory.
  *
  * Bone transforms: 3x4 row-major floats per bone, world space, relative to the rest pose.
  */
@@ -50,6 +62,10 @@ enum rrskin_status
   RRSKIN_STATUS_ERROR_MISMATCH = 15,
   RRSKIN_STATUS_ERROR_INVALID_ARGUMENT = 16,
   RRSKIN_STATUS_ERROR_PANIC = 17,
+  // An optional output asked for from a crowd created without it.
+  RRSKIN_STATUS_ERROR_NOT_ENABLED = 18,
+  // A Vulkan function the runtime calls is NULL from the engine's `vkGetInstanceProcAddr`.
+  RRSKIN_STATUS_ERROR_MISSING_FUNCTION = 19,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -58,6 +74,52 @@ typedef enum rrskin_status rrskin_status;
 typedef int32_t rrskin_status;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
+
+// What the runtime needs of a Vulkan implementation (`rrskin_get_requirements`): no device
+// feature beyond core Vulkan 1.1 is enabled or used.
+typedef struct rrskin_requirements {
+  // The lowest VkPhysicalDeviceProperties::apiVersion (VK_MAKE_API_VERSION) it runs on.
+  uint32_t api_version;
+  // VkQueueFlags the context's queue family must have.
+  uint32_t queue_flags;
+  // The maxPerStageDescriptorStorageBuffers it needs (Vulkan guarantees only 4).
+  uint32_t storage_buffers_per_stage;
+  uint32_t instance_extension_count;
+  // `instance_extension_count` extension names to enable on the instance (NULL when 0);
+  // static strings.
+  const char *const *instance_extensions;
+  uint32_t device_extension_count;
+  // `device_extension_count` extension names to enable on the device (NULL when 0).
+  const char *const *device_extensions;
+} rrskin_requirements;
+
+typedef struct rrskin_model_info {
+  uint32_t vertices;
+  uint32_t triangles;
+  uint32_t bones;
+  // P; 0 for a plain linear-blend-skinning model.
+  uint32_t proxies;
+  // K: 4 or 8.
+  uint32_t influences;
+} rrskin_model_info;
+
+// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
+// 2 frames in flight and no optional output.
+typedef struct rrskin_crowd_options {
+  // F, 1 to 4: the crowd keeps F slots of its bone transforms and bounds, so that frame slot
+  // f is set and recorded while the other F - 1 frames still execute.
+  uint32_t frames_in_flight;
+  // Nonzero: keep last frame's positions in a second buffer (the two alternate, no copy).
+  uint32_t previous_positions;
+  // Nonzero: write each character's axis-aligned box every frame.
+  uint32_t bounds;
+  // Nonzero: end each recording with a queue family ownership release of the frame's
+  // outputs (its positions, the normals, its bounds; whole buffers) from the context's family
+  // to `release_queue_family` (another family of the device, or VK_QUEUE_FAMILY_EXTERNAL),
+  // for the engine to acquire there. Nothing needs to come back.
+  uint32_t release_outputs;
+  uint32_t release_queue_family;
+} rrskin_crowd_options;
 
 // A Vulkan context (headless, or wrapping an engine's device).
 typedef struct rrskin_context {
@@ -85,31 +147,30 @@ typedef struct rrskin_model {
   uint64_t id;
 } rrskin_model;
 
-typedef struct rrskin_model_info {
-  uint32_t vertices;
-  uint32_t triangles;
-  uint32_t bones;
-  // P; 0 for a plain linear-blend-skinning model.
-  uint32_t proxies;
-  // K: 4 or 8.
-  uint32_t influences;
-} rrskin_model_info;
-
 // C characters of one model.
 typedef struct rrskin_crowd {
   uint64_t id;
 } rrskin_crowd;
 
-// Where the engine finds a crowd's outputs: character c, vertex a is at
-// `offset + c * character_stride + a * vertex_stride` bytes in each buffer, as 3 floats.
+// Where the engine finds one frame slot's outputs: character c, vertex a is at
+// `offset + c * character_stride + a * vertex_stride` bytes in each vertex buffer, as
+// 3 floats; character c's box at `c * bounds_stride` in `bounds`.
 typedef struct rrskin_crowd_output {
-  // VkBuffer of positions (usage: vertex buffer, storage, transfer source).
+  // VkBuffer of positions written by the frame (usage: vertex buffer, storage, transfer
+  // source).
   uint64_t positions;
+  // VkBuffer of the positions of the frame recorded before it (same layout and usage), or 0
+  // without previous positions. Undefined until two frames were recorded.
+  uint64_t previous_positions;
   // VkBuffer of normals.
   uint64_t normals;
+  // VkBuffer of the frame slot's boxes (storage, host-visible): per character 8 floats, min
+  // x, y, z, pad, max x, y, z, pad; 0 without bounds.
+  uint64_t bounds;
   uint64_t offset;
   uint64_t vertex_stride;
   uint64_t character_stride;
+  uint64_t bounds_stride;
 } rrskin_crowd_output;
 
 // GPU time per pass of the last recorded frame, in milliseconds.
@@ -123,6 +184,30 @@ typedef struct rrskin_pass_timings {
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+// What the runtime needs of the engine's instance, device and queue, before any exists: fill
+// `VkInstanceCreateInfo` / `VkDeviceCreateInfo` from it. `rrskin_context_create_from_engine`
+// checks the same (RRSKIN_STATUS_ERROR_NO_DEVICE, _DEVICE_LIMIT or _MISSING_FUNCTION).
+//
+// # Safety
+// `out` is NULL or points to writable memory for one `rrskin_requirements`.
+rrskin_status rrskin_get_requirements(struct rrskin_requirements *out);
+
+// The bytes of GPU memory a model of `sizes` and a crowd of `characters` of it made with
+// `options` (NULL: those of `rrskin_crowd_create`) will take, before either is created (no
+// context needed): the sizes of the buffers they create. Either out pointer may be NULL.
+// A crowd beyond the largest device-local heap is refused at creation
+// (RRSKIN_STATUS_ERROR_DEVICE_LIMIT).
+//
+// # Safety
+// `sizes` is NULL or points to a readable `rrskin_model_info`; `options` is NULL or points to
+// a readable `rrskin_crowd_options`; `model_bytes` and `crowd_bytes` are each NULL or point to
+// writable memory for one `uint64_t`.
+rrskin_status rrskin_query_memory(const struct rrskin_model_info *sizes,
+                                  uint32_t characters,
+                                  const struct rrskin_crowd_options *options,
+                                  uint64_t *model_bytes,
+                                  uint64_t *crowd_bytes);
 
 // The calling thread's message for the last failed call ("" after a success). Valid until the
 // next rrskin call on this thread; never NULL.
@@ -190,7 +275,8 @@ rrskin_status rrskin_model_get_info(struct rrskin_model model, struct rrskin_mod
 // Destroys a model handle; crowds made from it keep working until destroyed themselves.
 rrskin_status rrskin_model_destroy(struct rrskin_model model);
 
-// Creates a crowd of `characters` characters of `model`, all in the rest pose.
+// Creates a crowd of `characters` characters of `model` for 2 frames in flight, all in the
+// rest pose.
 //
 // # Safety
 // `out` is NULL or points to writable memory for one `rrskin_crowd`.
@@ -198,31 +284,48 @@ rrskin_status rrskin_crowd_create(struct rrskin_model model,
                                   uint32_t characters,
                                   struct rrskin_crowd *out);
 
-// Sets every character's bone transforms: `float_count` = characters x bones x 12 floats, each
-// transform 3x4 row-major, world space, relative to the rest pose.
+// Creates a crowd as `rrskin_crowd_create` does, with `options` (frames in flight out of 1..4:
+// RRSKIN_STATUS_ERROR_OUT_OF_RANGE).
+//
+// # Safety
+// `options` is NULL or points to a readable `rrskin_crowd_options`; `out` is NULL or points to
+// writable memory for one `rrskin_crowd`.
+rrskin_status rrskin_crowd_create_with_options(struct rrskin_model model,
+                                               uint32_t characters,
+                                               const struct rrskin_crowd_options *options,
+                                               struct rrskin_crowd *out);
+
+// Sets every character's bone transforms of frame slot `frame` (0 to F - 1): `float_count` =
+// characters x bones x 12 floats, each transform 3x4 row-major, world space, relative to the
+// rest pose. The frame slot must not be executing; the other F - 1 may be.
 //
 // # Safety
 // `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
 // other thread writes during the call.
 rrskin_status rrskin_crowd_set_bones(struct rrskin_crowd crowd,
+                                     uint32_t frame,
                                      const float *transforms,
                                      size_t float_count);
 
-// Sets one character's bone transforms: `float_count` = bones x 12.
+// Sets one character's bone transforms of frame slot `frame`: `float_count` = bones x 12.
 //
 // # Safety
 // `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
 // other thread writes during the call.
 rrskin_status rrskin_crowd_set_character_bones(struct rrskin_crowd crowd,
+                                               uint32_t frame,
                                                uint32_t character,
                                                const float *transforms,
                                                size_t float_count);
 
-// The crowd's output buffers, to draw from.
+// The output buffers of frame slot `frame` as last recorded (which positions buffer it
+// writes alternates with previous positions: ask after recording the frame), to draw from.
 //
 // # Safety
 // `out` is NULL or points to writable memory for one `rrskin_crowd_output`.
-rrskin_status rrskin_crowd_get_output(struct rrskin_crowd crowd, struct rrskin_crowd_output *out);
+rrskin_status rrskin_crowd_get_output(struct rrskin_crowd crowd,
+                                      uint32_t frame,
+                                      struct rrskin_crowd_output *out);
 
 // Copies the outputs to host memory: `float_count` = characters x vertices x 3 for each of
 // `positions` and `normals` (either may be NULL to skip it). Submits and waits: for tools and
@@ -236,36 +339,53 @@ rrskin_status rrskin_crowd_read_back(struct rrskin_crowd crowd,
                                      float *normals,
                                      size_t float_count);
 
+// Reads frame slot `frame`'s boxes from host-visible memory, once the frame's submission
+// completed: `float_count` = characters x 6 floats (min x, y, z, max x, y, z per character).
+// RRSKIN_STATUS_ERROR_NOT_ENABLED for a crowd created without bounds.
+//
+// # Safety
+// `boxes` is NULL or points to `float_count` writable floats (4-byte aligned).
+rrskin_status rrskin_crowd_read_bounds(struct rrskin_crowd crowd,
+                                       uint32_t frame,
+                                       float *boxes,
+                                       size_t float_count);
+
 rrskin_status rrskin_crowd_destroy(struct rrskin_crowd crowd);
 
-// Records all passes of `count` crowds into the engine's command buffer (VkCommandBuffer,
-// recording, outside a render pass, on the context's queue family). The recorded commands end
-// with a barrier making the outputs visible to vertex input, transfer and compute.
+// Records frame slot `frame` (0 to F - 1 of every crowd) of all passes of `count` crowds into
+// the engine's command buffer (VkCommandBuffer, recording, outside a render pass, on the
+// context's queue family). The recorded commands end with a barrier making the outputs visible
+// to vertex input, transfer, compute and host reads.
 //
 // # Safety
 // `crowds` is NULL or points to `count` readable `rrskin_crowd` handles. `command_buffer` is
 // NULL or a VkCommandBuffer of the context's device, in the recording state, that no other
 // thread records into during the call; the engine submits it, and keeps the crowds alive and
-// their bones unchanged until it completed.
+// the frame slot's bones unchanged until it completed.
 rrskin_status rrskin_crowds_record(struct rrskin_context context,
                                    void *command_buffer,
+                                   uint32_t frame,
                                    const struct rrskin_crowd *crowds,
                                    uint32_t count);
 
-// Records all passes of `count` crowds, submits them and waits (headless path).
+// Records frame slot `frame` of all passes of `count` crowds, submits them and waits
+// (headless path).
 //
 // # Safety
 // `crowds` is NULL or points to `count` readable `rrskin_crowd` handles.
 rrskin_status rrskin_crowds_run(struct rrskin_context context,
+                                uint32_t frame,
                                 const struct rrskin_crowd *crowds,
                                 uint32_t count);
 
-// GPU time per pass of the context's last recorded frame (after `rrskin_crowds_record`, only
-// once the command buffer completed; RRSKIN_ERROR_NOT_READY otherwise).
+// GPU time per pass of the context's frame slot `frame` as last recorded (after
+// `rrskin_crowds_record`, only once the command buffer completed; RRSKIN_ERROR_NOT_READY
+// otherwise).
 //
 // # Safety
 // `out` is NULL or points to writable memory for one `rrskin_pass_timings`.
 rrskin_status rrskin_context_get_timings(struct rrskin_context context,
+                                         uint32_t frame,
                                          struct rrskin_pass_timings *out);
 
 #ifdef __cplusplus

@@ -57,6 +57,12 @@ pub enum Error {
     },
     /// Results were asked for before the GPU produced them (timestamps of unfinished work).
     NotReady { what: &'static str },
+    /// An optional output was asked for from an object made without it (bounds of a crowd
+    /// created without bounds).
+    NotEnabled { what: &'static str },
+    /// A Vulkan function the runtime calls is missing from the engine's function pointers (or
+    /// the device does not provide it).
+    MissingFunction { name: String },
 }
 
 /// What is wrong with a model. Counts are in elements unless the name says bytes.
@@ -204,6 +210,13 @@ impl fmt::Display for Error {
                 write!(f, "{what} needs {needed}, the device allows {limit}")
             }
             NotReady { what } => write!(f, "{what} is not ready yet"),
+            NotEnabled { what } => write!(f, "{what} was not enabled"),
+            MissingFunction { name } => {
+                write!(
+                    f,
+                    "the Vulkan function {name} is missing (NULL from the loader)"
+                )
+            }
         }
     }
 }

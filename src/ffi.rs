@@ -19,7 +19,9 @@
 use crate::error::Error;
 use crate::model::Model;
 use crate::predict::Affine;
-use crate::vk::{ash::vk, Batch, Context, ContextDesc, Crowd, EngineDevice, GpuModel};
+use crate::vk::{
+    ash::vk, Aabb, Batch, Context, ContextDesc, Crowd, CrowdOptions, EngineDevice, GpuModel,
+};
 use std::cell::RefCell;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -47,6 +49,10 @@ pub enum RrskinStatus {
     ErrorMismatch = 15,
     ErrorInvalidArgument = 16,
     ErrorPanic = 17,
+    /// An optional output asked for from a crowd created without it.
+    ErrorNotEnabled = 18,
+    /// A Vulkan function the runtime calls is NULL from the engine's `vkGetInstanceProcAddr`.
+    ErrorMissingFunction = 19,
 }
 
 /// A Vulkan context (headless, or wrapping an engine's device).
@@ -99,18 +105,67 @@ pub struct RrskinModelInfo {
     pub influences: u32,
 }
 
-/// Where the engine finds a crowd's outputs: character c, vertex a is at
-/// `offset + c * character_stride + a * vertex_stride` bytes in each buffer, as 3 floats.
+/// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
+/// 2 frames in flight and no optional output.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RrskinCrowdOptions {
+    /// F, 1 to 4: the crowd keeps F slots of its bone transforms and bounds, so that frame slot
+    /// f is set and recorded while the other F - 1 frames still execute.
+    pub frames_in_flight: u32,
+    /// Nonzero: keep last frame's positions in a second buffer (the two alternate, no copy).
+    pub previous_positions: u32,
+    /// Nonzero: write each character's axis-aligned box every frame.
+    pub bounds: u32,
+    /// Nonzero: end each recording with a queue family ownership release of the frame's
+    /// outputs (its positions, the normals, its bounds; whole buffers) from the context's family
+    /// to `release_queue_family` (another family of the device, or VK_QUEUE_FAMILY_EXTERNAL),
+    /// for the engine to acquire there. Nothing needs to come back.
+    pub release_outputs: u32,
+    pub release_queue_family: u32,
+}
+
+/// Where the engine finds one frame slot's outputs: character c, vertex a is at
+/// `offset + c * character_stride + a * vertex_stride` bytes in each vertex buffer, as
+/// 3 floats; character c's box at `c * bounds_stride` in `bounds`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RrskinCrowdOutput {
-    /// VkBuffer of positions (usage: vertex buffer, storage, transfer source).
+    /// VkBuffer of positions written by the frame (usage: vertex buffer, storage, transfer
+    /// source).
     pub positions: u64,
+    /// VkBuffer of the positions of the frame recorded before it (same layout and usage), or 0
+    /// without previous positions. Undefined until two frames were recorded.
+    pub previous_positions: u64,
     /// VkBuffer of normals.
     pub normals: u64,
+    /// VkBuffer of the frame slot's boxes (storage, host-visible): per character 8 floats, min
+    /// x, y, z, pad, max x, y, z, pad; 0 without bounds.
+    pub bounds: u64,
     pub offset: u64,
     pub vertex_stride: u64,
     pub character_stride: u64,
+    pub bounds_stride: u64,
+}
+
+/// What the runtime needs of a Vulkan implementation (`rrskin_get_requirements`): no device
+/// feature beyond core Vulkan 1.1 is enabled or used.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct RrskinRequirements {
+    /// The lowest VkPhysicalDeviceProperties::apiVersion (VK_MAKE_API_VERSION) it runs on.
+    pub api_version: u32,
+    /// VkQueueFlags the context's queue family must have.
+    pub queue_flags: u32,
+    /// The maxPerStageDescriptorStorageBuffers it needs (Vulkan guarantees only 4).
+    pub storage_buffers_per_stage: u32,
+    pub instance_extension_count: u32,
+    /// `instance_extension_count` extension names to enable on the instance (NULL when 0);
+    /// static strings.
+    pub instance_extensions: *const *const c_char,
+    pub device_extension_count: u32,
+    /// `device_extension_count` extension names to enable on the device (NULL when 0).
+    pub device_extensions: *const *const c_char,
 }
 
 /// GPU time per pass of the last recorded frame, in milliseconds.
@@ -273,6 +328,8 @@ impl From<Error> for Failure {
             Error::Allocation { .. } => S::ErrorAllocation,
             Error::DeviceLimit { .. } => S::ErrorDeviceLimit,
             Error::NotReady { .. } => S::ErrorNotReady,
+            Error::NotEnabled { .. } => S::ErrorNotEnabled,
+            Error::MissingFunction { .. } => S::ErrorMissingFunction,
         };
         Failure::new(status, e.to_string())
     }
@@ -326,6 +383,99 @@ unsafe fn slice<'a, T>(data: *const T, count: usize, what: &str) -> Result<&'a [
     }
     // SAFETY: non-null, and `count` readable elements by the function's contract.
     Ok(unsafe { std::slice::from_raw_parts(data, count) })
+}
+
+/// What the runtime needs of the engine's instance, device and queue, before any exists: fill
+/// `VkInstanceCreateInfo` / `VkDeviceCreateInfo` from it. `rrskin_context_create_from_engine`
+/// checks the same (RRSKIN_STATUS_ERROR_NO_DEVICE, _DEVICE_LIMIT or _MISSING_FUNCTION).
+///
+/// # Safety
+/// `out` is NULL or points to writable memory for one `rrskin_requirements`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_get_requirements(out: *mut RrskinRequirements) -> RrskinStatus {
+    guard(|| {
+        let r = crate::vk::requirements();
+        // The name lists as C arrays, made once (the names are static).
+        struct Names(Vec<*const c_char>);
+        // SAFETY: pointers to static, immutable strings.
+        unsafe impl Send for Names {}
+        // SAFETY: as above.
+        unsafe impl Sync for Names {}
+        static LISTS: std::sync::OnceLock<[Names; 2]> = std::sync::OnceLock::new();
+        let lists = LISTS.get_or_init(|| {
+            [r.instance_extensions, r.device_extensions]
+                .map(|names| Names(names.iter().map(|n| n.as_ptr()).collect()))
+        });
+        let array = |n: &Names| {
+            if n.0.is_empty() {
+                std::ptr::null()
+            } else {
+                n.0.as_ptr()
+            }
+        };
+        let requirements = RrskinRequirements {
+            api_version: r.api_version,
+            queue_flags: r.queue_flags.as_raw(),
+            storage_buffers_per_stage: r.storage_buffers_per_stage,
+            instance_extension_count: lists[0].0.len() as u32,
+            instance_extensions: array(&lists[0]),
+            device_extension_count: lists[1].0.len() as u32,
+            device_extensions: array(&lists[1]),
+        };
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, requirements, "out") }
+    })
+}
+
+/// The bytes of GPU memory a model of `sizes` and a crowd of `characters` of it made with
+/// `options` (NULL: those of `rrskin_crowd_create`) will take, before either is created (no
+/// context needed): the sizes of the buffers they create. Either out pointer may be NULL.
+/// A crowd beyond the largest device-local heap is refused at creation
+/// (RRSKIN_STATUS_ERROR_DEVICE_LIMIT).
+///
+/// # Safety
+/// `sizes` is NULL or points to a readable `rrskin_model_info`; `options` is NULL or points to
+/// a readable `rrskin_crowd_options`; `model_bytes` and `crowd_bytes` are each NULL or point to
+/// writable memory for one `uint64_t`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_query_memory(
+    sizes: *const RrskinModelInfo,
+    characters: u32,
+    options: *const RrskinCrowdOptions,
+    model_bytes: *mut u64,
+    crowd_bytes: *mut u64,
+) -> RrskinStatus {
+    guard(|| {
+        if sizes.is_null() {
+            return Err(Failure::null("sizes"));
+        }
+        // SAFETY: non-null and readable (the function's contract).
+        let i = unsafe { &*sizes };
+        let sizes = crate::vk::ModelSizes {
+            vertices: i.vertices as usize,
+            triangles: i.triangles as usize,
+            bones: i.bones as usize,
+            proxies: i.proxies as usize,
+            influences: i.influences as usize,
+        };
+        let options = if options.is_null() {
+            CrowdOptions::default()
+        } else {
+            // SAFETY: non-null and readable (the function's contract).
+            crowd_options(unsafe { &*options })
+        };
+        let crowd = crate::vk::crowd_bytes(&sizes, characters as usize, &options)?;
+        for (out, bytes) in [
+            (model_bytes, crate::vk::model_bytes(&sizes)),
+            (crowd_bytes, crowd),
+        ] {
+            if !out.is_null() {
+                // SAFETY: non-null and writable (the function's contract).
+                unsafe { out.write(bytes) };
+            }
+        }
+        Ok(())
+    })
 }
 
 /// The calling thread's message for the last failed call ("" after a success). Valid until the
@@ -547,7 +697,8 @@ pub extern "C" fn rrskin_model_destroy(model: RrskinModel) -> RrskinStatus {
     guard(|| registry().models.remove(model.id).map(drop))
 }
 
-/// Creates a crowd of `characters` characters of `model`, all in the rest pose.
+/// Creates a crowd of `characters` characters of `model` for 2 frames in flight, all in the
+/// rest pose.
 ///
 /// # Safety
 /// `out` is NULL or points to writable memory for one `rrskin_crowd`.
@@ -558,16 +709,65 @@ pub unsafe extern "C" fn rrskin_crowd_create(
     out: *mut RrskinCrowd,
 ) -> RrskinStatus {
     guard(|| {
-        if out.is_null() {
-            return Err(Failure::null("out"));
-        }
-        let mut reg = registry();
-        let entry = reg.models.get(model.id)?;
-        let (context, crowd) = (entry.context, Crowd::new(&entry.gpu, characters as usize)?);
-        let id = reg.crowds.insert(CrowdEntry { context, crowd });
         // SAFETY: `out` as the function's contract requires.
-        unsafe { put(out, RrskinCrowd { id }, "out") }
+        unsafe { add_crowd(model, characters, CrowdOptions::default(), out) }
     })
+}
+
+/// Creates a crowd as `rrskin_crowd_create` does, with `options` (frames in flight out of 1..4:
+/// RRSKIN_STATUS_ERROR_OUT_OF_RANGE).
+///
+/// # Safety
+/// `options` is NULL or points to a readable `rrskin_crowd_options`; `out` is NULL or points to
+/// writable memory for one `rrskin_crowd`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_create_with_options(
+    model: RrskinModel,
+    characters: u32,
+    options: *const RrskinCrowdOptions,
+    out: *mut RrskinCrowd,
+) -> RrskinStatus {
+    guard(|| {
+        if options.is_null() {
+            return Err(Failure::null("options"));
+        }
+        // SAFETY: non-null, and readable by the function's contract.
+        let options = unsafe { crowd_options(&*options) };
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { add_crowd(model, characters, options, out) }
+    })
+}
+
+fn crowd_options(o: &RrskinCrowdOptions) -> CrowdOptions {
+    CrowdOptions {
+        frames_in_flight: o.frames_in_flight as usize,
+        previous_positions: o.previous_positions != 0,
+        bounds: o.bounds != 0,
+        release_to_queue_family: (o.release_outputs != 0).then_some(o.release_queue_family),
+        ..CrowdOptions::default()
+    }
+}
+
+/// Makes a crowd of `model` and hands out its handle.
+///
+/// # Safety
+/// `out` is NULL or valid for writing one `RrskinCrowd`.
+unsafe fn add_crowd(
+    model: RrskinModel,
+    characters: u32,
+    options: CrowdOptions,
+    out: *mut RrskinCrowd,
+) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(Failure::null("out"));
+    }
+    let mut reg = registry();
+    let entry = reg.models.get(model.id)?;
+    let crowd = Crowd::with_options(&entry.gpu, characters as usize, options)?;
+    let context = entry.context;
+    let id = reg.crowds.insert(CrowdEntry { context, crowd });
+    // SAFETY: `out` as the function's contract requires.
+    unsafe { put(out, RrskinCrowd { id }, "out") }
 }
 
 /// A caller's floats as 3x4 transforms.
@@ -586,8 +786,9 @@ unsafe fn affines<'a>(transforms: *const f32, float_count: usize) -> Result<&'a 
     Ok(bytemuck::cast_slice(floats))
 }
 
-/// Sets every character's bone transforms: `float_count` = characters x bones x 12 floats, each
-/// transform 3x4 row-major, world space, relative to the rest pose.
+/// Sets every character's bone transforms of frame slot `frame` (0 to F - 1): `float_count` =
+/// characters x bones x 12 floats, each transform 3x4 row-major, world space, relative to the
+/// rest pose. The frame slot must not be executing; the other F - 1 may be.
 ///
 /// # Safety
 /// `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
@@ -595,6 +796,7 @@ unsafe fn affines<'a>(transforms: *const f32, float_count: usize) -> Result<&'a 
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowd_set_bones(
     crowd: RrskinCrowd,
+    frame: u32,
     transforms: *const f32,
     float_count: usize,
 ) -> RrskinStatus {
@@ -605,11 +807,11 @@ pub unsafe extern "C" fn rrskin_crowd_set_bones(
             .crowds
             .get_mut(crowd.id)?
             .crowd
-            .set_bones(bones)?)
+            .set_bones(frame as usize, bones)?)
     })
 }
 
-/// Sets one character's bone transforms: `float_count` = bones x 12.
+/// Sets one character's bone transforms of frame slot `frame`: `float_count` = bones x 12.
 ///
 /// # Safety
 /// `transforms` is NULL or points to `float_count` readable floats (4-byte aligned) that no
@@ -617,6 +819,7 @@ pub unsafe extern "C" fn rrskin_crowd_set_bones(
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
     crowd: RrskinCrowd,
+    frame: u32,
     character: u32,
     transforms: *const f32,
     float_count: usize,
@@ -628,28 +831,38 @@ pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
             .crowds
             .get_mut(crowd.id)?
             .crowd
-            .set_character_bones(character as usize, bones)?)
+            .set_character_bones(frame as usize, character as usize, bones)?)
     })
 }
 
-/// The crowd's output buffers, to draw from.
+/// The output buffers of frame slot `frame` as last recorded (which positions buffer it
+/// writes alternates with previous positions: ask after recording the frame), to draw from.
 ///
 /// # Safety
 /// `out` is NULL or points to writable memory for one `rrskin_crowd_output`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowd_get_output(
     crowd: RrskinCrowd,
+    frame: u32,
     out: *mut RrskinCrowdOutput,
 ) -> RrskinStatus {
     guard(|| {
         use vk::Handle;
-        let o = registry().crowds.get(crowd.id)?.crowd.output();
+        let o = registry()
+            .crowds
+            .get(crowd.id)?
+            .crowd
+            .output(frame as usize)?;
+        let raw = |b: Option<vk::Buffer>| b.map_or(0, |b| b.as_raw());
         let output = RrskinCrowdOutput {
             positions: o.positions.as_raw(),
+            previous_positions: raw(o.previous_positions),
             normals: o.normals.as_raw(),
+            bounds: raw(o.bounds),
             offset: o.offset,
             vertex_stride: o.vertex_stride,
             character_stride: o.character_stride,
+            bounds_stride: crate::vk::BOUNDS_STRIDE,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, output, "out") }
@@ -693,6 +906,41 @@ pub unsafe extern "C" fn rrskin_crowd_read_back(
     })
 }
 
+/// Reads frame slot `frame`'s boxes from host-visible memory, once the frame's submission
+/// completed: `float_count` = characters x 6 floats (min x, y, z, max x, y, z per character).
+/// RRSKIN_STATUS_ERROR_NOT_ENABLED for a crowd created without bounds.
+///
+/// # Safety
+/// `boxes` is NULL or points to `float_count` writable floats (4-byte aligned).
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_read_bounds(
+    crowd: RrskinCrowd,
+    frame: u32,
+    boxes: *mut f32,
+    float_count: usize,
+) -> RrskinStatus {
+    guard(|| {
+        let mut reg = registry();
+        let c = &mut reg.crowds.get_mut(crowd.id)?.crowd;
+        let expected = c.character_count() * 6;
+        if float_count != expected {
+            return Err(Failure::from(Error::WrongLength {
+                what: "bounds floats",
+                expected,
+                actual: float_count,
+            }));
+        }
+        if boxes.is_null() {
+            return Err(Failure::null("boxes"));
+        }
+        // SAFETY: non-null, room for `float_count` floats (the function's contract).
+        let dst = unsafe { std::slice::from_raw_parts_mut(boxes, float_count) };
+        // An Aabb is 6 floats (repr(C)): the caller's array is the boxes.
+        let dst: &mut [Aabb] = bytemuck::cast_slice_mut(dst);
+        Ok(c.read_bounds(frame as usize, dst)?)
+    })
+}
+
 #[no_mangle]
 pub extern "C" fn rrskin_crowd_destroy(crowd: RrskinCrowd) -> RrskinStatus {
     guard(|| registry().crowds.remove(crowd.id).map(drop))
@@ -718,19 +966,21 @@ fn crowds_of<'r>(
         .collect()
 }
 
-/// Records all passes of `count` crowds into the engine's command buffer (VkCommandBuffer,
-/// recording, outside a render pass, on the context's queue family). The recorded commands end
-/// with a barrier making the outputs visible to vertex input, transfer and compute.
+/// Records frame slot `frame` (0 to F - 1 of every crowd) of all passes of `count` crowds into
+/// the engine's command buffer (VkCommandBuffer, recording, outside a render pass, on the
+/// context's queue family). The recorded commands end with a barrier making the outputs visible
+/// to vertex input, transfer, compute and host reads.
 ///
 /// # Safety
 /// `crowds` is NULL or points to `count` readable `rrskin_crowd` handles. `command_buffer` is
 /// NULL or a VkCommandBuffer of the context's device, in the recording state, that no other
 /// thread records into during the call; the engine submits it, and keeps the crowds alive and
-/// their bones unchanged until it completed.
+/// the frame slot's bones unchanged until it completed.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowds_record(
     context: RrskinContext,
     command_buffer: *mut c_void,
+    frame: u32,
     crowds: *const RrskinCrowd,
     count: u32,
 ) -> RrskinStatus {
@@ -745,19 +995,23 @@ pub unsafe extern "C" fn rrskin_crowds_record(
         let list = crowds_of(&reg.crowds, context.id, handles)?;
         let entry = reg.contexts.get_mut(context.id)?;
         use vk::Handle;
-        Ok(entry
-            .batch
-            .record(vk::CommandBuffer::from_raw(command_buffer as u64), &list)?)
+        Ok(entry.batch.record(
+            vk::CommandBuffer::from_raw(command_buffer as u64),
+            frame as usize,
+            &list,
+        )?)
     })
 }
 
-/// Records all passes of `count` crowds, submits them and waits (headless path).
+/// Records frame slot `frame` of all passes of `count` crowds, submits them and waits
+/// (headless path).
 ///
 /// # Safety
 /// `crowds` is NULL or points to `count` readable `rrskin_crowd` handles.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_crowds_run(
     context: RrskinContext,
+    frame: u32,
     crowds: *const RrskinCrowd,
     count: u32,
 ) -> RrskinStatus {
@@ -767,22 +1021,29 @@ pub unsafe extern "C" fn rrskin_crowds_run(
         let mut reg = registry();
         let reg = &mut *reg;
         let list = crowds_of(&reg.crowds, context.id, handles)?;
-        Ok(reg.contexts.get_mut(context.id)?.batch.run(&list)?)
+        let batch = &mut reg.contexts.get_mut(context.id)?.batch;
+        Ok(batch.run(frame as usize, &list)?)
     })
 }
 
-/// GPU time per pass of the context's last recorded frame (after `rrskin_crowds_record`, only
-/// once the command buffer completed; RRSKIN_ERROR_NOT_READY otherwise).
+/// GPU time per pass of the context's frame slot `frame` as last recorded (after
+/// `rrskin_crowds_record`, only once the command buffer completed; RRSKIN_ERROR_NOT_READY
+/// otherwise).
 ///
 /// # Safety
 /// `out` is NULL or points to writable memory for one `rrskin_pass_timings`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_context_get_timings(
     context: RrskinContext,
+    frame: u32,
     out: *mut RrskinPassTimings,
 ) -> RrskinStatus {
     guard(|| {
-        let t = registry().contexts.get(context.id)?.batch.timings()?;
+        let t = registry()
+            .contexts
+            .get(context.id)?
+            .batch
+            .timings(frame as usize)?;
         let timings = RrskinPassTimings {
             predict_ms: t.predict_ms,
             blend_ms: t.blend_ms,

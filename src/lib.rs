@@ -23,21 +23,64 @@
 //!   the context, and the queue must be externally synchronised as Vulkan requires. With the
 //!   runtime's own device ([`vk::Context::new`], which can enable surface and swapchain
 //!   extensions), submit and present inside [`vk::Context::with_queue`].
-//! - A crowd's bone transforms live in host-visible memory read by the recorded commands: call
-//!   [`vk::Crowd::set_bones`] only when no submitted command buffer that reads the crowd is still
-//!   executing (the headless path, [`vk::Batch::run`], waits itself).
+//! - Frames in flight: a crowd is made for F of them ([`vk::CrowdOptions::frames_in_flight`],
+//!   1 to 4, default 2) and keeps F slots of its per-frame inputs and host-read outputs (bone
+//!   transforms, bounds). Call `set_bones(f, ..)` and record frame slot f
+//!   ([`vk::Batch::record`]) only once the GPU finished the last submission that recorded slot
+//!   f; the other F − 1 slots may be executing meanwhile (the headless path,
+//!   [`vk::Batch::run`], waits itself).
 //! - Drop a crowd or a GPU model only after the GPU finished every command buffer it was recorded
 //!   into. Objects are freed in `Drop`; the context is freed after every object made from it.
-//! - Output buffers are written by compute shaders; the recorded commands end with a barrier that
-//!   makes them visible to vertex input, transfer and compute reads on the same queue. Queue
-//!   family ownership transfers are the caller's.
+//!
+//! **What a recording does** ([`vk::Batch::record`], `rrskin_crowds_record`), for an engine
+//! that tracks state. Every buffer is a plain `VkBuffer` (no images, no layouts). Before: no
+//! state is required — the first command is a global barrier from compute writes, compute
+//! reads, transfer reads and (on a graphics queue) vertex-attribute reads of earlier
+//! submissions to this recording's compute reads and writes, so last frame's draws of the
+//! outputs may still be in flight on the queue. After: a global barrier makes every compute
+//! write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
+//! vertex attribute reads. In between, per crowd and frame slot f:
+//!
+//! | buffer | access | memory |
+//! |---|---|---|
+//! | bone transforms, slot f | compute read (passes 1, 3) | host-visible, written by `set_bones(f, ..)` |
+//! | model buffers | compute read | device-local, written once at upload |
+//! | B = [d; q], proxy transforms | compute write then read | device-local, internal |
+//! | positions (this frame's buffer) | compute write (pass 3), then read (normals, bounds) | device-local, vertex + storage + transfer-src |
+//! | previous positions | not touched | the buffer the last recorded frame wrote |
+//! | normals | compute write (pass 4) | device-local, vertex + storage + transfer-src |
+//! | bounds, slot f | compute write | host-visible, storage |
+//!
+//! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at
+//! `VK_PIPELINE_BIND_POINT_COMPUTE`, and writes timestamps into the batch's own query pool; it
+//! leaves the graphics bind point, render passes and dynamic state alone, and never begins,
+//! ends or submits the command buffer. The engine re-binds its own compute state after it.
+//!
+//! **Queue family ownership.** Every buffer is created `VK_SHARING_MODE_EXCLUSIVE` and used on
+//! the context's queue family only: outputs drawn on that family need nothing more. For an
+//! engine that reads outputs on another family,
+//! [`vk::CrowdOptions::release_to_queue_family`] ends each recording with the release barriers
+//! of the frame's outputs (its positions, the normals, its bounds; whole buffers, compute
+//! writes); the engine records the matching acquires on its queue after a semaphore wait. The
+//! runtime never reads an output a previous recording wrote, so nothing needs to come back:
+//! the next recording overwrites it (undefined old contents are never read).
+//!
+//! **Memory and requirements before creation.** [`vk::model_bytes`] and [`vk::crowd_bytes`]
+//! give the bytes a model and a crowd of C characters will take, from their sizes alone;
+//! creating a crowd beyond the largest device-local heap is a `DeviceLimit` error.
+//! [`vk::requirements`] gives the Vulkan version (1.1), extensions (none), features (none),
+//! queue flags and storage-buffer limit the runtime needs, before any device exists;
+//! [`vk::Context::from_engine`] checks them and checks that every Vulkan function the runtime
+//! calls is there (`MissingFunction` otherwise, never a call through a NULL pointer).
 //!
 //! **Threads.** [`vk::Context`] is `Send + Sync`; recording and running take `&mut` on what they
 //! write, so Rust's borrow rules are the threading rules.
 //!
 //! **Units and layouts.** Bone transforms are 3x4 row-major `f32` ([`predict::Affine`]), world
 //! space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs
-//! are tightly packed `f32` xyz (12-byte stride), character after character.
+//! are tightly packed `f32` xyz (12-byte stride), character after character; previous positions
+//! likewise (undefined until a crowd recorded two frames); bounds are two std430 `vec4` per
+//! character (min xyz, max xyz; [`vk::BOUNDS_STRIDE`] = 32 bytes).
 
 pub mod cpu;
 pub mod error;

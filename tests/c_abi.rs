@@ -176,10 +176,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     // SAFETY: valid pointers and lengths.
     unsafe {
         assert_eq!(
-            rrskin_crowd_set_bones(crowd, floats.as_ptr(), floats.len()),
+            rrskin_crowd_set_bones(crowd, 0, floats.as_ptr(), floats.len()),
             ok
         );
-        assert_eq!(rrskin_crowds_run(ctx, &crowd, 1), ok);
+        assert_eq!(rrskin_crowds_run(ctx, 0, &crowd, 1), ok);
     }
     let mut positions = vec![0.0f32; characters as usize * v * 3];
     // SAFETY: room for the floats; normals skipped.
@@ -201,7 +201,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     }
     let mut timings = RrskinPassTimings::default();
     // SAFETY: `out` points to a live value.
-    assert_eq!(unsafe { rrskin_context_get_timings(ctx, &mut timings) }, ok);
+    assert_eq!(
+        unsafe { rrskin_context_get_timings(ctx, 0, &mut timings) },
+        ok
+    );
     assert!(timings.skin_ms > 0.0);
     // A read-back buffer of the wrong size is refused, and the message says why.
     // SAFETY: the length is checked before anything is written.
@@ -213,6 +216,102 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         .to_string_lossy()
         .into_owned();
     assert!(message.contains("read-back floats"), "{message}");
+    // Bounds through the ABI: a crowd with options, frame slot 1 of 3.
+    let options = RrskinCrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: 1,
+        bounds: 1,
+        release_outputs: 0,
+        release_queue_family: 0,
+    };
+    let mut bounded = RrskinCrowd { id: 0 };
+    let mut boxes = vec![0.0f32; characters as usize * 6];
+    // SAFETY: live values and valid lengths.
+    unsafe {
+        assert_eq!(
+            rrskin_crowd_create_with_options(m, characters, &options, &mut bounded),
+            ok
+        );
+        assert_eq!(
+            rrskin_crowd_set_bones(bounded, 1, floats.as_ptr(), floats.len()),
+            ok
+        );
+        assert_eq!(rrskin_crowds_run(ctx, 1, &bounded, 1), ok);
+        assert_eq!(
+            rrskin_crowd_read_bounds(bounded, 1, boxes.as_mut_ptr(), boxes.len()),
+            ok
+        );
+        assert_eq!(
+            rrskin_crowd_set_bones(bounded, 3, floats.as_ptr(), floats.len()),
+            RrskinStatus::ErrorOutOfRange
+        );
+    }
+    for (c, got) in boxes.chunks_exact(6).enumerate() {
+        let character = &p[c * v..(c + 1) * v];
+        for axis in 0..3 {
+            let lo = character
+                .iter()
+                .map(|x| x[axis])
+                .fold(f32::INFINITY, f32::min);
+            let hi = character
+                .iter()
+                .map(|x| x[axis])
+                .fold(f32::NEG_INFINITY, f32::max);
+            for (want, got) in [(lo, got[axis]), (hi, got[3 + axis])] {
+                assert!(
+                    (want - got).abs() <= 2e-4 * want.abs().max(1.0),
+                    "{got} vs {want}"
+                );
+            }
+        }
+    }
+    // The memory query of the C ABI is the Rust one (which tests/vulkan.rs checks against the
+    // buffers created).
+    let info = RrskinModelInfo {
+        vertices: model.vertex_count() as u32,
+        triangles: model.triangle_count() as u32,
+        bones: model.bone_count() as u32,
+        proxies: model.proxy_count() as u32,
+        influences: model.influences() as u32,
+    };
+    let (mut model_bytes, mut crowd_bytes) = (0u64, 0u64);
+    // SAFETY: live values.
+    assert_eq!(
+        unsafe {
+            rrskin_query_memory(
+                &info,
+                characters,
+                &options,
+                &mut model_bytes,
+                &mut crowd_bytes,
+            )
+        },
+        ok
+    );
+    let sizes = rrskin::vk::ModelSizes::of(&model);
+    assert_eq!(model_bytes, rrskin::vk::model_bytes(&sizes));
+    let same = rrskin::vk::CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        ..Default::default()
+    };
+    let expected = rrskin::vk::crowd_bytes(&sizes, characters as usize, &same).expect("query");
+    assert_eq!(crowd_bytes, expected);
+    let mut needs = std::mem::MaybeUninit::<RrskinRequirements>::uninit();
+    // SAFETY: room for one value, written on success.
+    assert_eq!(unsafe { rrskin_get_requirements(needs.as_mut_ptr()) }, ok);
+    // SAFETY: written by the call above.
+    let needs = unsafe { needs.assume_init() };
+    assert_eq!(
+        (
+            needs.api_version,
+            needs.instance_extension_count,
+            needs.device_extension_count
+        ),
+        (rrskin::vk::ash::vk::API_VERSION_1_1, 0, 0)
+    );
+    assert_eq!(rrskin_crowd_destroy(bounded), ok);
     let mut count = u32::MAX;
     // SAFETY: `out` points to a live value.
     assert_eq!(

@@ -7,8 +7,8 @@ use ash::vk;
 use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, Crowd, EngineDevice, GpuModel};
-use std::ffi::c_void;
-use std::sync::Mutex;
+use std::ffi::{c_char, c_void, CStr};
+use std::sync::{Mutex, OnceLock};
 
 unsafe extern "system" fn collect(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
@@ -171,10 +171,10 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
                 .expect("fence");
             for frame in 0..3u64 {
                 let poses = random_poses(&model, characters, frame);
-                crowd.set_bones(&poses).expect("bones");
+                crowd.set_bones(0, &poses).expect("bones");
                 d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
                     .expect("begin");
-                batch.record(cmd, &[&crowd]).expect("record");
+                batch.record(cmd, 0, &[&crowd]).expect("record");
                 d.end_command_buffer(cmd).expect("end");
                 let cmds = [cmd];
                 d.queue_submit(
@@ -198,9 +198,9 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
                     normals: gn,
                 } = crowd.read_back().expect("read back");
                 compare(&model, (&p, &n), (&gp, &gn));
-                assert!(batch.timings().expect("timings").total_ms() > 0.0);
+                assert!(batch.timings(0).expect("timings").total_ms() > 0.0);
             }
-            let out = crowd.output();
+            let out = crowd.output(0).expect("frame 0");
             assert_eq!(
                 (out.vertex_stride, out.character_stride),
                 (12, 12 * model.vertex_count() as u64)
@@ -209,6 +209,85 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
             d.destroy_command_pool(pool, None);
         }
     }
+    let seen = messages.lock().expect("not poisoned").clone();
+    engine.destroy();
+    assert!(seen.is_empty(), "validation messages:\n{}", seen.join("\n"));
+}
+
+/// The engine's real loader entry points, behind the filtering ones below.
+static REAL_GIPA: OnceLock<vk::PFN_vkGetInstanceProcAddr> = OnceLock::new();
+static REAL_GDPA: OnceLock<vk::PFN_vkGetDeviceProcAddr> = OnceLock::new();
+/// The function the filters hide.
+static HIDDEN: Mutex<&CStr> = Mutex::new(c"");
+
+fn hidden(name: *const c_char) -> bool {
+    // SAFETY: the runtime passes NUL-terminated names.
+    let name = unsafe { CStr::from_ptr(name) };
+    name == *HIDDEN.lock().expect("not poisoned")
+}
+
+/// `vkGetInstanceProcAddr` of an engine whose loader lacks `HIDDEN`, instance- or device-level.
+unsafe extern "system" fn filtering_gipa(
+    instance: vk::Instance,
+    name: *const c_char,
+) -> vk::PFN_vkVoidFunction {
+    if hidden(name) {
+        return None;
+    }
+    // SAFETY: `name` is NUL-terminated.
+    let asked = unsafe { CStr::from_ptr(name) };
+    if asked == c"vkGetDeviceProcAddr" {
+        // SAFETY: same signature.
+        return Some(unsafe {
+            std::mem::transmute::<vk::PFN_vkGetDeviceProcAddr, unsafe extern "system" fn()>(
+                filtering_gdpa,
+            )
+        });
+    }
+    // SAFETY: the real loader's entry point, with the caller's arguments.
+    unsafe { REAL_GIPA.get().expect("set")(instance, name) }
+}
+
+unsafe extern "system" fn filtering_gdpa(
+    device: vk::Device,
+    name: *const c_char,
+) -> vk::PFN_vkVoidFunction {
+    if hidden(name) {
+        return None;
+    }
+    // SAFETY: the real device entry point, with the caller's arguments.
+    unsafe { REAL_GDPA.get().expect("set")(device, name) }
+}
+
+#[test]
+fn a_missing_engine_function_is_an_error_not_a_crash() {
+    let messages = Mutex::new(Vec::new());
+    let engine = Engine::new(&messages);
+    let handles = engine.handles();
+    REAL_GIPA.get_or_init(|| handles.get_instance_proc_addr);
+    REAL_GDPA.get_or_init(|| engine.instance.fp_v1_0().get_device_proc_addr);
+    let filtered = EngineDevice {
+        get_instance_proc_addr: filtering_gipa,
+        ..handles
+    };
+    for name in [
+        c"vkGetDeviceProcAddr",
+        c"vkGetPhysicalDeviceMemoryProperties",
+        c"vkCmdDispatch",
+        c"vkCreateComputePipelines",
+    ] {
+        *HIDDEN.lock().expect("not poisoned") = name;
+        // SAFETY: valid engine handles; the filter forwards to the real loader.
+        let made = unsafe { Context::from_engine(filtered) };
+        assert!(
+            matches!(&made, Err(rrskin::Error::MissingFunction { name: n }) if n.as_str() == name.to_str().expect("ASCII")),
+            "{name:?}: {:?}",
+            made.err()
+        );
+    }
+    *HIDDEN.lock().expect("not poisoned") = c"";
+    // SAFETY: as above, nothing hidden.
+    drop(unsafe { Context::from_engine(filtered) }.expect("every function there"));
     let seen = messages.lock().expect("not poisoned").clone();
     engine.destroy();
     assert!(seen.is_empty(), "validation messages:\n{}", seen.join("\n"));

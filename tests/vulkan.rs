@@ -6,7 +6,8 @@ mod common;
 
 use common::*;
 use rrskin::cpu::CpuEvaluator;
-use rrskin::vk::{Batch, Context, Crowd, CrowdOptions, GpuModel};
+use rrskin::vk::ash::vk;
+use rrskin::vk::{Aabb, Batch, Context, Crowd, CrowdOptions, GpuModel};
 use rrskin::{Error, Model};
 use rrskin_render::synthetic::renumber_bones;
 
@@ -39,9 +40,9 @@ fn check_poses(
 
     let gpu_model = GpuModel::new(ctx, model).expect("upload");
     let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
-    crowd.set_bones(poses).expect("bones");
+    crowd.set_bones(0, poses).expect("bones");
     let mut batch = Batch::new(ctx).expect("batch");
-    batch.run(&[&crowd]).expect("run");
+    batch.run(0, &[&crowd]).expect("run");
     let rrskin::vk::HostOutput {
         positions: pos,
         normals: nrm,
@@ -123,6 +124,7 @@ fn crowds_split_into_chunks_when_a_binding_would_be_too_large() {
     // rounded down to the offset alignment's granularity.
     let options = CrowdOptions {
         max_binding_bytes: Some(64 * 1024),
+        ..CrowdOptions::default()
     };
     let crowd = check(&ctx, &model, 300, options, 9);
     assert!(crowd.chunk_count() >= 8, "{} chunks", crowd.chunk_count());
@@ -222,7 +224,7 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
     for ((model, g), &c) in models.iter().zip(&gpu).zip(&counts) {
         let poses = random_poses(model, c, c as u64);
         let mut crowd = Crowd::new(g, c).expect("crowd");
-        crowd.set_bones(&poses).expect("bones");
+        crowd.set_bones(0, &poses).expect("bones");
         let v = model.vertex_count();
         let (mut p, mut n) = (vec![[0.0; 3]; c * v], vec![[0.0; 3]; c * v]);
         CpuEvaluator::new(model)
@@ -234,7 +236,7 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
     let mut batch = Batch::new(&ctx).expect("batch");
     let refs: Vec<&Crowd> = crowds.iter().collect();
     for _frame in 0..3 {
-        batch.run(&refs).expect("run");
+        batch.run(0, &refs).expect("run");
     }
     for ((model, crowd), (p, n)) in models.iter().zip(&crowds).zip(&expected) {
         let rrskin::vk::HostOutput {
@@ -243,7 +245,7 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
         } = crowd.read_back().expect("read back");
         compare(model, (p, n), (&gp, &gn));
     }
-    let t = batch.timings().expect("timestamps on lavapipe");
+    let t = batch.timings(0).expect("timestamps on lavapipe");
     assert!(
         t.skin_ms > 0.0 && t.normals_ms > 0.0 && t.predict_ms > 0.0 && t.blend_ms > 0.0,
         "{t:?}"
@@ -257,7 +259,7 @@ fn a_new_crowd_renders_the_rest_pose() {
     let model = random_model(RR, 8);
     let crowd = Crowd::new(&GpuModel::new(&ctx, &model).expect("upload"), 2).expect("crowd");
     let mut batch = Batch::new(&ctx).expect("batch");
-    batch.run(&[&crowd]).expect("run");
+    batch.run(0, &[&crowd]).expect("run");
     let rrskin::vk::HostOutput {
         positions: pos,
         normals: nrm,
@@ -281,7 +283,7 @@ fn bad_per_frame_input_is_an_error() {
     let j = model.bone_count();
     let mut poses = random_poses(&model, 3, 1);
     assert_eq!(
-        crowd.set_bones(&poses[..3 * j - 1]),
+        crowd.set_bones(0, &poses[..3 * j - 1]),
         Err(Error::WrongLength {
             what: "crowd bone transforms",
             expected: 3 * j,
@@ -289,7 +291,7 @@ fn bad_per_frame_input_is_an_error() {
         })
     );
     assert_eq!(
-        crowd.set_character_bones(3, &poses[..j]),
+        crowd.set_character_bones(0, 3, &poses[..j]),
         Err(Error::OutOfRange {
             what: "character",
             index: 3,
@@ -298,7 +300,7 @@ fn bad_per_frame_input_is_an_error() {
     );
     poses[j + 1][5] = f32::NAN;
     assert_eq!(
-        crowd.set_bones(&poses),
+        crowd.set_bones(0, &poses),
         Err(Error::NonFinite {
             what: "bone transforms",
             index: 12 * (j + 1) + 5
@@ -309,4 +311,518 @@ fn bad_per_frame_input_is_an_error() {
         Err(Error::OutOfRange { .. })
     ));
     assert_no_validation_messages(&ctx);
+}
+
+/// A host-visible, coherent buffer of the test's own (raw Vulkan: the runtime hands out none),
+/// mapped; freed by `destroy`.
+struct HostBuffer {
+    buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    mapped: *const f32,
+}
+
+impl HostBuffer {
+    fn new(ctx: &Context, floats: usize) -> HostBuffer {
+        let d = ctx.device();
+        let info = vk::BufferCreateInfo::default()
+            .size(floats as u64 * 4)
+            .usage(vk::BufferUsageFlags::TRANSFER_DST);
+        // SAFETY: the context's live device and physical device; sizes from the requirements.
+        unsafe {
+            let buffer = d.create_buffer(&info, None).expect("buffer");
+            let needs = d.get_buffer_memory_requirements(buffer);
+            let types = ctx
+                .instance()
+                .get_physical_device_memory_properties(ctx.physical_device());
+            let host =
+                vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT;
+            let index = (0..types.memory_type_count)
+                .find(|&t| {
+                    needs.memory_type_bits & (1 << t) != 0
+                        && types.memory_types[t as usize].property_flags.contains(host)
+                })
+                .expect("host-visible coherent memory");
+            let alloc = vk::MemoryAllocateInfo::default()
+                .allocation_size(needs.size)
+                .memory_type_index(index);
+            let memory = d.allocate_memory(&alloc, None).expect("memory");
+            d.bind_buffer_memory(buffer, memory, 0).expect("bind");
+            let mapped = d
+                .map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                .expect("map") as *const f32;
+            HostBuffer {
+                buffer,
+                memory,
+                mapped,
+            }
+        }
+    }
+
+    /// `count` xyz triples from float `at` (after the GPU wrote them and a fence wait).
+    fn xyz(&self, at: usize, count: usize) -> Vec<[f32; 3]> {
+        // SAFETY: mapped for the buffer's whole size, which the callers stay within.
+        let floats = unsafe { std::slice::from_raw_parts(self.mapped.add(at), 3 * count) };
+        floats.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect()
+    }
+
+    fn destroy(self, ctx: &Context) {
+        // SAFETY: the GPU finished with the buffer (the caller waited for its fences).
+        unsafe {
+            ctx.device().destroy_buffer(self.buffer, None);
+            ctx.device().free_memory(self.memory, None);
+        }
+    }
+}
+
+/// Each character's box of CPU positions (C x V).
+fn boxes_of(positions: &[[f32; 3]], v: usize) -> Vec<Aabb> {
+    positions
+        .chunks_exact(v)
+        .map(|c| {
+            let fold = |f: fn(f32, f32) -> f32, start: f32| {
+                c.iter()
+                    .fold([start; 3], |b, p| std::array::from_fn(|i| f(b[i], p[i])))
+            };
+            Aabb {
+                min: fold(f32::min, f32::INFINITY),
+                max: fold(f32::max, f32::NEG_INFINITY),
+            }
+        })
+        .collect()
+}
+
+/// F frames of a crowd for F frames in flight, all pending on the queue at once: the first
+/// frame's command buffer starts by waiting on an event the host sets only after every frame was
+/// posed (`set_bones(f, ..)` while the frames before it are still pending) and submitted. Each
+/// frame copies its positions, normals (and previous positions) to a buffer of its own in its own
+/// command buffer; its bounds stay in its frame slot. Every frame is checked against the CPU
+/// reference (tolerances of `compare`; boxes within `POSITION_TOLERANCE * max(1, |x|)`), with
+/// the validation layer and synchronization validation on. One bone buffer shared by the frames
+/// would give every frame the last frame's pose.
+fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
+    let ctx = validated_context();
+    let f = options.frames_in_flight;
+    let v = model.vertex_count();
+    let n = characters * v;
+    let gpu_model = GpuModel::new(&ctx, model).expect("upload");
+    let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
+    let mut batch = Batch::new(&ctx).expect("batch");
+    let d = ctx.device();
+    let copies: Vec<HostBuffer> = (0..f).map(|_| HostBuffer::new(&ctx, 3 * n * 3)).collect();
+    let poses: Vec<_> = (0..f)
+        .map(|frame| random_poses(model, characters, 100 + frame as u64))
+        .collect();
+    // SAFETY: objects of the context's live device, destroyed below after the fences.
+    let (pool, cmds, fences, event) = unsafe {
+        let pool = d
+            .create_command_pool(
+                &vk::CommandPoolCreateInfo::default().queue_family_index(ctx.queue_family_index()),
+                None,
+            )
+            .expect("pool");
+        let cmds = d
+            .allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .command_buffer_count(f as u32),
+            )
+            .expect("command buffers");
+        let fences: Vec<vk::Fence> = (0..f)
+            .map(|_| {
+                d.create_fence(&vk::FenceCreateInfo::default(), None)
+                    .expect("fence")
+            })
+            .collect();
+        let event = d
+            .create_event(&vk::EventCreateInfo::default(), None)
+            .expect("event");
+        (pool, cmds, fences, event)
+    };
+    for frame in 0..f {
+        crowd.set_bones(frame, &poses[frame]).expect("bones");
+        let cmd = cmds[frame];
+        // SAFETY: a fresh command buffer of our pool; the buffers live until the fences.
+        unsafe {
+            d.begin_command_buffer(cmd, &vk::CommandBufferBeginInfo::default())
+                .expect("begin");
+            if frame == 0 {
+                let host = [vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::HOST_WRITE)
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ)];
+                d.cmd_wait_events(
+                    cmd,
+                    &[event],
+                    vk::PipelineStageFlags::HOST,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    &host,
+                    &[],
+                    &[],
+                );
+            }
+            batch.record(cmd, frame, &[&crowd]).expect("record");
+            let out = crowd.output(frame).expect("the frame's output");
+            if let Some(family) = options.release_to_queue_family {
+                // The engine's side of the ownership transfer, back on this queue: acquire what
+                // the recording released (the copies below then read defined contents).
+                let released = [Some(out.positions), Some(out.normals), out.bounds];
+                let acquire: Vec<vk::BufferMemoryBarrier> = (released.into_iter().flatten())
+                    .map(|buffer| {
+                        vk::BufferMemoryBarrier::default()
+                            .dst_access_mask(vk::AccessFlags::TRANSFER_READ)
+                            .src_queue_family_index(family)
+                            .dst_queue_family_index(ctx.queue_family_index())
+                            .buffer(buffer)
+                            .size(vk::WHOLE_SIZE)
+                    })
+                    .collect();
+                d.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TOP_OF_PIPE,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::DependencyFlags::empty(),
+                    &[],
+                    &acquire,
+                    &[],
+                );
+            }
+            let bytes = n as u64 * 12;
+            let sources = [
+                Some(out.positions),
+                Some(out.normals),
+                out.previous_positions,
+            ];
+            for (i, src) in sources.into_iter().enumerate() {
+                if let Some(src) = src {
+                    let region = [vk::BufferCopy {
+                        src_offset: out.offset,
+                        dst_offset: i as u64 * bytes,
+                        size: bytes,
+                    }];
+                    d.cmd_copy_buffer(cmd, src, copies[frame].buffer, &region);
+                }
+            }
+            let to_host = [vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ)];
+            d.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &to_host,
+                &[],
+                &[],
+            );
+            d.end_command_buffer(cmd).expect("end");
+            let submit = [vk::SubmitInfo::default().command_buffers(std::slice::from_ref(&cmd))];
+            ctx.with_queue(|q| d.queue_submit(q, &submit, fences[frame]))
+                .expect("submit");
+        }
+    }
+    // SAFETY: the event and fences are ours; every frame was submitted.
+    unsafe {
+        assert_eq!(
+            d.get_fence_status(fences[0]),
+            Ok(false),
+            "the first frame is still pending"
+        );
+        d.set_event(event).expect("set event");
+        d.wait_for_fences(&fences, true, u64::MAX).expect("wait");
+    }
+    let mut cpu = CpuEvaluator::new(model);
+    let mut previous: Option<Vec<[f32; 3]>> = None;
+    for frame in 0..f {
+        let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        cpu.evaluate(&poses[frame], &mut p, &mut nrm).expect("cpu");
+        let copy = &copies[frame];
+        compare(model, (&p, &nrm), (&copy.xyz(0, n), &copy.xyz(3 * n, n)));
+        if let (true, Some(before)) = (options.previous_positions, &previous) {
+            let prev = copy.xyz(6 * n, n);
+            compare_positions(before, &prev);
+        }
+        if options.bounds {
+            let mut boxes = vec![Aabb::default(); characters];
+            crowd.read_bounds(frame, &mut boxes).expect("bounds");
+            for (want, got) in boxes_of(&p, v).iter().zip(&boxes) {
+                for (w, g) in want
+                    .min
+                    .iter()
+                    .chain(&want.max)
+                    .zip(got.min.iter().chain(&got.max))
+                {
+                    assert!(
+                        (w - g).abs() <= POSITION_TOLERANCE * w.abs().max(1.0),
+                        "frame {frame}: box {got:?}, CPU {want:?}"
+                    );
+                }
+            }
+        }
+        previous = Some(p);
+    }
+    // SAFETY: every submission completed.
+    unsafe {
+        for fence in fences {
+            d.destroy_fence(fence, None);
+        }
+        d.destroy_event(event, None);
+        d.destroy_command_pool(pool, None);
+    }
+    for copy in copies {
+        copy.destroy(&ctx);
+    }
+    assert_no_validation_messages(&ctx);
+}
+
+/// Positions only, at the tolerance of `compare`.
+fn compare_positions(cpu: &[[f32; 3]], gpu: &[[f32; 3]]) {
+    for (i, (c, g)) in cpu.iter().zip(gpu).enumerate() {
+        let norm = c.iter().map(|x| x * x).sum::<f32>().sqrt().max(1.0);
+        let dist = c
+            .iter()
+            .zip(g)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f32>()
+            .sqrt();
+        assert!(
+            dist <= POSITION_TOLERANCE * norm,
+            "position {i}: cpu {c:?} gpu {g:?}"
+        );
+    }
+}
+
+#[test]
+fn two_frames_in_flight_each_match_cpu() {
+    overlapping_frames(&random_model(LBS, 31), 5, CrowdOptions::default());
+}
+
+#[test]
+fn four_frames_in_flight_of_a_reduced_model_each_match_cpu() {
+    let options = CrowdOptions {
+        frames_in_flight: 4,
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(RR, 32), 7, options);
+}
+
+#[test]
+fn frame_slots_out_of_range_are_errors() {
+    let ctx = validated_context();
+    let model = random_model(LBS, 33);
+    let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    for frames in [0, 5] {
+        let options = CrowdOptions {
+            frames_in_flight: frames,
+            ..CrowdOptions::default()
+        };
+        assert!(matches!(
+            Crowd::with_options(&gpu, 1, options),
+            Err(Error::OutOfRange {
+                what: "frames in flight (1 to 4)",
+                ..
+            })
+        ));
+    }
+    let mut crowd = Crowd::new(&gpu, 2).expect("crowd");
+    assert_eq!(crowd.frames_in_flight(), 2, "the default");
+    let poses = random_poses(&model, 2, 1);
+    let past = Err(Error::OutOfRange {
+        what: "frame in flight",
+        index: 2,
+        count: 2,
+    });
+    assert_eq!(crowd.set_bones(2, &poses), past);
+    assert_eq!(
+        crowd.set_character_bones(2, 0, &poses[..model.bone_count()]),
+        past
+    );
+    assert!(crowd.output(2).is_err());
+    let mut batch = Batch::new(&ctx).expect("batch");
+    assert_eq!(batch.run(2, &[&crowd]), past);
+    assert!(matches!(
+        batch.run(0, &[&crowd, &crowd]),
+        Err(Error::Mismatch { .. })
+    ));
+    batch.run(1, &[&crowd]).expect("run frame 1");
+    assert!(matches!(batch.timings(0), Err(Error::NotReady { .. })));
+    assert!(batch.timings(1).is_ok());
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn previous_positions_and_bounds_of_three_frames_in_flight_match_cpu() {
+    let options = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(RR, 34), 6, options);
+}
+
+/// Bounds and previous positions of a crowd split into chunks (descriptor ranges at chunk
+/// offsets of every per-frame buffer).
+#[test]
+fn previous_positions_and_bounds_across_chunks_match_cpu() {
+    let options = CrowdOptions {
+        previous_positions: true,
+        bounds: true,
+        max_binding_bytes: Some(64 * 1024),
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(LBS, 35), 300, options);
+}
+
+#[test]
+fn optional_outputs_are_absent_unless_asked_for() {
+    let ctx = validated_context();
+    let model = random_model(LBS, 36);
+    let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    let mut crowd = Crowd::new(&gpu, 2).expect("crowd");
+    let out = crowd.output(0).expect("frame 0");
+    assert!(out.previous_positions.is_none() && out.bounds.is_none());
+    let mut boxes = [Aabb::default(); 2];
+    assert!(matches!(
+        crowd.read_bounds(0, &mut boxes),
+        Err(Error::NotEnabled { .. })
+    ));
+    assert!(matches!(
+        crowd.read_bounds(0, &mut boxes[..1]),
+        Err(Error::WrongLength { .. })
+    ));
+    // With previous positions, frames write the two buffers in turn, whatever their slot.
+    let options = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        ..CrowdOptions::default()
+    };
+    let crowd = Crowd::with_options(&gpu, 2, options).expect("crowd");
+    let mut batch = Batch::new(&ctx).expect("batch");
+    let mut written = Vec::new();
+    for frame in [0, 1, 2, 0] {
+        batch.run(frame, &[&crowd]).expect("run");
+        let out = crowd.output(frame).expect("output");
+        assert_eq!(out.positions, crowd.latest_output().positions);
+        if let Some(&last) = written.last() {
+            assert_eq!(out.previous_positions, Some(last));
+            assert_ne!(out.positions, last);
+        }
+        written.push(out.positions);
+    }
+    assert_no_validation_messages(&ctx);
+}
+
+/// The memory queries, made from sizes before anything exists, are the bytes of the buffers
+/// then created.
+#[test]
+fn memory_queries_are_the_bytes_created() {
+    use rrskin::vk::{crowd_bytes, model_bytes, ModelSizes};
+    let ctx = validated_context();
+    let with_everything = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        ..CrowdOptions::default()
+    };
+    for (spec, seed) in [(LBS, 41), (RR, 42)] {
+        let model = random_model(spec, seed);
+        let sizes = ModelSizes::of(&model);
+        let gpu = GpuModel::new(&ctx, &model).expect("upload");
+        assert_eq!(model_bytes(&sizes), gpu.memory_bytes(), "{spec:?}");
+        for options in [CrowdOptions::default(), with_everything] {
+            let expected = crowd_bytes(&sizes, 9, &options).expect("query");
+            let crowd = Crowd::with_options(&gpu, 9, options).expect("crowd");
+            assert_eq!(expected, crowd.memory_bytes(), "{spec:?} {options:?}");
+        }
+    }
+    // Every option costs what it says: F bone slots, a second positions buffer, F bounds slots.
+    let model = random_model(RR, 43);
+    let sizes = ModelSizes::of(&model);
+    let bytes = |o: CrowdOptions| crowd_bytes(&sizes, 10, &o).expect("query");
+    let plain = CrowdOptions {
+        frames_in_flight: 1,
+        ..CrowdOptions::default()
+    };
+    let (j, v) = (model.bone_count() as u64, model.vertex_count() as u64);
+    let previous = CrowdOptions {
+        previous_positions: true,
+        ..plain
+    };
+    assert_eq!(bytes(previous) - bytes(plain), 10 * v * 12);
+    let two = CrowdOptions {
+        frames_in_flight: 2,
+        ..plain
+    };
+    assert_eq!(bytes(two) - bytes(plain), 10 * j * 48);
+    let bounded = CrowdOptions {
+        bounds: true,
+        ..two
+    };
+    assert_eq!(bytes(bounded) - bytes(two), 2 * 10 * 32);
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn a_crowd_beyond_the_device_heap_is_refused_before_allocating() {
+    let ctx = validated_context();
+    let model = random_model(LBS, 44);
+    let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    let bytes = |c: usize| {
+        rrskin::vk::crowd_bytes(
+            &rrskin::vk::ModelSizes::of(&model),
+            c,
+            &CrowdOptions::default(),
+        )
+        .expect("query")
+    };
+    // Per character (the fixed minimum sizes of unused buffers aside).
+    let per_character = bytes(2) - bytes(1);
+    let characters = (ctx.limits().device_local_bytes / per_character + 1) as usize;
+    let made = Crowd::new(&gpu, characters).map(|_| ());
+    assert!(
+        matches!(&made, Err(Error::DeviceLimit { what, .. }) if what.contains("device-local heap")),
+        "{made:?}"
+    );
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn requirements_are_known_before_any_device_and_met_here() {
+    let r = rrskin::vk::requirements();
+    assert_eq!(r.api_version, vk::API_VERSION_1_1);
+    assert!(r.instance_extensions.is_empty() && r.device_extensions.is_empty());
+    assert_eq!(r.queue_flags, vk::QueueFlags::COMPUTE);
+    // The skinning pass binds 6 storage buffers, beyond Vulkan's guaranteed 4.
+    assert_eq!(r.storage_buffers_per_stage, 6);
+    let ctx = validated_context();
+    // SAFETY: the context's live instance and physical device.
+    let props = unsafe {
+        ctx.instance()
+            .get_physical_device_properties(ctx.physical_device())
+    };
+    assert!(props.api_version >= r.api_version);
+    assert!(props.limits.max_per_stage_descriptor_storage_buffers >= r.storage_buffers_per_stage);
+}
+
+/// Outputs released to another queue family each frame (`VK_QUEUE_FAMILY_EXTERNAL`: lavapipe has
+/// one family) and acquired back by the test's own barrier before it copies them: every frame
+/// still matches the CPU, and the validation layer sees matching release/acquire pairs.
+#[test]
+fn outputs_released_to_another_queue_family_each_frame_match_cpu() {
+    let options = CrowdOptions {
+        previous_positions: true,
+        bounds: true,
+        release_to_queue_family: Some(vk::QUEUE_FAMILY_EXTERNAL),
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(RR, 37), 4, options);
+    let ctx = validated_context();
+    let gpu = GpuModel::new(&ctx, &random_model(LBS, 38)).expect("upload");
+    let own = CrowdOptions {
+        release_to_queue_family: Some(ctx.queue_family_index()),
+        ..CrowdOptions::default()
+    };
+    assert!(matches!(
+        Crowd::with_options(&gpu, 1, own),
+        Err(Error::OutOfRange { .. })
+    ));
 }

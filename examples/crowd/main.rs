@@ -16,7 +16,7 @@
 mod swapchain;
 mod window;
 
-use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel, PassTimings};
+use rrskin::vk::{Batch, Context, ContextDesc, Crowd, CrowdOptions, GpuModel, PassTimings};
 use rrskin::Model;
 use rrskin_render::{phased_poses, CROWD_BACKGROUND};
 
@@ -129,7 +129,12 @@ impl Show {
         ];
         for (name, m) in candidates {
             if let Some(m) = m {
-                let crowd = Crowd::new(&GpuModel::new(&ctx, &m)?, args.characters)?;
+                let options = CrowdOptions {
+                    frames_in_flight: swapchain::FRAMES_IN_FLIGHT,
+                    ..CrowdOptions::default()
+                };
+                let crowd =
+                    Crowd::with_options(&GpuModel::new(&ctx, &m)?, args.characters, options)?;
                 methods.push(Method {
                     name,
                     model: m,
@@ -157,18 +162,23 @@ impl Show {
         self.current = (self.current + 1) % self.methods.len();
     }
 
-    /// Poses the shown crowd at animation frame `frame` (`phased_poses`: neighbours out of step).
-    pub fn pose(&mut self, frame: usize) -> rrskin::Result<()> {
+    /// Poses frame slot `slot` of the shown crowd at animation frame `frame` (`phased_poses`:
+    /// neighbours out of step).
+    pub fn pose(&mut self, slot: usize, frame: usize) -> rrskin::Result<()> {
         let m = &mut self.methods[self.current];
         m.crowd
-            .set_bones(&phased_poses(&m.model, self.characters, frame))
+            .set_bones(slot, &phased_poses(&m.model, self.characters, frame))
     }
 
-    /// After the frame that ran the shown crowd has completed: keep its pass timings.
-    pub fn sample(&mut self) -> rrskin::Result<PassTimings> {
-        let t = self.batch.timings()?;
-        self.methods[self.current].samples.push(t);
-        Ok(t)
+    /// Once the last frame recorded in frame slot `slot` has completed: keep its pass timings
+    /// (none before the slot's first frame).
+    pub fn sample(&mut self, slot: usize) -> rrskin::Result<()> {
+        match self.batch.timings(slot) {
+            Ok(t) => self.methods[self.current].samples.push(t),
+            Err(rrskin::Error::NotReady { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        Ok(())
     }
 
     /// Prints the median pass times of every method shown, and fails if validation (when on)
@@ -218,9 +228,11 @@ fn headless(args: &Args, model: &Model) -> Result<(), Error> {
     let frames = args.frames.unwrap_or(30);
     let mut image = Vec::new();
     for frame in 0..frames {
-        show.pose(frame)?;
-        show.batch.run(&[&show.methods[show.current].crowd])?;
-        show.sample()?;
+        // The frame slots of the window mode, in turn (each run waits for its frame).
+        let slot = frame % swapchain::FRAMES_IN_FLIGHT;
+        show.pose(slot, frame)?;
+        show.batch.run(slot, &[&show.methods[show.current].crowd])?;
+        show.sample(slot)?;
         if frame + 1 == frames {
             let draws = scene.draws(&show.shown().crowd);
             image = renderer.render(&scene.camera, &draws, &[], CROWD_BACKGROUND)?;

@@ -2,15 +2,19 @@
 //! blit destinations, and the per-frame command buffer that runs the crowd, draws it offscreen
 //! and blits the picture to the acquired image.
 //!
-//! One frame is in flight at a time: the crowd's bone and output buffers are single, so the CPU
-//! waits for frame n before it poses frame n + 1. Semaphores: `acquired` (one: the fence wait
-//! guarantees the previous frame's wait on it has completed) and `rendered` (one per swapchain
-//! image, since presentation may still hold the previous image's semaphore).
+//! [`FRAMES_IN_FLIGHT`] frames are in flight: frame n records into slot n % 2 (its command
+//! buffer, fence and `acquired` semaphore) once the slot's previous frame, n − 2, completed, so
+//! the CPU poses frame n (the crowd's bone slot n % 2) while frame n − 1 still executes.
+//! `rendered` is one semaphore per swapchain image, since presentation may still hold the
+//! previous image's semaphore.
 
 use rrskin::vk::ash::{self, vk};
 use rrskin::vk::Context;
 
 type Error = Box<dyn std::error::Error>;
+
+/// Frame slots, and the crowd's frames in flight.
+pub const FRAMES_IN_FLIGHT: usize = 2;
 
 pub struct Presenter {
     ctx: Context,
@@ -21,11 +25,14 @@ pub struct Presenter {
     images: Vec<vk::Image>,
     pub extent: vk::Extent2D,
     format: vk::Format,
-    acquired: vk::Semaphore,
+    acquired: [vk::Semaphore; FRAMES_IN_FLIGHT],
     rendered: Vec<vk::Semaphore>,
     pool: vk::CommandPool,
-    cmd: vk::CommandBuffer,
-    fence: vk::Fence,
+    cmds: [vk::CommandBuffer; FRAMES_IN_FLIGHT],
+    /// Signalled when the slot's last frame completed (created signalled).
+    fences: [vk::Fence; FRAMES_IN_FLIGHT],
+    /// Frames submitted so far.
+    submitted: usize,
 }
 
 /// What `Presenter::frame` did. `stale`: the swapchain no longer matches the window (out of
@@ -50,11 +57,12 @@ impl Presenter {
             images: Vec::new(),
             extent: vk::Extent2D::default(),
             format: vk::Format::UNDEFINED,
-            acquired: vk::Semaphore::null(),
+            acquired: [vk::Semaphore::null(); FRAMES_IN_FLIGHT],
             rendered: Vec::new(),
             pool: vk::CommandPool::null(),
-            cmd: vk::CommandBuffer::null(),
-            fence: vk::Fence::null(),
+            cmds: [vk::CommandBuffer::null(); FRAMES_IN_FLIGHT],
+            fences: [vk::Fence::null(); FRAMES_IN_FLIGHT],
+            submitted: 0,
         };
         // SAFETY: valid physical device, queue family and surface.
         let supported = unsafe {
@@ -74,19 +82,26 @@ impl Presenter {
         let device = ctx.device();
         // SAFETY: valid device; every handle is stored at once so Drop frees a partial presenter.
         unsafe {
-            p.acquired = device.create_semaphore(&vk::SemaphoreCreateInfo::default(), None)?;
-            p.fence = device.create_fence(&vk::FenceCreateInfo::default(), None)?;
+            for slot in 0..FRAMES_IN_FLIGHT {
+                p.acquired[slot] =
+                    device.create_semaphore(&vk::SemaphoreCreateInfo::default(), None)?;
+                p.fences[slot] = device.create_fence(
+                    &vk::FenceCreateInfo::default().flags(vk::FenceCreateFlags::SIGNALED),
+                    None,
+                )?;
+            }
             p.pool = device.create_command_pool(
                 &vk::CommandPoolCreateInfo::default()
                     .queue_family_index(ctx.queue_family_index())
                     .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
                 None,
             )?;
-            p.cmd = device.allocate_command_buffers(
+            let cmds = device.allocate_command_buffers(
                 &vk::CommandBufferAllocateInfo::default()
                     .command_pool(p.pool)
-                    .command_buffer_count(1),
-            )?[0];
+                    .command_buffer_count(FRAMES_IN_FLIGHT as u32),
+            )?;
+            p.cmds.copy_from_slice(&cmds);
         }
         p.resize(size)?;
         Ok(p)
@@ -198,22 +213,28 @@ impl Presenter {
         Ok(())
     }
 
-    /// Acquires an image, records `record` (the crowd's passes and the offscreen draw, leaving
-    /// `picture` in TRANSFER_SRC_OPTIMAL with its writes visible to transfers), blits `picture`
-    /// (`picture_extent`) to the image, submits, presents, and waits for the frame to complete.
+    /// Waits for the next frame slot's previous frame, acquires an image, records `record`
+    /// (given the slot: the crowd's passes and the offscreen draw, leaving `picture` in
+    /// TRANSFER_SRC_OPTIMAL with its writes visible to transfers), blits `picture`
+    /// (`picture_extent`) to the image, submits and presents, without waiting for the frame.
     pub fn frame(
         &mut self,
         picture: vk::Image,
         picture_extent: vk::Extent2D,
-        record: impl FnOnce(vk::CommandBuffer) -> Result<(), Error>,
+        record: impl FnOnce(vk::CommandBuffer, usize) -> Result<(), Error>,
     ) -> Result<Frame, Error> {
         let device = self.ctx.device();
-        // SAFETY: our swapchain and an unsignalled semaphore with no pending wait (see module).
+        let slot = self.submitted % FRAMES_IN_FLIGHT;
+        let fence = self.fences[slot];
+        // SAFETY: our fence, signalled or submitted.
+        unsafe { device.wait_for_fences(&[fence], true, u64::MAX)? };
+        // SAFETY: our swapchain and an unsignalled semaphore with no pending wait (the slot's
+        // last submission, which waited on it, completed).
         let acquired = unsafe {
             self.swapchain_fn.acquire_next_image(
                 self.swapchain,
                 u64::MAX,
-                self.acquired,
+                self.acquired[slot],
                 vk::Fence::null(),
             )
         };
@@ -223,9 +244,10 @@ impl Presenter {
             Err(e) => return Err(e.into()),
         };
         let image = self.images[index as usize];
-        let cmd = self.cmd;
-        // SAFETY: the command buffer is not pending (the last frame was waited for).
+        let cmd = self.cmds[slot];
+        // SAFETY: the slot's command buffer is not pending (its fence was waited for).
         unsafe {
+            device.reset_fences(&[fence])?;
             device.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())?;
             device.begin_command_buffer(
                 cmd,
@@ -233,7 +255,7 @@ impl Presenter {
                     .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
             )?;
         }
-        record(cmd)?;
+        record(cmd, slot)?;
         let color = vk::ImageSubresourceRange::default()
             .aspect_mask(vk::ImageAspectFlags::COLOR)
             .level_count(1)
@@ -304,7 +326,11 @@ impl Presenter {
             device.end_command_buffer(cmd)?;
         }
         let rendered = [self.rendered[index as usize]];
-        let (waits, stages, cmds) = ([self.acquired], [vk::PipelineStageFlags::TRANSFER], [cmd]);
+        let (waits, stages, cmds) = (
+            [self.acquired[slot]],
+            [vk::PipelineStageFlags::TRANSFER],
+            [cmd],
+        );
         let submit = vk::SubmitInfo::default()
             .wait_semaphores(&waits)
             .wait_dst_stage_mask(&stages)
@@ -317,17 +343,13 @@ impl Presenter {
             .image_indices(&indices);
         let presented = self.ctx.with_queue(|queue| {
             // SAFETY: the queue is locked by `with_queue`; everything submitted lives until
-            // the fence wait below.
+            // the slot's fence is waited for (next use of the slot, resize or drop).
             unsafe {
-                device.queue_submit(queue, &[submit], self.fence)?;
+                device.queue_submit(queue, &[submit], fence)?;
                 Ok::<_, vk::Result>(self.swapchain_fn.queue_present(queue, &present))
             }
         })?;
-        // SAFETY: the fence belongs to this device and was submitted above.
-        unsafe {
-            device.wait_for_fences(&[self.fence], true, u64::MAX)?;
-            device.reset_fences(&[self.fence])?;
-        }
+        self.submitted += 1;
         match presented {
             Ok(suboptimal) => Ok(Frame::Presented { stale: suboptimal }),
             Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(Frame::Presented { stale: true }),
@@ -346,8 +368,10 @@ impl Drop for Presenter {
             for &s in &self.rendered {
                 device.destroy_semaphore(s, None);
             }
-            device.destroy_semaphore(self.acquired, None);
-            device.destroy_fence(self.fence, None);
+            for slot in 0..FRAMES_IN_FLIGHT {
+                device.destroy_semaphore(self.acquired[slot], None);
+                device.destroy_fence(self.fences[slot], None);
+            }
             device.destroy_command_pool(self.pool, None);
             self.swapchain_fn.destroy_swapchain(self.swapchain, None);
             self.surface_fn.destroy_surface(self.surface, None);

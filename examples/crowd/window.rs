@@ -1,9 +1,10 @@
 //! The window mode: a winit window (X11 or Wayland) presenting with the runtime's own device.
 //! Each frame is one command buffer: the crowd's four compute passes (`Batch::record`), the
 //! draw straight from the crowd's output buffers (`Renderer::record`), and a blit to the
-//! swapchain image (`swapchain.rs`). The animation plays at 30 frames per second of wall time.
+//! swapchain image (`swapchain.rs`), with two frames in flight (the crowd's frame slots). The
+//! animation plays at 30 frames per second of wall time.
 
-use crate::swapchain::{Frame, Presenter};
+use crate::swapchain::{Frame, Presenter, FRAMES_IN_FLIGHT};
 use crate::{Args, Error, Show};
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
 use rrskin::vk::ash::{self, vk};
@@ -60,6 +61,12 @@ pub fn run(args: &Args, model: &Model) -> Result<(), Error> {
             shown.presenter.extent.width,
             shown.presenter.extent.height
         );
+    }
+    // The presenter waits for the frames in flight before the crowds go; then the last frame of
+    // each slot has completed, and its timings are kept too.
+    drop(app.shown.take());
+    for slot in 0..FRAMES_IN_FLIGHT {
+        app.show.sample(slot)?;
     }
     match app.error.take() {
         Some(e) => Err(e),
@@ -171,20 +178,20 @@ impl App {
             return Ok(()); // minimised
         };
         let show = &mut self.show;
-        show.pose(shown.clock.frame())?;
-        let crowd = &show.methods[show.current].crowd;
-        let draws = shown.scene.draws(crowd);
-        let batch = &mut show.batch;
-        let camera = &shown.scene.camera;
+        let (scene, time) = (&shown.scene, shown.clock.frame());
         let frame = shown.presenter.frame(
             renderer.color_image(),
             vk::Extent2D {
                 width: renderer.width(),
                 height: renderer.height(),
             },
-            |cmd| {
-                batch.record(cmd, &[crowd])?;
-                renderer.record(cmd, camera, &draws, CROWD_BACKGROUND)?;
+            |cmd, slot| {
+                // The slot's last frame completed: keep its timings, pose it anew.
+                show.sample(slot)?;
+                show.pose(slot, time)?;
+                let crowd = &show.methods[show.current].crowd;
+                show.batch.record(cmd, slot, &[crowd])?;
+                renderer.record(cmd, &scene.camera, &scene.draws(crowd), CROWD_BACKGROUND)?;
                 Ok(())
             },
         )?;
@@ -192,7 +199,6 @@ impl App {
             Frame::Presented { stale } => {
                 shown.stale = stale;
                 shown.presented += 1;
-                self.show.sample()?;
             }
             Frame::Skipped => shown.stale = true,
         }

@@ -6,16 +6,20 @@
 //! ts0 | barrier(prev. frame's reads/writes → compute) | predict (all crowds with P > 0)
 //! ts1 | barrier | blend GEMM (all crowds with P > 0)
 //! ts2 | barrier | skin (all crowds, the pipeline of their K)
-//! ts3 | barrier | normals (all crowds)
-//! ts4 | barrier(compute writes → vertex input, transfer, compute reads)
+//! ts3 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
+//! ts4 | barrier(compute writes → vertex input, transfer, compute and host reads)
 //! ```
+//! Frame slot f of every crowd reads its own bone transforms and writes its own bounds, so
+//! recording frame f while the other frames in flight execute is safe; the buffers frames
+//! share (intermediates, positions, normals) are ordered by the first barrier, which waits
+//! for earlier submissions' uses on the queue. Timestamps are ringed per frame slot too.
 //! A barrier between phases is recorded where a phase touches a crowd buffer written (or
 //! writes one read) since the last barrier, as the table's bindings say. ts0..ts4 are GPU
 //! timestamps; [`Batch::timings`] turns them into per-phase milliseconds.
 
 use super::barrier::{global_barrier, Access};
 use super::context::{Context, Shared};
-use super::crowd::Crowd;
+use super::crowd::{Crowd, MAX_FRAMES_IN_FLIGHT};
 use super::passes::Pass;
 use crate::error::{Error, Result};
 use ash::vk;
@@ -27,25 +31,31 @@ const SCHEDULE: [&[Pass]; 4] = [
     &[Pass::Predict],
     &[Pass::BlendGemm],
     &[Pass::SkinK4, Pass::SkinK8],
-    &[Pass::Normals],
+    &[Pass::Normals, Pass::Bounds],
 ];
 
 /// Everything that meets a frame's buffers outside the batch: the next frame's compute
-/// writes, then the consumers of its outputs (compute reads, copies, and vertex fetch where the
-/// queue can draw).
-const OUTSIDE: [Access; 4] = [
+/// writes, then the consumers of its outputs (compute reads, copies, host reads of the
+/// bounds, and vertex fetch where the queue can draw).
+const OUTSIDE: [Access; 5] = [
     Access::ComputeShaderWrite,
     Access::ComputeShaderReadStorage,
     Access::TransferRead,
+    Access::HostRead,
     Access::VertexBuffer,
 ];
+
+/// The earlier uses the first barrier waits for: host reads need none (the host reads a slot
+/// before it records that slot again, and a submission orders host work before it).
+const BEFORE: [Access; 4] = [OUTSIDE[0], OUTSIDE[1], OUTSIDE[2], OUTSIDE[4]];
 
 /// What a pass does to its storage buffers.
 const PASS_ACCESSES: [Access; 2] = [Access::ComputeShaderReadStorage, Access::ComputeShaderWrite];
 
+/// Timestamps of one frame slot; the pool holds [`MAX_FRAMES_IN_FLIGHT`] slots.
 const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;
 
-/// GPU time per pass of the last recorded frame, in milliseconds.
+/// GPU time per pass of a recorded frame, in milliseconds (the bounds count with the normals).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimings {
     pub predict_ms: f64,
@@ -84,8 +94,9 @@ pub struct Batch {
     cmd: vk::CommandBuffer,
     /// Signalled by `run`'s submission; reused every frame (the per-frame path allocates nothing).
     fence: vk::Fence,
-    /// Whether queries were recorded (asking for unrecorded ones is a validation error).
-    recorded: bool,
+    /// Which frame slots' queries were recorded (asking for unrecorded ones is a validation
+    /// error).
+    recorded: [bool; MAX_FRAMES_IN_FLIGHT],
 }
 
 impl Batch {
@@ -104,7 +115,7 @@ impl Batch {
             pool,
             cmd: vk::CommandBuffer::null(),
             fence: vk::Fence::null(),
-            recorded: false,
+            recorded: [false; MAX_FRAMES_IN_FLIGHT],
         };
         // SAFETY: valid device.
         batch.fence = unsafe { device.create_fence(&vk::FenceCreateInfo::default(), None) }
@@ -119,7 +130,7 @@ impl Batch {
         if shared.limits.timestamp_period_ns.is_some() {
             let info = vk::QueryPoolCreateInfo::default()
                 .query_type(vk::QueryType::TIMESTAMP)
-                .query_count(TIMESTAMPS);
+                .query_count(TIMESTAMPS * MAX_FRAMES_IN_FLIGHT as u32);
             // SAFETY: valid device and create info.
             batch.queries = Some(
                 unsafe { device.create_query_pool(&info, None) }
@@ -129,54 +140,73 @@ impl Batch {
         Ok(batch)
     }
 
-    /// Records the passes of `crowds` into the caller's command buffer (engine path). `cmd` must
-    /// be recording, outside a render pass, on a queue of the context's queue family.
-    pub fn record(&mut self, cmd: vk::CommandBuffer, crowds: &[&Crowd]) -> Result<()> {
-        for crowd in crowds {
+    /// Records frame slot `frame` of `crowds` into the caller's command buffer (engine path):
+    /// their bones as set by `set_bones(frame, ..)`, their bounds into slot `frame`. `cmd` must
+    /// be recording, outside a render pass, on a queue of the context's queue family. Fails,
+    /// recording nothing, if `frame` is not a slot of every crowd or a crowd is listed twice.
+    pub fn record(
+        &mut self,
+        cmd: vk::CommandBuffer,
+        frame: usize,
+        crowds: &[&Crowd],
+    ) -> Result<()> {
+        for (i, crowd) in crowds.iter().enumerate() {
             if !Arc::ptr_eq(crowd.shared(), &self.shared) {
                 return Err(Error::Mismatch {
                     what: "a crowd of another context",
                 });
             }
+            crowd.check_frame(frame)?;
+            if crowds[..i].iter().any(|c| std::ptr::eq(*c, *crowd)) {
+                return Err(Error::Mismatch {
+                    what: "a crowd listed twice in one frame",
+                });
+            }
+        }
+        for crowd in crowds {
+            crowd.begin_frame(frame);
         }
         let device = &self.shared.device;
-        let outside = &OUTSIDE[..if self.shared.queue_has_graphics { 4 } else { 3 }];
-        let runs = |pass: Pass| {
-            crowds
-                .iter()
-                .filter(move |c| pass.runs_for(&c.model.inner.dims))
-        };
+        let graphics = usize::from(self.shared.queue_has_graphics);
+        let before = &BEFORE[..3 + graphics];
+        let after = &OUTSIDE[1..4 + graphics];
+        let runs = |pass: Pass| crowds.iter().filter(move |c| pass.runs_for(&c.dims));
         let barriers = barriers_before(|pass| runs(pass).next().is_some());
+        let first = frame as u32 * TIMESTAMPS;
         // SAFETY: cmd is recording (caller's contract); every handle belongs to this device and
         // lives as long as the crowds.
         unsafe {
             if let Some(q) = self.queries {
-                device.cmd_reset_query_pool(cmd, q, 0, TIMESTAMPS);
+                device.cmd_reset_query_pool(cmd, q, first, TIMESTAMPS);
             }
             for (i, phase) in SCHEDULE.iter().enumerate() {
-                self.timestamp(cmd, i as u32);
+                self.timestamp(cmd, first + i as u32);
                 if i == 0 {
-                    // WAR against last frame's readers (vertex fetch, copies) and WAW against
-                    // its writes.
-                    global_barrier(device, cmd, outside, &PASS_ACCESSES);
+                    // WAR against earlier frames' readers (vertex fetch, copies) and WAW against
+                    // their writes.
+                    global_barrier(device, cmd, before, &PASS_ACCESSES);
                 } else if barriers[i] {
                     global_barrier(device, cmd, &[Access::ComputeShaderWrite], &PASS_ACCESSES);
                 }
                 for &pass in *phase {
                     for crowd in runs(pass) {
-                        dispatch_chunks(device, cmd, pass, crowd);
+                        dispatch_chunks(device, cmd, pass, crowd, frame);
                     }
                 }
             }
-            self.timestamp(cmd, SCHEDULE.len() as u32);
-            global_barrier(device, cmd, &[Access::ComputeShaderWrite], &outside[1..]);
+            self.timestamp(cmd, first + SCHEDULE.len() as u32);
+            global_barrier(device, cmd, &[Access::ComputeShaderWrite], after);
+            for crowd in crowds {
+                crowd.release_outputs(cmd, frame);
+            }
         }
-        self.recorded = true;
+        self.recorded[frame] = true;
         Ok(())
     }
 
-    /// Records the passes into the batch's own command buffer, submits and waits (headless path).
-    pub fn run(&mut self, crowds: &[&Crowd]) -> Result<()> {
+    /// Records frame slot `frame` of `crowds` into the batch's own command buffer, submits and
+    /// waits (headless path).
+    pub fn run(&mut self, frame: usize, crowds: &[&Crowd]) -> Result<()> {
         let shared = self.shared.clone();
         let device = &shared.device;
         let cmd = self.cmd;
@@ -191,7 +221,7 @@ impl Batch {
                 .begin_command_buffer(cmd, &begin)
                 .map_err(Error::vk("vkBeginCommandBuffer"))?;
         }
-        let recorded = self.record(cmd, crowds);
+        let recorded = self.record(cmd, frame, crowds);
         // SAFETY: cmd is recording.
         let ended =
             unsafe { device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
@@ -200,17 +230,18 @@ impl Batch {
         shared.submit_wait(cmd, self.fence)
     }
 
-    /// Per-pass GPU time of the last recorded frame. After `record`, call it only once the
-    /// engine's command buffer has completed; `NotReady` if the results are not there yet.
-    pub fn timings(&self) -> Result<PassTimings> {
+    /// Per-pass GPU time of frame slot `frame` as last recorded. After `record`, call it only
+    /// once the engine's command buffer has completed; `NotReady` if the results are not there
+    /// yet.
+    pub fn timings(&self, frame: usize) -> Result<PassTimings> {
         let (Some(q), Some(period)) = (self.queries, self.shared.limits.timestamp_period_ns) else {
             return Err(Error::NotReady {
                 what: "timestamps (the queue has no timestamp support)",
             });
         };
-        if !self.recorded {
+        if !self.recorded.get(frame).copied().unwrap_or(false) {
             return Err(Error::NotReady {
-                what: "timestamps (nothing recorded yet)",
+                what: "timestamps (the frame slot was never recorded)",
             });
         }
         let mut ticks = [0u64; TIMESTAMPS as usize];
@@ -218,7 +249,7 @@ impl Batch {
         unsafe {
             self.shared.device.get_query_pool_results(
                 q,
-                0,
+                frame as u32 * TIMESTAMPS,
                 &mut ticks,
                 vk::QueryResultFlags::TYPE_64,
             )
@@ -295,14 +326,22 @@ fn barriers_before(dispatch: impl Fn(Pass) -> bool) -> [bool; SCHEDULE.len()] {
     barriers
 }
 
-/// Binds `pass` and dispatches it once per chunk of `crowd`.
+/// Binds `pass` and dispatches it once per chunk of `crowd`, with the sets of frame slot
+/// `frame` as begun.
 ///
 /// # Safety
-/// `cmd` must be recording; the crowd's model runs `pass`.
-unsafe fn dispatch_chunks(device: &ash::Device, cmd: vk::CommandBuffer, pass: Pass, crowd: &Crowd) {
+/// `cmd` must be recording; the crowd runs `pass`; `frame` is one of its slots.
+unsafe fn dispatch_chunks(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    pass: Pass,
+    crowd: &Crowd,
+    frame: usize,
+) {
     let desc = pass.desc();
     let pipeline = crowd.shared().pipelines.get(pass);
-    let dims = &crowd.model.inner.dims;
+    let dims = &crowd.dims;
+    let variant = crowd.variant(frame);
     // SAFETY: see the function's contract.
     unsafe {
         device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline.pipeline);
@@ -312,7 +351,7 @@ unsafe fn dispatch_chunks(device: &ash::Device, cmd: vk::CommandBuffer, pass: Pa
                 vk::PipelineBindPoint::COMPUTE,
                 pipeline.layout,
                 0,
-                &[chunk.sets[pass as usize]],
+                &[chunk.sets[variant][pass as usize]],
                 &[],
             );
             let words = desc.push_words(dims, chunk.characters);
@@ -395,6 +434,8 @@ mod tests {
     fn frames_without_reduced_models_skip_the_barriers_of_their_passes() {
         let lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals);
         assert_eq!(barriers_before(lbs), [true, false, false, true]);
+        let bounded_lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals | Pass::Bounds);
+        assert_eq!(barriers_before(bounded_lbs), [true, false, false, true]);
         assert_eq!(barriers_before(|_| true), [true; 4]);
     }
 }

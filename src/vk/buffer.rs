@@ -2,14 +2,12 @@
 
 use super::barrier::{global_barrier, Access};
 use super::context::Shared;
+use super::memory::MIN_BUFFER_BYTES;
 use crate::error::{Error, Result};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
 use gpu_allocator::MemoryLocation;
 use std::sync::Arc;
-
-/// Vulkan forbids zero-sized buffers; empty arrays (P = 0, T = 0) get this many bytes, unread.
-const MIN_BYTES: u64 = 16;
 
 pub struct Buffer {
     shared: Arc<Shared>,
@@ -26,7 +24,7 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
         location: MemoryLocation,
     ) -> Result<Buffer> {
-        let size = size.max(MIN_BYTES);
+        let size = size.max(MIN_BUFFER_BYTES);
         let (handle, requirements) = shared.create_buffer(size, usage)?;
         // Owned at once, so that Drop destroys the buffer if allocating fails.
         let mut buffer = Buffer {

@@ -6,6 +6,7 @@
 
 use super::device_ext::Physical;
 use super::pipelines::Pipelines;
+use super::requirements::{check_device, check_functions};
 use crate::error::{Error, Result};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
@@ -58,6 +59,10 @@ pub struct Limits {
     pub max_storage_buffer_range: u64,
     pub min_storage_buffer_offset_alignment: u64,
     pub max_workgroup_count: [u32; 3],
+    /// The largest device-local heap: no crowd larger than this is attempted.
+    pub device_local_bytes: u64,
+    /// Queue families of the physical device (the outputs may be released to any other).
+    pub queue_family_count: u32,
     /// Nanoseconds per timestamp tick; `None` if the queue has no timestamps.
     pub timestamp_period_ns: Option<f64>,
 }
@@ -139,7 +144,13 @@ impl Context {
     /// `vkGetInstanceProcAddr` for `instance`. The queue must support compute. The runtime
     /// submits to the queue only during uploads and read-backs and [`super::Batch::run`]; the
     /// engine must not use the queue concurrently with those calls.
+    ///
+    /// Fails with `MissingFunction` if a function the runtime calls is NULL from the engine's
+    /// loader, and with `NoDevice` / `DeviceLimit` if the device does not meet
+    /// [`super::requirements`].
     pub unsafe fn from_engine(engine: EngineDevice) -> Result<Context> {
+        // SAFETY: the function's contract.
+        unsafe { check_functions(&engine) }?;
         let static_fn = ash::StaticFn {
             get_instance_proc_addr: engine.get_instance_proc_addr,
         };
@@ -188,12 +199,15 @@ impl Context {
         // engine's under `from_engine`'s contract.
         let physical = unsafe { Physical::from_raw(&instance, physical_device) };
         let props = physical.properties();
+        check_device(&props)?;
         // Both callers checked the index against these families.
         let family = physical.queue_families()[queue_family_index as usize];
         let limits = Limits {
             max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
             min_storage_buffer_offset_alignment: props.limits.min_storage_buffer_offset_alignment,
             max_workgroup_count: props.limits.max_compute_work_group_count,
+            device_local_bytes: physical.device_local_bytes(),
+            queue_family_count: physical.queue_families().len() as u32,
             timestamp_period_ns: (family.timestamp_valid_bits > 0)
                 .then_some(props.limits.timestamp_period as f64),
         };

@@ -11,6 +11,7 @@ use super::barrier::{global_barrier, Access};
 use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
+use super::memory::{crowd_buffer_copies, crowd_bytes, ModelSizes};
 use super::pass::{Binding, CrowdBuffer, Dims};
 use super::passes::Pass;
 use super::pipelines::PassPipeline;
@@ -19,24 +20,63 @@ use crate::error::{Error, Result};
 use crate::predict::Affine;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
 
 const AFFINE_BYTES: u64 = 48;
 const XYZ_BYTES: u64 = 12;
+/// One character's box in the bounds buffer: min xyz, pad, max xyz, pad (two std430 vec4).
+pub const BOUNDS_STRIDE: u64 = 32;
+/// The most frames in flight a crowd rings its per-frame buffers over.
+pub const MAX_FRAMES_IN_FLIGHT: usize = 4;
 
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 pub struct CrowdOptions {
+    /// F, the frames the engine keeps in flight (1..=[`MAX_FRAMES_IN_FLIGHT`], default 2): the
+    /// crowd keeps F slots of its per-frame inputs and host-read outputs (bone transforms,
+    /// bounds), so that frame f's are written while the other F − 1 frames still execute.
+    pub frames_in_flight: usize,
+    /// Keep last frame's positions in a second buffer: each recorded frame writes the buffer the
+    /// one before did not (alternating, no copy); [`CrowdOutput::previous_positions`].
+    pub previous_positions: bool,
+    /// Write each character's axis-aligned box every frame ([`CrowdOutput::bounds`]).
+    pub bounds: bool,
+    /// Release each frame's outputs (its positions, the normals, its bounds) to this queue
+    /// family at the end of the recording: a queue family ownership release barrier, which the
+    /// engine matches with an acquire on its queue (same buffers, whole range, families
+    /// reversed). Nothing comes back: a recording never reads an output an earlier one wrote.
+    /// Another family of the device, or `VK_QUEUE_FAMILY_EXTERNAL`.
+    pub release_to_queue_family: Option<u32>,
     /// Largest descriptor range to use, below the device's maxStorageBufferRange: forces smaller
     /// chunks (tests use it to exercise chunking without gigabytes of output).
     pub max_binding_bytes: Option<u64>,
 }
 
-/// Where the engine finds the outputs: character `c`, vertex `a` is at
-/// `offset + c * character_stride + a * vertex_stride` in each buffer (3 x f32: x, y, z).
+impl Default for CrowdOptions {
+    fn default() -> Self {
+        CrowdOptions {
+            frames_in_flight: 2,
+            previous_positions: false,
+            bounds: false,
+            release_to_queue_family: None,
+            max_binding_bytes: None,
+        }
+    }
+}
+
+/// Where the engine finds one frame's outputs: character `c`, vertex `a` is at
+/// `offset + c * character_stride + a * vertex_stride` in each vertex buffer (3 x f32: x, y, z);
+/// character `c`'s box at `c * BOUNDS_STRIDE` in `bounds`.
 #[derive(Debug, Clone, Copy)]
 pub struct CrowdOutput {
     pub positions: vk::Buffer,
+    /// The positions of the crowd's frame recorded before this one (same layout); undefined
+    /// until two frames were recorded. With [`CrowdOptions::previous_positions`] only.
+    pub previous_positions: Option<vk::Buffer>,
     pub normals: vk::Buffer,
+    /// Per-character boxes (f32 min x, y, z, pad, max x, y, z, pad), host-visible; with
+    /// [`CrowdOptions::bounds`] only.
+    pub bounds: Option<vk::Buffer>,
     pub offset: u64,
     pub vertex_stride: u64,
     pub character_stride: u64,
@@ -49,34 +89,54 @@ pub struct HostOutput {
     pub normals: Vec<[f32; 3]>,
 }
 
-/// The descriptor ranges of one chunk in the crowd's per-character buffers.
-type ChunkViews = [vk::DescriptorBufferInfo; CrowdBuffer::COUNT];
+/// A character's axis-aligned box, in the units of the positions (6 floats: the C ABI's
+/// layout).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Aabb {
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+}
 
 pub(crate) struct Chunk {
     pub characters: u32,
-    /// Indexed by [`Pass`]; null for the passes the model does not run.
-    pub sets: [vk::DescriptorSet; Pass::COUNT],
+    /// Indexed by [`Crowd::variant`], then by [`Pass`]; null for the passes the crowd does not
+    /// run.
+    pub sets: Vec<[vk::DescriptorSet; Pass::COUNT]>,
 }
 
 pub struct Crowd {
     pub(crate) model: GpuModel,
+    /// The model's sizes and this crowd's optional outputs.
+    pub(crate) dims: Dims,
     characters: u32,
-    /// C x J x 3x4 f32, host-visible (written by `set_bones`, read by passes 1–3).
-    bones: Buffer,
+    /// F slots of C x J x 3x4 f32, host-visible: slot f written by `set_bones(f, ..)`, read by
+    /// passes 1–3 of frame f.
+    bones: Vec<Buffer>,
     /// B = [d; q] of pass 2's product, (3P + 4J) x 3C f32 per chunk (pass 1 → pass 2)
     rhs: Buffer,
     /// C x P x 3x4 f32 (pass 2 → pass 3)
     proxies: Buffer,
-    /// C x V x 3 f32 (pass 3 → pass 4, and the engine's vertex buffer)
-    positions: Buffer,
+    /// C x V x 3 f32 (pass 3 → pass 4, and the engine's vertex buffer); two with previous
+    /// positions, written in turn.
+    positions: Vec<Buffer>,
     /// C x V x 3 f32
     normals: Buffer,
+    /// F slots of C x 2 vec4, host-visible (with bounds; else empty).
+    bounds: Vec<Buffer>,
+    /// Which positions buffer the last recording of each frame slot wrote, and of any frame.
+    /// Atomics: recording takes `&Crowd` (many crowds in one batch), and the crowd stays `Sync`.
+    written: [AtomicU8; MAX_FRAMES_IN_FLIGHT],
+    last: AtomicU8,
+    last_frame: AtomicU8,
+    release_to: Option<u32>,
     pool: vk::DescriptorPool,
     pub(crate) chunks: Vec<Chunk>,
 }
 
 impl Crowd {
-    /// A crowd of `characters` characters, all in the rest pose until `set_bones`.
+    /// A crowd of `characters` characters for 2 frames in flight, all in the rest pose until
+    /// `set_bones`.
     pub fn new(model: &GpuModel, characters: usize) -> Result<Crowd> {
         Self::with_options(model, characters, CrowdOptions::default())
     }
@@ -95,103 +155,150 @@ impl Crowd {
                 count: 0,
             });
         }
+        let frames = options.frames_in_flight;
+        if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&frames) {
+            return Err(Error::OutOfRange {
+                what: "frames in flight (1 to 4)",
+                index: frames,
+                count: MAX_FRAMES_IN_FLIGHT + 1,
+            });
+        }
+        if let Some(family) = options.release_to_queue_family {
+            let count = shared.limits.queue_family_count;
+            let other = family != shared.queue_family_index
+                && (family < count || family == vk::QUEUE_FAMILY_EXTERNAL);
+            if !other {
+                return Err(Error::OutOfRange {
+                    what: "queue family to release outputs to (another of the device's)",
+                    index: family as usize,
+                    count: count as usize,
+                });
+            }
+        }
+        let dims = Dims {
+            bounds: options.bounds,
+            ..m.dims
+        };
+        let bytes = crowd_bytes(&ModelSizes::of_gpu(model), characters, &options)?;
+        let heap = shared.limits.device_local_bytes;
+        if bytes > heap {
+            return Err(Error::DeviceLimit {
+                what: "crowd bytes (vk::crowd_bytes) in the largest device-local heap",
+                needed: bytes,
+                limit: heap,
+            });
+        }
+
         let c = characters as u64;
-        let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&m.dims, b));
+        let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&dims, b));
         let size = |b: CrowdBuffer| c * per_character[b as usize];
-        let chunk_characters = chunk_size(&shared, &m.dims, &per_character, c, options)?;
+        let chunk_characters = chunk_size(&shared, &dims, &per_character, c, options)?;
 
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let output =
             storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
         let gpu = MemoryLocation::GpuOnly;
-        let mut bones = Buffer::new(
-            &shared,
-            "crowd bones",
-            size(CrowdBuffer::Bones),
-            storage,
-            MemoryLocation::CpuToGpu,
-        )?;
-        let rhs = Buffer::new(&shared, "crowd rhs", size(CrowdBuffer::Rhs), storage, gpu)?;
-        let proxies = Buffer::new(
-            &shared,
-            "crowd proxies",
-            size(CrowdBuffer::Proxies),
-            storage,
-            gpu,
-        )?;
-        let positions = Buffer::new(
-            &shared,
-            "crowd positions",
-            size(CrowdBuffer::Positions),
-            output,
-            gpu,
-        )?;
-        let normals = Buffer::new(
-            &shared,
-            "crowd normals",
-            size(CrowdBuffer::Normals),
-            output,
-            gpu,
-        )?;
-        write_rest_pose(bones.mapped()?);
-
-        let chunk_count = characters.div_ceil(chunk_characters as usize);
-        let pool = create_pool(&shared.device, &m.dims, chunk_count as u32)?;
+        // Host-visible and coherent: the host writes bones and reads bounds without flushes.
+        let host = MemoryLocation::CpuToGpu;
+        let new = |name, b: CrowdBuffer, usage, location| {
+            Buffer::new(&shared, name, size(b), usage, location)
+        };
+        let copies = |name, b: CrowdBuffer, usage, location| {
+            (0..crowd_buffer_copies(b, &options))
+                .map(|_| new(name, b, usage, location))
+                .collect::<Result<Vec<_>>>()
+        };
+        let bones = copies("crowd bones", CrowdBuffer::Bones, storage, host)?;
+        let positions = copies("crowd positions", CrowdBuffer::Positions, output, gpu)?;
+        let bounds = copies("crowd bounds", CrowdBuffer::Bounds, storage, host)?;
         let mut crowd = Crowd {
             model: model.clone(),
+            dims,
             characters: characters as u32,
             bones,
-            rhs,
-            proxies,
+            rhs: new("crowd rhs", CrowdBuffer::Rhs, storage, gpu)?,
+            proxies: new("crowd proxies", CrowdBuffer::Proxies, storage, gpu)?,
             positions,
-            normals,
-            pool,
-            chunks: Vec::with_capacity(chunk_count),
+            normals: new("crowd normals", CrowdBuffer::Normals, output, gpu)?,
+            bounds,
+            written: Default::default(),
+            last: AtomicU8::new(0),
+            last_frame: AtomicU8::new(0),
+            release_to: options.release_to_queue_family,
+            pool: vk::DescriptorPool::null(),
+            chunks: Vec::new(),
         };
+        for slot in &mut crowd.bones {
+            write_rest_pose(slot.mapped()?);
+        }
+
+        let chunk_count = characters.div_ceil(chunk_characters as usize);
+        let variants = crowd.variant_count();
+        crowd.pool = create_pool(&shared.device, &dims, (chunk_count * variants) as u32)?;
+        crowd.chunks.reserve_exact(chunk_count);
         for first in (0..c).step_by(chunk_characters as usize) {
             let count = chunk_characters.min(c - first);
-            let view = |buffer: &Buffer, per: u64| {
-                if per == 0 {
-                    buffer.whole() // P = 0: an unread placeholder
-                } else {
-                    buffer.descriptor(first * per, count * per)
-                }
-            };
-            let views = CrowdBuffer::ALL.map(|b| view(crowd.buffer(b), per_character[b as usize]));
-            let chunk = crowd.make_chunk(&shared, m, &views, count as u32)?;
-            crowd.chunks.push(chunk);
+            let mut sets = Vec::with_capacity(variants);
+            for variant in 0..variants {
+                let view = |b: CrowdBuffer| {
+                    let buffer = crowd.buffer(b, variant).ok_or(Error::Mismatch {
+                        what: "a pass binds a buffer the crowd was made without",
+                    })?;
+                    Ok(match per_character[b as usize] {
+                        0 => buffer.whole(), // P = 0: an unread placeholder
+                        per => buffer.descriptor(first * per, count * per),
+                    })
+                };
+                sets.push(crowd.make_sets(&shared, m, &view)?);
+            }
+            crowd.chunks.push(Chunk {
+                characters: count as u32,
+                sets,
+            });
         }
         Ok(crowd)
     }
 
-    fn make_chunk(
+    /// One descriptor set per pass the crowd runs, over the views `view` gives.
+    fn make_sets(
         &self,
         shared: &Shared,
         m: &Inner,
-        views: &ChunkViews,
-        characters: u32,
-    ) -> Result<Chunk> {
+        view: &dyn Fn(CrowdBuffer) -> Result<vk::DescriptorBufferInfo>,
+    ) -> Result<[vk::DescriptorSet; Pass::COUNT]> {
         let mut sets = [vk::DescriptorSet::null(); Pass::COUNT];
-        for pass in Pass::of_model(&m.dims) {
-            let buffers: Vec<vk::DescriptorBufferInfo> = (pass.desc().bindings.iter())
+        for pass in Pass::of_model(&self.dims) {
+            let buffers = (pass.desc().bindings.iter())
                 .map(|&binding| match binding {
-                    Binding::Model(b) => m.buffer(b).whole(),
-                    Binding::Reads(b) | Binding::Writes(b) => views[b as usize],
+                    Binding::Model(b) => Ok(m.buffer(b).whole()),
+                    Binding::Reads(b) | Binding::Writes(b) => view(b),
                 })
-                .collect();
+                .collect::<Result<Vec<_>>>()?;
             let pipeline = shared.pipelines.get(pass);
             sets[pass as usize] = write_set(shared, self.pool, pipeline, &buffers)?;
         }
-        Ok(Chunk { characters, sets })
+        Ok(sets)
     }
 
-    fn buffer(&self, b: CrowdBuffer) -> &Buffer {
+    /// Descriptor variants: one per (frame slot, positions buffer written).
+    fn variant_count(&self) -> usize {
+        self.bones.len() * self.positions.len()
+    }
+
+    /// The buffer `b` of descriptor variant `variant` (see [`Crowd::variant`]); `None` for the
+    /// bounds of a crowd without them.
+    fn buffer(&self, b: CrowdBuffer, variant: usize) -> Option<&Buffer> {
+        let (frame, written) = (
+            variant / self.positions.len(),
+            variant % self.positions.len(),
+        );
         match b {
-            CrowdBuffer::Bones => &self.bones,
-            CrowdBuffer::Rhs => &self.rhs,
-            CrowdBuffer::Proxies => &self.proxies,
-            CrowdBuffer::Positions => &self.positions,
-            CrowdBuffer::Normals => &self.normals,
+            CrowdBuffer::Bones => self.bones.get(frame),
+            CrowdBuffer::Rhs => Some(&self.rhs),
+            CrowdBuffer::Proxies => Some(&self.proxies),
+            CrowdBuffer::Positions => self.positions.get(written),
+            CrowdBuffer::Normals => Some(&self.normals),
+            CrowdBuffer::Bounds => self.bounds.get(frame),
         }
     }
 
@@ -203,14 +310,59 @@ impl Crowd {
         &self.model
     }
 
+    /// Bytes of the crowd's buffers: what [`super::crowd_bytes`] said before creating it.
+    pub fn memory_bytes(&self) -> u64 {
+        let buffers = (self.bones.iter())
+            .chain(&self.positions)
+            .chain(&self.bounds)
+            .chain([&self.rhs, &self.proxies, &self.normals]);
+        buffers.map(|b| b.size).sum()
+    }
+
+    /// F, the frames in flight the crowd was made for.
+    pub fn frames_in_flight(&self) -> usize {
+        self.bones.len()
+    }
+
     /// Number of dispatch chunks (1 unless the outputs exceed one descriptor's range).
     pub fn chunk_count(&self) -> usize {
         self.chunks.len()
     }
 
-    /// Sets every character's bone transforms: C x J, character-major.
-    /// See the crate contract: no submitted work reading this crowd may still be executing.
-    pub fn set_bones(&mut self, bones: &[Affine]) -> Result<()> {
+    /// `OutOfRange` unless `frame` is one of the crowd's frame slots.
+    pub(crate) fn check_frame(&self, frame: usize) -> Result<()> {
+        if frame >= self.bones.len() {
+            return Err(Error::OutOfRange {
+                what: "frame in flight",
+                index: frame,
+                count: self.bones.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Starts recording frame slot `frame` (checked): picks the positions buffer it writes, the
+    /// one the last recorded frame did not.
+    pub(crate) fn begin_frame(&self, frame: usize) {
+        let written = if self.positions.len() == 2 {
+            1 - self.last.load(Ordering::Relaxed)
+        } else {
+            0
+        };
+        self.last.store(written, Ordering::Relaxed);
+        self.last_frame.store(frame as u8, Ordering::Relaxed);
+        self.written[frame].store(written, Ordering::Relaxed);
+    }
+
+    /// The descriptor variant of frame slot `frame` as last begun.
+    pub(crate) fn variant(&self, frame: usize) -> usize {
+        frame * self.positions.len() + self.written[frame].load(Ordering::Relaxed) as usize
+    }
+
+    /// Sets frame slot `frame`'s bone transforms of every character: C x J, character-major.
+    /// Frame `frame` must not be executing (the other F − 1 may be).
+    pub fn set_bones(&mut self, frame: usize, bones: &[Affine]) -> Result<()> {
+        self.check_frame(frame)?;
         let expected = self.characters as usize * self.model.bone_count();
         if bones.len() != expected {
             return Err(Error::WrongLength {
@@ -220,12 +372,18 @@ impl Crowd {
             });
         }
         check_finite(bones)?;
-        self.bones.mapped()?[..expected * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        self.bones[frame].mapped()?[..expected * 48].copy_from_slice(bytemuck::cast_slice(bones));
         Ok(())
     }
 
-    /// Sets one character's J bone transforms.
-    pub fn set_character_bones(&mut self, character: usize, bones: &[Affine]) -> Result<()> {
+    /// Sets one character's J bone transforms in frame slot `frame`.
+    pub fn set_character_bones(
+        &mut self,
+        frame: usize,
+        character: usize,
+        bones: &[Affine],
+    ) -> Result<()> {
+        self.check_frame(frame)?;
         let j = self.model.bone_count();
         if character >= self.characters as usize {
             return Err(Error::OutOfRange {
@@ -243,25 +401,111 @@ impl Crowd {
         }
         check_finite(bones)?;
         let at = character * j * 48;
-        self.bones.mapped()?[at..at + j * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        self.bones[frame].mapped()?[at..at + j * 48].copy_from_slice(bytemuck::cast_slice(bones));
         Ok(())
     }
 
-    pub fn output(&self) -> CrowdOutput {
+    /// The buffers frame slot `frame` was last recorded with (the positions it writes, the
+    /// previous frame's, its bounds).
+    pub fn output(&self, frame: usize) -> Result<CrowdOutput> {
+        self.check_frame(frame)?;
+        Ok(self.output_of(frame, self.written[frame].load(Ordering::Relaxed)))
+    }
+
+    /// The buffers of the frame recorded last (of any slot; slot 0's before any recording),
+    /// for a draw recorded right after it.
+    pub fn latest_output(&self) -> CrowdOutput {
+        let frame = self.last_frame.load(Ordering::Relaxed) as usize;
+        self.output_of(frame, self.last.load(Ordering::Relaxed))
+    }
+
+    fn output_of(&self, frame: usize, written: u8) -> CrowdOutput {
+        let written = written as usize;
         CrowdOutput {
-            positions: self.positions.handle,
+            positions: self.positions[written].handle,
+            previous_positions: (self.positions.len() == 2)
+                .then(|| self.positions[1 - written].handle),
             normals: self.normals.handle,
+            bounds: self.bounds.get(frame).map(|b| b.handle),
             offset: 0,
             vertex_stride: XYZ_BYTES,
             character_stride: self.model.vertex_count() as u64 * XYZ_BYTES,
         }
     }
 
-    /// Copies the outputs back to the host. Submits and waits: for tools and tests, not the
-    /// per-frame path.
+    /// Records the release of frame slot `frame`'s outputs (as last begun) to the family of
+    /// [`CrowdOptions::release_to_queue_family`], if any.
+    ///
+    /// # Safety
+    /// `cmd` is recording, after the frame's passes; `frame` is one of the crowd's slots.
+    pub(crate) unsafe fn release_outputs(&self, cmd: vk::CommandBuffer, frame: usize) {
+        let Some(family) = self.release_to else {
+            return;
+        };
+        let written = self.written[frame].load(Ordering::Relaxed) as usize;
+        let release = |b: &Buffer| {
+            vk::BufferMemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                .src_queue_family_index(self.shared().queue_family_index)
+                .dst_queue_family_index(family)
+                .buffer(b.handle)
+                .offset(0)
+                .size(vk::WHOLE_SIZE)
+        };
+        // A fixed array, no allocation: the third is the bounds when the crowd has them.
+        let normals = release(&self.normals);
+        let mut barriers = [release(&self.positions[written]), normals, normals];
+        let mut count = 2;
+        if let Some(bounds) = self.bounds.get(frame) {
+            barriers[2] = release(bounds);
+            count = 3;
+        }
+        let used = &barriers[..count];
+        // SAFETY: see the function's contract; the buffers are the crowd's, alive.
+        unsafe {
+            self.shared().device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+                vk::DependencyFlags::empty(),
+                &[],
+                used,
+                &[],
+            )
+        };
+    }
+
+    /// Frame slot `frame`'s boxes, one per character, read from host-visible memory: call it
+    /// once the frame's submission completed (no copy, no submission; allocation-free).
+    pub fn read_bounds(&mut self, frame: usize, out: &mut [Aabb]) -> Result<()> {
+        self.check_frame(frame)?;
+        let c = self.characters as usize;
+        if out.len() != c {
+            return Err(Error::WrongLength {
+                what: "bounds",
+                expected: c,
+                actual: out.len(),
+            });
+        }
+        let slot = self.bounds.get_mut(frame).ok_or(Error::NotEnabled {
+            what: "bounds (create the crowd with CrowdOptions::bounds)",
+        })?;
+        let floats: &[f32] = bytemuck::cast_slice(&slot.mapped()?[..c * BOUNDS_STRIDE as usize]);
+        for (b, f) in out.iter_mut().zip(floats.chunks_exact(8)) {
+            *b = Aabb {
+                min: [f[0], f[1], f[2]],
+                max: [f[4], f[5], f[6]],
+            };
+        }
+        Ok(())
+    }
+
+    /// Copies the outputs of the last recorded frame back to the host. Submits and waits: for
+    /// tools and tests, not the per-frame path.
     pub fn read_back(&self) -> Result<HostOutput> {
         let shared = &self.model.inner.context.shared;
-        let size = self.positions.size;
+        let positions = &self.positions[self.last.load(Ordering::Relaxed) as usize];
+        let size = positions.size;
         let mut staging = Buffer::new(
             shared,
             "read-back",
@@ -279,7 +523,7 @@ impl Crowd {
                     &[Access::ComputeShaderWrite],
                     &[Access::TransferRead],
                 );
-                for (src, at) in [(&self.positions, 0), (&self.normals, size)] {
+                for (src, at) in [(positions, 0), (&self.normals, size)] {
                     let region = [vk::BufferCopy {
                         src_offset: 0,
                         dst_offset: at,
@@ -390,7 +634,7 @@ fn write_rest_pose(bytes: &mut [u8]) {
 }
 
 /// Bytes of one character in each crowd buffer; 0 where the model does not use it.
-fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
+pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
     let (v, p, j) = (d.vertices as u64, d.proxies as u64, d.bones as u64);
     match b {
         CrowdBuffer::Bones => j * AFFINE_BYTES,
@@ -399,11 +643,15 @@ fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
         CrowdBuffer::Rhs => 0,
         CrowdBuffer::Proxies => p * AFFINE_BYTES,
         CrowdBuffer::Positions | CrowdBuffer::Normals => v * XYZ_BYTES,
+        CrowdBuffer::Bounds if d.bounds => BOUNDS_STRIDE,
+        CrowdBuffer::Bounds => 0,
     }
 }
 
-fn create_pool(device: &ash::Device, dims: &Dims, chunks: u32) -> Result<vk::DescriptorPool> {
+/// A pool for the sets of `copies` chunks (every chunk once per descriptor variant).
+fn create_pool(device: &ash::Device, dims: &Dims, copies: u32) -> Result<vk::DescriptorPool> {
     let (sets, buffers) = Pass::descriptors_per_chunk(dims);
+    let chunks = copies;
     let sizes = [vk::DescriptorPoolSize {
         ty: vk::DescriptorType::STORAGE_BUFFER,
         descriptor_count: chunks * buffers,

@@ -43,6 +43,20 @@ impl<'a> Physical<'a> {
         unsafe { self.instance.get_physical_device_properties(self.handle) }
     }
 
+    /// The size of the largest device-local memory heap.
+    pub fn device_local_bytes(self) -> u64 {
+        // SAFETY: a physical device of a live instance (module docs).
+        let memory = unsafe {
+            self.instance
+                .get_physical_device_memory_properties(self.handle)
+        };
+        (memory.memory_heaps_as_slice().iter())
+            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+            .map(|h| h.size)
+            .max()
+            .unwrap_or(0)
+    }
+
     pub fn queue_families(self) -> Vec<vk::QueueFamilyProperties> {
         // SAFETY: as above.
         unsafe {

@@ -77,6 +77,7 @@ impl GpuModel {
             proxies: model.proxy_count() as u32,
             bones: model.bone_count() as u32,
             influences: model.influences(),
+            bounds: false,
         };
         // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
         for pass in Pass::of_model(&dims) {
@@ -121,6 +122,14 @@ impl GpuModel {
 
     pub fn proxy_count(&self) -> usize {
         self.inner.dims.proxies as usize
+    }
+
+    /// Bytes of the model's buffers: what [`super::model_bytes`] said before the upload.
+    pub fn memory_bytes(&self) -> u64 {
+        ModelBuffer::ALL
+            .iter()
+            .map(|&b| self.inner.buffer(b).size)
+            .sum()
     }
 }
 

@@ -19,12 +19,18 @@ mod context;
 mod crowd;
 mod device_ext;
 mod gpu_model;
+mod memory;
 mod pass;
 mod passes;
 mod pipelines;
+mod requirements;
 
 pub use ash;
 pub use batch::{Batch, PassTimings};
 pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits};
-pub use crowd::{Crowd, CrowdOptions, CrowdOutput, HostOutput};
+pub use crowd::{
+    Aabb, Crowd, CrowdOptions, CrowdOutput, HostOutput, BOUNDS_STRIDE, MAX_FRAMES_IN_FLIGHT,
+};
 pub use gpu_model::GpuModel;
+pub use memory::{crowd_bytes, model_bytes, ModelSizes};
+pub use requirements::{requirements, Requirements};

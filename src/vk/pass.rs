@@ -5,7 +5,8 @@
 
 use crate::error::{Error, Result};
 
-/// The sizes of a model that passes are dispatched and parameterised over.
+/// The sizes of a model that passes are dispatched and parameterised over, and the optional
+/// outputs of the crowd being dispatched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Dims {
     /// V
@@ -16,6 +17,8 @@ pub struct Dims {
     pub bones: u32,
     /// K (4 or 8, checked when the model is loaded)
     pub influences: usize,
+    /// Whether the crowd writes per-character bounding boxes (false for a GPU model itself).
+    pub bounds: bool,
 }
 
 /// A buffer of the GPU model, uploaded once and only ever read.
@@ -32,6 +35,20 @@ pub enum ModelBuffer {
     Triangles,
 }
 
+impl ModelBuffer {
+    pub const ALL: [ModelBuffer; 9] = [
+        ModelBuffer::Rest,
+        ModelBuffer::SkinIndex,
+        ModelBuffer::SkinWeight,
+        ModelBuffer::Parents,
+        ModelBuffer::Predictors,
+        ModelBuffer::BlendMatrix,
+        ModelBuffer::IncidentOffsets,
+        ModelBuffer::IncidentTriangles,
+        ModelBuffer::Triangles,
+    ];
+}
+
 /// A per-character buffer of a crowd, bound per chunk of characters.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CrowdBuffer {
@@ -40,16 +57,18 @@ pub enum CrowdBuffer {
     Proxies,
     Positions,
     Normals,
+    Bounds,
 }
 
 impl CrowdBuffer {
-    pub const COUNT: usize = 5;
+    pub const COUNT: usize = 6;
     pub const ALL: [CrowdBuffer; Self::COUNT] = [
         CrowdBuffer::Bones,
         CrowdBuffer::Rhs,
         CrowdBuffer::Proxies,
         CrowdBuffer::Positions,
         CrowdBuffer::Normals,
+        CrowdBuffer::Bounds,
     ];
 
     /// This buffer's bit in a [`CrowdBuffer`] set.
@@ -273,6 +292,7 @@ mod tests {
         proxies: 5,
         bones: 3,
         influences: 4,
+        bounds: false,
     };
 
     #[test]

@@ -22,10 +22,11 @@ pub enum Pass {
     SkinK4,
     SkinK8,
     Normals,
+    Bounds,
 }
 
 impl Pass {
-    pub const COUNT: usize = 5;
+    pub const COUNT: usize = 6;
     /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
     pub const ALL: [Pass; Self::COUNT] = [
         Pass::Predict,
@@ -33,6 +34,7 @@ impl Pass {
         Pass::SkinK4,
         Pass::SkinK8,
         Pass::Normals,
+        Pass::Bounds,
     ];
 
     pub fn desc(self) -> &'static PassDesc {
@@ -42,6 +44,7 @@ impl Pass {
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
             Pass::Normals => &NORMALS,
+            Pass::Bounds => &BOUNDS,
         }
     }
 
@@ -62,15 +65,19 @@ impl Pass {
     }
 }
 
-/// One model of each kind the table tells apart: plain LBS (P = 0) or reduced, for each K.
+/// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced, for each K,
+/// with and without bounds.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
     let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| [0, 3].map(|p| (k, p)));
-    kinds.into_iter().flatten().map(|(k, proxies)| Dims {
-        vertices: 10,
-        proxies,
-        bones: 2,
-        influences: k as usize,
+    kinds.into_iter().flatten().flat_map(|(k, proxies)| {
+        [false, true].map(|bounds| Dims {
+            vertices: 10,
+            proxies,
+            bones: 2,
+            influences: k as usize,
+            bounds,
+        })
     })
 }
 
@@ -151,6 +158,18 @@ const NORMALS: PassDesc = PassDesc {
     runs: |_| true,
 };
 
+/// Per-character axis-aligned boxes of the positions: one workgroup per character reduces its
+/// vertices in shared memory (no atomics). Crowds created with bounds only.
+const BOUNDS: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "bounds.comp",
+    spirv: spirv!("bounds"),
+    bindings: &[Reads(Crowd::Positions), Writes(Crowd::Bounds)],
+    push: &[W::Vertices, W::Characters],
+    groups: [over(Characters, 1), ONE, ONE],
+    runs: |d| d.bounds,
+};
+
 /// local_size_x = 64 over vertices, one row of groups per character.
 const PER_VERTEX: [Axis; 3] = [over(Vertices, 64), over(Characters, 1), ONE];
 
@@ -209,6 +228,7 @@ mod tests {
                 CrowdBuffer::Proxies => "Proxies",
                 CrowdBuffer::Positions => "Positions",
                 CrowdBuffer::Normals => "Normals",
+                CrowdBuffer::Bounds => "Bounds",
             },
         }
     }
@@ -290,9 +310,16 @@ mod tests {
             proxies: 0,
             bones: 2,
             influences: 4,
+            bounds: false,
         };
         // skin (6 buffers) and normals (5)
         assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
+        let bounded = Dims {
+            bounds: true,
+            ..lbs
+        };
+        // + bounds (2)
+        assert_eq!(Pass::descriptors_per_chunk(&bounded), (3, 13));
         let reduced = Dims {
             proxies: 3,
             influences: 8,

@@ -415,8 +415,20 @@ fn a_trained_model_file_evaluates_as_trained() {
         "ratio",
         "rr_mverts_per_s",
         "ssd_mverts_per_s",
+        "previous_positions_ms",
+        "previous_positions_ratio",
+        "bounds_ms",
+        "bounds_ratio",
     ] {
         assert!(!b[key].is_null(), "{key} missing in {b}");
+    }
+    for option in ["previous_positions", "bounds"] {
+        let ratio = b[format!("{option}_ms")].as_f64().unwrap_or(f64::NAN)
+            / b["rr_ms"].as_f64().unwrap_or(f64::NAN);
+        assert!(
+            (b[format!("{option}_ratio")].as_f64().unwrap_or(f64::NAN) - ratio).abs() < 1e-9,
+            "{b}"
+        );
     }
     let ratio = b["rr_ms"].as_f64().unwrap_or(f64::NAN) / b["ssd_ms"].as_f64().unwrap_or(f64::NAN);
     assert!(

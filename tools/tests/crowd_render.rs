@@ -49,8 +49,8 @@ fn a_crowd_of_256_renders_and_moves() {
                     .map(|b| b.to_affine())
             })
             .collect();
-        crowd.set_bones(&bones).expect("bones");
-        batch.run(&[&crowd]).expect("run");
+        crowd.set_bones(0, &bones).expect("bones");
+        batch.run(0, &[&crowd]).expect("run");
         let draws = scene.draws(&crowd);
         frames.push(
             renderer

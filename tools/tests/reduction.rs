@@ -172,10 +172,10 @@ fn assert_runtime_reproduces(t: &Trained, reduced: &Reduced, proxies: usize) {
     .expect("lavapipe");
     let mut crowd =
         Crowd::new(&GpuModel::new(&ctx, &model).expect("upload"), poses.len()).expect("crowd");
-    crowd.set_bones(&bones).expect("bones");
+    crowd.set_bones(0, &bones).expect("bones");
     Batch::new(&ctx)
         .expect("batch")
-        .run(&[&crowd])
+        .run(0, &[&crowd])
         .expect("run");
     let gpu = crowd.read_back().expect("read back").positions;
     let d = max_distance(&as_dvec(&gpu), &as_dvec(&cpu));

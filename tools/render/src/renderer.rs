@@ -521,7 +521,7 @@ impl Renderer {
             device.cmd_begin_render_pass(cmd, &pass, vk::SubpassContents::INLINE);
             device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::GRAPHICS, self.pipeline);
             for d in draws {
-                let out = d.crowd.output();
+                let out = d.crowd.latest_output();
                 let at = out.offset + d.character as u64 * out.character_stride;
                 device.cmd_bind_vertex_buffers(cmd, 0, &[out.positions, out.normals], &[at, at]);
                 let model = d.crowd.model();

@@ -2,28 +2,12 @@
 //! large: the runtime only says that an allocation failed.
 
 use rrskin::vk::ash::vk;
-use rrskin::vk::{Context, Crowd, GpuModel};
+use rrskin::vk::{crowd_bytes, Context, Crowd, CrowdOptions, GpuModel, ModelSizes};
 use rrskin::Model;
-
-/// Bytes per character of the crowd's buffers (as `rrskin::vk::Crowd` sizes them): bones
-/// (3x4 f32), B = [d; q] and proxy transforms when P > 0, positions and normals.
-fn bytes_per_character(m: &Model) -> (u64, u64) {
-    let (v, j, p) = (
-        m.vertex_count() as u64,
-        m.bone_count() as u64,
-        m.proxy_count() as u64,
-    );
-    let rhs = if p > 0 { (3 * p + 4 * j) * 12 } else { 0 };
-    let buffers = [48 * j, rhs, 48 * p, 12 * v, 12 * v];
-    (
-        buffers.iter().sum(),
-        buffers.iter().copied().max().unwrap_or(1),
-    )
-}
 
 /// The bounds on a crowd of `m` on the device: characters whose largest buffer fits its largest
 /// single allocation, and characters whose buffers fit its largest device-local heap.
-fn limits(ctx: &Context, m: &Model) -> String {
+fn limits(ctx: &Context, m: &Model, options: &CrowdOptions) -> String {
     let instance = ctx.instance();
     // SAFETY: the physical device belongs to the context's live instance.
     let memory = unsafe { instance.get_physical_device_memory_properties(ctx.physical_device()) };
@@ -38,7 +22,9 @@ fn limits(ctx: &Context, m: &Model) -> String {
     // SAFETY: as above; the chained struct lives across the call.
     unsafe { instance.get_physical_device_properties2(ctx.physical_device(), &mut properties) };
     let allocation = maintenance.max_memory_allocation_size;
-    let (total, largest) = bytes_per_character(m);
+    let sizes = ModelSizes::of(m);
+    let total = crowd_bytes(&sizes, 1, options).unwrap_or(u64::MAX);
+    let largest = (12 * m.vertex_count() as u64).max(48 * m.bone_count() as u64);
     let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
     format!(
         "{} allocates at most {:.1} GiB at once ({} characters of this model's largest buffer) and has {:.1} GiB of device memory (about {} characters, {total} bytes each)",
@@ -57,18 +43,20 @@ pub fn crowd(
     gpu_model: &GpuModel,
     m: &Model,
     characters: usize,
+    options: CrowdOptions,
 ) -> Result<Crowd, Box<dyn std::error::Error>> {
     use vk::Result as R;
-    match Crowd::new(gpu_model, characters) {
+    match Crowd::with_options(gpu_model, characters, options) {
         Err(
             e @ (rrskin::Error::Allocation { .. }
+            | rrskin::Error::DeviceLimit { .. }
             | rrskin::Error::Vulkan {
                 result: R::ERROR_OUT_OF_DEVICE_MEMORY | R::ERROR_OUT_OF_HOST_MEMORY,
                 ..
             }),
         ) => Err(format!(
             "--characters {characters}: {e}: {}; lower --characters",
-            limits(ctx, m)
+            limits(ctx, m, &options)
         )
         .into()),
         other => Ok(other?),

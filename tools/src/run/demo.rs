@@ -243,8 +243,8 @@ fn deform(
     bones: &[rrskin::predict::Affine],
 ) -> rrskin::Result<(Vec<[f32; 3]>, Vec<[f32; 3]>)> {
     let mut crowd = Crowd::new(&GpuModel::new(ctx, model)?, 1)?;
-    crowd.set_bones(bones)?;
-    Batch::new(ctx)?.run(&[&crowd])?;
+    crowd.set_bones(0, bones)?;
+    Batch::new(ctx)?.run(0, &[&crowd])?;
     let out = crowd.read_back()?;
     Ok((out.positions, out.normals))
 }
@@ -258,8 +258,8 @@ fn render_crowd(
         return Err("the trained model carries no animation".into());
     }
     let mut crowd = Crowd::new(&GpuModel::new(ctx, model)?, CROWD)?;
-    crowd.set_bones(&phased_poses(model, CROWD, 0))?;
-    Batch::new(ctx)?.run(&[&crowd])?;
+    crowd.set_bones(0, &phased_poses(model, CROWD, 0))?;
+    Batch::new(ctx)?.run(0, &[&crowd])?;
     let (w, h) = (1280, 720);
     let scene = grid_scene(model, CROWD, w as f32 / h as f32);
     let draws = scene.draws(&crowd);

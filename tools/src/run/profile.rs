@@ -4,7 +4,7 @@
 //! command buffer, submits and waits.
 
 use crate::progress::Progress;
-use rrskin::vk::{Batch, Context, ContextDesc, DeviceChoice, GpuModel, PassTimings};
+use rrskin::vk::{Batch, Context, ContextDesc, CrowdOptions, DeviceChoice, GpuModel, PassTimings};
 use rrskin::Model;
 use rrskin_render::phased_poses;
 use rrskin_render::synthetic::random_poses;
@@ -70,6 +70,7 @@ pub fn run(
         model,
         characters,
         frames,
+        CrowdOptions::default(),
         "profiling",
         quiet,
     )
@@ -83,25 +84,26 @@ fn context(device: DeviceChoice) -> rrskin::Result<Context> {
     })
 }
 
-/// Runs `frames` frames (after the warm-up) of a crowd of `model` on `ctx`.
+/// Runs `frames` frames (after the warm-up) of a crowd of `model` made with `options` on `ctx`.
 pub fn measure(
     ctx: &Context,
     model: &Model,
     characters: usize,
     frames: usize,
+    options: CrowdOptions,
     label: &'static str,
     quiet: bool,
 ) -> Result<Profile, Box<dyn std::error::Error>> {
     let gpu_model = GpuModel::new(ctx, model)?;
-    let mut crowd = crate::run::capacity::crowd(ctx, &gpu_model, model, characters)?;
+    let mut crowd = crate::run::capacity::crowd(ctx, &gpu_model, model, characters, options)?;
     let mut batch = Batch::new(ctx)?;
     let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
     for frame in 0..WARM_UP_FRAMES + frames {
-        crowd.set_bones(&poses(model, characters, frame))?;
-        batch.run(&[&crowd])?;
+        crowd.set_bones(0, &poses(model, characters, frame))?;
+        batch.run(0, &[&crowd])?;
         if frame >= WARM_UP_FRAMES {
-            samples.push(batch.timings()?);
+            samples.push(batch.timings(0)?);
         }
         progress.step();
     }
@@ -133,10 +135,13 @@ pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::pred
 
 /// `rrskin bench`: the whole per-frame pipeline of rotational regression against plain
 /// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
-/// device in one run, median frame time from GPU timestamps.
+/// device in one run, median frame time from GPU timestamps; and the cost of the runtime's
+/// optional outputs, previous positions and bounds, as rotational-regression frames with each.
 pub struct Bench {
     pub rr: Profile,
     pub ssd: Profile,
+    pub previous_positions: Profile,
+    pub bounds: Profile,
 }
 
 impl Bench {
@@ -151,16 +156,32 @@ impl Bench {
             "the model has no SSD baseline to compare with (train it with `rrskin train`)",
         )?;
         let ctx = context(device)?;
-        let rr = measure(
-            &ctx,
-            model,
-            characters,
-            frames,
-            "rotational regression",
-            quiet,
-        )?;
-        let ssd = measure(&ctx, &baseline, characters, frames, "SSD", quiet)?;
-        Ok(Bench { rr, ssd })
+        let run =
+            |m: &Model, options, label| measure(&ctx, m, characters, frames, options, label, quiet);
+        let plain = CrowdOptions::default();
+        let rr = run(model, plain, "rotational regression")?;
+        let ssd = run(&baseline, plain, "SSD")?;
+        let previous = CrowdOptions {
+            previous_positions: true,
+            ..plain
+        };
+        let previous_positions = run(model, previous, "with previous positions")?;
+        let bounded = CrowdOptions {
+            bounds: true,
+            ..plain
+        };
+        let bounds = run(model, bounded, "with bounds")?;
+        Ok(Bench {
+            rr,
+            ssd,
+            previous_positions,
+            bounds,
+        })
+    }
+
+    /// The frame time of rotational regression with `p`'s option, over the plain frame's.
+    pub fn cost(&self, p: &Profile) -> f64 {
+        p.total_ms / self.rr.total_ms
     }
 
     pub fn to_json(&self) -> serde_json::Value {
@@ -174,6 +195,10 @@ impl Bench {
             "ratio": self.rr.total_ms / self.ssd.total_ms,
             "rr_mverts_per_s": mverts(&self.rr),
             "ssd_mverts_per_s": mverts(&self.ssd),
+            "previous_positions_ms": self.previous_positions.total_ms,
+            "previous_positions_ratio": self.cost(&self.previous_positions),
+            "bounds_ms": self.bounds.total_ms,
+            "bounds_ratio": self.cost(&self.bounds),
         })
     }
 }
