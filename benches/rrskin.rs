@@ -1,9 +1,10 @@
 //! Criterion benches: per-frame runtime of rotational regression and of its SSD baseline at
-//! C = 1, 16, 256, 1024 characters, and training on the bundled example (benches/README.md).
+//! C = 1, 16, 256, 1024 characters, and training (benches/README.md).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_render::phased_poses;
+use rrskin_tools::cylinder_chain::Chain;
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::train::{self, TrainOptions};
 use std::time::Duration;
@@ -49,15 +50,37 @@ fn runtime(c: &mut Criterion) {
     group.finish();
 }
 
+/// `rrskin train`'s work (the runtime model only) on the bundled example, on a synthetic set
+/// of the human's size (13,360 vertices, 53 bones, 41 training poses) and, when the shared
+/// data sits beside the checkout, on `human_heavy` itself.
 fn training(c: &mut Criterion) {
-    let set = cesiumman();
+    let runtime_model = TrainOptions {
+        full_model: false,
+        ..options()
+    };
+    let chain = Chain {
+        rings: 167,
+        segments: 80,
+        bones: 53,
+        poses: 51,
+    };
+    let human = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/human_heavy");
+    let mut sets = vec![
+        ("cesiumman", cesiumman()),
+        ("chain_13k", chain.build().expect("a valid chain")),
+    ];
+    if let Ok(set) = ExampleSet::load(human) {
+        sets.push(("human_heavy", set));
+    }
     let mut group = c.benchmark_group("training");
     group
         .sample_size(10)
-        .measurement_time(Duration::from_secs(60));
-    group.bench_function("cesiumman", |b| {
-        b.iter(|| train::run(&set, &options()).expect("training"))
-    });
+        .measurement_time(Duration::from_secs(30));
+    for (name, set) in &sets {
+        group.bench_function(*name, |b| {
+            b.iter(|| train::run(set, &runtime_model).expect("training"))
+        });
+    }
     group.finish();
 }
 

@@ -5,6 +5,7 @@
 //! - [`train`]: the training pipeline of the paper, one module per stage, and [`train::run`];
 //! - [`eval`]: the enveloping error (§7.1), the baselines, the error budget, leave-one-out;
 //! - [`run`]: what runs a trained model on the Vulkan runtime: bench, profile, the demo;
+//! - [`cylinder_chain`]: a synthetic example set of any size, for timing training;
 //! - [`output`]: outputs checked before long work, and paths shown as a user types them.
 //!
 //! The `rrskin` binary is a thin CLI over these modules.
@@ -16,6 +17,7 @@
 // closer to the equations than zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+pub mod cylinder_chain;
 pub mod error;
 pub mod eval;
 pub mod import;

@@ -311,12 +311,13 @@ fn parse_range(text: &str) -> Result<(f64, f64), String> {
 fn evaluate(
     set: &SetArgs,
     train: &TrainArgs,
+    options: TrainOptions,
     model: Option<PathBuf>,
     loocv: bool,
     diagnose: bool,
 ) -> Result<(Report, Option<Imported>), Box<dyn std::error::Error>> {
     let (examples, imported) = set.load()?;
-    let (poses, folds) = (examples.train().len(), train.options().folds);
+    let (poses, folds) = (examples.train().len(), options.folds);
     if poses < MIN_TRAINING_POSES {
         return Err(format!(
             "{}: {} training pose: training needs at least {MIN_TRAINING_POSES} (and {folds} to choose its settings by {folds}-fold cross-validation)",
@@ -357,7 +358,7 @@ fn evaluate(
         }
         if poses < folds {
             note(format_args!(
-                "warning: {}: {poses} training poses, fewer than the {folds} the cross-validation needs (one per fold): F, the ridge and the blend are fixed, not chosen",
+                "warning: {}: {poses} training poses, fewer than the {folds} the cross-validation needs (one per fold): its settings are fixed, not chosen",
                 set.set.display()
             ));
         }
@@ -366,7 +367,7 @@ fn evaluate(
         }
     }
     let options = Options {
-        train: train.options(),
+        train: options,
         model,
         loocv,
         diagnose,
@@ -412,7 +413,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             diagnose,
             model,
         } => {
-            let (report, _) = evaluate(&set, &train, model, loocv, diagnose)?;
+            let (report, _) = evaluate(&set, &train, train.options(), model, loocv, diagnose)?;
             print_report(&report, &set, train.json);
         }
         Command::Train { set, train, output } => {
@@ -420,7 +421,12 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
             }
             check_writable(output.parent().unwrap_or(Path::new("")))?;
-            let (report, imported) = evaluate(&set, &train, None, false, false)?;
+            // The runtime model only: joint-blend proxies need no full model.
+            let options = TrainOptions {
+                full_model: false,
+                ..train.options()
+            };
+            let (report, imported) = evaluate(&set, &train, options, None, false, false)?;
             let model = report.model.as_ref().ok_or("training produced no model")?;
             // A glTF rig's model is written over the file's own vertices (order and count).
             let model = match &imported {

@@ -11,6 +11,7 @@ use rrskin_tools::train::full_model::{self, FullModel, Prepared};
 use rrskin_tools::train::reduce::c1c2::Reduced;
 use rrskin_tools::train::reduce::vertex::{self, Stop};
 use rrskin_tools::train::reduce::{self, Reduction};
+use rrskin_tools::train::rotreg::PoseFeatures;
 use rrskin_tools::train::selection::{Blend, Choice, Selection};
 use rrskin_tools::train::ssd::{self, Skinning};
 
@@ -26,7 +27,7 @@ struct Trained {
 const RIDGE: f64 = 1e-3;
 
 fn train(set: ExampleSet, percentile: f64) -> Trained {
-    let prep = Prepared::new(&set);
+    let prep = Prepared::new(&set, PoseFeatures::all(&set));
     let train = set.train();
     let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
     let selection = Selection {
@@ -83,13 +84,48 @@ fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     assert_runtime_reproduces(&t, &reduced, 30);
 }
 
+/// The shipped form: joint-blend proxies, their local refit, the weights refitted to them.
+fn joint_blend(t: &Trained, proxies: usize) -> Reduced {
+    let feats = &t.prep.feats;
+    let mut reduced = reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, proxies, 4);
+    let refit = reduce::refit::refit(&t.set, feats, &t.train, 4, &mut reduced);
+    assert!(refit.ridge.is_some(), "the refit kept C0: {refit:?}");
+    reduce::joint_blend::reweight(&t.set, feats, &t.train, &t.ssd, 4, &mut reduced);
+    reduced
+}
+
 #[test]
 fn the_runtime_reproduces_the_joint_blend_model() {
     let t = train(cesiumman(), 50.0);
-    let feats = &t.prep.feats;
-    let reduced =
-        rrskin_tools::train::reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, 30, 4);
-    assert_runtime_reproduces(&t, &reduced, 30);
+    assert_runtime_reproduces(&t, &joint_blend(&t, 30), 30);
+}
+
+/// The refit corrects relative motion only: when every bone moves by one rigid motion, the
+/// refitted model moves the rest mesh by exactly that motion (the pose a walk's stiff spine,
+/// a global turn or the rest pose is).
+#[test]
+fn the_refit_joint_blend_model_follows_a_rigid_motion_exactly() {
+    let t = train(cesiumman(), 50.0);
+    let reduced = joint_blend(&t, 30);
+    let plain = reduce::joint_blend::fit(&t.set, &t.prep.feats, &t.train, &t.ssd, 30, 4);
+    assert!(
+        reduced.c1 != plain.c1 && reduced.c2 != plain.c2,
+        "the refit changed nothing"
+    );
+    let motion = Bone {
+        q: glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, -0.5).normalize(), 1.2),
+        d: DVec3::new(0.3, -1.0, 2.0),
+    };
+    let mut set = t.set.clone();
+    set.poses = vec![Pose {
+        bones: vec![motion; set.bone_count()],
+        vertices: set.rest.iter().map(|&x| motion.apply(x)).collect(),
+    }];
+    set.is_test = vec![true];
+    let feats = PoseFeatures::all(&set);
+    let moved = reduced.predict(&set, &feats[0], &set.poses[0].bones);
+    let d = max_distance(&moved, &set.poses[0].vertices);
+    assert!(d < 1e-9, "the refit model leaves a rigid motion by {d}");
 }
 
 /// The runtime model written from `reduced` and loaded back gives, on the CPU evaluator and on

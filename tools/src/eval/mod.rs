@@ -46,17 +46,17 @@ pub struct Report {
     /// them.
     pub rig_lbs: Option<Errors>,
     pub rig_dqs: Option<Errors>,
-    pub rr_full: Errors,
+    /// The paper's full model (None when not trained: `rrskin train` of joint-blend proxies).
+    pub rr_full: Option<Errors>,
     /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
     pub budget: Option<Budget>,
     /// The runtime model trained here (None with `Options::model` or P = 0).
     pub model: Option<rrskin::Model>,
-    /// F percentile, ridge and fallback chosen by cross-validation.
-    pub choice: Choice,
-    /// Mean weight of the regression in the triangles' blended gradients (1: the paper).
-    pub mean_alpha: f64,
+    /// The full model's F percentile, ridge and fallback chosen by cross-validation, and the
+    /// mean weight of the regression in the triangles' blended gradients (1: the paper).
+    pub choice: Option<(Choice, f64)>,
     /// Folds of the cross-validation that made `choice` (below 2: none, fixed choices).
     pub folds: usize,
     /// Wall time per stage, in order.
@@ -87,7 +87,7 @@ impl Report {
             "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": self.reduced_proxies,
             "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "dqs": errors(&self.dqs),
             "rig_lbs": self.rig_lbs.as_ref().map(errors), "rig_dqs": self.rig_dqs.as_ref().map(errors),
-            "rr_full": errors(&self.rr_full),
+            "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
                 "full_exact_gradients": errors(&b.full_exact),
@@ -96,7 +96,7 @@ impl Report {
             })),
             "seconds": {
                 "ssd": self.seconds(&["ssd"]),
-                "rr_full": self.seconds(&["cross-validation", "full model"]),
+                "rr_full": self.rr_full.map(|_| self.seconds(&["gradients", "cross-validation", "full model"])),
                 "rr_reduced": reduced_seconds,
             },
             "stages": stages,
@@ -136,7 +136,9 @@ impl Report {
             row(&mut s, "LBS (the rig's weights)", lbs);
             row(&mut s, "DQS (the rig's weights)", dqs);
         }
-        row(&mut s, "rotational regression (full)", &self.rr_full);
+        if let Some(e) = &self.rr_full {
+            row(&mut s, "rotational regression (full)", e);
+        }
         if let Some(e) = &self.rr_reduced {
             let label = match self.reduced_proxies {
                 Some(p) => format!("reduced, P = {p} (runtime model)"),
@@ -158,10 +160,13 @@ impl Report {
             0 | 1 => "fixed: too few training poses to cross-validate".to_string(),
             k => format!("chosen by {k}-fold cross-validation on the training poses"),
         };
-        s += &format!(
-            "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {:.2}) ({chosen})\nstages:",
-            self.choice.percentile, self.choice.ridge, self.choice.blend, self.mean_alpha
-        );
+        if let Some((choice, alpha)) = &self.choice {
+            s += &format!(
+                "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {alpha:.2}) ({chosen})\n",
+                choice.percentile, choice.ridge, choice.blend
+            );
+        }
+        s += "stages:";
         for (stage, t) in &self.stages {
             s += &format!(" {stage} {t:.2} s;");
         }
@@ -240,7 +245,8 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let rig_dqs = rig_skin
         .as_ref()
         .map(|s| errors(&|p| dqs_all(set, &s.influences, p)));
-    let mut rr_e = errors(&|p| trained.full.predict(set, &trained.prep, &trained.ssd, p));
+    let full = trained.full.as_ref();
+    let mut rr_e = full.map(|f| errors(&|p| f.model.predict(set, &f.prep, &trained.ssd, p)));
     let runtime = options
         .model
         .as_ref()
@@ -249,11 +255,11 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let mut rr_reduced = runtime
         .map(|m| runtime_errors(set, m, &train, &test, rigid))
         .transpose()?;
-    let budget = match (&trained.reduced, options.diagnose) {
-        (Some(reduced), true) => {
+    let budget = match (&trained.reduced, full, options.diagnose) {
+        (Some(reduced), Some(f), true) => {
             let exact = |p: &[usize]| {
-                trained.full.reconstruct(set, &trained.ssd, p, |i, k| {
-                    let (r, s) = trained.prep.polar[i][k];
+                f.model.reconstruct(set, &trained.ssd, p, |i, k| {
+                    let (r, s) = f.prep.polar[i][k];
                     r * s
                 })
             };
@@ -272,7 +278,9 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         rigid_e.test = Some(100.0);
         ssd_e.test = Some(loo.ssd);
         dqs_e.test = Some(loo.dqs);
-        rr_e.test = Some(loo.rr_full);
+        if let Some(e) = rr_e.as_mut() {
+            e.test = loo.rr_full;
+        }
         // Leave-one-out retrains the full model only: the reduced row has no such figure.
         if let Some(e) = rr_reduced.as_mut() {
             e.test = None;
@@ -300,9 +308,13 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         reduced_proxies: runtime.map(|m| m.proxy_count()),
         budget,
         model: trained.model.clone(),
-        choice: trained.selection.choice,
-        mean_alpha: trained.selection.alpha.iter().sum::<f64>()
-            / trained.selection.alpha.len().max(1) as f64,
+        choice: full.map(|f| {
+            let alpha = &f.selection.alpha;
+            (
+                f.selection.choice,
+                alpha.iter().sum::<f64>() / alpha.len().max(1) as f64,
+            )
+        }),
         folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,
@@ -314,7 +326,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
 struct LeaveOneOut {
     ssd: f64,
     dqs: f64,
-    rr_full: f64,
+    rr_full: Option<f64>,
 }
 
 fn leave_one_out(
@@ -331,9 +343,11 @@ fn leave_one_out(
         let others: Vec<usize> = train.iter().copied().filter(|&t| t != i).collect();
         let rigid_errors = ssd::rigid_errors(set, &others);
         let ssd = ssd::fit(set, &others, &rigid_errors, k);
-        let full = full_model::fit(set, &trained.prep, &others, &ssd, &trained.selection)
-            .map_err(crate::train::TrainError::from)?;
-        rr_p.extend(full.predict(set, &trained.prep, &ssd, &[i]));
+        if let Some(f) = &trained.full {
+            let full = full_model::fit(set, &f.prep, &others, &ssd, &f.selection)
+                .map_err(crate::train::TrainError::from)?;
+            rr_p.extend(full.predict(set, &f.prep, &ssd, &[i]));
+        }
         ssd_p.extend(deform_all(set, &ssd, &[i]));
         dqs_p.extend(dqs_all(set, &ssd.influences, &[i]));
         rigid_p.extend(deform_all(
@@ -349,7 +363,7 @@ fn leave_one_out(
     Ok(LeaveOneOut {
         ssd: ee(&ssd_p),
         dqs: ee(&dqs_p),
-        rr_full: ee(&rr_p),
+        rr_full: trained.full.as_ref().map(|_| ee(&rr_p)),
     })
 }
 

@@ -28,7 +28,7 @@ pub fn write(path: &Path, o: &Outputs) -> crate::Result<()> {
         ("DQS (SSD's weights)", Some(r.dqs)),
         ("LBS (the rig's weights)", r.rig_lbs),
         ("DQS (the rig's weights)", r.rig_dqs),
-        ("rotational regression, full model", Some(r.rr_full)),
+        ("rotational regression, full model", r.rr_full),
     ];
     let reduced = format!(
         "<b>runtime model</b> (P = {})",

@@ -22,10 +22,11 @@ pub struct Prepared {
 }
 
 impl Prepared {
-    pub fn new(set: &ExampleSet) -> Prepared {
+    /// `feats`: [`PoseFeatures::all`] of `set`.
+    pub fn new(set: &ExampleSet, feats: Vec<PoseFeatures>) -> Prepared {
         let all: Vec<usize> = (0..set.poses.len()).collect();
         Prepared {
-            feats: PoseFeatures::all(set),
+            feats,
             polar: Prepared::polar_factors(set, &all),
         }
     }

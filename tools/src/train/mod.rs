@@ -36,6 +36,7 @@ use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use reduce::vertex::Stop;
 use reduce::Reduction;
+use rotreg::PoseFeatures;
 use selection::Selection;
 use ssd::Skinning;
 use std::fmt;
@@ -67,6 +68,10 @@ pub struct TrainOptions {
     pub method: Method,
     /// Joint-rotation scales of the gentle poses the paper's reduction also sees (empty: none).
     pub gentle_scales: Vec<f64>,
+    /// Also train the paper's full model (eval's `rr_full`); the paper's reduction trains it
+    /// regardless. `rrskin train` of joint-blend proxies leaves it out: the runtime model does
+    /// not use it, and its cross-validation is most of the training time.
+    pub full_model: bool,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -80,6 +85,7 @@ impl Default for TrainOptions {
             folds: 4,
             method: Method::JointBlend,
             gentle_scales: vec![augment::GENTLE_SCALE],
+            full_model: true,
             quiet: false,
         }
     }
@@ -131,14 +137,22 @@ impl From<rrskin::Error> for TrainError {
     }
 }
 
+/// The paper's full model (§3–4) and what it was made from.
+pub struct Full {
+    pub prep: Prepared,
+    pub selection: Selection,
+    pub model: FullModel,
+}
+
 /// Everything training produced, for the runtime model and for evaluation.
 pub struct Trained {
-    pub prep: Prepared,
+    /// Per pose: the joints' rotations.
+    pub feats: Vec<PoseFeatures>,
     /// The best rigid predictor (one bone per vertex): EE's 100 %.
     pub rigid: Skinning,
     pub ssd: Skinning,
-    pub selection: Selection,
-    pub full: FullModel,
+    /// The full model, when asked for ([`TrainOptions::full_model`]) or needed.
+    pub full: Option<Full>,
     /// The reduced model in f64 and the runtime model (None when P = 0).
     pub reduced: Option<Reduced>,
     /// What the joint-blend model's local refit chose (None for the paper's reduction).
@@ -178,16 +192,15 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             triangles: set.faces.len(),
         });
     }
-    let progress = Progress::new("training", options.folds + 3, options.quiet);
+    let with_full = options.full_model || (options.proxies > 0 && options.method == Method::Paper);
+    let steps = if with_full { options.folds + 3 } else { 2 };
+    let progress = Progress::new("training", steps, options.quiet);
     let mut clock = Clock {
         last: Instant::now(),
         seconds: Vec::new(),
     };
 
-    progress.stage("gradients");
-    let prep = Prepared::new(set);
-    clock.lap("gradients");
-
+    let feats = PoseFeatures::all(set);
     progress.stage("SSD");
     let rigid_errors = ssd::rigid_errors(set, &train);
     let rigid = Skinning::rigid(&ssd::rigid_bones(&rigid_errors));
@@ -195,14 +208,26 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     clock.lap("ssd");
     progress.step();
 
-    progress.stage("cross-validation");
-    let selection = selection::choose(set, &prep, &train, k, options.folds, &progress)?;
-    clock.lap("cross-validation");
-
-    progress.stage("full model");
-    let full = full_model::fit(set, &prep, &train, &ssd, &selection)?;
-    clock.lap("full model");
-    progress.step();
+    let full = match with_full {
+        false => None,
+        true => {
+            progress.stage("gradients");
+            let prep = Prepared::new(set, feats.clone());
+            clock.lap("gradients");
+            progress.stage("cross-validation");
+            let selection = selection::choose(set, &prep, &train, k, options.folds, &progress)?;
+            clock.lap("cross-validation");
+            progress.stage("full model");
+            let model = full_model::fit(set, &prep, &train, &ssd, &selection)?;
+            clock.lap("full model");
+            progress.step();
+            Some(Full {
+                prep,
+                selection,
+                model,
+            })
+        }
+    };
 
     let mut refit = None;
     let (reduced, model) = match options.proxies {
@@ -216,32 +241,34 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                 },
                 influences: k,
             };
-            let reduced = match options.method {
-                Method::JointBlend => {
-                    let mut r =
-                        reduce::joint_blend::fit(set, &prep.feats, &train, &ssd, proxies, k);
-                    refit = Some(reduce::refit::refit(
-                        set,
-                        &prep,
-                        &train,
-                        options.folds,
-                        &mut r,
-                    ));
-                    r
+            let reduced = match (options.method, &full) {
+                (Method::Paper, Some(f)) if options.gentle_scales.is_empty() => {
+                    reduce::run(set, &f.prep, &train, &ssd, &f.model, &reduction)
                 }
-                Method::Paper if options.gentle_scales.is_empty() => {
-                    reduce::run(set, &prep, &train, &ssd, &full, &reduction)
-                }
-                Method::Paper => {
-                    let wider = augment::augment(set, &prep, &full, &ssd, &options.gentle_scales);
+                (Method::Paper, Some(f)) => {
+                    let wider =
+                        augment::augment(set, &f.prep, &f.model, &ssd, &options.gentle_scales);
                     reduce::run(
                         &wider.set,
                         &wider.prep,
                         &wider.set.train(),
                         &ssd,
-                        &full,
+                        &f.model,
                         &reduction,
                     )
+                }
+                // Joint-blend proxies (the paper's reduction never lacks its full model).
+                _ => {
+                    let mut r = reduce::joint_blend::fit(set, &feats, &train, &ssd, proxies, k);
+                    refit = Some(reduce::refit::refit(
+                        set,
+                        &feats,
+                        &train,
+                        options.folds,
+                        &mut r,
+                    ));
+                    reduce::joint_blend::reweight(set, &feats, &train, &ssd, k, &mut r);
+                    r
                 }
             };
             let model = reduced.to_runtime(set, k)?;
@@ -252,10 +279,9 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     progress.step();
     progress.finish();
     Ok(Trained {
-        prep,
+        feats,
         rigid,
         ssd,
-        selection,
         full,
         reduced,
         refit,

@@ -243,10 +243,10 @@ impl Reduced {
         self.predict_with_keys(set, &d, bones)
     }
 
-    /// The mesh for key gradients `d` (P) and bones: t = C1 d + C2 q, palette skinning.
-    pub fn predict_with_keys(&self, set: &ExampleSet, d: &[DMat3], bones: &[Bone]) -> Vec<DVec3> {
+    /// The proxies' transforms for key gradients `d` (P) and bones: t = C1 d + C2 q (§4.3).
+    pub fn proxy_transforms(&self, d: &[DMat3], bones: &[Bone]) -> Vec<Bone> {
         let (p, j) = (self.proxies, self.bones);
-        let mut palette = vec![[DVec4::ZERO; 3]; p];
+        let mut t = vec![[[0.0; 4]; 3]; p];
         for c in 0..3 {
             for r in 0..4 * p {
                 let mut v = 0.0;
@@ -262,26 +262,31 @@ impl Reduced {
                         v += self.c2[r * 4 * j + 4 * b + x] * q[x];
                     }
                 }
-                palette[r / 4][c][r % 4] = v;
+                t[r / 4][c][r % 4] = v;
             }
         }
+        t.iter()
+            .map(|m| Bone {
+                q: DMat3::from_cols_array(&[
+                    m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2],
+                ]),
+                d: DVec3::new(m[0][3], m[1][3], m[2][3]),
+            })
+            .collect()
+    }
+
+    /// The mesh for key gradients `d` (P) and bones: t = C1 d + C2 q, palette skinning.
+    pub fn predict_with_keys(&self, set: &ExampleSet, d: &[DMat3], bones: &[Bone]) -> Vec<DVec3> {
+        let p = self.proxies;
+        let palette = self.proxy_transforms(d, bones);
         set.rest
             .iter()
             .zip(&self.skin)
             .map(|(&y, inf)| {
-                let h = DVec4::from((y, 1.0));
                 inf.iter()
-                    .map(|&(e, w)| {
-                        let moved = if e < p {
-                            DVec3::new(
-                                palette[e][0].dot(h),
-                                palette[e][1].dot(h),
-                                palette[e][2].dot(h),
-                            )
-                        } else {
-                            bones[e - p].apply(y)
-                        };
-                        moved * w
+                    .map(|&(e, w)| match e < p {
+                        true => palette[e].apply(y) * w,
+                        false => bones[e - p].apply(y) * w,
                     })
                     .sum()
             })

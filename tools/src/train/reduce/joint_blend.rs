@@ -70,7 +70,14 @@ pub fn fit(
             })
         })
         .collect();
-    let first = weights(set, feats, train, &all, ssd, influences);
+    let first = weights(
+        set,
+        train,
+        &palettes(set, feats, train, &all),
+        &joints(&all),
+        ssd,
+        influences,
+    );
     // Keep the proxies carrying most weight, then refit the weights over those.
     let mut usage = vec![0.0; all.len()];
     for inf in &first {
@@ -85,22 +92,60 @@ pub fn fit(
     order.truncate(proxies);
     order.sort_unstable();
     let kept: Vec<Proxy> = order.iter().map(|&e| all[e]).collect();
-    let skin = weights(set, feats, train, &kept, ssd, influences);
+    let skin = weights(
+        set,
+        train,
+        &palettes(set, feats, train, &kept),
+        &joints(&kept),
+        ssd,
+        influences,
+    );
     assemble(set, &kept, skin, ssd)
 }
 
-/// Per vertex, NNLS weights over the `proxies` (entries 0..P) and the bones (P + b).
-fn weights(
+/// Refits `reduced`'s weights to its own proxy transforms (after [`super::refit`] moved them;
+/// SSDR's alternation, Le & Deng 2012), with the same candidates as [`fit`].
+pub fn reweight(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    train: &[usize],
+    ssd: &Skinning,
+    influences: usize,
+    reduced: &mut Reduced,
+) {
+    let palette: Vec<Vec<Bone>> = train
+        .iter()
+        .map(|&i| {
+            let d: Vec<DMat3> = reduced
+                .predictors
+                .iter()
+                .map(|k| k.predict(&feats[i], &set.parents))
+                .collect();
+            let bones = &set.poses[i].bones;
+            let mut entries = reduced.proxy_transforms(&d, bones);
+            entries.extend_from_slice(bones);
+            entries
+        })
+        .collect();
+    let joints: Vec<(usize, usize)> = reduced
+        .predictors
+        .iter()
+        .map(|k| {
+            let bone = k.rotation.map_or(0, |r| r.first.bone);
+            (bone, set.parents[bone].unwrap_or(bone))
+        })
+        .collect();
+    reduced.skin = weights(set, train, &palette, &joints, ssd, influences);
+}
+
+/// Per training pose, the palette: the proxies' transforms, then the bones'.
+fn palettes(
     set: &ExampleSet,
     feats: &[PoseFeatures],
     train: &[usize],
     proxies: &[Proxy],
-    ssd: &Skinning,
-    influences: usize,
-) -> Vec<Vec<(usize, f64)>> {
-    let p = proxies.len();
-    // [pose][entry]: the proxies' transforms, then the bones'.
-    let palette: Vec<Vec<Bone>> = train
+) -> Vec<Vec<Bone>> {
+    train
         .iter()
         .map(|&i| {
             let bones = &set.poses[i].bones;
@@ -110,7 +155,25 @@ fn weights(
                 .chain(bones.iter().copied())
                 .collect()
         })
-        .collect();
+        .collect()
+}
+
+/// Per proxy, the joint it blends: (bone, parent).
+fn joints(proxies: &[Proxy]) -> Vec<(usize, usize)> {
+    proxies.iter().map(|e| (e.bone, e.parent)).collect()
+}
+
+/// Per vertex, NNLS weights over the palette's proxies (entries 0..P, each blending the joint
+/// `joints[e]`) and bones (P + b); `palette[n]` is training pose n's.
+fn weights(
+    set: &ExampleSet,
+    train: &[usize],
+    palette: &[Vec<Bone>],
+    joints: &[(usize, usize)],
+    ssd: &Skinning,
+    influences: usize,
+) -> Vec<Vec<(usize, f64)>> {
+    let p = joints.len();
     (0..set.vertex_count())
         .into_par_iter()
         .map(|a| {
@@ -129,7 +192,7 @@ fn weights(
             // test EE 44.8 % against 34.4 %).
             let own: Vec<usize> = ssd.influences[a].iter().map(|&(b, _)| b).collect();
             let mut order: Vec<(usize, f64)> = (0..p)
-                .filter(|&e| own.contains(&proxies[e].bone) && own.contains(&proxies[e].parent))
+                .filter(|&e| own.contains(&joints[e].0) && own.contains(&joints[e].1))
                 .chain(own.iter().map(|&b| p + b))
                 .map(|e| (e, error(e)))
                 .collect();

@@ -5,20 +5,26 @@
 //! C = [C1 C2] (4P x F):
 //!
 //! ```text
-//! min_Δ  Σ_i Σ_c |Φ (C0 + Δ) x_c^i − r_c^i|² + λ |Δ|²,   Δ zero off the mask S
-//!   ⇔   P_S(A Δ B) + λ Δ = P_S(E − A C0 B),   A = ΦᵀΦ (4P x 4P), B = Σ x xᵀ, E = Σ Φᵀ r xᵀ
+//! min_v  Σ_i Σ_c |Φ (C0 + S v) x_c^i − r_c^i|² + λ |v|²
+//!   ⇔   Sᵀ(A (S v) B) + λ v = Sᵀ(E − A C0 B),   A = ΦᵀΦ (4P x 4P), B = Σ x xᵀ, E = Σ Φᵀ r xᵀ
 //! ```
 //!
-//! (r: the vertices less their bones' share), solved by conjugate gradients on the entries of
-//! S. S keeps C local: proxy e sees its own key and the bones its geometry already uses, so a
-//! fit on wide random poses cannot learn that one elbow bulges the other (STAR's lesson; a
-//! dense Δ measured worse on held-out animation). The features are projected off the bones'
-//! summed translations, so Δ cannot break translation equivariance (the training poses never
-//! move the root). λ is chosen by k-fold cross-validation over the training poses.
+//! (r: the vertices less their bones' share), solved by conjugate gradients. Δ = S v is local:
+//! proxy e sees its own key and the bones its geometry already uses, so a fit on wide random
+//! poses cannot learn that one elbow bulges the other (STAR's lesson; a dense Δ measured worse
+//! on held-out animation). And Δ is invariant to rigid motion: a column of Δ multiplies one
+//! entry of one frame's matrix, and within each row the entries that multiply the same entry
+//! k of different frames sum to zero, so when all the frames a proxy sees move together by any
+//! rigid motion (the rest pose, a global turn or step, a stiff spine) Δ adds nothing and the
+//! proxy follows them exactly. Δ only corrects *relative* motion, which is what the training
+//! poses sample. Without that constraint the fit traded the near-rest spine of a walk for the
+//! wide training poses (human_heavy spine vertices: 5x SSD's held-out error). λ is chosen by
+//! k-fold cross-validation over the training poses.
 
 use crate::import::example_set::ExampleSet;
-use crate::train::full_model::Prepared;
 use crate::train::reduce::c1c2::Reduced;
+use crate::train::rotreg::PoseFeatures;
+use rayon::prelude::*;
 
 /// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0.
 pub const RIDGES: [Option<f64>; 8] = [
@@ -45,84 +51,99 @@ pub struct Refit {
 struct PoseTerms {
     /// F x 3, row-major: x_c for c = x, y, z.
     x: Vec<[f64; 3]>,
-    /// The same projected off the bones' summed translations.
-    projected: Vec<[f64; 3]>,
     /// 4P x 3: Φᵀ r_c.
     b: Vec<[f64; 3]>,
     /// Σ_c |r_c|².
     s: f64,
 }
 
-/// Row-major dense matrices of the fit.
+/// One column of S: +1 on entry (row, col) of Δ, −1 on (row, reference), the entry of the
+/// row's first frame that multiplies the same matrix entry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Free {
+    row: usize,
+    col: usize,
+    reference: usize,
+}
+
+/// The fit's matrices. A is sparse: two proxies meet only where a vertex weights both.
 struct Problem {
     n4p: usize,
     f: usize,
-    /// A = ΦᵀΦ, 4P x 4P.
-    a: Vec<f64>,
-    /// C0, 4P x F.
+    /// A = ΦᵀΦ (4P x 4P): per row, its non-zeros (column, value).
+    a: Vec<Vec<(usize, f64)>>,
+    /// C0, 4P x F, row-major.
     c0: Vec<f64>,
-    /// The mask: (row, column) of every free entry.
-    mask: Vec<(usize, usize)>,
+    /// The columns of S.
+    free: Vec<Free>,
+    /// Per row of Δ, its entries of `free`.
+    free_of_row: Vec<Vec<usize>>,
+    /// Per row r, the columns where (A Δ)[r, ·] can be non-zero.
+    pattern: Vec<Vec<usize>>,
     terms: Vec<PoseTerms>,
 }
 
-/// Refits `reduced`'s C1/C2 on the mask (its own non-zeros, and the bone each key turns).
+/// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
+/// uses and the bone its key turns.
 pub fn refit(
     set: &ExampleSet,
-    prep: &Prepared,
+    feats: &[PoseFeatures],
     train: &[usize],
     folds: usize,
     reduced: &mut Reduced,
 ) -> Refit {
-    let problem = Problem::new(set, prep, train, reduced);
+    let problem = Problem::new(set, feats, train, reduced);
     let folds = folds.min(train.len());
-    let mut held_out = vec![0.0; RIDGES.len()];
-    if folds < 2 || problem.mask.is_empty() {
+    if folds < 2 || problem.free.is_empty() {
         return Refit {
             ridge: None,
-            held_out,
+            held_out: vec![0.0; RIDGES.len()],
         };
     }
     let all: Vec<usize> = (0..train.len()).collect();
-    for fold in 0..folds {
-        let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
-        for (h, delta) in held_out.iter_mut().zip(problem.solve(&inner, &RIDGES)) {
-            *h += all
+    let per_fold: Vec<Vec<f64>> = (0..folds)
+        .into_par_iter()
+        .map(|fold| {
+            let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
+            problem
+                .solve(&inner, &RIDGES)
                 .iter()
-                .filter(|n| *n % folds == fold)
-                .map(|&n| problem.error(&delta, n))
-                .sum::<f64>();
-        }
+                .map(|v| {
+                    all.iter()
+                        .filter(|n| *n % folds == fold)
+                        .map(|&n| problem.error(v, n))
+                        .sum::<f64>()
+                })
+                .collect()
+        })
+        .collect();
+    let mut held_out = vec![0.0; RIDGES.len()];
+    for fold in &per_fold {
+        held_out.iter_mut().zip(fold).for_each(|(h, e)| *h += e);
     }
     let best = (0..RIDGES.len())
         .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
         .unwrap_or(RIDGES.len() - 1);
     let ridge = RIDGES[best];
-    if let Some(delta) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
-        // Δ acts on projected features: Δ x' = Δ x − (Δ n) nᵀ x, so each row's weight on a
-        // bone translation is spread back over all J bones (n = 1/√J on each).
+    if let Some(v) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
         let (p, j) = (reduced.proxies, reduced.bones);
-        let mut spread = vec![0.0; 4 * p];
-        for (&(r, c), v) in problem.mask.iter().zip(delta) {
+        for (r, c, x) in problem.entries(&v) {
             match c < 3 * p {
-                true => reduced.c1[r * 3 * p + c] += v,
-                false => {
-                    reduced.c2[r * 4 * j + c - 3 * p] += v;
-                    if (c - 3 * p) % 4 == 3 {
-                        spread[r] += v / j as f64;
-                    }
-                }
+                true => reduced.c1[r * 3 * p + c] += x,
+                false => reduced.c2[r * 4 * j + c - 3 * p] += x,
             }
-        }
-        for (r, s) in spread.iter().enumerate() {
-            (0..j).for_each(|b| reduced.c2[r * 4 * j + 4 * b + 3] -= s);
         }
     }
     Refit { ridge, held_out }
 }
 
 impl Problem {
-    fn new(set: &ExampleSet, prep: &Prepared, train: &[usize], reduced: &Reduced) -> Problem {
+    fn new(
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        train: &[usize],
+        reduced: &Reduced,
+    ) -> Problem {
         let (p, j) = (reduced.proxies, reduced.bones);
         let (n4p, f) = (4 * p, 3 * p + 4 * j);
         let c0: Vec<f64> = (0..n4p)
@@ -133,33 +154,65 @@ impl Problem {
                 })
             })
             .collect();
-        let mut mask = Vec::new();
+        // Per row, the frames it sees (key e, then bones), each as the column of its entry 0.
+        let mut free = Vec::new();
         for r in 0..n4p {
             let e = r / 4;
             let turned = reduced.predictors[e].rotation.map(|t| t.first.bone);
-            for c in 0..f {
-                let free = match c < 3 * p {
-                    true => c / 3 == e,
-                    false => {
-                        let b = (c - 3 * p) / 4;
-                        Some(b) == turned
-                            || (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0)
-                    }
-                };
-                if free {
-                    mask.push((r, c));
+            let uses = |b: usize| (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0);
+            let frames: Vec<(usize, usize)> = std::iter::once((3 * e, 3))
+                .chain(
+                    (0..j)
+                        .filter(|&b| Some(b) == turned || uses(b))
+                        .map(|b| (3 * p + 4 * b, 4)),
+                )
+                .collect();
+            for k in 0..4 {
+                let mut seeing = frames.iter().filter(|f| k < f.1).map(|f| f.0 + k);
+                if let Some(reference) = seeing.next() {
+                    free.extend(seeing.map(|col| Free {
+                        row: r,
+                        col,
+                        reference,
+                    }));
                 }
             }
         }
-        let a_mat = reduced.proxy_normal_matrix(set);
-        let norm = 1.0 / (j as f64).sqrt();
+        let dense = reduced.proxy_normal_matrix(set);
+        let a: Vec<Vec<(usize, f64)>> = dense
+            .chunks(n4p)
+            .map(|row| {
+                row.iter()
+                    .enumerate()
+                    .filter(|x| *x.1 != 0.0)
+                    .map(|(q, &v)| (q, v))
+                    .collect()
+            })
+            .collect();
+        let mut free_of_row = vec![Vec::new(); n4p];
+        for (idx, s) in free.iter().enumerate() {
+            free_of_row[s.row].push(idx);
+        }
+        let pattern = a
+            .iter()
+            .map(|row| {
+                let mut cols: Vec<usize> = row
+                    .iter()
+                    .flat_map(|&(q, _)| free_of_row[q].iter())
+                    .flat_map(|&idx| [free[idx].col, free[idx].reference])
+                    .collect();
+                cols.sort_unstable();
+                cols.dedup();
+                cols
+            })
+            .collect();
         let terms = train
             .iter()
             .map(|&i| {
                 let pose = &set.poses[i];
                 let mut x = vec![[0.0; 3]; f];
                 for (l, key) in reduced.predictors.iter().enumerate() {
-                    let d = key.predict(&prep.feats[i], &set.parents);
+                    let d = key.predict(&feats[i], &set.parents);
                     for c in 0..3 {
                         for k in 0..3 {
                             x[3 * l + k][c] = d.row(c)[k];
@@ -174,28 +227,28 @@ impl Problem {
                         }
                     }
                 }
-                let mut projected = x.clone();
-                for c in 0..3 {
-                    let along: f64 = (0..j).map(|b| x[3 * p + 4 * b + 3][c]).sum::<f64>() * norm;
-                    (0..j).for_each(|b| projected[3 * p + 4 * b + 3][c] -= along * norm);
-                }
                 let (bm, s) = reduced.proxy_targets(set, pose);
-                PoseTerms {
-                    x,
-                    projected,
-                    b: bm,
-                    s,
-                }
+                PoseTerms { x, b: bm, s }
             })
             .collect();
         Problem {
             n4p,
             f,
-            a: a_mat,
+            a,
             c0,
-            mask,
+            free,
+            free_of_row,
+            pattern,
             terms,
         }
+    }
+
+    /// The non-zeros (row, column, value) of Δ = S v.
+    fn entries<'a>(&'a self, v: &'a [f64]) -> impl Iterator<Item = (usize, usize, f64)> + 'a {
+        self.free
+            .iter()
+            .zip(v)
+            .flat_map(|(s, &x)| [(s.row, s.col, x), (s.row, s.reference, -x)])
     }
 
     /// t = (C0 + Δ) x for pose n: 4P x 3.
@@ -210,8 +263,8 @@ impl Problem {
                 }
             }
         }
-        for (&(r, c), v) in self.mask.iter().zip(delta) {
-            (0..3).for_each(|k| out[r][k] += v * t.projected[c][k]);
+        for (r, c, v) in self.entries(delta) {
+            (0..3).for_each(|k| out[r][k] += v * t.x[c][k]);
         }
         out
     }
@@ -220,31 +273,29 @@ impl Problem {
     fn error(&self, delta: &[f64], n: usize) -> f64 {
         let t = self.transforms(delta, n);
         let mut e = self.terms[n].s;
-        for r in 0..self.n4p {
+        for (r, row) in self.a.iter().enumerate() {
             for k in 0..3 {
-                let at: f64 = (0..self.n4p)
-                    .map(|q| self.a[r * self.n4p + q] * t[q][k])
-                    .sum();
+                let at: f64 = row.iter().map(|&(q, a)| a * t[q][k]).sum();
                 e += t[r][k] * (at - 2.0 * self.terms[n].b[r][k]);
             }
         }
         e
     }
 
-    /// Δ on the mask for each ridge, fitted on `poses` (warm-started from the stronger ridge).
+    /// v for each ridge, fitted on `poses` (warm-started from the stronger ridge).
     fn solve(&self, poses: &[usize], ridges: &[Option<f64>]) -> Vec<Vec<f64>> {
-        let (n4p, f, m) = (self.n4p, self.f, self.mask.len());
-        // B = Σ x' x'ᵀ over poses and coordinates (F x F).
+        let (n4p, f, m) = (self.n4p, self.f, self.free.len());
+        // B = Σ x xᵀ over poses and coordinates (F x F).
         let mut b = vec![0.0; f * f];
         for &n in poses {
-            let x = &self.terms[n].projected;
+            let x = &self.terms[n].x;
             for r in 0..f {
                 for c in 0..f {
                     b[r * f + c] += (0..3).map(|k| x[r][k] * x[c][k]).sum::<f64>();
                 }
             }
         }
-        // Right-hand side on the mask: Σ (Φᵀ r − A C0 x) x'ᵀ.
+        // Right-hand side: Sᵀ Σ (Φᵀ r − A C0 x) xᵀ.
         let mut rhs = vec![0.0; m];
         for &n in poses {
             let t = &self.terms[n];
@@ -252,35 +303,44 @@ impl Problem {
             let residual: Vec<[f64; 3]> = (0..n4p)
                 .map(|r| {
                     let mut v = t.b[r];
-                    for q in 0..n4p {
-                        (0..3).for_each(|k| v[k] -= self.a[r * n4p + q] * c0x[q][k]);
+                    for &(q, a) in &self.a[r] {
+                        (0..3).for_each(|k| v[k] -= a * c0x[q][k]);
                     }
                     v
                 })
                 .collect();
-            for (slot, &(r, c)) in rhs.iter_mut().zip(&self.mask) {
-                *slot += (0..3)
-                    .map(|k| residual[r][k] * t.projected[c][k])
-                    .sum::<f64>();
+            let at = |r: usize, c: usize| (0..3).map(|k| residual[r][k] * t.x[c][k]).sum::<f64>();
+            for (slot, s) in rhs.iter_mut().zip(&self.free) {
+                *slot += at(s.row, s.col) - at(s.row, s.reference);
             }
         }
-        let mean_a = (0..n4p).map(|d| self.a[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
+        let diag_a = |r: usize| self.a[r].iter().find(|x| x.0 == r).map_or(0.0, |x| x.1);
+        let mean_a = (0..n4p).map(diag_a).sum::<f64>() / n4p.max(1) as f64;
         let mean_b = (0..f).map(|d| b[d * f + d]).sum::<f64>() / f.max(1) as f64;
-        // P_S(A Δ B) through G = Δ B (4P x F, stored column-major to read A's rows against).
-        let apply = |v: &[f64], lambda: f64| -> Vec<f64> {
-            let mut g = vec![0.0; f * n4p];
-            for (&(r, c), &x) in self.mask.iter().zip(v) {
-                for col in 0..f {
-                    g[col * n4p + r] += x * b[c * f + col];
+        // Sᵀ(A (S v) B) through H = A Δ (4P x F, sparse rows: `pattern`); B is symmetric.
+        let mut h = vec![0.0; n4p * f];
+        let mut apply = |v: &[f64], lambda: f64| -> Vec<f64> {
+            for (r, row) in self.a.iter().enumerate() {
+                let hr = &mut h[r * f..(r + 1) * f];
+                self.pattern[r].iter().for_each(|&c| hr[c] = 0.0);
+                for &(q, a) in row {
+                    for &idx in &self.free_of_row[q] {
+                        let s = self.free[idx];
+                        hr[s.col] += a * v[idx];
+                        hr[s.reference] -= a * v[idx];
+                    }
                 }
             }
-            self.mask
+            self.free
                 .iter()
                 .zip(v)
-                .map(|(&(r, c), &x)| {
-                    let a_row = &self.a[r * n4p..(r + 1) * n4p];
-                    let g_col = &g[c * n4p..(c + 1) * n4p];
-                    a_row.iter().zip(g_col).map(|(p, q)| p * q).sum::<f64>() + lambda * x
+                .map(|(s, &x)| {
+                    let (hr, bc, bo) = (&h[s.row * f..], &b[s.col * f..], &b[s.reference * f..]);
+                    let hb: f64 = self.pattern[s.row]
+                        .iter()
+                        .map(|&c| hr[c] * (bc[c] - bo[c]))
+                        .sum();
+                    hb + lambda * x
                 })
                 .collect()
         };
@@ -297,9 +357,13 @@ impl Problem {
             let Some(rho) = ridges[idx] else { continue };
             let lambda = rho * mean_a * mean_b;
             let diag: Vec<f64> = self
-                .mask
+                .free
                 .iter()
-                .map(|&(r, c)| self.a[r * n4p + r] * b[c * f + c] + lambda)
+                .map(|s| {
+                    let (c, o) = (s.col, s.reference);
+                    let bb = b[c * f + c] - 2.0 * b[c * f + o] + b[o * f + o];
+                    diag_a(s.row) * bb + lambda
+                })
                 .collect();
             let applied = apply(&delta, lambda);
             let mut res: Vec<f64> = rhs.iter().zip(&applied).map(|(x, y)| x - y).collect();
