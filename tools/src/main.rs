@@ -317,7 +317,7 @@ fn evaluate(
     diagnose: bool,
 ) -> Result<(Report, Option<Imported>), Box<dyn std::error::Error>> {
     let (examples, imported) = set.load()?;
-    let (poses, folds) = (examples.train().len(), train.options().folds);
+    let (poses, folds) = (examples.train().len(), options.folds);
     if poses < MIN_TRAINING_POSES {
         return Err(format!(
             "{}: {} training pose: training needs at least {MIN_TRAINING_POSES} (and {folds} to choose its settings by {folds}-fold cross-validation)",
@@ -358,7 +358,7 @@ fn evaluate(
         }
         if poses < folds {
             note(format_args!(
-                "warning: {}: {poses} training poses, fewer than the {folds} the cross-validation needs (one per fold): F, the ridge and the blend are fixed, not chosen",
+                "warning: {}: {poses} training poses, fewer than the {folds} the cross-validation needs (one per fold): its settings are fixed, not chosen",
                 set.set.display()
             ));
         }
