@@ -70,14 +70,11 @@ pub fn fit(
             })
         })
         .collect();
-    let first = weights(
-        set,
-        train,
-        &palettes(set, feats, train, &all),
-        &joints(&all),
-        ssd,
-        influences,
-    );
+    let weights_over = |proxies: &[Proxy]| {
+        let palette = palettes(set, feats, train, proxies);
+        weights(set, train, &palette, &joints(proxies), ssd, influences)
+    };
+    let first = weights_over(&all);
     // Keep the proxies carrying most weight, then refit the weights over those.
     let mut usage = vec![0.0; all.len()];
     for inf in &first {
@@ -92,14 +89,7 @@ pub fn fit(
     order.truncate(proxies);
     order.sort_unstable();
     let kept: Vec<Proxy> = order.iter().map(|&e| all[e]).collect();
-    let skin = weights(
-        set,
-        train,
-        &palettes(set, feats, train, &kept),
-        &joints(&kept),
-        ssd,
-        influences,
-    );
+    let skin = weights_over(&kept);
     assemble(set, &kept, skin, ssd)
 }
 
