@@ -479,7 +479,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 o.pose, o.rms.0, o.rms.1
             );
             out!("rendered with the Vulkan runtime on {}", o.device);
-            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  (SSD | rotational regression where it gains most)\n  {}  ({} characters on the runtime)\n  {}  (the table and the images)", shown(&o.model), shown(&o.comparison), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, shown(&o.closeup), shown(&o.crowd), rrskin_tools::run::demo::CROWD, shown(&o.model.with_file_name("report.html")));
+            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  (SSD | rotational regression where it gains most)\n  {}  ({} characters on the runtime)\n  {}  (EE against P: {})\n  {}  (the tables, the curve and the images)", shown(&o.model), shown(&o.comparison), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, shown(&o.closeup), shown(&o.crowd), rrskin_tools::run::demo::CROWD, shown(&o.tradeoff_plot), o.tradeoff.iter().map(|x| format!("P = {} {:.1} %", x.proxies, x.test.unwrap_or(x.train))).collect::<Vec<_>>().join(", "), shown(&o.model.with_file_name("report.html")));
             out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
         }
         Command::Reference {

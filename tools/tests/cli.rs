@@ -494,12 +494,21 @@ fn the_demo_writes_the_model_the_images_and_the_report() {
             "comparison.png",
             "closeup.png",
             "crowd.png",
+            "tradeoff.svg",
             "runtime model",
             "mesh units"
         ]
         .iter()
         .all(|s| report.contains(s)),
         "{report}"
+    );
+    // Five methods (rigid, SSD, DQS, full, runtime), then the runtime model at P/8, P/4, P/2
+    // and P (6, 13, 27, 54).
+    assert_eq!(report.matches("<tr><td>").count(), 5 + 4, "{report}");
+    let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).expect("tradeoff.svg");
+    assert!(
+        svg.starts_with("<svg") && svg.contains("runtime model") && svg.contains("DQS"),
+        "{svg}"
     );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -3,8 +3,9 @@
 //! the held-out pose where SSD errs most, as ground truth | SSD | rotational regression
 //! coloured by per-vertex error (each panel from the same camera on the figure, labelled, with
 //! the colour scale), a close-up of SSD and the runtime model where the runtime model gains
-//! most, and a crowd of 256 characters playing the model's animation; and a report page
-//! (report.html) with the error table and the images.
+//! most, and a crowd of 256 characters playing the model's animation; the runtime model
+//! retrained at smaller P for the accuracy/size curve; and a report page (report.html) with the
+//! error table, the curve and the images.
 
 use crate::eval::{self, Report};
 use crate::import::example_set::ExampleSet;
@@ -26,6 +27,9 @@ pub struct Outputs {
     /// SSD | the runtime model where the runtime model gains most on SSD.
     pub closeup: PathBuf,
     pub crowd: PathBuf,
+    /// The runtime model at several P (smallest first) and their curve (SVG).
+    pub tradeoff: Vec<crate::run::tradeoff::Point>,
+    pub tradeoff_plot: PathBuf,
     /// The Vulkan device that rendered the images.
     pub device: String,
     /// The pose shown in the comparison and the RMS errors there (SSD, RR), in mesh units.
@@ -146,12 +150,17 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
 
     let crowd_path = out.join("crowd.png");
     render_crowd(&ctx, &model, &crowd_path)?;
+    let tradeoff = crate::run::tradeoff::sweep(&set, &report, quiet)?;
+    let tradeoff_plot = out.join("tradeoff.svg");
+    crate::run::tradeoff::plot(&tradeoff_plot, &tradeoff, &report)?;
     let outputs = Outputs {
         report,
         model: model_path,
         comparison,
         closeup,
         crowd: crowd_path,
+        tradeoff,
+        tradeoff_plot,
         device: ctx.device_name().to_string(),
         pose,
         rms: (rms(&e_ssd), rms(&e_rr)),

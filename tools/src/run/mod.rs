@@ -8,3 +8,4 @@ pub mod image;
 pub mod profile;
 pub mod reference;
 pub mod report;
+pub mod tradeoff;

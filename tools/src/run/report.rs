@@ -47,6 +47,17 @@ pub fn write(path: &Path, o: &Outputs) -> crate::Result<()> {
             );
         }
     }
+    let mut sizes = String::new();
+    for x in &o.tradeoff {
+        let _ = writeln!(
+            sizes,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            x.proxies,
+            x.bytes,
+            pct(Some(x.train)),
+            pct(x.test)
+        );
+    }
     let set = escape(&o.set);
     let html = format!(
         r#"<!DOCTYPE html>
@@ -58,6 +69,10 @@ pub fn write(path: &Path, o: &Outputs) -> crate::Result<()> {
 <h2>Enveloping error (EE %, 100 = the best rigid predictor)</h2>
 <table><tr><th>method</th><th>train</th><th>test</th></tr>
 {table}</table>
+<h2>Accuracy against size: the runtime model at several P</h2>
+<table><tr><th>P</th><th>model bytes</th><th>train EE %</th><th>test EE %</th></tr>
+{sizes}</table>
+<figure><img src="{tradeoff}" width="640"><figcaption>EE % of the runtime model against P, with SSD's and DQS's (trained as <code>rrskin train --proxies P</code>)</figcaption></figure>
 <h2>The held-out pose where SSD errs most (pose {pose})</h2>
 <p>Per-vertex error: <span>0</span> <span class="scale"></span> <span>&ge; {scale:.4} mesh units (2 % of the height)</span>.
 RMS vertex error: SSD {rms_ssd:.4}, runtime model {rms_rr:.4} mesh units.</p>
@@ -78,6 +93,7 @@ RMS vertex error: SSD {rms_ssd:.4}, runtime model {rms_rr:.4} mesh units.</p>
         rms_rr = o.rms.1,
         comparison = file_name(&o.comparison),
         closeup = file_name(&o.closeup),
+        tradeoff = file_name(&o.tradeoff_plot),
         crowd = file_name(&o.crowd),
         crowd_count = crate::run::demo::CROWD,
     );
