@@ -1,5 +1,7 @@
 //! The GPU memory a model and a crowd will take, from their sizes alone: the query an engine
-//! makes before creating either, with no device (and no model upload) needed. `GpuModel::new`
+//! makes before creating either, with no device (and no model upload) needed. A model's sizes
+//! include the stored columns of its block-sparse C1|C2 ([`ModelSizes::blend_columns`]: 0 for a
+//! dense one), which [`ModelSizes::of`] counts as `GpuModel::new` will lay them out. `GpuModel::new`
 //! and `Crowd::with_options` size their buffers with the same functions, so the figures are the
 //! bytes of the buffers they create (allocator rounding and the transient staging buffer of an
 //! upload aside).
