@@ -15,6 +15,7 @@ type Shader = (
 const SHADERS: &[Shader] = &[
     ("predict.comp", "predict", &[]),
     ("blend_gemm.comp", "blend_gemm", &[]),
+    ("sparse_product.comp", "sparse_product", &[]),
     ("skin.comp", "skin_k4", &[("K", "4")]),
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),

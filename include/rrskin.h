@@ -101,6 +101,10 @@ typedef struct rrskin_model_info {
   uint32_t proxies;
   // K: 4 or 8.
   uint32_t influences;
+  // Stored columns of the model's block-sparse C1|C2 (the sum over proxies of the columns
+  // any of a proxy's 4 rows touches), 0 where the runtime keeps it dense: what
+  // `rrskin_model_get_info` reports, needed for `rrskin_query_memory`'s model bytes.
+  uint32_t blend_columns;
 } rrskin_model_info;
 
 // How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses

@@ -103,6 +103,10 @@ pub struct RrskinModelInfo {
     pub proxies: u32,
     /// K: 4 or 8.
     pub influences: u32,
+    /// Stored columns of the model's block-sparse C1|C2 (the sum over proxies of the columns
+    /// any of a proxy's 4 rows touches), 0 where the runtime keeps it dense: what
+    /// `rrskin_model_get_info` reports, needed for `rrskin_query_memory`'s model bytes.
+    pub blend_columns: u32,
 }
 
 /// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -457,6 +461,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             bones: i.bones as usize,
             proxies: i.proxies as usize,
             influences: i.influences as usize,
+            blend_columns: i.blend_columns as usize,
         };
         let options = if options.is_null() {
             CrowdOptions::default()
@@ -685,6 +690,7 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             bones: m.bone_count() as u32,
             proxies: m.proxy_count() as u32,
             influences: m.influences() as u32,
+            blend_columns: crate::vk::ModelSizes::of(m).blend_columns as u32,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }

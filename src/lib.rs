@@ -4,7 +4,9 @@
 //! into deformed vertex positions and normals through four passes, for many characters at once:
 //!
 //! 1. predictors `d(q)`: P key deformation gradients per character (paper §3, Eq. 3–4);
-//! 2. proxy transforms `t = C1 d + C2 q`: one matrix product over all characters (Eq. 5);
+//! 2. proxy transforms `t = C1 d + C2 q`: one matrix product over all characters (Eq. 5),
+//!    dense, or block-sparse per proxy where `[C1 | C2]` is mostly zeros (joint-blend proxies:
+//!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]);
 //! 3. matrix-palette skinning over `[t (P); q (J)]` with K = 4 or 8 influences;
 //! 4. normals, gathered from incident triangles.
 //!
@@ -66,7 +68,8 @@
 //! the next recording overwrites it (undefined old contents are never read).
 //!
 //! **Memory and requirements before creation.** [`vk::model_bytes`] and [`vk::crowd_bytes`]
-//! give the bytes a model and a crowd of C characters will take, from their sizes alone;
+//! give the bytes a model and a crowd of C characters will take, from their sizes alone
+//! ([`vk::ModelSizes::of`] a model, including the stored columns of a block-sparse C1/C2);
 //! creating a crowd beyond the largest device-local heap is a `DeviceLimit` error.
 //! [`vk::requirements`] gives the Vulkan version (1.1), extensions (none), features (none),
 //! queue flags and storage-buffer limit the runtime needs, before any device exists;

@@ -273,6 +273,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         bones: model.bone_count() as u32,
         proxies: model.proxy_count() as u32,
         influences: model.influences() as u32,
+        blend_columns: rrskin::vk::ModelSizes::of(&model).blend_columns as u32,
     };
     let (mut model_bytes, mut crowd_bytes) = (0u64, 0u64);
     // SAFETY: live values.

@@ -116,6 +116,60 @@ fn gemm_tiles_cover_odd_sizes() {
     }
 }
 
+/// `model` with [C1 | C2] cut to the pattern of a joint-blend proxy: proxy e's rows keep its own
+/// key's 3 columns of C1 and two bones' 4 columns of C2 (e mod J and 2e + 1 mod J).
+fn joint_blend_pattern(model: &Model) -> Model {
+    let (p, j) = (model.proxy_count(), model.bone_count());
+    let mut parts = model.parts().clone();
+    for r in 0..4 * p {
+        let e = r / 4;
+        for k in 0..3 * p {
+            if k / 3 != e {
+                parts.c1[r * 3 * p + k] = 0.0;
+            }
+        }
+        for k in 0..4 * j {
+            if k / 4 != e % j && k / 4 != (2 * e + 1) % j {
+                parts.c2[r * 4 * j + k] = 0.0;
+            }
+        }
+    }
+    Model::new(parts).expect("the same model with fewer non-zeros")
+}
+
+/// Models whose C1|C2 is sparse take the block-sparse product, dense ones the GEMM, and both
+/// match the CPU (odd proxy counts, 1, 7, 65 and 1000 characters). With P = J = 1 the pattern
+/// keeps all 7 columns: too dense, the GEMM stays.
+#[test]
+fn the_sparse_product_is_chosen_for_sparse_models_and_matches_cpu() {
+    let ctx = validated_context();
+    for (p, j, k, sparse_product) in [(7, 9, 4, true), (1, 1, 8, false), (40, 12, 8, true)] {
+        let dense = random_model(
+            Spec {
+                grid: 8,
+                bones: j,
+                proxies: p,
+                influences: k,
+            },
+            p as u64 + 100,
+        );
+        assert!(!GpuModel::new(&ctx, &dense)
+            .expect("upload")
+            .is_block_sparse());
+        let sparse = joint_blend_pattern(&dense);
+        assert_eq!(
+            GpuModel::new(&ctx, &sparse)
+                .expect("upload")
+                .is_block_sparse(),
+            sparse_product,
+            "P = {p}, J = {j}"
+        );
+        for c in [1, 7, 65, 1000] {
+            check(&ctx, &sparse, c, CrowdOptions::default(), c as u64);
+        }
+    }
+}
+
 #[test]
 fn crowds_split_into_chunks_when_a_binding_would_be_too_large() {
     let ctx = validated_context();
@@ -213,12 +267,20 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
             },
             23,
         ),
+        joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 24)),
     ];
     let gpu: Vec<GpuModel> = models
         .iter()
         .map(|m| GpuModel::new(&ctx, m).expect("upload"))
         .collect();
-    let counts = [5, 9, 3];
+    assert_eq!(
+        gpu.iter()
+            .map(GpuModel::is_block_sparse)
+            .filter(|&s| s)
+            .count(),
+        1
+    );
+    let counts = [5, 9, 3, 6];
     let mut crowds = Vec::new();
     let mut expected = Vec::new();
     for ((model, g), &c) in models.iter().zip(&gpu).zip(&counts) {
@@ -723,10 +785,14 @@ fn memory_queries_are_the_bytes_created() {
         bounds: true,
         ..CrowdOptions::default()
     };
-    for (spec, seed) in [(LBS, 41), (RR, 42)] {
-        let model = random_model(spec, seed);
-        let sizes = ModelSizes::of(&model);
-        let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    let models = [(LBS, 41), (RR, 42)].map(|(spec, seed)| random_model(spec, seed));
+    let sparse = joint_blend_pattern(&models[1]);
+    for model in models.iter().chain([&sparse]) {
+        let sizes = ModelSizes::of(model);
+        let gpu = GpuModel::new(&ctx, model).expect("upload");
+        let spec = (sizes, gpu.is_block_sparse());
+        assert_eq!(sizes.blend_columns > 0, gpu.is_block_sparse());
+        assert_eq!(gpu.is_block_sparse(), std::ptr::eq(model, &sparse));
         assert_eq!(model_bytes(&sizes), gpu.memory_bytes(), "{spec:?}");
         for options in [CrowdOptions::default(), with_everything] {
             let expected = crowd_bytes(&sizes, 9, &options).expect("query");

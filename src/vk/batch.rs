@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! ts0 | barrier(prev. frame's reads/writes → compute) | predict (all crowds with P > 0)
-//! ts1 | barrier | blend GEMM (all crowds with P > 0)
+//! ts1 | barrier | C1/C2 product (all crowds with P > 0: the GEMM or the sparse product)
 //! ts2 | barrier | skin (all crowds, the pipeline of their K)
 //! ts3 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
 //! ts4 | barrier(compute writes → vertex input, transfer, compute and host reads)
@@ -29,7 +29,7 @@ use std::sync::Arc;
 /// timestamp per phase, reported by [`PassTimings`]).
 const SCHEDULE: [&[Pass]; 4] = [
     &[Pass::Predict],
-    &[Pass::BlendGemm],
+    &[Pass::BlendGemm, Pass::SparseProduct],
     &[Pass::SkinK4, Pass::SkinK8],
     &[Pass::Normals, Pass::Bounds],
 ];
@@ -416,7 +416,8 @@ mod tests {
     }
 
     /// A phase has no barrier inside: no model runs two passes of one phase that depend on
-    /// each other (the skinning variants share a phase because a model runs only one).
+    /// each other (the skinning variants, and the two products, share a phase because a model
+    /// runs only one of each).
     #[test]
     fn no_model_runs_dependent_passes_in_one_phase() {
         for d in super::super::passes::model_kinds() {

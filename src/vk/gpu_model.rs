@@ -30,8 +30,14 @@ pub(crate) struct Inner {
     pub parents: Buffer,
     /// P x 85 words (the PRED record layout)
     pub predictors: Buffer,
-    /// [C1 | C2]: 4P x (3P + 4J) f32, row-major
+    /// [C1 | C2]: 4P x (3P + 4J) f32, row-major (empty where the model is block-sparse)
     pub blend_matrix: Buffer,
+    /// The block-sparse [C1 | C2] ([`BlockSparse`]; empty where the model is dense)
+    pub blend_offsets: Buffer,
+    pub blend_column_indices: Buffer,
+    pub blend_values: Buffer,
+    /// Stored columns of the block-sparse layout, 0 where dense.
+    pub blend_columns: usize,
     /// V + 1 u32 (CSR offsets)
     pub incident_offsets: Buffer,
     /// 3T u32 (triangle ids)
@@ -45,16 +51,25 @@ impl GpuModel {
     pub fn new(context: &Context, model: &Model) -> Result<GpuModel> {
         let parts = model.parts();
         let predictors: Vec<u32> = parts.predictors.iter().flat_map(predictor_words).collect();
-        let blend = model.c1_c2();
+        let sparse = BlockSparse::of(model);
+        let dense = match sparse {
+            Some(_) => Vec::new(),
+            None => model.c1_c2(),
+        };
+        let empty = BlockSparse::default();
+        let blocks = sparse.as_ref().unwrap_or(&empty);
         let (offsets, incident) = model.incidence();
         let bytes = bytemuck::cast_slice::<f32, u8>;
-        let items: [(&'static str, &[u8]); 9] = [
+        let items: [(&'static str, &[u8]); 12] = [
             ("rest positions", bytes(parts.rest_positions.as_flattened())),
             ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
             ("skin weights", bytes(&parts.skin_weights)),
             ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
             ("predictors", bytemuck::cast_slice(&predictors)),
-            ("C1|C2", bytes(&blend)),
+            ("C1|C2", bytes(&dense)),
+            ("C1|C2 offsets", bytemuck::cast_slice(&blocks.offsets)),
+            ("C1|C2 columns", bytemuck::cast_slice(&blocks.columns)),
+            ("C1|C2 values", bytes(blocks.values.as_flattened())),
             ("incident offsets", bytemuck::cast_slice(offsets)),
             ("incident triangles", bytemuck::cast_slice(incident)),
             (
@@ -78,6 +93,7 @@ impl GpuModel {
             bones: model.bone_count() as u32,
             influences: model.influences(),
             bounds: false,
+            sparse: sparse.is_some(),
         };
         // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
         for pass in Pass::of_model(&dims) {
@@ -90,8 +106,8 @@ impl GpuModel {
             // The triangles double as an index buffer ([`GpuModel::triangle_buffer`]).
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDEX_BUFFER,
         )?;
-        let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, incident_offsets, incident_triangles, triangles] =
-            <[Buffer; 9]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
+        let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, blend_offsets, blend_column_indices, blend_values, incident_offsets, incident_triangles, triangles] =
+            <[Buffer; 12]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
                 what: "uploaded buffer count",
             })?;
         Ok(GpuModel {
@@ -105,6 +121,10 @@ impl GpuModel {
                 parents,
                 predictors,
                 blend_matrix,
+                blend_offsets,
+                blend_column_indices,
+                blend_values,
+                blend_columns: blocks.columns.len(),
                 incident_offsets,
                 incident_triangles,
                 triangles,
@@ -122,6 +142,12 @@ impl GpuModel {
 
     pub fn proxy_count(&self) -> usize {
         self.inner.dims.proxies as usize
+    }
+
+    /// Whether [C1 | C2] was stored block-sparse (the sparse product runs) rather than dense
+    /// (the tiled GEMM runs): see [`BlockSparse::of`].
+    pub fn is_block_sparse(&self) -> bool {
+        self.inner.dims.sparse
     }
 
     /// Bytes of the model's buffers: what [`super::model_bytes`] said before the upload.
@@ -142,6 +168,9 @@ impl Inner {
             ModelBuffer::Parents => &self.parents,
             ModelBuffer::Predictors => &self.predictors,
             ModelBuffer::BlendMatrix => &self.blend_matrix,
+            ModelBuffer::BlendOffsets => &self.blend_offsets,
+            ModelBuffer::BlendColumns => &self.blend_column_indices,
+            ModelBuffer::BlendValues => &self.blend_values,
             ModelBuffer::IncidentOffsets => &self.incident_offsets,
             ModelBuffer::IncidentTriangles => &self.incident_triangles,
             ModelBuffer::Triangles => &self.triangles,
@@ -165,5 +194,49 @@ impl GpuModel {
     /// the model.
     pub fn triangle_buffer(&self) -> vk::Buffer {
         self.inner.triangles.handle
+    }
+}
+
+/// [C1 | C2] stored per proxy: proxy e's 4 rows (4e .. 4e + 3) keep only the columns where
+/// one of them is non-zero, each as its column index and the vec4 of the 4 rows' values. A
+/// joint-blend proxy touches its own key's 3 columns and its 2-3 bones' 4 each (~11 of
+/// 3P + 4J); the paper's reduction and synthetic models are dense.
+#[derive(Debug, Default, PartialEq)]
+pub(crate) struct BlockSparse {
+    /// P + 1: proxy e's columns are `columns[offsets[e]..offsets[e + 1]]`.
+    pub offsets: Vec<u32>,
+    pub columns: Vec<u32>,
+    pub values: Vec<[f32; 4]>,
+}
+
+/// The block-sparse layout is chosen when the stored columns are fewer than this fraction of
+/// the P (3P + 4J) of the dense matrix (then it is also the smaller: 20 bytes a stored column
+/// against 16 a dense one).
+pub(crate) const MAX_SPARSE_DENSITY: f64 = 0.25;
+
+impl BlockSparse {
+    /// The layout of `model`'s [C1 | C2], or `None` where it should stay dense (no proxies,
+    /// density at or above [`MAX_SPARSE_DENSITY`], or an all-zero matrix).
+    pub fn of(model: &Model) -> Option<BlockSparse> {
+        let (p, j) = (model.proxy_count(), model.bone_count());
+        let width = 3 * p + 4 * j;
+        let a = model.c1_c2();
+        let mut blocks = BlockSparse {
+            offsets: Vec::with_capacity(p + 1),
+            ..BlockSparse::default()
+        };
+        blocks.offsets.push(0);
+        for e in 0..p {
+            for k in 0..width {
+                let column = [0, 1, 2, 3].map(|i| a[(4 * e + i) * width + k]);
+                if column.iter().any(|&x| x != 0.0) {
+                    blocks.columns.push(k as u32);
+                    blocks.values.push(column);
+                }
+            }
+            blocks.offsets.push(blocks.columns.len() as u32);
+        }
+        let stored = blocks.columns.len() as f64;
+        (stored > 0.0 && stored < MAX_SPARSE_DENSITY * (p * width) as f64).then_some(blocks)
     }
 }

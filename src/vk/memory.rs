@@ -1,5 +1,7 @@
 //! The GPU memory a model and a crowd will take, from their sizes alone: the query an engine
-//! makes before creating either, with no device (and no model upload) needed. `GpuModel::new`
+//! makes before creating either, with no device (and no model upload) needed. A model's sizes
+//! include the stored columns of its block-sparse C1|C2 ([`ModelSizes::blend_columns`]: 0 for a
+//! dense one), which [`ModelSizes::of`] counts as `GpuModel::new` will lay them out. `GpuModel::new`
 //! and `Crowd::with_options` size their buffers with the same functions, so the figures are the
 //! bytes of the buffers they create (allocator rounding and the transient staging buffer of an
 //! upload aside).
@@ -20,6 +22,10 @@ pub struct ModelSizes {
     pub bones: usize,
     pub proxies: usize,
     pub influences: usize,
+    /// Stored columns of the block-sparse [C1 | C2] (summed over proxies: the columns where
+    /// any of a proxy's 4 rows is non-zero), 0 where the model keeps the dense matrix. What
+    /// [`ModelSizes::of`] finds (the layout `GpuModel::new` chooses, [`super::GpuModel::is_block_sparse`]).
+    pub blend_columns: usize,
 }
 
 impl ModelSizes {
@@ -30,6 +36,7 @@ impl ModelSizes {
             bones: model.bone_count(),
             proxies: model.proxy_count(),
             influences: model.influences(),
+            blend_columns: super::gpu_model::BlockSparse::of(model).map_or(0, |b| b.columns.len()),
         }
     }
 
@@ -41,6 +48,7 @@ impl ModelSizes {
             bones: d.bones as usize,
             proxies: d.proxies as usize,
             influences: d.influences,
+            blend_columns: model.inner.blend_columns,
         }
     }
 
@@ -58,25 +66,33 @@ impl ModelSizes {
             bones: word("bones", self.bones)?,
             influences: self.influences,
             bounds,
+            sparse: self.blend_columns > 0,
         })
     }
 }
 
 /// The bytes of a GPU model's buffer `b`, before rounding up to [`MIN_BUFFER_BYTES`].
 pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
-    let (v, t, j, p, k) = (
+    let (v, t, j, p, k, n) = (
         s.vertices as u64,
         s.triangles as u64,
         s.bones as u64,
         s.proxies as u64,
         s.influences as u64,
+        s.blend_columns as u64,
     );
+    let sparse = n > 0;
     4 * match b {
         ModelBuffer::Rest => 3 * v,
         ModelBuffer::SkinIndex | ModelBuffer::SkinWeight => k * v,
         ModelBuffer::Parents => j,
         ModelBuffer::Predictors => PREDICTOR_WORDS as u64 * p,
+        ModelBuffer::BlendMatrix if sparse => 0,
         ModelBuffer::BlendMatrix => 4 * p * (3 * p + 4 * j),
+        ModelBuffer::BlendOffsets if sparse => p + 1,
+        ModelBuffer::BlendOffsets => 0,
+        ModelBuffer::BlendColumns => n,
+        ModelBuffer::BlendValues => 4 * n,
         ModelBuffer::IncidentOffsets => v + 1,
         ModelBuffer::IncidentTriangles | ModelBuffer::Triangles => 3 * t,
     }

@@ -19,6 +19,9 @@ pub struct Dims {
     pub influences: usize,
     /// Whether the crowd writes per-character bounding boxes (false for a GPU model itself).
     pub bounds: bool,
+    /// Whether the model stores C1|C2 block-sparse per proxy (the sparse product runs instead
+    /// of the dense GEMM; see `GpuModel::new`).
+    pub sparse: bool,
 }
 
 /// A buffer of the GPU model, uploaded once and only ever read.
@@ -30,19 +33,28 @@ pub enum ModelBuffer {
     Parents,
     Predictors,
     BlendMatrix,
+    /// P + 1 u32: proxy e's stored columns are entries offsets[e] .. offsets[e + 1]
+    BlendOffsets,
+    /// one u32 per stored column: its index k in [C1 | C2]
+    BlendColumns,
+    /// one vec4 per stored column: rows 4e .. 4e + 3 of [C1 | C2] at that column
+    BlendValues,
     IncidentOffsets,
     IncidentTriangles,
     Triangles,
 }
 
 impl ModelBuffer {
-    pub const ALL: [ModelBuffer; 9] = [
+    pub const ALL: [ModelBuffer; 12] = [
         ModelBuffer::Rest,
         ModelBuffer::SkinIndex,
         ModelBuffer::SkinWeight,
         ModelBuffer::Parents,
         ModelBuffer::Predictors,
         ModelBuffer::BlendMatrix,
+        ModelBuffer::BlendOffsets,
+        ModelBuffer::BlendColumns,
+        ModelBuffer::BlendValues,
         ModelBuffer::IncidentOffsets,
         ModelBuffer::IncidentTriangles,
         ModelBuffer::Triangles,
@@ -119,6 +131,8 @@ pub enum Extent {
     PredictorsAndBones,
     /// 4P rows of the proxy transforms T
     ProxyRows,
+    /// P proxies
+    Proxies,
     Characters,
     /// 3C columns of T, three per character
     CharacterColumns,
@@ -137,6 +151,7 @@ impl Extent {
             Extent::Vertices => v,
             Extent::PredictorsAndBones => p + j,
             Extent::ProxyRows => 4 * p,
+            Extent::Proxies => p,
             Extent::Characters => c,
             Extent::CharacterColumns => 3 * c,
         }
@@ -157,6 +172,7 @@ impl Extent {
             Extent::Vertices => "workgroups over vertices",
             Extent::PredictorsAndBones => "workgroups over predictors and bones",
             Extent::ProxyRows => "workgroups over proxy row blocks",
+            Extent::Proxies => "workgroups over proxies",
             Extent::Characters => "workgroups over characters",
             Extent::CharacterColumns => "workgroups over character columns",
         }
@@ -293,6 +309,7 @@ mod tests {
         bones: 3,
         influences: 4,
         bounds: false,
+        sparse: false,
     };
 
     #[test]

@@ -3,7 +3,9 @@
 
 use super::pass::Binding::{Model, Reads, Writes};
 use super::pass::CrowdBuffer as Crowd;
-use super::pass::Extent::{CharacterColumns, Characters, PredictorsAndBones, ProxyRows, Vertices};
+use super::pass::Extent::{
+    CharacterColumns, Characters, PredictorsAndBones, Proxies, ProxyRows, Vertices,
+};
 use super::pass::ModelBuffer as M;
 use super::pass::{over, Axis, Dims, PassDesc, PushWord as W, ONE};
 
@@ -19,6 +21,7 @@ macro_rules! spirv {
 pub enum Pass {
     Predict,
     BlendGemm,
+    SparseProduct,
     SkinK4,
     SkinK8,
     Normals,
@@ -26,11 +29,12 @@ pub enum Pass {
 }
 
 impl Pass {
-    pub const COUNT: usize = 6;
+    pub const COUNT: usize = 7;
     /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
     pub const ALL: [Pass; Self::COUNT] = [
         Pass::Predict,
         Pass::BlendGemm,
+        Pass::SparseProduct,
         Pass::SkinK4,
         Pass::SkinK8,
         Pass::Normals,
@@ -41,6 +45,7 @@ impl Pass {
         match self {
             Pass::Predict => &PREDICT,
             Pass::BlendGemm => &BLEND_GEMM,
+            Pass::SparseProduct => &SPARSE_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
             Pass::Normals => &NORMALS,
@@ -65,20 +70,25 @@ impl Pass {
     }
 }
 
-/// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced, for each K,
-/// with and without bounds.
+/// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
+/// a block-sparse [C1 | C2], for each K, with and without bounds.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
-    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| [0, 3].map(|p| (k, p)));
-    kinds.into_iter().flatten().flat_map(|(k, proxies)| {
-        [false, true].map(|bounds| Dims {
-            vertices: 10,
-            proxies,
-            bones: 2,
-            influences: k as usize,
-            bounds,
+    let products = [(0, false), (3, false), (3, true)];
+    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s)| (k, p, s)));
+    kinds
+        .into_iter()
+        .flatten()
+        .flat_map(|(k, proxies, sparse)| {
+            [false, true].map(|bounds| Dims {
+                vertices: 10,
+                proxies,
+                bones: 2,
+                influences: k as usize,
+                bounds,
+                sparse,
+            })
         })
-    })
 }
 
 /// Key gradients D_ℓ(q) for every (predictor, character), written with the bone transforms into
@@ -113,7 +123,26 @@ const BLEND_GEMM: PassDesc = PassDesc {
     push: &[W::Proxies, W::Bones, W::Characters],
     // Output tile of one workgroup: 256 columns x 16 rows (4 proxies), see the shader.
     groups: [over(CharacterColumns, 256), over(ProxyRows, 16), ONE],
-    runs: |d| d.proxies > 0,
+    runs: |d| d.proxies > 0 && !d.sparse,
+};
+
+/// The same T for a model whose [C1 | C2] is stored block-sparse per proxy (`GpuModel::new`
+/// chooses): each (character, proxy) sums only the columns the proxy's rows touch.
+const SPARSE_PRODUCT: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "sparse_product.comp",
+    spirv: spirv!("sparse_product"),
+    bindings: &[
+        Model(M::BlendOffsets),
+        Model(M::BlendColumns),
+        Model(M::BlendValues),
+        Reads(Crowd::Rhs),
+        Writes(Crowd::Proxies),
+    ],
+    push: &[W::Proxies, W::Characters],
+    // local_size_x = 64 over characters, one row of groups per proxy.
+    groups: [over(Characters, 64), over(Proxies, 1), ONE],
+    runs: |d| d.proxies > 0 && d.sparse,
 };
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)] (the bones are read in
@@ -218,6 +247,9 @@ mod tests {
                 M::Parents => "Parents",
                 M::Predictors => "Predictors",
                 M::BlendMatrix => "Matrix",
+                M::BlendOffsets => "BlendOffsets",
+                M::BlendColumns => "BlendColumns",
+                M::BlendValues => "BlendValues",
                 M::IncidentOffsets => "Offsets",
                 M::IncidentTriangles => "Incident",
                 M::Triangles => "Triangles",
@@ -311,6 +343,7 @@ mod tests {
             bones: 2,
             influences: 4,
             bounds: false,
+            sparse: false,
         };
         // skin (6 buffers) and normals (5)
         assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
@@ -327,5 +360,11 @@ mod tests {
         };
         // + predict (4) and the GEMM (3)
         assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 18));
+        let sparse = Dims {
+            sparse: true,
+            ..reduced
+        };
+        // + predict (4) and the sparse product (5)
+        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 20));
     }
 }

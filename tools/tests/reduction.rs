@@ -81,7 +81,7 @@ const GPU_TOLERANCE: f64 = 1e-3;
 fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     let t = train(cesiumman(), 50.0);
     let reduced = paper_reduction(&t, 30, 4);
-    assert_runtime_reproduces(&t, &reduced, 30);
+    assert_runtime_reproduces(&t, &reduced, 30, false);
 }
 
 /// The shipped form: joint-blend proxies, their local refit, the weights refitted to them.
@@ -97,7 +97,7 @@ fn joint_blend(t: &Trained, proxies: usize) -> Reduced {
 #[test]
 fn the_runtime_reproduces_the_joint_blend_model() {
     let t = train(cesiumman(), 50.0);
-    assert_runtime_reproduces(&t, &joint_blend(&t, 30), 30);
+    assert_runtime_reproduces(&t, &joint_blend(&t, 30), 30, true);
 }
 
 /// The refit corrects relative motion only: when every bone moves by one rigid motion, the
@@ -129,8 +129,9 @@ fn the_refit_joint_blend_model_follows_a_rigid_motion_exactly() {
 }
 
 /// The runtime model written from `reduced` and loaded back gives, on the CPU evaluator and on
-/// Vulkan (validation on), the training tool's own prediction on the test poses.
-fn assert_runtime_reproduces(t: &Trained, reduced: &Reduced, proxies: usize) {
+/// Vulkan (validation on), the training tool's own prediction on the test poses; the GPU model
+/// multiplies C1|C2 block-sparse (joint-blend proxies) or dense (the paper's) as `sparse` says.
+fn assert_runtime_reproduces(t: &Trained, reduced: &Reduced, proxies: usize, sparse: bool) {
     let written = reduced
         .to_runtime(&t.set, 4)
         .expect("a valid runtime model")
@@ -170,8 +171,13 @@ fn assert_runtime_reproduces(t: &Trained, reduced: &Reduced, proxies: usize) {
         ..Default::default()
     })
     .expect("lavapipe");
-    let mut crowd =
-        Crowd::new(&GpuModel::new(&ctx, &model).expect("upload"), poses.len()).expect("crowd");
+    let gpu_model = GpuModel::new(&ctx, &model).expect("upload");
+    assert_eq!(
+        gpu_model.is_block_sparse(),
+        sparse,
+        "the product the model takes"
+    );
+    let mut crowd = Crowd::new(&gpu_model, poses.len()).expect("crowd");
     crowd.set_bones(0, &bones).expect("bones");
     Batch::new(&ctx)
         .expect("batch")
