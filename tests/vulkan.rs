@@ -777,7 +777,7 @@ fn optional_outputs_are_absent_unless_asked_for() {
 /// then created.
 #[test]
 fn memory_queries_are_the_bytes_created() {
-    use rrskin::vk::{crowd_bytes, model_bytes, ModelSizes};
+    use rrskin::vk::{crowd_bytes, crowd_largest_buffer_bytes, model_bytes, ModelSizes};
     let ctx = validated_context();
     let with_everything = CrowdOptions {
         frames_in_flight: 3,
@@ -824,6 +824,18 @@ fn memory_queries_are_the_bytes_created() {
         ..two
     };
     assert_eq!(bytes(bounded) - bytes(two), 2 * 10 * 32);
+    // The largest buffer per character, of bones (48 J), B = [d; q] (12 (3P + 4J)), proxies
+    // (48 P), positions and normals (12 V); never more than a character's whole share.
+    let largest = crowd_largest_buffer_bytes(&sizes, &plain).expect("query");
+    let p = model.proxy_count() as u64;
+    assert_eq!(
+        largest,
+        [48 * j, 12 * (3 * p + 4 * j), 48 * p, 12 * v]
+            .into_iter()
+            .max()
+            .unwrap_or(0)
+    );
+    assert!(largest <= crowd_bytes(&sizes, 1, &plain).expect("query"));
     assert_no_validation_messages(&ctx);
 }
 

@@ -117,6 +117,18 @@ pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usi
     }
 }
 
+/// Bytes per character of the largest single buffer of a [`super::Crowd`] made with `options`:
+/// what a device's largest allocation bounds.
+pub fn crowd_largest_buffer_bytes(s: &ModelSizes, options: &CrowdOptions) -> Result<u64> {
+    let dims = s.dims(options.bounds)?;
+    Ok(CrowdBuffer::ALL
+        .iter()
+        .filter(|&&b| crowd_buffer_copies(b, options) > 0)
+        .map(|&b| bytes_per_character(&dims, b))
+        .max()
+        .unwrap_or(0))
+}
+
 /// Bytes of the buffers of a [`super::Crowd`] of `characters` characters of a model of these
 /// sizes made with `options` (the GPU model's own not included). `DeviceLimit` when the figure
 /// does not fit 64 bits or a size the runtime addresses in 32.

@@ -32,5 +32,5 @@ pub use crowd::{
     Aabb, Crowd, CrowdOptions, CrowdOutput, HostOutput, BOUNDS_STRIDE, MAX_FRAMES_IN_FLIGHT,
 };
 pub use gpu_model::GpuModel;
-pub use memory::{crowd_bytes, model_bytes, ModelSizes};
+pub use memory::{crowd_bytes, crowd_largest_buffer_bytes, model_bytes, ModelSizes};
 pub use requirements::{requirements, Requirements};

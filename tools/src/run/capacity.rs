@@ -2,7 +2,9 @@
 //! large: the runtime only says that an allocation failed.
 
 use rrskin::vk::ash::vk;
-use rrskin::vk::{crowd_bytes, Context, Crowd, CrowdOptions, GpuModel, ModelSizes};
+use rrskin::vk::{
+    crowd_bytes, crowd_largest_buffer_bytes, Context, Crowd, CrowdOptions, GpuModel, ModelSizes,
+};
 use rrskin::Model;
 
 /// The bounds on a crowd of `m` on the device: characters whose largest buffer fits its largest
@@ -24,7 +26,7 @@ fn limits(ctx: &Context, m: &Model, options: &CrowdOptions) -> String {
     let allocation = maintenance.max_memory_allocation_size;
     let sizes = ModelSizes::of(m);
     let total = crowd_bytes(&sizes, 1, options).unwrap_or(u64::MAX);
-    let largest = (12 * m.vertex_count() as u64).max(48 * m.bone_count() as u64);
+    let largest = crowd_largest_buffer_bytes(&sizes, options).unwrap_or(u64::MAX);
     let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
     format!(
         "{} allocates at most {:.1} GiB at once ({} characters of this model's largest buffer) and has {:.1} GiB of device memory (about {} characters, {total} bytes each)",
