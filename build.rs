@@ -1,6 +1,6 @@
 //! Compiles the runtime's compute passes in `glsl/` to SPIR-V with naga (pure Rust, no shaderc).
 //! The SPIR-V lands in OUT_DIR and is embedded by the pass table, `src/vk/passes.rs`; it is never committed.
-//! A shader may be built in several variants, each with its own `#define`s (skinning: K = 4, 8).
+//! A shader may be built in several variants, each with its own `#define`s (skinning and tangents: K = 4, 8).
 //! rrskin-render's build script (`tools/render/build.rs`) includes this file for [`build`]
 //! (the stage follows the file extension: `.vert`, `.frag`, else compute).
 
@@ -20,6 +20,8 @@ const SHADERS: &[Shader] = &[
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),
     ("bounds.comp", "bounds", &[]),
+    ("tangents.comp", "tangents_k4", &[("K", "4")]),
+    ("tangents.comp", "tangents_k8", &[("K", "8")]),
 ];
 
 fn main() {

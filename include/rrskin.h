@@ -66,6 +66,9 @@ enum rrskin_status
   RRSKIN_STATUS_ERROR_NOT_ENABLED = 18,
   // A Vulkan function the runtime calls is NULL from the engine's `vkGetInstanceProcAddr`.
   RRSKIN_STATUS_ERROR_MISSING_FUNCTION = 19,
+  // The model has no data for what was asked (tangents of a model without rest tangents:
+  // trained from a mesh without UVs; the engine computes its own or draws without).
+  RRSKIN_STATUS_ERROR_NOT_IN_MODEL = 20,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -105,6 +108,8 @@ typedef struct rrskin_model_info {
   // any of a proxy's 4 rows touches), 0 where the runtime keeps it dense: what
   // `rrskin_model_get_info` reports, needed for `rrskin_query_memory`'s model bytes.
   uint32_t blend_columns;
+  // Nonzero: the model carries rest tangents, so its crowds can output tangents.
+  uint32_t tangents;
 } rrskin_model_info;
 
 // How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -117,8 +122,12 @@ typedef struct rrskin_crowd_options {
   uint32_t previous_positions;
   // Nonzero: write each character's axis-aligned box every frame.
   uint32_t bounds;
+  // Nonzero: write a tangent per vertex every frame (for normal-mapped materials);
+  // RRSKIN_STATUS_ERROR_NOT_IN_MODEL for a model without rest tangents
+  // (`rrskin_model_info.tangents` says).
+  uint32_t tangents;
   // Nonzero: end each recording with a queue family ownership release of the frame's
-  // outputs (its positions, the normals, its bounds; whole buffers) from the context's family
+  // outputs (its positions, the normals, its bounds, the tangents; whole buffers) from the context's family
   // to `release_queue_family` (another family of the device, or VK_QUEUE_FAMILY_EXTERNAL),
   // for the engine to acquire there. Nothing needs to come back.
   uint32_t release_outputs;
@@ -157,8 +166,9 @@ typedef struct rrskin_crowd {
 } rrskin_crowd;
 
 // Where the engine finds one frame slot's outputs: character c, vertex a is at
-// `offset + c * character_stride + a * vertex_stride` bytes in each vertex buffer, as
-// 3 floats; character c's box at `c * bounds_stride` in `bounds`.
+// `offset + c * character_stride + a * vertex_stride` bytes in the positions and normals, as
+// 3 floats, and at `offset + c * tangent_character_stride + a * tangent_stride` in the
+// tangents, as 4; character c's box at `c * bounds_stride` in `bounds`.
 typedef struct rrskin_crowd_output {
   // VkBuffer of positions written by the frame (usage: vertex buffer, storage, transfer
   // source).
@@ -171,10 +181,17 @@ typedef struct rrskin_crowd_output {
   // VkBuffer of the frame slot's boxes (storage, host-visible): per character 8 floats, min
   // x, y, z, pad, max x, y, z, pad; 0 without bounds.
   uint64_t bounds;
+  // VkBuffer of tangents (usage as the normals'): per vertex 4 floats, xyz unit and
+  // orthogonal to the normal, w = +-1 with bitangent = cross(normal, xyz) * w (glTF's
+  // TANGENT); 0 without tangents.
+  uint64_t tangents;
   uint64_t offset;
   uint64_t vertex_stride;
   uint64_t character_stride;
   uint64_t bounds_stride;
+  // 16 bytes.
+  uint64_t tangent_stride;
+  uint64_t tangent_character_stride;
 } rrskin_crowd_output;
 
 // GPU time per pass of the last recorded frame, in milliseconds.
@@ -183,6 +200,8 @@ typedef struct rrskin_pass_timings {
   double blend_ms;
   double skin_ms;
   double normals_ms;
+  // 0 without tangents.
+  double tangents_ms;
 } rrskin_pass_timings;
 
 #ifdef __cplusplus
@@ -342,6 +361,16 @@ rrskin_status rrskin_crowd_read_back(struct rrskin_crowd crowd,
                                      float *positions,
                                      float *normals,
                                      size_t float_count);
+
+// Copies the tangents to host memory: `float_count` = characters x vertices x 4. Submits and
+// waits: for tools and tests. RRSKIN_STATUS_ERROR_NOT_ENABLED for a crowd created without
+// tangents.
+//
+// # Safety
+// `tangents` is NULL or points to `float_count` writable floats (4-byte aligned).
+rrskin_status rrskin_crowd_read_back_tangents(struct rrskin_crowd crowd,
+                                              float *tangents,
+                                              size_t float_count);
 
 // Reads frame slot `frame`'s boxes from host-visible memory, once the frame's submission
 // completed: `float_count` = characters x 6 floats (min x, y, z, max x, y, z per character).

@@ -4,7 +4,9 @@
 //! Per character: (1) key gradients `d = D_ℓ(q)`; (2) proxy transforms `t_c = C1 d_c + C2 q_c`
 //! for c = x, y, z (Eq. 5 in the separable form of METHOD.md §8); (3) palette skinning over
 //! `[t (P); q (J)]` with K influences; (4) normals: area-weighted sum of incident triangle
-//! normals, normalised (zero where the sum vanishes).
+//! normals, normalised (zero where the sum vanishes); (5) with [`CpuEvaluator::evaluate_with_tangents`],
+//! tangents: the rest tangent through the blended palette matrix's 3x3, made orthogonal to the
+//! normal and normalised (zero where it vanishes), w kept.
 
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -44,6 +46,33 @@ impl<'m> CpuEvaluator<'m> {
         positions: &mut [[f32; 3]],
         normals: &mut [[f32; 3]],
     ) -> Result<()> {
+        self.evaluate_outputs(bones, positions, normals, None)
+    }
+
+    /// [`CpuEvaluator::evaluate`], and `tangents` (C x V, xyz and handedness w) written too:
+    /// `NotInModel` for a model without rest tangents.
+    pub fn evaluate_with_tangents(
+        &mut self,
+        bones: &[Affine],
+        positions: &mut [[f32; 3]],
+        normals: &mut [[f32; 3]],
+        tangents: &mut [[f32; 4]],
+    ) -> Result<()> {
+        if !self.model.has_tangents() {
+            return Err(Error::NotInModel {
+                what: "rest tangents",
+            });
+        }
+        self.evaluate_outputs(bones, positions, normals, Some(tangents))
+    }
+
+    fn evaluate_outputs(
+        &mut self,
+        bones: &[Affine],
+        positions: &mut [[f32; 3]],
+        normals: &mut [[f32; 3]],
+        mut tangents: Option<&mut [[f32; 4]]>,
+    ) -> Result<()> {
         let (v, j) = (self.model.vertex_count(), self.model.bone_count());
         if bones.len() % j != 0 {
             return Err(Error::WrongLength {
@@ -63,11 +92,24 @@ impl<'m> CpuEvaluator<'m> {
                 });
             }
         }
+        if let Some(t) = tangents.as_deref() {
+            if t.len() != c * v {
+                return Err(Error::WrongLength {
+                    what: "tangents",
+                    expected: c * v,
+                    actual: t.len(),
+                });
+            }
+        }
         for ch in 0..c {
             let q = &bones[ch * j..(ch + 1) * j];
             self.palette_of(q);
             self.skin();
-            self.normals_into(&mut normals[ch * v..(ch + 1) * v]);
+            let normals = &mut normals[ch * v..(ch + 1) * v];
+            self.normals_into(normals);
+            if let Some(t) = tangents.as_deref_mut() {
+                self.tangents_into(normals, &mut t[ch * v..(ch + 1) * v]);
+            }
             for (out, p) in positions[ch * v..(ch + 1) * v]
                 .iter_mut()
                 .zip(&self.positions)
@@ -107,22 +149,47 @@ impl<'m> CpuEvaluator<'m> {
         }
     }
 
-    fn skin(&mut self) {
+    /// Vertex `a`'s blended palette matrix, 3x4 row-major.
+    fn blended(&self, a: usize) -> [f64; 12] {
         let parts = self.model.parts();
         let k = self.model.influences();
-        for (a, out) in self.positions.iter_mut().enumerate() {
+        let mut m = [0.0f64; 12];
+        for i in a * k..(a + 1) * k {
+            let w = parts.skin_weights[i] as f64;
+            let entry = &self.palette[parts.skin_indices[i] as usize];
+            m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
+        }
+        m
+    }
+
+    fn skin(&mut self) {
+        let parts = self.model.parts();
+        for a in 0..self.positions.len() {
             let rest = DVec3::from(parts.rest_positions[a].map(f64::from));
-            let mut m = [0.0f64; 12];
-            for i in a * k..(a + 1) * k {
-                let w = parts.skin_weights[i] as f64;
-                let entry = &self.palette[parts.skin_indices[i] as usize];
-                m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
-            }
-            *out = DVec3::new(
+            let m = self.blended(a);
+            self.positions[a] = DVec3::new(
                 m[0] * rest.x + m[1] * rest.y + m[2] * rest.z + m[3],
                 m[4] * rest.x + m[5] * rest.y + m[6] * rest.z + m[7],
                 m[8] * rest.x + m[9] * rest.y + m[10] * rest.z + m[11],
             );
+        }
+    }
+
+    fn tangents_into(&self, normals: &[[f32; 3]], out: &mut [[f32; 4]]) {
+        let rest = &self.model.parts().rest_tangents;
+        for (a, (t, n)) in out.iter_mut().zip(normals).enumerate() {
+            let m = self.blended(a);
+            let [x, y, z, w] = rest[a].map(f64::from);
+            let skinned = DVec3::new(
+                m[0] * x + m[1] * y + m[2] * z,
+                m[4] * x + m[5] * y + m[6] * z,
+                m[8] * x + m[9] * y + m[10] * z,
+            );
+            let n = DVec3::from(n.map(f64::from));
+            let s = skinned - n * n.dot(skinned);
+            let len = s.length();
+            let s = if len > 0.0 { s / len } else { DVec3::ZERO };
+            *t = [s.x as f32, s.y as f32, s.z as f32, w as f32];
         }
     }
 

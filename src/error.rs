@@ -63,6 +63,9 @@ pub enum Error {
     /// A Vulkan function the runtime calls is missing from the engine's function pointers (or
     /// the device does not provide it).
     MissingFunction { name: String },
+    /// An output was asked for that the model has no data for (tangents of a model without
+    /// rest tangents: one trained from a mesh without UVs).
+    NotInModel { what: &'static str },
 }
 
 /// What is wrong with a model. Counts are in elements unless the name says bytes.
@@ -130,6 +133,12 @@ pub enum ModelProblem {
         index: usize,
         error: f32,
     },
+    /// A rest tangent's xyz is not a unit vector or its handedness w is not ±1.
+    BadTangent {
+        vertex: usize,
+        length: f32,
+        handedness: f32,
+    },
 }
 
 impl fmt::Display for ModelProblem {
@@ -175,6 +184,10 @@ impl fmt::Display for ModelProblem {
             NotRotation { what, index, error } => {
                 write!(f, "{what}[{index}] is not a rotation matrix (error {error:.3e})")
             }
+            BadTangent { vertex, length, handedness } => write!(
+                f,
+                "vertex {vertex}: the rest tangent must have unit xyz and w = ±1 (length {length}, w {handedness})"
+            ),
         }
     }
 }
@@ -211,6 +224,7 @@ impl fmt::Display for Error {
             }
             NotReady { what } => write!(f, "{what} is not ready yet"),
             NotEnabled { what } => write!(f, "{what} was not enabled"),
+            NotInModel { what } => write!(f, "the model has no {what}"),
             MissingFunction { name } => {
                 write!(
                     f,

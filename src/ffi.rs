@@ -53,6 +53,9 @@ pub enum RrskinStatus {
     ErrorNotEnabled = 18,
     /// A Vulkan function the runtime calls is NULL from the engine's `vkGetInstanceProcAddr`.
     ErrorMissingFunction = 19,
+    /// The model has no data for what was asked (tangents of a model without rest tangents:
+    /// trained from a mesh without UVs; the engine computes its own or draws without).
+    ErrorNotInModel = 20,
 }
 
 /// A Vulkan context (headless, or wrapping an engine's device).
@@ -107,6 +110,8 @@ pub struct RrskinModelInfo {
     /// any of a proxy's 4 rows touches), 0 where the runtime keeps it dense: what
     /// `rrskin_model_get_info` reports, needed for `rrskin_query_memory`'s model bytes.
     pub blend_columns: u32,
+    /// Nonzero: the model carries rest tangents, so its crowds can output tangents.
+    pub tangents: u32,
 }
 
 /// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -121,8 +126,12 @@ pub struct RrskinCrowdOptions {
     pub previous_positions: u32,
     /// Nonzero: write each character's axis-aligned box every frame.
     pub bounds: u32,
+    /// Nonzero: write a tangent per vertex every frame (for normal-mapped materials);
+    /// RRSKIN_STATUS_ERROR_NOT_IN_MODEL for a model without rest tangents
+    /// (`rrskin_model_info.tangents` says).
+    pub tangents: u32,
     /// Nonzero: end each recording with a queue family ownership release of the frame's
-    /// outputs (its positions, the normals, its bounds; whole buffers) from the context's family
+    /// outputs (its positions, the normals, its bounds, the tangents; whole buffers) from the context's family
     /// to `release_queue_family` (another family of the device, or VK_QUEUE_FAMILY_EXTERNAL),
     /// for the engine to acquire there. Nothing needs to come back.
     pub release_outputs: u32,
@@ -130,8 +139,9 @@ pub struct RrskinCrowdOptions {
 }
 
 /// Where the engine finds one frame slot's outputs: character c, vertex a is at
-/// `offset + c * character_stride + a * vertex_stride` bytes in each vertex buffer, as
-/// 3 floats; character c's box at `c * bounds_stride` in `bounds`.
+/// `offset + c * character_stride + a * vertex_stride` bytes in the positions and normals, as
+/// 3 floats, and at `offset + c * tangent_character_stride + a * tangent_stride` in the
+/// tangents, as 4; character c's box at `c * bounds_stride` in `bounds`.
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RrskinCrowdOutput {
@@ -146,10 +156,17 @@ pub struct RrskinCrowdOutput {
     /// VkBuffer of the frame slot's boxes (storage, host-visible): per character 8 floats, min
     /// x, y, z, pad, max x, y, z, pad; 0 without bounds.
     pub bounds: u64,
+    /// VkBuffer of tangents (usage as the normals'): per vertex 4 floats, xyz unit and
+    /// orthogonal to the normal, w = +-1 with bitangent = cross(normal, xyz) * w (glTF's
+    /// TANGENT); 0 without tangents.
+    pub tangents: u64,
     pub offset: u64,
     pub vertex_stride: u64,
     pub character_stride: u64,
     pub bounds_stride: u64,
+    /// 16 bytes.
+    pub tangent_stride: u64,
+    pub tangent_character_stride: u64,
 }
 
 /// What the runtime needs of a Vulkan implementation (`rrskin_get_requirements`): no device
@@ -180,6 +197,8 @@ pub struct RrskinPassTimings {
     pub blend_ms: f64,
     pub skin_ms: f64,
     pub normals_ms: f64,
+    /// 0 without tangents.
+    pub tangents_ms: f64,
 }
 
 struct ContextEntry {
@@ -334,6 +353,7 @@ impl From<Error> for Failure {
             Error::NotReady { .. } => S::ErrorNotReady,
             Error::NotEnabled { .. } => S::ErrorNotEnabled,
             Error::MissingFunction { .. } => S::ErrorMissingFunction,
+            Error::NotInModel { .. } => S::ErrorNotInModel,
         };
         Failure::new(status, e.to_string())
     }
@@ -462,6 +482,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             proxies: i.proxies as usize,
             influences: i.influences as usize,
             blend_columns: i.blend_columns as usize,
+            tangents: i.tangents != 0,
         };
         let options = if options.is_null() {
             CrowdOptions::default()
@@ -691,6 +712,7 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             proxies: m.proxy_count() as u32,
             influences: m.influences() as u32,
             blend_columns: crate::vk::ModelSizes::of(m).blend_columns as u32,
+            tangents: u32::from(m.has_tangents()),
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }
@@ -749,6 +771,7 @@ fn crowd_options(o: &RrskinCrowdOptions) -> CrowdOptions {
         frames_in_flight: o.frames_in_flight as usize,
         previous_positions: o.previous_positions != 0,
         bounds: o.bounds != 0,
+        tangents: o.tangents != 0,
         release_to_queue_family: (o.release_outputs != 0).then_some(o.release_queue_family),
         ..CrowdOptions::default()
     }
@@ -865,10 +888,13 @@ pub unsafe extern "C" fn rrskin_crowd_get_output(
             previous_positions: raw(o.previous_positions),
             normals: o.normals.as_raw(),
             bounds: raw(o.bounds),
+            tangents: raw(o.tangents),
             offset: o.offset,
             vertex_stride: o.vertex_stride,
             character_stride: o.character_stride,
             bounds_stride: crate::vk::BOUNDS_STRIDE,
+            tangent_stride: crate::vk::TANGENT_STRIDE,
+            tangent_character_stride: o.tangent_character_stride,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, output, "out") }
@@ -908,6 +934,45 @@ pub unsafe extern "C" fn rrskin_crowd_read_back(
                 dst.copy_from_slice(src.as_flattened());
             }
         }
+        Ok(())
+    })
+}
+
+/// Copies the tangents to host memory: `float_count` = characters x vertices x 4. Submits and
+/// waits: for tools and tests. RRSKIN_STATUS_ERROR_NOT_ENABLED for a crowd created without
+/// tangents.
+///
+/// # Safety
+/// `tangents` is NULL or points to `float_count` writable floats (4-byte aligned).
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_read_back_tangents(
+    crowd: RrskinCrowd,
+    tangents: *mut f32,
+    float_count: usize,
+) -> RrskinStatus {
+    guard(|| {
+        let reg = registry();
+        let c = &reg.crowds.get(crowd.id)?.crowd;
+        if !c.has_tangents() {
+            return Err(Failure::from(Error::NotEnabled {
+                what: "tangents (create the crowd with rrskin_crowd_options.tangents)",
+            }));
+        }
+        let expected = c.character_count() * c.model().vertex_count() * 4;
+        if float_count != expected {
+            return Err(Failure::from(Error::WrongLength {
+                what: "read-back tangent floats",
+                expected,
+                actual: float_count,
+            }));
+        }
+        if tangents.is_null() {
+            return Err(Failure::null("tangents"));
+        }
+        let out = c.read_back()?;
+        // SAFETY: non-null, room for `float_count` floats (the function's contract).
+        let dst = unsafe { std::slice::from_raw_parts_mut(tangents, float_count) };
+        dst.copy_from_slice(out.tangents.as_flattened());
         Ok(())
     })
 }
@@ -1055,6 +1120,7 @@ pub unsafe extern "C" fn rrskin_context_get_timings(
             blend_ms: t.blend_ms,
             skin_ms: t.skin_ms,
             normals_ms: t.normals_ms,
+            tangents_ms: t.tangents_ms,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, timings, "out") }

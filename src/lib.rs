@@ -8,7 +8,9 @@
 //!    dense, or block-sparse per proxy where `[C1 | C2]` is mostly zeros (joint-blend proxies:
 //!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]);
 //! 3. matrix-palette skinning over `[t (P); q (J)]` with K = 4 or 8 influences;
-//! 4. normals, gathered from incident triangles.
+//! 4. normals, gathered from incident triangles;
+//! 5. optionally tangent frames (models with rest tangents): each rest tangent through its
+//!    vertex's blended palette matrix, made orthogonal to the normal.
 //!
 //! [`cpu::CpuEvaluator`] runs them on the CPU in `f64` (the reference); [`vk`] runs them as
 //! Vulkan compute passes, recorded for all crowds into one command buffer.
@@ -52,6 +54,7 @@
 //! | previous positions | not touched | the buffer the last recorded frame wrote |
 //! | normals | compute write (pass 4) | device-local, vertex + storage + transfer-src |
 //! | bounds, slot f | compute write | host-visible, storage |
+//! | tangents | compute write (pass 5) | device-local, vertex + storage + transfer-src |
 //!
 //! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at
 //! `VK_PIPELINE_BIND_POINT_COMPUTE`, and writes timestamps into the batch's own query pool; it
@@ -62,7 +65,7 @@
 //! the context's queue family only: outputs drawn on that family need nothing more. For an
 //! engine that reads outputs on another family,
 //! [`vk::CrowdOptions::release_to_queue_family`] ends each recording with the release barriers
-//! of the frame's outputs (its positions, the normals, its bounds; whole buffers, compute
+//! of the frame's outputs (its positions, the normals, its bounds, the tangents; whole buffers, compute
 //! writes); the engine records the matching acquires on its queue after a semaphore wait. The
 //! runtime never reads an output a previous recording wrote, so nothing needs to come back:
 //! the next recording overwrites it (undefined old contents are never read).
@@ -83,7 +86,9 @@
 //! space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs
 //! are tightly packed `f32` xyz (12-byte stride), character after character; previous positions
 //! likewise (undefined until a crowd recorded two frames); bounds are two std430 `vec4` per
-//! character (min xyz, max xyz; [`vk::BOUNDS_STRIDE`] = 32 bytes).
+//! character (min xyz, max xyz; [`vk::BOUNDS_STRIDE`] = 32 bytes); tangents are 4 `f32` per
+//! vertex (xyz unit and orthogonal to the normal, w = ±1 with bitangent = cross(n, t) * w, as
+//! glTF's TANGENT; [`vk::TANGENT_STRIDE`] = 16 bytes), zero where the skinned tangent vanishes.
 
 pub mod cpu;
 pub mod error;

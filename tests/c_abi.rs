@@ -148,12 +148,13 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     let characters = 5u32;
     let poses = random_poses(&model, characters as usize, 3);
     let v = model.vertex_count();
-    let (mut p, mut n) = (
+    let (mut p, mut n, mut t) = (
         vec![[0.0; 3]; characters as usize * v],
         vec![[0.0; 3]; characters as usize * v],
+        vec![[0.0; 4]; characters as usize * v],
     );
     CpuEvaluator::new(&model)
-        .evaluate(&poses, &mut p, &mut n)
+        .evaluate_with_tangents(&poses, &mut p, &mut n, &mut t)
         .expect("CPU evaluator");
 
     let ok = RrskinStatus::Ok;
@@ -216,11 +217,17 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         .to_string_lossy()
         .into_owned();
     assert!(message.contains("read-back floats"), "{message}");
-    // Bounds through the ABI: a crowd with options, frame slot 1 of 3.
+    let mut tangents = vec![0.0f32; characters as usize * v * 4];
+    // SAFETY: room for the floats; nothing is written on failure.
+    let absent =
+        unsafe { rrskin_crowd_read_back_tangents(crowd, tangents.as_mut_ptr(), tangents.len()) };
+    assert_eq!(absent, RrskinStatus::ErrorNotEnabled);
+    // Bounds and tangents through the ABI: a crowd with options, frame slot 1 of 3.
     let options = RrskinCrowdOptions {
         frames_in_flight: 3,
         previous_positions: 1,
         bounds: 1,
+        tangents: 1,
         release_outputs: 0,
         release_queue_family: 0,
     };
@@ -241,6 +248,14 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
             rrskin_crowd_read_bounds(bounded, 1, boxes.as_mut_ptr(), boxes.len()),
             ok
         );
+        assert_eq!(
+            rrskin_crowd_read_back_tangents(bounded, tangents.as_mut_ptr(), tangents.len()),
+            ok
+        );
+        let mut out = RrskinCrowdOutput::default();
+        assert_eq!(rrskin_crowd_get_output(bounded, 1, &mut out), ok);
+        assert!(out.tangents != 0 && out.tangent_stride == 16);
+        assert_eq!(out.tangent_character_stride, 16 * v as u64);
         assert_eq!(
             rrskin_crowd_set_bones(bounded, 3, floats.as_ptr(), floats.len()),
             RrskinStatus::ErrorOutOfRange
@@ -265,6 +280,17 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
             }
         }
     }
+    for (i, (got, want)) in tangents.chunks_exact(4).zip(&t).enumerate() {
+        let d = (0..3)
+            .map(|c| (got[c] - want[c]).powi(2))
+            .sum::<f32>()
+            .sqrt();
+        // The synthetic grid is smooth: every normal is well-conditioned.
+        assert!(
+            d <= 2e-3 && got[3] == want[3],
+            "tangent {i}: {got:?} vs {want:?}"
+        );
+    }
     // The memory query of the C ABI is the Rust one (which tests/vulkan.rs checks against the
     // buffers created).
     let info = RrskinModelInfo {
@@ -274,7 +300,15 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         proxies: model.proxy_count() as u32,
         influences: model.influences() as u32,
         blend_columns: rrskin::vk::ModelSizes::of(&model).blend_columns as u32,
+        tangents: 1,
     };
+    let mut reported = RrskinModelInfo::default();
+    // SAFETY: `out` points to a live value.
+    assert_eq!(unsafe { rrskin_model_get_info(m, &mut reported) }, ok);
+    assert_eq!(
+        (reported.blend_columns, reported.tangents),
+        (info.blend_columns, 1)
+    );
     let (mut model_bytes, mut crowd_bytes) = (0u64, 0u64);
     // SAFETY: live values.
     assert_eq!(
@@ -295,6 +329,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         frames_in_flight: 3,
         previous_positions: true,
         bounds: true,
+        tangents: true,
         ..Default::default()
     };
     let expected = rrskin::vk::crowd_bytes(&sizes, characters as usize, &same).expect("query");
@@ -313,6 +348,30 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         (rrskin::vk::ash::vk::API_VERSION_1_1, 0, 0)
     );
     assert_eq!(rrskin_crowd_destroy(bounded), ok);
+    // Tangents of a model without rest tangents: a status of its own, the message says why.
+    let bare = rrskin::Model::new(rrskin::ModelParts {
+        rest_tangents: Vec::new(),
+        ..model.parts().clone()
+    })
+    .expect("valid")
+    .to_bytes();
+    let mut untangented = RrskinModel { id: 0 };
+    let mut refused = RrskinCrowd { id: 0 };
+    // SAFETY: valid pointers and lengths.
+    unsafe {
+        assert_eq!(
+            rrskin_model_load_memory(ctx, bare.as_ptr(), bare.len(), &mut untangented),
+            ok
+        );
+        assert_eq!(
+            rrskin_crowd_create_with_options(untangented, 1, &options, &mut refused),
+            RrskinStatus::ErrorNotInModel
+        );
+    }
+    // SAFETY: rrskin_last_error never returns NULL.
+    let message = unsafe { std::ffi::CStr::from_ptr(rrskin_last_error()) }.to_string_lossy();
+    assert!(message.contains("rest tangents"), "{message}");
+    assert_eq!(rrskin_model_destroy(untangented), ok);
     let mut count = u32::MAX;
     // SAFETY: `out` points to a live value.
     assert_eq!(

@@ -196,6 +196,7 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
                 let rrskin::vk::HostOutput {
                     positions: gp,
                     normals: gn,
+                    ..
                 } = crowd.read_back().expect("read back");
                 compare(&model, (&p, &n), (&gp, &gn));
                 assert!(batch.timings(0).expect("timings").total_ms() > 0.0);

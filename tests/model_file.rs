@@ -386,3 +386,43 @@ fn an_animation_round_trips_and_is_checked() {
         }
     ));
 }
+
+#[test]
+fn rest_tangents_round_trip_and_are_checked() {
+    let m = model(2, 4);
+    assert!(m.has_tangents(), "synthetic models carry tangents");
+    let back = Model::from_bytes(&m.to_bytes()).expect("round trip");
+    assert_eq!(back, m);
+    // A file without the optional section (as written before tangents existed) loads bare.
+    let mut parts = m.into_parts();
+    let tangents = std::mem::take(&mut parts.rest_tangents);
+    let bare = Model::new(parts.clone()).expect("valid without tangents");
+    assert!(!Model::from_bytes(&bare.to_bytes())
+        .expect("load")
+        .has_tangents());
+    parts.rest_tangents = tangents[1..].to_vec();
+    assert!(matches!(
+        problem(Model::new(parts.clone())),
+        ModelProblem::Length {
+            what: "rest tangents",
+            ..
+        }
+    ));
+    for (bad, vertex) in [([2.0, 0.0, 0.0, 1.0], 3), ([1.0, 0.0, 0.0, 0.5], 4)] {
+        parts.rest_tangents = tangents.clone();
+        parts.rest_tangents[vertex] = bad;
+        assert!(matches!(
+            problem(Model::new(parts.clone())),
+            ModelProblem::BadTangent { vertex: v, .. } if v == vertex
+        ));
+    }
+    parts.rest_tangents = tangents;
+    parts.rest_tangents[0][1] = f32::NAN;
+    assert!(matches!(
+        problem(Model::new(parts)),
+        ModelProblem::NonFinite {
+            what: "rest tangents",
+            ..
+        }
+    ));
+}

@@ -1,6 +1,7 @@
 //! The Vulkan runtime against the CPU reference evaluator, on random valid models, with the
 //! validation layer and synchronization validation on: any validation message fails the test.
-//! Tolerances: `common::POSITION_TOLERANCE`, `common::NORMAL_TOLERANCE`.
+//! Tolerances: `common::POSITION_TOLERANCE`, `common::NORMAL_TOLERANCE`,
+//! `common::TANGENT_TOLERANCE`.
 
 mod common;
 
@@ -46,6 +47,7 @@ fn check_poses(
     let rrskin::vk::HostOutput {
         positions: pos,
         normals: nrm,
+        ..
     } = crowd.read_back().expect("read back");
     compare(model, (&cpu_pos, &cpu_nrm), (&pos, &nrm));
     assert_no_validation_messages(ctx);
@@ -304,6 +306,7 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
         let rrskin::vk::HostOutput {
             positions: gp,
             normals: gn,
+            ..
         } = crowd.read_back().expect("read back");
         compare(model, (p, n), (&gp, &gn));
     }
@@ -325,6 +328,7 @@ fn a_new_crowd_renders_the_rest_pose() {
     let rrskin::vk::HostOutput {
         positions: pos,
         normals: nrm,
+        ..
     } = crowd.read_back().expect("read back");
     let identity =
         vec![[1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]; 2 * model.bone_count()];
@@ -427,6 +431,16 @@ impl HostBuffer {
         floats.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect()
     }
 
+    /// `count` xyzw quadruples from float `at`.
+    fn xyzw(&self, at: usize, count: usize) -> Vec<[f32; 4]> {
+        // SAFETY: as in `xyz`.
+        let floats = unsafe { std::slice::from_raw_parts(self.mapped.add(at), 4 * count) };
+        floats
+            .chunks_exact(4)
+            .map(|p| [p[0], p[1], p[2], p[3]])
+            .collect()
+    }
+
     fn destroy(self, ctx: &Context) {
         // SAFETY: the GPU finished with the buffer (the caller waited for its fences).
         unsafe {
@@ -470,7 +484,8 @@ fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
     let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
     let mut batch = Batch::new(&ctx).expect("batch");
     let d = ctx.device();
-    let copies: Vec<HostBuffer> = (0..f).map(|_| HostBuffer::new(&ctx, 3 * n * 3)).collect();
+    // Per frame: positions, normals, previous positions (3 n floats each), tangents (4 n).
+    let copies: Vec<HostBuffer> = (0..f).map(|_| HostBuffer::new(&ctx, 13 * n)).collect();
     let poses: Vec<_> = (0..f)
         .map(|frame| random_poses(model, characters, 100 + frame as u64))
         .collect();
@@ -526,7 +541,12 @@ fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
             if let Some(family) = options.release_to_queue_family {
                 // The engine's side of the ownership transfer, back on this queue: acquire what
                 // the recording released (the copies below then read defined contents).
-                let released = [Some(out.positions), Some(out.normals), out.bounds];
+                let released = [
+                    Some(out.positions),
+                    Some(out.normals),
+                    out.bounds,
+                    out.tangents,
+                ];
                 let acquire: Vec<vk::BufferMemoryBarrier> = (released.into_iter().flatten())
                     .map(|buffer| {
                         vk::BufferMemoryBarrier::default()
@@ -563,6 +583,14 @@ fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
                     d.cmd_copy_buffer(cmd, src, copies[frame].buffer, &region);
                 }
             }
+            if let Some(src) = out.tangents {
+                let region = [vk::BufferCopy {
+                    src_offset: out.offset,
+                    dst_offset: 3 * bytes,
+                    size: n as u64 * 16,
+                }];
+                d.cmd_copy_buffer(cmd, src, copies[frame].buffer, &region);
+            }
             let to_host = [vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                 .dst_access_mask(vk::AccessFlags::HOST_READ)];
@@ -595,8 +623,15 @@ fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
     let mut previous: Option<Vec<[f32; 3]>> = None;
     for frame in 0..f {
         let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
-        cpu.evaluate(&poses[frame], &mut p, &mut nrm).expect("cpu");
         let copy = &copies[frame];
+        if options.tangents {
+            let mut t = vec![[0.0; 4]; n];
+            cpu.evaluate_with_tangents(&poses[frame], &mut p, &mut nrm, &mut t)
+                .expect("cpu");
+            compare_tangents(model, &p, &t, (&copy.xyzw(9 * n, n), &copy.xyz(3 * n, n)));
+        } else {
+            cpu.evaluate(&poses[frame], &mut p, &mut nrm).expect("cpu");
+        }
         compare(model, (&p, &nrm), (&copy.xyz(0, n), &copy.xyz(3 * n, n)));
         if let (true, Some(before)) = (options.previous_positions, &previous) {
             let prev = copy.xyz(6 * n, n);
@@ -734,6 +769,61 @@ fn previous_positions_and_bounds_across_chunks_match_cpu() {
     overlapping_frames(&random_model(LBS, 35), 300, options);
 }
 
+/// Tangents with every other output of three frames in flight, K = 4 and a reduced model;
+/// K = 8, block-sparse, across chunks.
+#[test]
+fn tangents_of_overlapping_frames_match_cpu() {
+    let options = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        tangents: true,
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&random_model(RR, 51), 5, options);
+    let k8 = Spec {
+        influences: 8,
+        ..RR
+    };
+    let chunked = CrowdOptions {
+        frames_in_flight: 2,
+        tangents: true,
+        max_binding_bytes: Some(64 * 1024),
+        ..CrowdOptions::default()
+    };
+    let model = joint_blend_pattern(&random_model(k8, 52));
+    overlapping_frames(&model, 40, chunked);
+}
+
+#[test]
+fn tangents_of_a_model_without_rest_tangents_are_refused() {
+    let ctx = validated_context();
+    let model = random_model(LBS, 53);
+    let bare = Model::new(rrskin::ModelParts {
+        rest_tangents: Vec::new(),
+        ..model.parts().clone()
+    })
+    .expect("valid without tangents");
+    let gpu = GpuModel::new(&ctx, &bare).expect("upload");
+    assert!(!gpu.has_tangents());
+    let options = CrowdOptions {
+        tangents: true,
+        ..CrowdOptions::default()
+    };
+    assert!(matches!(
+        Crowd::with_options(&gpu, 2, options),
+        Err(Error::NotInModel { .. })
+    ));
+    let poses = random_poses(&bare, 1, 1);
+    let v = bare.vertex_count();
+    let (mut p, mut n, mut t) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v], vec![[0.0; 4]; v]);
+    assert!(matches!(
+        CpuEvaluator::new(&bare).evaluate_with_tangents(&poses, &mut p, &mut n, &mut t),
+        Err(Error::NotInModel { .. })
+    ));
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn optional_outputs_are_absent_unless_asked_for() {
     let ctx = validated_context();
@@ -741,7 +831,8 @@ fn optional_outputs_are_absent_unless_asked_for() {
     let gpu = GpuModel::new(&ctx, &model).expect("upload");
     let mut crowd = Crowd::new(&gpu, 2).expect("crowd");
     let out = crowd.output(0).expect("frame 0");
-    assert!(out.previous_positions.is_none() && out.bounds.is_none());
+    assert!(out.previous_positions.is_none() && out.bounds.is_none() && out.tangents.is_none());
+    assert!(!crowd.has_tangents() && crowd.read_back().expect("read back").tangents.is_empty());
     let mut boxes = [Aabb::default(); 2];
     assert!(matches!(
         crowd.read_bounds(0, &mut boxes),
@@ -783,6 +874,7 @@ fn memory_queries_are_the_bytes_created() {
         frames_in_flight: 3,
         previous_positions: true,
         bounds: true,
+        tangents: true,
         ..CrowdOptions::default()
     };
     let models = [(LBS, 41), (RR, 42)].map(|(spec, seed)| random_model(spec, seed));
@@ -824,6 +916,16 @@ fn memory_queries_are_the_bytes_created() {
         ..two
     };
     assert_eq!(bytes(bounded) - bytes(two), 2 * 10 * 32);
+    let tangents = CrowdOptions {
+        tangents: true,
+        ..two
+    };
+    assert_eq!(bytes(tangents) - bytes(two), 10 * v * 16);
+    let bare = ModelSizes {
+        tangents: false,
+        ..sizes
+    };
+    assert_eq!(model_bytes(&sizes) - model_bytes(&bare), v * 16 - 16);
     // The largest buffer per character, of bones (48 J), B = [d; q] (12 (3P + 4J)), proxies
     // (48 P), positions and normals (12 V); never more than a character's whole share.
     let largest = crowd_largest_buffer_bytes(&sizes, &plain).expect("query");
@@ -869,8 +971,8 @@ fn requirements_are_known_before_any_device_and_met_here() {
     assert_eq!(r.api_version, vk::API_VERSION_1_1);
     assert!(r.instance_extensions.is_empty() && r.device_extensions.is_empty());
     assert_eq!(r.queue_flags, vk::QueueFlags::COMPUTE);
-    // The skinning pass binds 6 storage buffers, beyond Vulkan's guaranteed 4.
-    assert_eq!(r.storage_buffers_per_stage, 6);
+    // The tangents pass binds 7 storage buffers, beyond Vulkan's guaranteed 4.
+    assert_eq!(r.storage_buffers_per_stage, 7);
     let ctx = validated_context();
     // SAFETY: the context's live instance and physical device.
     let props = unsafe {

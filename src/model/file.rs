@@ -28,6 +28,7 @@
 //! | SSDI | optional: V x K u32 SSD baseline bone indices        |
 //! | SSDW | optional: V x K f32 SSD baseline weights             |
 //! | ANIM | optional: frames x J x 12 f32 bone transforms        |
+//! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
@@ -58,6 +59,7 @@ const NGRP: [u8; 4] = *b"NGRP";
 const SSDI: [u8; 4] = *b"SSDI";
 const SSDW: [u8; 4] = *b"SSDW";
 const ANIM: [u8; 4] = *b"ANIM";
+const TANG: [u8; 4] = *b"TANG";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let (v, t, j, p) = (
@@ -117,6 +119,11 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
         let mut animation = Vec::new();
         push_f32s(&mut animation, m.animation.as_flattened());
         sections.push((ANIM, animation));
+    }
+    if !m.rest_tangents.is_empty() {
+        let mut tangents = Vec::new();
+        push_f32s(&mut tangents, m.rest_tangents.as_flattened());
+        sections.push((TANG, tangents));
     }
 
     let mut out = Vec::new();
@@ -243,6 +250,14 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         None => Vec::new(),
     };
 
+    let rest_tangents = match table.has(TANG) {
+        true => f32s(table.section(body, TANG, words(&[v, 4]))?)
+            .chunks_exact(4)
+            .map(array)
+            .collect(),
+        false => Vec::new(),
+    };
+
     let predictors = pred
         .chunks_exact(PREDICTOR_WORDS * 4)
         .map(|r| {
@@ -278,6 +293,7 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         baseline_indices,
         baseline_weights,
         animation,
+        rest_tangents,
     })
 }
 

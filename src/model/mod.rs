@@ -16,6 +16,7 @@
 //! | `normal_groups`    | V or empty       | vertices sharing a normal (welded seams)             |
 //! | `baseline_*`       | V x K or empty   | SSD skinning of the same mesh (bone indices, weights)|
 //! | `animation`        | frames x J       | optional bone transforms to show the model with      |
+//! | `rest_tangents`    | V x 4 or empty   | rest tangent xyz (unit) + handedness w = ±1 (glTF)   |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
@@ -83,6 +84,10 @@ pub struct ModelParts {
     /// Empty, or frames x J bone transforms (3x4 row-major, relative to the rest pose): an
     /// animation to show the model with (the crowd sample, the demo).
     pub animation: Vec<crate::predict::Affine>,
+    /// Empty, or V rest tangents: xyz a unit vector along the texture's +u, w = ±1 the sign of
+    /// the bitangent `cross(n, t) * w` (glTF's TANGENT convention). Skinned per frame when a
+    /// crowd asks for tangents ([`crate::vk::CrowdOptions::tangents`]).
+    pub rest_tangents: Vec<[f32; 4]>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -221,6 +226,11 @@ impl Model {
     /// CSR offsets (V + 1) and triangle ids of the triangles around each vertex.
     pub fn incidence(&self) -> (&[u32], &[u32]) {
         (&self.incident_offsets, &self.incident_triangles)
+    }
+
+    /// Whether the model carries rest tangents (so crowds can output tangent frames).
+    pub fn has_tangents(&self) -> bool {
+        !self.parts.rest_tangents.is_empty()
     }
 
     /// The model's animation: frames of J bone transforms (empty if it carries none).

@@ -9,6 +9,8 @@ const MAX_COUNT: usize = i32::MAX as usize / 8;
 /// Tolerance on |Σ w − 1| per vertex and on rotation matrices (orthonormality, determinant).
 pub const WEIGHT_SUM_TOLERANCE: f32 = 1e-3;
 pub const ROTATION_TOLERANCE: f32 = 1e-3;
+/// Tolerance on |length − 1| of a rest tangent's xyz.
+pub const TANGENT_LENGTH_TOLERANCE: f32 = 1e-3;
 
 type Check = Result<(), ModelProblem>;
 
@@ -108,6 +110,20 @@ pub fn check(m: &ModelParts) -> Check {
                 m.normal_groups[i] as i64,
                 v,
             ));
+        }
+    }
+    if !m.rest_tangents.is_empty() {
+        length("rest tangents", v, m.rest_tangents.len())?;
+        finite("rest tangents", m.rest_tangents.iter().flatten())?;
+        for (a, t) in m.rest_tangents.iter().enumerate() {
+            let length = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+            if (length - 1.0).abs() > TANGENT_LENGTH_TOLERANCE || t[3].abs() != 1.0 {
+                return Err(ModelProblem::BadTangent {
+                    vertex: a,
+                    length,
+                    handedness: t[3],
+                });
+            }
         }
     }
     Ok(())

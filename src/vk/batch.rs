@@ -7,7 +7,8 @@
 //! ts1 | barrier | C1/C2 product (all crowds with P > 0: the GEMM or the sparse product)
 //! ts2 | barrier | skin (all crowds, the pipeline of their K)
 //! ts3 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
-//! ts4 | barrier(compute writes → vertex input, transfer, compute and host reads)
+//! ts4 | barrier | tangents (crowds with tangents, the pipeline of their K)
+//! ts5 | barrier(compute writes → vertex input, transfer, compute and host reads)
 //! ```
 //! Frame slot f of every crowd reads its own bone transforms and writes its own bounds, so
 //! recording frame f while the other frames in flight execute is safe; the buffers frames
@@ -27,11 +28,12 @@ use std::sync::Arc;
 
 /// The frame: phases in order, each a set of passes without dependencies among them (one
 /// timestamp per phase, reported by [`PassTimings`]).
-const SCHEDULE: [&[Pass]; 4] = [
+const SCHEDULE: [&[Pass]; 5] = [
     &[Pass::Predict],
     &[Pass::BlendGemm, Pass::SparseProduct],
     &[Pass::SkinK4, Pass::SkinK8],
     &[Pass::Normals, Pass::Bounds],
+    &[Pass::TangentsK4, Pass::TangentsK8],
 ];
 
 /// Everything that meets a frame's buffers outside the batch: the next frame's compute
@@ -62,11 +64,13 @@ pub struct PassTimings {
     pub blend_ms: f64,
     pub skin_ms: f64,
     pub normals_ms: f64,
+    /// 0 for crowds without tangents (the phase records no dispatch).
+    pub tangents_ms: f64,
 }
 
 impl PassTimings {
     pub fn total_ms(&self) -> f64 {
-        self.predict_ms + self.blend_ms + self.skin_ms + self.normals_ms
+        self.predict_ms + self.blend_ms + self.skin_ms + self.normals_ms + self.tangents_ms
     }
 
     /// The median of each pass over `samples`, and the median frame total (None if empty).
@@ -81,6 +85,7 @@ impl PassTimings {
             blend_ms: median(|t| t.blend_ms)?,
             skin_ms: median(|t| t.skin_ms)?,
             normals_ms: median(|t| t.normals_ms)?,
+            tangents_ms: median(|t| t.tangents_ms)?,
         };
         Some((passes, median(PassTimings::total_ms)?))
     }
@@ -264,12 +269,13 @@ impl Batch {
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
         let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);
         // One field per phase of the schedule (a new phase needs its field here).
-        let [predict_ms, blend_ms, skin_ms, normals_ms] = phases;
+        let [predict_ms, blend_ms, skin_ms, normals_ms, tangents_ms] = phases;
         Ok(PassTimings {
             predict_ms,
             blend_ms,
             skin_ms,
             normals_ms,
+            tangents_ms,
         })
     }
 
@@ -434,9 +440,12 @@ mod tests {
     #[test]
     fn frames_without_reduced_models_skip_the_barriers_of_their_passes() {
         let lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals);
-        assert_eq!(barriers_before(lbs), [true, false, false, true]);
+        assert_eq!(barriers_before(lbs), [true, false, false, true, false]);
         let bounded_lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals | Pass::Bounds);
-        assert_eq!(barriers_before(bounded_lbs), [true, false, false, true]);
-        assert_eq!(barriers_before(|_| true), [true; 4]);
+        assert_eq!(
+            barriers_before(bounded_lbs),
+            [true, false, false, true, false]
+        );
+        assert_eq!(barriers_before(|_| true), [true; 5]);
     }
 }

@@ -1,5 +1,6 @@
 //! C characters of one GPU model: per-frame bone input, the right-hand side B = [d; q] and proxy
-//! transforms, and the output positions and normals the engine draws from.
+//! transforms, and the output positions, normals and (optionally) tangents the engine draws
+//! from.
 //!
 //! Each per-character array is ONE buffer (so the engine binds one vertex buffer and offsets by
 //! character), but a storage descriptor may only cover `maxStorageBufferRange` bytes (128 MiB on
@@ -25,6 +26,8 @@ use std::sync::Arc;
 
 const AFFINE_BYTES: u64 = 48;
 const XYZ_BYTES: u64 = 12;
+/// One vertex's tangent in the tangents buffer: x, y, z, handedness w (f32, glTF's TANGENT).
+pub const TANGENT_STRIDE: u64 = 16;
 /// One character's box in the bounds buffer: min xyz, pad, max xyz, pad (two std430 vec4).
 pub const BOUNDS_STRIDE: u64 = 32;
 /// The most frames in flight a crowd rings its per-frame buffers over.
@@ -41,6 +44,9 @@ pub struct CrowdOptions {
     pub previous_positions: bool,
     /// Write each character's axis-aligned box every frame ([`CrowdOutput::bounds`]).
     pub bounds: bool,
+    /// Write a tangent frame per vertex every frame ([`CrowdOutput::tangents`]): for
+    /// normal-mapped materials. Only for models with rest tangents (`NotInModel` otherwise).
+    pub tangents: bool,
     /// Release each frame's outputs (its positions, the normals, its bounds) to this queue
     /// family at the end of the recording: a queue family ownership release barrier, which the
     /// engine matches with an acquire on its queue (same buffers, whole range, families
@@ -58,6 +64,7 @@ impl Default for CrowdOptions {
             frames_in_flight: 2,
             previous_positions: false,
             bounds: false,
+            tangents: false,
             release_to_queue_family: None,
             max_binding_bytes: None,
         }
@@ -74,6 +81,11 @@ pub struct CrowdOutput {
     /// until two frames were recorded. With [`CrowdOptions::previous_positions`] only.
     pub previous_positions: Option<vk::Buffer>,
     pub normals: vk::Buffer,
+    /// Tangents with [`CrowdOptions::tangents`]: vertex `a` of character `c` at
+    /// `offset + c * tangent_character_stride + a * TANGENT_STRIDE`, 4 x f32 (xyz unit,
+    /// orthogonal to the normal; w = ±1, bitangent = cross(normal, xyz) * w).
+    pub tangents: Option<vk::Buffer>,
+    pub tangent_character_stride: u64,
     /// Per-character boxes (f32 min x, y, z, pad, max x, y, z, pad), host-visible; with
     /// [`CrowdOptions::bounds`] only.
     pub bounds: Option<vk::Buffer>,
@@ -87,6 +99,8 @@ pub struct CrowdOutput {
 pub struct HostOutput {
     pub positions: Vec<[f32; 3]>,
     pub normals: Vec<[f32; 3]>,
+    /// Empty for a crowd without tangents.
+    pub tangents: Vec<[f32; 4]>,
 }
 
 /// A character's axis-aligned box, in the units of the positions (6 floats: the C ABI's
@@ -122,6 +136,8 @@ pub struct Crowd {
     positions: Vec<Buffer>,
     /// C x V x 3 f32
     normals: Buffer,
+    /// C x V x 4 f32 (with tangents; else none)
+    tangents: Option<Buffer>,
     /// F slots of C x 2 vec4, host-visible (with bounds; else empty).
     bounds: Vec<Buffer>,
     /// Which positions buffer the last recording of each frame slot wrote, and of any frame.
@@ -175,8 +191,14 @@ impl Crowd {
                 });
             }
         }
+        if options.tangents && !m.has_tangents {
+            return Err(Error::NotInModel {
+                what: "rest tangents (train from a glTF rig with TANGENT or TEXCOORD_0) for a crowd with tangents",
+            });
+        }
         let dims = Dims {
             bounds: options.bounds,
+            tangents: options.tangents,
             ..m.dims
         };
         let bytes = crowd_bytes(&ModelSizes::of_gpu(model), characters, &options)?;
@@ -220,6 +242,10 @@ impl Crowd {
             proxies: new("crowd proxies", CrowdBuffer::Proxies, storage, gpu)?,
             positions,
             normals: new("crowd normals", CrowdBuffer::Normals, output, gpu)?,
+            tangents: match options.tangents {
+                true => Some(new("crowd tangents", CrowdBuffer::Tangents, output, gpu)?),
+                false => None,
+            },
             bounds,
             written: Default::default(),
             last: AtomicU8::new(0),
@@ -286,7 +312,7 @@ impl Crowd {
     }
 
     /// The buffer `b` of descriptor variant `variant` (see [`Crowd::variant`]); `None` for the
-    /// bounds of a crowd without them.
+    /// bounds or tangents of a crowd without them.
     fn buffer(&self, b: CrowdBuffer, variant: usize) -> Option<&Buffer> {
         let (frame, written) = (
             variant / self.positions.len(),
@@ -299,6 +325,7 @@ impl Crowd {
             CrowdBuffer::Positions => self.positions.get(written),
             CrowdBuffer::Normals => Some(&self.normals),
             CrowdBuffer::Bounds => self.bounds.get(frame),
+            CrowdBuffer::Tangents => self.tangents.as_ref(),
         }
     }
 
@@ -315,8 +342,14 @@ impl Crowd {
         let buffers = (self.bones.iter())
             .chain(&self.positions)
             .chain(&self.bounds)
+            .chain(&self.tangents)
             .chain([&self.rhs, &self.proxies, &self.normals]);
         buffers.map(|b| b.size).sum()
+    }
+
+    /// Whether the crowd writes tangents ([`CrowdOptions::tangents`]).
+    pub fn has_tangents(&self) -> bool {
+        self.tangents.is_some()
     }
 
     /// F, the frames in flight the crowd was made for.
@@ -426,6 +459,8 @@ impl Crowd {
             previous_positions: (self.positions.len() == 2)
                 .then(|| self.positions[1 - written].handle),
             normals: self.normals.handle,
+            tangents: self.tangents.as_ref().map(|b| b.handle),
+            tangent_character_stride: self.model.vertex_count() as u64 * TANGENT_STRIDE,
             bounds: self.bounds.get(frame).map(|b| b.handle),
             offset: 0,
             vertex_stride: XYZ_BYTES,
@@ -452,13 +487,16 @@ impl Crowd {
                 .offset(0)
                 .size(vk::WHOLE_SIZE)
         };
-        // A fixed array, no allocation: the third is the bounds when the crowd has them.
+        // A fixed array, no allocation: then the bounds and the tangents the crowd has.
         let normals = release(&self.normals);
-        let mut barriers = [release(&self.positions[written]), normals, normals];
+        let mut barriers = [release(&self.positions[written]), normals, normals, normals];
         let mut count = 2;
-        if let Some(bounds) = self.bounds.get(frame) {
-            barriers[2] = release(bounds);
-            count = 3;
+        for optional in [self.bounds.get(frame), self.tangents.as_ref()]
+            .into_iter()
+            .flatten()
+        {
+            barriers[count] = release(optional);
+            count += 1;
         }
         let used = &barriers[..count];
         // SAFETY: see the function's contract; the buffers are the crowd's, alive.
@@ -506,10 +544,11 @@ impl Crowd {
         let shared = &self.model.inner.context.shared;
         let positions = &self.positions[self.last.load(Ordering::Relaxed) as usize];
         let size = positions.size;
+        let tangent_bytes = self.tangents.as_ref().map_or(0, |t| t.size);
         let mut staging = Buffer::new(
             shared,
             "read-back",
-            2 * size,
+            2 * size + tangent_bytes,
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
@@ -523,11 +562,14 @@ impl Crowd {
                     &[Access::ComputeShaderWrite],
                     &[Access::TransferRead],
                 );
-                for (src, at) in [(positions, 0), (&self.normals, size)] {
+                let copies = [(positions, 0), (&self.normals, size)]
+                    .into_iter()
+                    .chain(self.tangents.as_ref().map(|t| (t, 2 * size)));
+                for (src, at) in copies {
                     let region = [vk::BufferCopy {
                         src_offset: 0,
                         dst_offset: at,
-                        size,
+                        size: src.size,
                     }];
                     device.cmd_copy_buffer(cmd, src.handle, staging.handle, &region);
                 }
@@ -536,8 +578,9 @@ impl Crowd {
             Ok(())
         })?;
         let n = self.characters as usize * self.model.vertex_count() * 3;
+        let t = self.tangents.as_ref().map_or(0, |_| n / 3 * 4);
         let mapped = staging.mapped()?;
-        let floats: Vec<f32> = mapped[..2 * n * 4]
+        let floats: Vec<f32> = mapped[..(2 * n + t) * 4]
             .chunks_exact(4)
             .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
             .collect();
@@ -546,9 +589,14 @@ impl Crowd {
                 .map(|p| [p[0], p[1], p[2]])
                 .collect::<Vec<_>>()
         };
+        // The buffers hold exactly the floats read (positions and normals are 12 bytes a
+        // vertex, tangents 16), so each region starts where the last ended.
         Ok(HostOutput {
             positions: xyz(&floats[..n]),
-            normals: xyz(&floats[n..]),
+            normals: xyz(&floats[n..2 * n]),
+            tangents: (floats[2 * n..].chunks_exact(4))
+                .map(|p| [p[0], p[1], p[2], p[3]])
+                .collect(),
         })
     }
 
@@ -645,6 +693,8 @@ pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
         CrowdBuffer::Positions | CrowdBuffer::Normals => v * XYZ_BYTES,
         CrowdBuffer::Bounds if d.bounds => BOUNDS_STRIDE,
         CrowdBuffer::Bounds => 0,
+        CrowdBuffer::Tangents if d.tangents => v * TANGENT_STRIDE,
+        CrowdBuffer::Tangents => 0,
     }
 }
 

@@ -44,6 +44,9 @@ pub(crate) struct Inner {
     pub incident_triangles: Buffer,
     /// T x 3 u32
     pub triangles: Buffer,
+    /// V x 4 f32 rest tangents (empty for a model without them)
+    pub rest_tangents: Buffer,
+    pub has_tangents: bool,
 }
 
 impl GpuModel {
@@ -60,7 +63,7 @@ impl GpuModel {
         let blocks = sparse.as_ref().unwrap_or(&empty);
         let (offsets, incident) = model.incidence();
         let bytes = bytemuck::cast_slice::<f32, u8>;
-        let items: [(&'static str, &[u8]); 12] = [
+        let items: [(&'static str, &[u8]); 13] = [
             ("rest positions", bytes(parts.rest_positions.as_flattened())),
             ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
             ("skin weights", bytes(&parts.skin_weights)),
@@ -76,6 +79,7 @@ impl GpuModel {
                 "triangles",
                 bytemuck::cast_slice(parts.triangles.as_flattened()),
             ),
+            ("rest tangents", bytes(parts.rest_tangents.as_flattened())),
         ];
         let limit = context.limits().max_storage_buffer_range;
         for (what, data) in &items {
@@ -93,6 +97,7 @@ impl GpuModel {
             bones: model.bone_count() as u32,
             influences: model.influences(),
             bounds: false,
+            tangents: false,
             sparse: sparse.is_some(),
         };
         // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
@@ -106,8 +111,8 @@ impl GpuModel {
             // The triangles double as an index buffer ([`GpuModel::triangle_buffer`]).
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDEX_BUFFER,
         )?;
-        let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, blend_offsets, blend_column_indices, blend_values, incident_offsets, incident_triangles, triangles] =
-            <[Buffer; 12]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
+        let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, blend_offsets, blend_column_indices, blend_values, incident_offsets, incident_triangles, triangles, rest_tangents] =
+            <[Buffer; 13]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
                 what: "uploaded buffer count",
             })?;
         Ok(GpuModel {
@@ -128,6 +133,8 @@ impl GpuModel {
                 incident_offsets,
                 incident_triangles,
                 triangles,
+                rest_tangents,
+                has_tangents: model.has_tangents(),
             }),
         })
     }
@@ -142,6 +149,11 @@ impl GpuModel {
 
     pub fn proxy_count(&self) -> usize {
         self.inner.dims.proxies as usize
+    }
+
+    /// Whether the model carries rest tangents (crowds of it may output tangent frames).
+    pub fn has_tangents(&self) -> bool {
+        self.inner.has_tangents
     }
 
     /// Whether [C1 | C2] was stored block-sparse (the sparse product runs) rather than dense
@@ -174,6 +186,7 @@ impl Inner {
             ModelBuffer::IncidentOffsets => &self.incident_offsets,
             ModelBuffer::IncidentTriangles => &self.incident_triangles,
             ModelBuffer::Triangles => &self.triangles,
+            ModelBuffer::RestTangents => &self.rest_tangents,
         }
     }
 }

@@ -26,6 +26,8 @@ pub struct ModelSizes {
     /// any of a proxy's 4 rows is non-zero), 0 where the model keeps the dense matrix. What
     /// [`ModelSizes::of`] finds (the layout `GpuModel::new` chooses, [`super::GpuModel::is_block_sparse`]).
     pub blend_columns: usize,
+    /// Whether the model carries rest tangents (uploaded, and crowds may output tangents).
+    pub tangents: bool,
 }
 
 impl ModelSizes {
@@ -37,6 +39,7 @@ impl ModelSizes {
             proxies: model.proxy_count(),
             influences: model.influences(),
             blend_columns: super::gpu_model::BlockSparse::of(model).map_or(0, |b| b.columns.len()),
+            tangents: model.has_tangents(),
         }
     }
 
@@ -49,10 +52,11 @@ impl ModelSizes {
             proxies: d.proxies as usize,
             influences: d.influences,
             blend_columns: model.inner.blend_columns,
+            tangents: model.has_tangents(),
         }
     }
 
-    fn dims(&self, bounds: bool) -> Result<Dims> {
+    fn dims(&self, options: &CrowdOptions) -> Result<Dims> {
         let word = |what, n: usize| {
             u32::try_from(n).map_err(|_| Error::DeviceLimit {
                 what,
@@ -65,7 +69,8 @@ impl ModelSizes {
             proxies: word("proxies", self.proxies)?,
             bones: word("bones", self.bones)?,
             influences: self.influences,
-            bounds,
+            bounds: options.bounds,
+            tangents: options.tangents,
             sparse: self.blend_columns > 0,
         })
     }
@@ -95,6 +100,8 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::BlendValues => 4 * n,
         ModelBuffer::IncidentOffsets => v + 1,
         ModelBuffer::IncidentTriangles | ModelBuffer::Triangles => 3 * t,
+        ModelBuffer::RestTangents if s.tangents => 4 * v,
+        ModelBuffer::RestTangents => 0,
     }
 }
 
@@ -113,6 +120,7 @@ pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usi
         CrowdBuffer::Positions => 1 + usize::from(options.previous_positions),
         CrowdBuffer::Bounds if options.bounds => options.frames_in_flight,
         CrowdBuffer::Bounds => 0,
+        CrowdBuffer::Tangents => usize::from(options.tangents),
         CrowdBuffer::Rhs | CrowdBuffer::Proxies | CrowdBuffer::Normals => 1,
     }
 }
@@ -120,7 +128,7 @@ pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usi
 /// Bytes per character of the largest single buffer of a [`super::Crowd`] made with `options`:
 /// what a device's largest allocation bounds.
 pub fn crowd_largest_buffer_bytes(s: &ModelSizes, options: &CrowdOptions) -> Result<u64> {
-    let dims = s.dims(options.bounds)?;
+    let dims = s.dims(options)?;
     Ok(CrowdBuffer::ALL
         .iter()
         .filter(|&&b| crowd_buffer_copies(b, options) > 0)
@@ -133,7 +141,7 @@ pub fn crowd_largest_buffer_bytes(s: &ModelSizes, options: &CrowdOptions) -> Res
 /// sizes made with `options` (the GPU model's own not included). `DeviceLimit` when the figure
 /// does not fit 64 bits or a size the runtime addresses in 32.
 pub fn crowd_bytes(s: &ModelSizes, characters: usize, options: &CrowdOptions) -> Result<u64> {
-    let dims = s.dims(options.bounds)?;
+    let dims = s.dims(options)?;
     let too_large = || Error::DeviceLimit {
         what: "crowd bytes (64-bit)",
         needed: u64::MAX,

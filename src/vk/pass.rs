@@ -19,6 +19,9 @@ pub struct Dims {
     pub influences: usize,
     /// Whether the crowd writes per-character bounding boxes (false for a GPU model itself).
     pub bounds: bool,
+    /// Whether the crowd writes tangent frames (false for a GPU model itself; only for models
+    /// with rest tangents).
+    pub tangents: bool,
     /// Whether the model stores C1|C2 block-sparse per proxy (the sparse product runs instead
     /// of the dense GEMM; see `GpuModel::new`).
     pub sparse: bool,
@@ -42,10 +45,12 @@ pub enum ModelBuffer {
     IncidentOffsets,
     IncidentTriangles,
     Triangles,
+    /// V x vec4 rest tangents (xyz, handedness w); empty for a model without them
+    RestTangents,
 }
 
 impl ModelBuffer {
-    pub const ALL: [ModelBuffer; 12] = [
+    pub const ALL: [ModelBuffer; 13] = [
         ModelBuffer::Rest,
         ModelBuffer::SkinIndex,
         ModelBuffer::SkinWeight,
@@ -58,6 +63,7 @@ impl ModelBuffer {
         ModelBuffer::IncidentOffsets,
         ModelBuffer::IncidentTriangles,
         ModelBuffer::Triangles,
+        ModelBuffer::RestTangents,
     ];
 }
 
@@ -70,10 +76,11 @@ pub enum CrowdBuffer {
     Positions,
     Normals,
     Bounds,
+    Tangents,
 }
 
 impl CrowdBuffer {
-    pub const COUNT: usize = 6;
+    pub const COUNT: usize = 7;
     pub const ALL: [CrowdBuffer; Self::COUNT] = [
         CrowdBuffer::Bones,
         CrowdBuffer::Rhs,
@@ -81,6 +88,7 @@ impl CrowdBuffer {
         CrowdBuffer::Positions,
         CrowdBuffer::Normals,
         CrowdBuffer::Bounds,
+        CrowdBuffer::Tangents,
     ];
 
     /// This buffer's bit in a [`CrowdBuffer`] set.
@@ -309,6 +317,7 @@ mod tests {
         bones: 3,
         influences: 4,
         bounds: false,
+        tangents: false,
         sparse: false,
     };
 

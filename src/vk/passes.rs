@@ -26,10 +26,12 @@ pub enum Pass {
     SkinK8,
     Normals,
     Bounds,
+    TangentsK4,
+    TangentsK8,
 }
 
 impl Pass {
-    pub const COUNT: usize = 7;
+    pub const COUNT: usize = 9;
     /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
     pub const ALL: [Pass; Self::COUNT] = [
         Pass::Predict,
@@ -39,6 +41,8 @@ impl Pass {
         Pass::SkinK8,
         Pass::Normals,
         Pass::Bounds,
+        Pass::TangentsK4,
+        Pass::TangentsK8,
     ];
 
     pub fn desc(self) -> &'static PassDesc {
@@ -50,6 +54,8 @@ impl Pass {
             Pass::SkinK8 => &SKIN_K8,
             Pass::Normals => &NORMALS,
             Pass::Bounds => &BOUNDS,
+            Pass::TangentsK4 => &TANGENTS_K4,
+            Pass::TangentsK8 => &TANGENTS_K8,
         }
     }
 
@@ -71,21 +77,23 @@ impl Pass {
 }
 
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
-/// a block-sparse [C1 | C2], for each K, with and without bounds.
+/// a block-sparse [C1 | C2], for each K, with and without bounds, with and without tangents.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
     let products = [(0, false), (3, false), (3, true)];
     let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s)| (k, p, s)));
+    let outputs = [(false, false), (true, false), (false, true), (true, true)];
     kinds
         .into_iter()
         .flatten()
-        .flat_map(|(k, proxies, sparse)| {
-            [false, true].map(|bounds| Dims {
+        .flat_map(move |(k, proxies, sparse)| {
+            outputs.map(|(bounds, tangents)| Dims {
                 vertices: 10,
                 proxies,
                 bones: 2,
                 influences: k as usize,
                 bounds,
+                tangents,
                 sparse,
             })
         })
@@ -199,6 +207,32 @@ const BOUNDS: PassDesc = PassDesc {
     runs: |d| d.bounds,
 };
 
+/// Tangent frames: each vertex's rest tangent through its blended palette matrix, made
+/// orthogonal to its normal; one pipeline per K. Crowds created with tangents only.
+const TANGENTS_K4: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "tangents.comp",
+    spirv: spirv!("tangents_k4"),
+    bindings: &[
+        Model(M::SkinIndex),
+        Model(M::SkinWeight),
+        Model(M::RestTangents),
+        Reads(Crowd::Proxies),
+        Reads(Crowd::Bones),
+        Reads(Crowd::Normals),
+        Writes(Crowd::Tangents),
+    ],
+    push: &[W::Vertices, W::Proxies, W::Bones, W::Characters],
+    groups: PER_VERTEX,
+    runs: |d| d.tangents && d.influences == 4,
+};
+
+const TANGENTS_K8: PassDesc = PassDesc {
+    spirv: spirv!("tangents_k8"),
+    runs: |d| d.tangents && d.influences == 8,
+    ..TANGENTS_K4
+};
+
 /// local_size_x = 64 over vertices, one row of groups per character.
 const PER_VERTEX: [Axis; 3] = [over(Vertices, 64), over(Characters, 1), ONE];
 
@@ -253,6 +287,7 @@ mod tests {
                 M::IncidentOffsets => "Offsets",
                 M::IncidentTriangles => "Incident",
                 M::Triangles => "Triangles",
+                M::RestTangents => "RestTangents",
             },
             Binding::Reads(c) | Binding::Writes(c) => match c {
                 CrowdBuffer::Bones => "Bones",
@@ -261,6 +296,7 @@ mod tests {
                 CrowdBuffer::Positions => "Positions",
                 CrowdBuffer::Normals => "Normals",
                 CrowdBuffer::Bounds => "Bounds",
+                CrowdBuffer::Tangents => "Tangents",
             },
         }
     }
@@ -323,6 +359,12 @@ mod tests {
             };
             assert_eq!(writers(CrowdBuffer::Positions), 1, "{d:?}");
             assert_eq!(writers(CrowdBuffer::Normals), 1, "{d:?}");
+            assert_eq!(
+                writers(CrowdBuffer::Tangents),
+                usize::from(d.tangents),
+                "{d:?}"
+            );
+            assert_eq!(writers(CrowdBuffer::Bounds), usize::from(d.bounds), "{d:?}");
             for p in Pass::of_model(&d) {
                 for b in CrowdBuffer::ALL {
                     let input =
@@ -343,6 +385,7 @@ mod tests {
             bones: 2,
             influences: 4,
             bounds: false,
+            tangents: false,
             sparse: false,
         };
         // skin (6 buffers) and normals (5)
@@ -366,5 +409,11 @@ mod tests {
         };
         // + predict (4) and the sparse product (5)
         assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 20));
+        let tangents = Dims {
+            tangents: true,
+            ..sparse
+        };
+        // + tangents (7)
+        assert_eq!(Pass::descriptors_per_chunk(&tangents), (5, 27));
     }
 }

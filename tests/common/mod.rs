@@ -36,6 +36,8 @@ pub fn assert_no_validation_messages(ctx: &Context) {
 /// unnormalised normal is not near zero (there the direction is ill-conditioned in f32).
 pub const POSITION_TOLERANCE: f32 = 2e-4;
 pub const NORMAL_TOLERANCE: f32 = 2e-3;
+/// Unit tangents (xyz) within this, at the vertices whose normal is compared; w exactly.
+pub const TANGENT_TOLERANCE: f32 = 2e-3;
 
 pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]], &[[f32; 3]])) {
     assert_eq!(cpu.0.len(), gpu.0.len());
@@ -52,9 +54,6 @@ pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]]
         cpu.0[i],
         gpu.0[i]
     );
-    let v = model.vertex_count();
-    let (offsets, incident) = model.incidence();
-    let tris = &model.parts().triangles;
     let mut skipped = 0usize;
     let errors = cpu
         .1
@@ -62,16 +61,7 @@ pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]]
         .zip(gpu.1)
         .enumerate()
         .filter_map(|(i, (c, g))| {
-            let (base, a) = (i / v * v, i % v);
-            let p = |x: u32| DVec3::from(cpu.0[base + x as usize].map(f64::from));
-            let (mut sum, mut area) = (DVec3::ZERO, 0.0);
-            for &t in &incident[offsets[a] as usize..offsets[a + 1] as usize] {
-                let [x, y, z] = tris[t as usize];
-                let cross = (p(y) - p(x)).cross(p(z) - p(x));
-                sum += cross;
-                area += cross.length();
-            }
-            if sum.length() < 0.05 * area {
+            if !well_conditioned(model, cpu.0, i) {
                 skipped += 1;
                 return None;
             }
@@ -88,6 +78,62 @@ pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]]
         skipped * 100 <= cpu.1.len(),
         "{skipped} of {} normals ill-conditioned",
         cpu.1.len()
+    );
+}
+
+/// Whether vertex `i` (of C x V `positions`) has a normal f32 can compute like f64: its
+/// triangles' normals do not nearly cancel.
+fn well_conditioned(model: &Model, positions: &[[f32; 3]], i: usize) -> bool {
+    let v = model.vertex_count();
+    let (offsets, incident) = model.incidence();
+    let tris = &model.parts().triangles;
+    let (base, a) = (i / v * v, i % v);
+    let p = |x: u32| DVec3::from(positions[base + x as usize].map(f64::from));
+    let (mut sum, mut area) = (DVec3::ZERO, 0.0);
+    for &t in &incident[offsets[a] as usize..offsets[a + 1] as usize] {
+        let [x, y, z] = tris[t as usize];
+        let cross = (p(y) - p(x)).cross(p(z) - p(x));
+        sum += cross;
+        area += cross.length();
+    }
+    sum.length() >= 0.05 * area
+}
+
+/// GPU tangents against the CPU's (C x V, `cpu_positions` the CPU's positions), where the
+/// normal is well-conditioned: xyz within [`TANGENT_TOLERANCE`], unit, orthogonal to the GPU
+/// normal; w exactly the CPU's.
+pub fn compare_tangents(
+    model: &Model,
+    cpu_positions: &[[f32; 3]],
+    cpu: &[[f32; 4]],
+    gpu: (&[[f32; 4]], &[[f32; 3]]),
+) {
+    let (tangents, normals) = gpu;
+    assert_eq!(cpu.len(), tangents.len());
+    let mut compared = 0usize;
+    for (i, (c, g)) in cpu.iter().zip(tangents).enumerate() {
+        assert_eq!(c[3], g[3], "tangent {i}: handedness, cpu {c:?} gpu {g:?}");
+        if !well_conditioned(model, cpu_positions, i) {
+            continue;
+        }
+        compared += 1;
+        let xyz = |t: &[f32; 4]| [t[0], t[1], t[2]];
+        let err = dist(&xyz(c), &xyz(g));
+        assert!(
+            err <= TANGENT_TOLERANCE,
+            "tangent {i} differs by {err}: cpu {c:?} gpu {g:?}"
+        );
+        let n = normals[i];
+        let along = g[0] * n[0] + g[1] * n[1] + g[2] * n[2];
+        assert!(
+            (norm(&xyz(g)) - 1.0).abs() <= TANGENT_TOLERANCE && along.abs() <= TANGENT_TOLERANCE,
+            "tangent {i} {g:?}: not unit or not orthogonal to the normal {n:?}"
+        );
+    }
+    assert!(
+        compared * 100 >= 99 * cpu.len(),
+        "{compared} of {} tangents compared",
+        cpu.len()
     );
 }
 

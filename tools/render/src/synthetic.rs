@@ -6,7 +6,9 @@
 //! skinning weights fall off smoothly with distance to random palette "centres" (so the deformed
 //! mesh stays well-conditioned and normals are comparable between f32 and f64); each proxy
 //! follows one bone through C2 plus a small key-gradient correction through C1; predictors have
-//! random bones, scales, rotations, second bones and scale/shear matrices near identity.
+//! random bones, scales, rotations, second bones and scale/shear matrices near identity. Rest
+//! tangents follow the grid's texture coordinates (u, v) = (x, y), mirrored in u on the right
+//! half (tangent −∂p/∂u, handedness −1), as mirrored UV islands are.
 
 use glam::{DMat3, DVec3};
 use rrskin::predict::{exp_rotation, Affine};
@@ -89,6 +91,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
     let (n, j, p) = (spec.grid, spec.bones, spec.proxies);
     let k = spec.influences as usize;
     let mut rest = Vec::with_capacity(n * n);
+    let mut rest_tangents = Vec::with_capacity(n * n);
     for y in 0..n {
         for x in 0..n {
             let (u, v) = (x as f64 / (n - 1) as f64, y as f64 / (n - 1) as f64);
@@ -97,6 +100,10 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
                 v as f32,
                 (0.1 * (6.0 * u).sin() * (4.0 * v).cos()) as f32,
             ]);
+            let along_u = DVec3::new(1.0, 0.0, 0.6 * (6.0 * u).cos() * (4.0 * v).cos());
+            let w = if 2 * x > n { -1.0 } else { 1.0 };
+            let t = (along_u.normalize() * w).as_vec3();
+            rest_tangents.push([t.x, t.y, t.z, w as f32]);
         }
     }
     let mut triangles = Vec::new();
@@ -192,6 +199,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         baseline_indices: Vec::new(),
         baseline_weights: Vec::new(),
         animation: Vec::new(),
+        rest_tangents,
     };
     Model::new(parts)
 }

@@ -242,6 +242,7 @@ impl Imported {
                 .flat_map(|&w| parts.baseline_weights[w * k..(w + 1) * k].to_vec())
                 .collect(),
             animation: parts.animation.clone(),
+            rest_tangents: Vec::new(),
         })
     }
 }
@@ -296,6 +297,7 @@ impl Imported {
                 .flat_map(|&g| parts.baseline_weights[g * k..(g + 1) * k].to_vec())
                 .collect(),
             animation: parts.animation.clone(),
+            rest_tangents: Vec::new(),
         })
     }
 }

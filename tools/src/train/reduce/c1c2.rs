@@ -342,6 +342,7 @@ impl Reduced {
             baseline_indices,
             baseline_weights,
             animation: set_animation(set),
+            rest_tangents: Vec::new(),
         })
     }
 }
