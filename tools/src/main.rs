@@ -7,6 +7,7 @@ use rrskin_render::synthetic::{random_model, renumber_bones, Spec};
 use rrskin_tools::eval::{Options, Report};
 use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
+use rrskin_tools::import::tangents::Source;
 use rrskin_tools::output::{check_writable, shown};
 use rrskin_tools::progress::note;
 use rrskin_tools::train::{Method, TrainOptions};
@@ -436,8 +437,13 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             model.save(&output)?;
             print_report(&report, &set, train.json);
             if !train.json {
+                let tangents = match imported.as_ref().and_then(|i| i.tangents.as_ref()) {
+                    Some((_, Source::File)) => "rest tangents from the file's TANGENT",
+                    Some((_, Source::MikkTSpace)) => "rest tangents by MikkTSpace from TEXCOORD_0",
+                    None => "no rest tangents (no UVs)",
+                };
                 note(format_args!(
-                    "wrote {} ({} bytes)",
+                    "wrote {} ({} bytes; {tangents})",
                     output.display(),
                     model.to_bytes().len()
                 ));
@@ -458,6 +464,14 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     b.previous_positions.total_ms, b.cost(&b.previous_positions),
                     b.bounds.total_ms, b.cost(&b.bounds)
                 );
+                match &b.tangents {
+                    Some(t) => out!(
+                        "  RR + tangents           {:.3} ms ({:.2} x RR)",
+                        t.total_ms,
+                        b.cost(t)
+                    ),
+                    None => out!("  RR + tangents           - (the model has no rest tangents)"),
+                }
             }
         }
         Command::Demo { out, set } => {

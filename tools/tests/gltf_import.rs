@@ -149,9 +149,18 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
         .collect();
     let v = model.vertex_count();
     let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+    let mut tangents = vec![[0.0f32; 4]; v];
+    assert!(
+        model.has_tangents(),
+        "MikkTSpace from CesiumMan's TEXCOORD_0"
+    );
     rrskin::cpu::CpuEvaluator::new(&model)
-        .evaluate(&bones, &mut pos, &mut nrm)
+        .evaluate_with_tangents(&bones, &mut pos, &mut nrm, &mut tangents)
         .expect("evaluate");
+    for (t, n) in tangents.iter().zip(&nrm) {
+        let (t, n) = (glam::Vec3::from_slice(&t[..3]), glam::Vec3::from(*n));
+        assert!((t.length() - 1.0).abs() < 1e-4 && t.dot(n).abs() < 1e-4);
+    }
     let truth = &PointCache::load(Path::new(&cache()), 24.0)
         .expect("cache")
         .positions[50];
@@ -182,6 +191,57 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
     }
     assert!(seams > 900, "{seams} seam pairs");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The rest tangents follow the texture: on each triangle, the direction along which u grows
+/// (and, through w, the one along which the image's up grows: glTF's v decreases), from its
+/// positions and TEXCOORD_0, agrees with its corners' tangent frames. MikkTSpace smooths
+/// across triangles, so agreement is asked of nearly every triangle, not all.
+#[test]
+fn rest_tangents_follow_the_texture_coordinates() {
+    use rrskin_tools::import::gltf_rig::Rig;
+    use rrskin_tools::import::tangents::Source;
+    let imported = import(Path::new(&rig()), &options(Path::new(&cache()))).expect("import");
+    let (tangents, source) = imported.tangents.as_ref().expect("tangents");
+    assert_eq!(*source, Source::MikkTSpace);
+    let uvs = Rig::load(Path::new(&rig()), "examples")
+        .expect("rig")
+        .uvs
+        .expect("TEXCOORD_0");
+    let rest = &imported.rest;
+    let (mut along_u, mut up, mut counted) = (0, 0, 0);
+    for t in &imported.triangles {
+        let [a, b, c] = t.map(|i| rest[i]);
+        let [ua, ub, uc] = t.map(|i| uvs[i].map(f64::from));
+        let (e1, e2) = (b - a, c - a);
+        let (du1, dv1, du2, dv2) = (ub[0] - ua[0], ub[1] - ua[1], uc[0] - ua[0], uc[1] - ua[1]);
+        let det = du1 * dv2 - du2 * dv1;
+        let n = e1.cross(e2);
+        if det.abs() < 1e-12 || n.length() < 1e-12 {
+            continue; // degenerate in space or in the texture
+        }
+        // dp/du and dp/dv of the triangle's affine map from texture to space.
+        let dp_du = (e1 * dv2 - e2 * dv1) / det;
+        let dp_dv = (e2 * du1 - e1 * du2) / det;
+        counted += 1;
+        let n = n.normalize();
+        for &i in t {
+            let [x, y, z, w] = tangents[i].map(f64::from);
+            let tangent = DVec3::new(x, y, z);
+            along_u += usize::from(tangent.dot(dp_du) > 0.0);
+            up += usize::from(n.cross(tangent).dot(-dp_dv) * w > 0.0);
+        }
+    }
+    let corners = 3 * counted;
+    assert!(counted > 4000, "{counted} triangles");
+    assert!(
+        along_u * 100 >= 99 * corners,
+        "{along_u} of {corners} corners along +u"
+    );
+    assert!(
+        up * 100 >= 99 * corners,
+        "{up} of {corners} corners with the image's up"
+    );
 }
 
 fn error_of(cache: &Path, clip: &str) -> String {
@@ -331,6 +391,11 @@ fn frames_off_the_keys_or_the_cache_are_refused_before_training() {
 /// A one-triangle rig with one joint, written as .gltf + .bin: `skin` says whether the mesh
 /// node has the skin, `joint_scale` is the joint's scale.
 fn tiny_rig(dir: &Path, skin: bool, joint_scale: f32) -> PathBuf {
+    tiny_rig_with(dir, skin, joint_scale, None)
+}
+
+/// [`tiny_rig`], with `tangent` as every vertex's TANGENT if given.
+fn tiny_rig_with(dir: &Path, skin: bool, joint_scale: f32, tangent: Option<[f32; 4]>) -> PathBuf {
     let mut bin = Vec::new();
     for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
         bin.extend_from_slice(&v.to_le_bytes()); // POSITION: 36 bytes at 0
@@ -349,6 +414,17 @@ fn tiny_rig(dir: &Path, skin: bool, joint_scale: f32) -> PathBuf {
     for v in [0.0f32, 0.0, 0.0, 0.0, 1.0, 0.0] {
         bin.extend_from_slice(&v.to_le_bytes()); // translations: 24 bytes at 104
     }
+    for x in tangent.iter().flat_map(|t| [*t; 3]).flatten() {
+        bin.extend_from_slice(&x.to_le_bytes()); // TANGENT: 48 bytes at 128
+    }
+    let (tangent_view, tangent_accessor, tangent_attribute) = match tangent {
+        Some(_) => (
+            r#", {"buffer": 0, "byteOffset": 128, "byteLength": 48}"#,
+            r#", {"bufferView": 5, "componentType": 5126, "count": 3, "type": "VEC4"}"#,
+            r#", "TANGENT": 5"#,
+        ),
+        None => ("", "", ""),
+    };
     std::fs::write(dir.join("tiny.bin"), &bin).expect("write bin");
     let skin_field = if skin { r#", "skin": 0"# } else { "" };
     let gltf = format!(
@@ -360,16 +436,16 @@ fn tiny_rig(dir: &Path, skin: bool, joint_scale: f32) -> PathBuf {
     {{"buffer": 0, "byteOffset": 36, "byteLength": 12}},
     {{"buffer": 0, "byteOffset": 48, "byteLength": 48}},
     {{"buffer": 0, "byteOffset": 96, "byteLength": 8}},
-    {{"buffer": 0, "byteOffset": 104, "byteLength": 24}}
+    {{"buffer": 0, "byteOffset": 104, "byteLength": 24}}{tangent_view}
   ],
   "accessors": [
     {{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,0], "max": [1,1,0]}},
     {{"bufferView": 1, "componentType": 5121, "count": 3, "type": "VEC4"}},
     {{"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC4"}},
     {{"bufferView": 3, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0], "max": [1]}},
-    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "VEC3"}}
+    {{"bufferView": 4, "componentType": 5126, "count": 2, "type": "VEC3"}}{tangent_accessor}
   ],
-  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2}}}}]}}],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "JOINTS_0": 1, "WEIGHTS_0": 2{tangent_attribute}}}}}]}}],
   "nodes": [
     {{"name": "joint", "scale": [{s}, {s}, {s}]}},
     {{"mesh": 0{skin_field}}}
@@ -420,6 +496,38 @@ fn rigs_without_a_skin_or_with_a_singular_joint_are_refused() {
     assert!(
         e.contains("tiny.bin"),
         "the missing buffer file is named: {e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A file's TANGENT is taken to the rest mesh like its positions (here through the joint's
+/// scale of 2: the direction, renormalised) and kept over MikkTSpace; one with w not ±1 is
+/// refused, naming the file and the vertex.
+#[test]
+fn a_files_tangents_are_carried_to_the_rest_mesh_and_checked() {
+    use rrskin_tools::import::gltf_rig::Rig;
+    let dir = temp_dir("gltf-tangent");
+    let rig = Rig::load(&tiny_rig(&dir, true, 1.0), "a").expect("rig");
+    assert!(rig.tangents.is_none() && rig.uvs.is_none());
+    let path = tiny_rig_with(&dir, true, 2.0, Some([0.6, 0.8, 0.0, -1.0]));
+    let rig = Rig::load(&path, "a").expect("rig with TANGENT");
+    let tangents = rig.tangents.expect("TANGENT read");
+    for t in &tangents {
+        let want = [0.6, 0.8, 0.0, -1.0];
+        assert!(
+            t.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-6),
+            "{t:?}"
+        );
+    }
+    let e = Rig::load(
+        &tiny_rig_with(&dir, true, 1.0, Some([1.0, 0.0, 0.0, 0.5])),
+        "a",
+    )
+    .expect_err("w = 0.5")
+    .to_string();
+    assert!(
+        e.contains("tiny.gltf") && e.contains("TANGENT") && e.contains("vertex 0"),
+        "{e}"
     );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -3,13 +3,15 @@
 //! glTF splits vertices along UV and normal seams. Vertices at the same rest position whose
 //! cache trajectories agree are welded into one training vertex, so the mesh is connected for
 //! the Poisson solve; `weld` maps every glTF vertex to its training vertex, so a trained model
-//! can be expanded back to the file's own vertex order and count.
+//! can be expanded back to the file's own vertex order and count, with the file's rest tangents
+//! (TANGENT, or MikkTSpace from TEXCOORD_0: `import::tangents`).
 
 use crate::import::example_set::{
     rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE,
 };
 use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::PointCache;
+use crate::import::tangents::{rest_tangents, Source};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -35,6 +37,9 @@ pub struct Imported {
     /// The glTF rest mesh and triangles (the file's own order and count).
     pub rest: Vec<DVec3>,
     pub triangles: Vec<[usize; 3]>,
+    /// Rest tangents over the glTF vertices, and their source; `None` without TANGENT or
+    /// TEXCOORD_0 (the model then has no tangents, and the set says so in its warnings).
+    pub tangents: Option<(Vec<[f32; 4]>, Source)>,
 }
 
 pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError> {
@@ -102,6 +107,21 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
             "every cache sample is a test frame: nothing to train on".into(),
         ));
     }
+    let groups = normal_groups(&weld);
+    let tangents = rest_tangents(
+        &rig.rest,
+        &rig.triangles,
+        &groups,
+        rig.uvs.as_deref(),
+        rig.tangents.as_deref(),
+    );
+    let warnings = match tangents {
+        Some(_) => Vec::new(),
+        None => vec![format!(
+            "{}: no TANGENT or TEXCOORD_0 on every primitive (or MikkTSpace failed): the model has no tangents",
+            rig_path.display()
+        )],
+    };
     let set = ExampleSet {
         rest: representative.iter().map(|&g| rig.rest[g]).collect(),
         faces,
@@ -115,13 +135,14 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
                 .map(|&g| rig.weights[g].clone())
                 .collect(),
         ),
-        warnings: Vec::new(),
+        warnings,
     };
     Ok(Imported {
         set,
         weld,
         rest: rig.rest,
         triangles: rig.triangles,
+        tangents,
     })
 }
 
@@ -208,12 +229,6 @@ impl Imported {
     pub fn expand(&self, model: &rrskin::Model) -> rrskin::Result<rrskin::Model> {
         let parts = model.parts();
         let k = model.influences();
-        let mut first = vec![u32::MAX; model.vertex_count()];
-        for (g, &w) in self.weld.iter().enumerate() {
-            if first[w] == u32::MAX {
-                first[w] = g as u32;
-            }
-        }
         let per_vertex = |data: &[u32]| -> Vec<u32> {
             self.weld
                 .iter()
@@ -234,7 +249,10 @@ impl Imported {
             predictors: parts.predictors.clone(),
             c1: parts.c1.clone(),
             c2: parts.c2.clone(),
-            normal_groups: self.weld.iter().map(|&w| first[w]).collect(),
+            normal_groups: normal_groups(&self.weld)
+                .iter()
+                .map(|&g| g as u32)
+                .collect(),
             baseline_indices: per_vertex(&parts.baseline_indices),
             baseline_weights: self
                 .weld
@@ -242,9 +260,20 @@ impl Imported {
                 .flat_map(|&w| parts.baseline_weights[w * k..(w + 1) * k].to_vec())
                 .collect(),
             animation: parts.animation.clone(),
-            rest_tangents: Vec::new(),
+            rest_tangents: self.tangents.as_ref().map_or(Vec::new(), |t| t.0.clone()),
         })
     }
+}
+
+/// Each glTF vertex's normal group: the first glTF vertex welded with it.
+fn normal_groups(weld: &[usize]) -> Vec<usize> {
+    let mut first = vec![usize::MAX; weld.len()];
+    for (g, &w) in weld.iter().enumerate() {
+        if first[w] == usize::MAX {
+            first[w] = g;
+        }
+    }
+    weld.iter().map(|&w| first[w]).collect()
 }
 
 impl Imported {

@@ -62,6 +62,12 @@ pub struct Rig {
     /// Per glTF vertex, the skin's own (bone, weight) pairs (JOINTS_0/WEIGHTS_0, weight > 0,
     /// normalised): the baseline an engine skins with.
     pub weights: Vec<Vec<(usize, f64)>>,
+    /// Per glTF vertex, TEXCOORD_0, if every primitive has it.
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// Per glTF vertex, TANGENT taken to the rest mesh like the positions (xyz through the
+    /// default pose's blended joint matrix, renormalised; w as stored), if every primitive has
+    /// it.
+    pub tangents: Option<Vec<[f32; 4]>>,
     /// Node of each bone.
     joints: Vec<usize>,
     node_parents: Vec<Option<usize>>,
@@ -194,6 +200,7 @@ impl Rig {
             .map(|(&n, ibm)| world_default[n] * *ibm)
             .collect();
         let (mut rest, mut triangles, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut uvs, mut tangents) = (Some(Vec::new()), Some(Vec::new()));
         for node in &skinned {
             let mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
             for prim in mesh.primitives() {
@@ -236,16 +243,28 @@ impl Rig {
                     })?
                     .into_f32()
                     .collect();
-                if joints0.len() != positions.len() || weights0.len() != positions.len() {
+                let uv: Option<Vec<[f32; 2]>> =
+                    reader.read_tex_coords(0).map(|t| t.into_f32().collect());
+                let tangent: Option<Vec<[f32; 4]>> = reader.read_tangents().map(Iterator::collect);
+                let counts = [joints0.len(), weights0.len()]
+                    .into_iter()
+                    .chain(uv.as_ref().map(Vec::len))
+                    .chain(tangent.as_ref().map(Vec::len));
+                if counts.into_iter().any(|n| n != positions.len()) {
                     return Err(bad(
                         path,
                         format!("mesh {}: attribute counts differ", mesh.index()),
                     ));
                 }
+                match (uvs.as_mut(), uv) {
+                    (Some(all), Some(this)) => all.extend(this),
+                    _ => uvs = None,
+                }
                 let base = rest.len();
-                for ((p, js), ws) in positions.iter().zip(&joints0).zip(&weights0) {
+                for (i, ((p, js), ws)) in positions.iter().zip(&joints0).zip(&weights0).enumerate()
+                {
                     let p = DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
-                    let mut acc = DVec3::ZERO;
+                    let mut blend = DMat4::ZERO;
                     let total: f64 = ws.iter().map(|&w| w.max(0.0) as f64).sum();
                     weights.push(
                         js.iter()
@@ -264,9 +283,32 @@ impl Rig {
                                 ),
                             )
                         })?;
-                        acc += (*m * p).truncate() * *w as f64;
+                        blend += *m * *w as f64;
                     }
-                    rest.push(acc);
+                    rest.push((blend * p).truncate());
+                    match (tangents.as_mut(), &tangent) {
+                        (Some(all), Some(t)) => {
+                            let xyz = blend.transform_vector3(DVec3::new(
+                                t[i][0] as f64,
+                                t[i][1] as f64,
+                                t[i][2] as f64,
+                            ));
+                            let w = t[i][3];
+                            if !(xyz.length() > 1e-12 && xyz.is_finite() && w.abs() == 1.0) {
+                                return Err(bad(
+                                    path,
+                                    format!(
+                                        "mesh {}: TANGENT {:?} of vertex {i} is not a direction with w = +-1",
+                                        mesh.index(),
+                                        t[i]
+                                    ),
+                                ));
+                            }
+                            let xyz = xyz.normalize().as_vec3();
+                            all.push([xyz.x, xyz.y, xyz.z, w]);
+                        }
+                        _ => tangents = None,
+                    }
                 }
                 let count = positions.len();
                 let indices: Vec<usize> = match reader.read_indices() {
@@ -364,6 +406,8 @@ impl Rig {
         Ok(Rig {
             rest,
             weights,
+            uvs,
+            tangents,
             triangles,
             names,
             parents,

@@ -5,3 +5,4 @@ pub mod gltf;
 pub mod gltf_rig;
 pub mod npy;
 pub mod point_cache;
+pub mod tangents;

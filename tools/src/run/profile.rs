@@ -51,6 +51,7 @@ impl Profile {
             "blend_ms": self.median.blend_ms,
             "skin_ms": self.median.skin_ms,
             "normals_ms": self.median.normals_ms,
+            "tangents_ms": self.median.tangents_ms,
             "total_ms": self.total_ms,
             "skin_mverts_per_s": self.skin_mverts_per_s(),
             "pipeline_mverts_per_s": self.pipeline_mverts_per_s(),
@@ -136,12 +137,15 @@ pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::pred
 /// `rrskin bench`: the whole per-frame pipeline of rotational regression against plain
 /// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
 /// device in one run, median frame time from GPU timestamps; and the cost of the runtime's
-/// optional outputs, previous positions and bounds, as rotational-regression frames with each.
+/// optional outputs, previous positions, bounds and tangents, as rotational-regression frames
+/// with each.
 pub struct Bench {
     pub rr: Profile,
     pub ssd: Profile,
     pub previous_positions: Profile,
     pub bounds: Profile,
+    /// For models with rest tangents.
+    pub tangents: Option<Profile>,
 }
 
 impl Bench {
@@ -171,11 +175,20 @@ impl Bench {
             ..plain
         };
         let bounds = run(model, bounded, "with bounds")?;
+        let tangents = CrowdOptions {
+            tangents: true,
+            ..plain
+        };
+        let tangents = match model.has_tangents() {
+            true => Some(run(model, tangents, "with tangents")?),
+            false => None,
+        };
         Ok(Bench {
             rr,
             ssd,
             previous_positions,
             bounds,
+            tangents,
         })
     }
 
@@ -199,6 +212,8 @@ impl Bench {
             "previous_positions_ratio": self.cost(&self.previous_positions),
             "bounds_ms": self.bounds.total_ms,
             "bounds_ratio": self.cost(&self.bounds),
+            "tangents_ms": self.tangents.as_ref().map(|t| t.total_ms),
+            "tangents_ratio": self.tangents.as_ref().map(|t| self.cost(t)),
         })
     }
 }
