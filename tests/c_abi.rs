@@ -68,22 +68,25 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         5,
     );
     model.save(dir.join("model.rrs")).expect("save model");
-    let (mut poses, mut expected) = (Vec::new(), Vec::new());
+    let (mut poses, mut expected, mut tangents) = (Vec::new(), Vec::new(), Vec::new());
     let v = model.vertex_count();
     for frame in 0..frames {
         let bones = random_poses(&model, characters, frame as u64);
-        let (mut p, mut n) = (
+        let (mut p, mut n, mut t) = (
             vec![[0.0; 3]; characters * v],
             vec![[0.0; 3]; characters * v],
+            vec![[0.0; 4]; characters * v],
         );
         CpuEvaluator::new(&model)
-            .evaluate(&bones, &mut p, &mut n)
+            .evaluate_with_tangents(&bones, &mut p, &mut n, &mut t)
             .expect("CPU evaluator");
         poses.extend(bones.as_flattened());
         expected.extend(p.as_flattened());
+        tangents.extend(t.as_flattened());
     }
     write_floats(&dir.join("poses.bin"), &poses);
     write_floats(&dir.join("expected.bin"), &expected);
+    write_floats(&dir.join("tangents.bin"), &tangents);
 
     let exe = dir.join("crowd");
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
@@ -117,6 +120,7 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         .arg(dir.join("expected.bin"))
         .arg(frames.to_string())
         .arg(characters.to_string())
+        .arg(dir.join("tangents.bin"))
         .output()
         .expect("run the C example");
     let stdout = String::from_utf8_lossy(&run.stdout);

@@ -3,16 +3,19 @@
  * validation, its own messenger) and VkDevice, hands them to rrskin, loads a model, animates a
  * crowd of characters for a few frames with 2 frames in flight, each recorded into its OWN
  * command buffer with a copy of the positions into its own host-visible buffer, and checks every
- * frame's positions against values computed by the Rust CPU evaluator; then it checks the ABI's
- * answers to bad input. Prints "N passed, M failed" and exits non-zero on any failure or
- * validation message.
+ * frame's positions (and, given TANGENTS.bin, tangents) against values computed by the Rust CPU
+ * evaluator; then it checks the ABI's answers to bad input. Prints "N passed, M failed" and
+ * exits non-zero on any failure or validation message.
  *
- *   crowd MODEL.rrs POSES.bin EXPECTED.bin FRAMES CHARACTERS
+ *   crowd MODEL.rrs POSES.bin EXPECTED.bin FRAMES CHARACTERS [TANGENTS.bin]
  *
  * POSES.bin: FRAMES x CHARACTERS x BONES x 12 floats (3x4 row-major bone transforms).
  * EXPECTED.bin: FRAMES x CHARACTERS x VERTICES x 3 floats (positions).
- * `rrskin reference MODEL.rrs --frames 3 --characters 64 --out DIR` writes both (DIR/poses.bin,
- * DIR/expected.bin) for any model, e.g. one of `rrskin synth`.
+ * TANGENTS.bin: FRAMES x CHARACTERS x VERTICES x 4 floats (xyz, handedness w), for a model with
+ * rest tangents: the crowd is then made with tangents.
+ * `rrskin reference MODEL.rrs --frames 3 --characters 64 --out DIR` writes them (DIR/poses.bin,
+ * DIR/expected.bin, and DIR/tangents.bin for a model with tangents) for any model, e.g. one of
+ * `rrskin synth`.
  *
  * Build and run, from the repository root after `cargo build --release`:
  *   cc -std=c11 -o crowd examples/c/crowd.c -I include -L target/release -lrrskin -lvulkan -lm
@@ -84,10 +87,11 @@ static float *read_floats(const char *path, size_t count) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 6) {
-        fprintf(stderr, "usage: %s MODEL.rrs POSES.bin EXPECTED.bin FRAMES CHARACTERS\n", argv[0]);
+    if (argc != 6 && argc != 7) {
+        fprintf(stderr, "usage: %s MODEL.rrs POSES.bin EXPECTED.bin FRAMES CHARACTERS [TANGENTS.bin]\n", argv[0]);
         return 2;
     }
+    const char *tangents_path = argc == 7 ? argv[6] : NULL;
     const char *model_path = argv[1];
     const unsigned frames = (unsigned)atoi(argv[4]), characters = (unsigned)atoi(argv[5]);
 
@@ -178,26 +182,38 @@ int main(int argc, char **argv) {
     REQUIRE(rrskin_model_load_file(context, model_path, &model));
     rrskin_model_info info;
     REQUIRE(rrskin_model_get_info(model, &info));
+    if (tangents_path && !info.tangents) {
+        fprintf(stderr, "%s has no rest tangents to check %s against\n", model_path, tangents_path);
+        return 1;
+    }
+    rrskin_crowd_options options = {.frames_in_flight = 2, .tangents = tangents_path != NULL};
     rrskin_crowd crowd;
-    REQUIRE(rrskin_crowd_create(model, characters, &crowd)); /* 2 frames in flight */
+    REQUIRE(rrskin_crowd_create_with_options(model, characters, &options, &crowd));
     rrskin_crowd_output output;
     REQUIRE(rrskin_crowd_get_output(crowd, 0, &output));
     check(output.positions != 0 && output.vertex_stride == 12 && output.character_stride == 12u * info.vertices,
           "output buffers and strides");
+    check(!tangents_path || (output.tangents != 0 && output.tangent_stride == 16 &&
+                             output.tangent_character_stride == 16u * info.vertices),
+          "tangent buffer and strides");
 
     const size_t bone_floats = (size_t)characters * info.bones * 12;
     const size_t vertex_floats = (size_t)characters * info.vertices * 3;
+    const size_t tangent_floats = tangents_path ? (size_t)characters * info.vertices * 4 : 0;
     float *poses = read_floats(argv[2], frames * bone_floats);
     float *expected = read_floats(argv[3], frames * vertex_floats);
-    if (!poses || !expected) {
-        fprintf(stderr, "cannot read %s or %s (or out of memory)\n", argv[2], argv[3]);
+    float *expected_tangents = tangents_path ? read_floats(tangents_path, frames * tangent_floats) : NULL;
+    if (!poses || !expected || (tangents_path && !expected_tangents)) {
+        fprintf(stderr, "cannot read %s, %s or %s (or out of memory)\n", argv[2], argv[3],
+                tangents_path ? tangents_path : "-");
         return 1;
     }
 
-    /* The engine's host-visible copies of each frame slot's positions. */
+    /* The engine's host-visible copies of each frame slot's positions, then its tangents. */
     VkPhysicalDeviceMemoryProperties memory;
     vkGetPhysicalDeviceMemoryProperties(physical, &memory);
-    const VkDeviceSize copy_bytes = vertex_floats * sizeof(float);
+    const VkDeviceSize position_bytes = vertex_floats * sizeof(float);
+    const VkDeviceSize copy_bytes = position_bytes + tangent_floats * sizeof(float);
     VkBuffer copies[IN_FLIGHT];
     VkDeviceMemory copy_memory[IN_FLIGHT];
     float *copied[IN_FLIGHT];
@@ -244,6 +260,23 @@ int main(int argc, char **argv) {
             char what[96];
             snprintf(what, sizeof what, "frame %u: positions match the CPU evaluator (worst %.2e)", done, worst);
             check(worst <= 2e-4, what);
+            if (tangents_path) {
+                /* Unit xyz within 2e-3 as in the Rust tests (the synthetic grid's normals are all
+                   well-conditioned); the handedness exactly. */
+                double worst_tangent = 0.0;
+                int handedness = 1;
+                const float *want_t = expected_tangents + done * tangent_floats;
+                const float *got_t = copied[slot] + vertex_floats;
+                for (size_t v = 0; v < tangent_floats / 4; v++) {
+                    double d = 0.0;
+                    for (int c = 0; c < 3; c++) d += pow(got_t[4 * v + c] - want_t[4 * v + c], 2);
+                    if (!(sqrt(d) <= worst_tangent)) worst_tangent = sqrt(d);
+                    handedness &= got_t[4 * v + 3] == want_t[4 * v + 3];
+                }
+                snprintf(what, sizeof what, "frame %u: tangents match the CPU evaluator (worst %.2e)", done,
+                         worst_tangent);
+                check(worst_tangent <= 2e-3 && handedness, what);
+            }
             rrskin_pass_timings timings;
             check(rrskin_context_get_timings(context, slot, &timings) == RRSKIN_STATUS_OK && timings.skin_ms > 0.0,
                   "pass timings of the frame slot");
@@ -257,8 +290,13 @@ int main(int argc, char **argv) {
         REQUIRE(rrskin_crowds_record(context, cmd, slot, &crowd, 1));
         /* rrskin's closing barrier made the outputs visible to transfer reads. */
         REQUIRE(rrskin_crowd_get_output(crowd, slot, &output));
-        VkBufferCopy region = {.srcOffset = output.offset, .dstOffset = 0, .size = copy_bytes};
+        VkBufferCopy region = {.srcOffset = output.offset, .dstOffset = 0, .size = position_bytes};
         vkCmdCopyBuffer(cmd, (VkBuffer)(uintptr_t)output.positions, copies[slot], 1, &region);
+        if (tangents_path) {
+            VkBufferCopy tangent_region = {
+                .srcOffset = output.offset, .dstOffset = position_bytes, .size = copy_bytes - position_bytes};
+            vkCmdCopyBuffer(cmd, (VkBuffer)(uintptr_t)output.tangents, copies[slot], 1, &tangent_region);
+        }
         VkMemoryBarrier to_host = {.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER,
                                    .srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT,
                                    .dstAccessMask = VK_ACCESS_HOST_READ_BIT};
@@ -339,6 +377,7 @@ int main(int argc, char **argv) {
     check(validation_messages == 0, "no validation messages");
     free(poses);
     free(expected);
+    free(expected_tangents);
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

@@ -503,12 +503,11 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             out,
         } => {
             let m = Model::load(&model)?;
-            let (poses, expected) =
-                rrskin_tools::run::reference::write(&m, frames, characters, &out)?;
+            let written = rrskin_tools::run::reference::write(&m, frames, characters, &out)?;
+            let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
             note(format_args!(
-                "wrote {} and {} ({} x {} of {}: J = {}, V = {})",
-                poses.display(),
-                expected.display(),
+                "wrote {} ({} x {} of {}: J = {}, V = {})",
+                names.join(", "),
                 count(frames, "frame"),
                 count(characters, "character"),
                 model.display(),

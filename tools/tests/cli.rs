@@ -189,7 +189,7 @@ fn bad_counts_and_outputs_fail_before_any_work() {
 }
 
 /// `rrskin reference` writes the C example's inputs: the poses, and the CPU evaluator's positions
-/// for exactly those poses.
+/// and tangents for exactly those poses.
 #[test]
 fn reference_writes_the_c_examples_inputs() {
     let dir = temp_dir("reference");
@@ -241,10 +241,16 @@ fn reference_writes_the_c_examples_inputs() {
         .map(|t| t.try_into().expect("12 floats"))
         .collect();
     let (mut p, mut n) = (vec![[0.0; 3]; 3 * 25], vec![[0.0; 3]; 3 * 25]);
+    let mut t = vec![[0.0; 4]; 3 * 25];
     rrskin::cpu::CpuEvaluator::new(&model)
-        .evaluate(&bones, &mut p, &mut n)
-        .expect("CPU evaluator");
+        .evaluate_with_tangents(&bones, &mut p, &mut n, &mut t)
+        .expect("CPU evaluator (synthetic models carry tangents)");
     assert_eq!(p.as_flattened(), &expected[3 * 25 * 3..], "frame 1");
+    assert_eq!(
+        t.as_flattened(),
+        &floats("tangents.bin")[3 * 25 * 4..],
+        "frame 1"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -214,6 +214,8 @@ impl Bench {
             "bounds_ratio": self.cost(&self.bounds),
             "tangents_ms": self.tangents.as_ref().map(|t| t.total_ms),
             "tangents_ratio": self.tangents.as_ref().map(|t| self.cost(t)),
+            // The tangents pass alone, from the same frames (steadier than a ratio of totals).
+            "tangents_pass_ms": self.tangents.as_ref().map(|t| t.median.tangents_ms),
         })
     }
 }
