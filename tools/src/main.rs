@@ -520,19 +520,21 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let dims = serde_json::json!({
                 "vertices": m.vertex_count(), "triangles": m.triangle_count(),
                 "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
+                "tangents": m.has_tangents(),
             });
             if json {
                 out!("{dims}");
             } else {
                 out!(
-                    "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}",
+                    "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}",
                     model.display(),
                     m.vertex_count(),
                     m.triangle_count(),
                     m.bone_count(),
                     m.proxy_count(),
                     m.influences(),
-                    if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" }
+                    if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
+                    if m.has_tangents() { "rest tangents" } else { "no rest tangents" }
                 );
             }
         }

@@ -60,6 +60,10 @@ fn synth_info_and_profile_agree_on_the_model() {
         ),
         (Some(5), Some(6), Some(8))
     );
+    assert_eq!(
+        info["tangents"], true,
+        "synthetic models carry rest tangents"
+    );
     let p = json(&rrskin(&[
         "profile",
         m,
