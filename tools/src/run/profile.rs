@@ -214,8 +214,10 @@ impl Bench {
             "bounds_ratio": self.cost(&self.bounds),
             "tangents_ms": self.tangents.as_ref().map(|t| t.total_ms),
             "tangents_ratio": self.tangents.as_ref().map(|t| self.cost(t)),
-            // The tangents pass alone, from the same frames (steadier than a ratio of totals).
+            // The tangents pass alone, from the same frames (steadier than a ratio of totals),
+            // and every pass of those frames.
             "tangents_pass_ms": self.tangents.as_ref().map(|t| t.median.tangents_ms),
+            "tangents_frame": self.tangents.as_ref().map(Profile::to_json),
         })
     }
 }
