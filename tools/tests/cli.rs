@@ -261,9 +261,9 @@ fn reference_writes_the_c_examples_inputs() {
 /// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of ARCHITECTURE.md and the
 /// figures of METHOD.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good as the
 /// reference's best row, 35.1 / 49.3), with every choice made on the training poses; the
-/// runtime model at most 0.9 of SSD's held-out error (measured: 0.84) and within 10 %
-/// (relative) of the full model; the error budget's oracle proxies no worse than the model
-/// on the training poses (they are its per-pose least-squares optimum).
+/// runtime model at most 0.75 of SSD's held-out error (measured: 0.69), below DQS with SSD's
+/// weights and within 10 % (relative) of the full model; the error budget's oracle proxies no
+/// worse than the model on the training poses (they are its per-pose least-squares optimum).
 #[test]
 fn eval_on_cesiumman_meets_the_reference_figures() {
     let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
@@ -344,8 +344,9 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         red_train <= 1.1 * rr_train,
         "rr_reduced {red_train} / {red_test} vs rr_full {rr_train}"
     );
+    // Measured: 0.69 (issue 12's acceptance was 0.8; its goal is 0.5).
     assert!(
-        red_test <= 0.8 * ssd_test,
+        red_test <= 0.75 * ssd_test,
         "rr_reduced {red_test} vs SSD {ssd_test} on held-out poses"
     );
     let dqs_test = n(&e["dqs"]["test"]);

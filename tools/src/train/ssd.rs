@@ -134,6 +134,52 @@ pub fn fit_weights(
     support.iter().map(|&(c, w)| (c, w / total)).collect()
 }
 
+/// Like [`fit_weights`], but when more than `k` candidates get weight, every k-subset of that
+/// support is refitted and the one with the least squared error over the samples is kept. The
+/// k largest weights of the unconstrained fit are often not the best k: nearly collinear
+/// candidates (a joint's proxies at neighbouring fractions) share weight that one of them could
+/// carry, and dropping the small ones then costs more than dropping a large one. At most
+/// C(`candidates.len()`, k) small NNLS solves per vertex (210 for 10 candidates, K = 4).
+pub fn fit_weights_best_subset(
+    poses: usize,
+    candidates: &[usize],
+    k: usize,
+    moved: impl Fn(usize, usize) -> DVec3,
+    target: impl Fn(usize) -> DVec3,
+) -> Vec<(usize, f64)> {
+    let support = fit_weights(poses, candidates, candidates.len(), &moved, &target);
+    if support.len() <= k || support.len() > MAX_SUBSET_SUPPORT {
+        return fit_weights(poses, candidates, k, &moved, &target);
+    }
+    let error = |w: &[(usize, f64)]| -> f64 {
+        (0..poses)
+            .map(|n| {
+                let y: DVec3 = w.iter().map(|&(c, x)| moved(n, c) * x).sum();
+                (y - target(n)).length_squared()
+            })
+            .sum()
+    };
+    let mut best: Option<(f64, Vec<(usize, f64)>)> = None;
+    for mask in 0u32..(1 << support.len()) {
+        if mask.count_ones() as usize != k {
+            continue;
+        }
+        let subset: Vec<usize> = (0..support.len())
+            .filter(|&i| mask & (1 << i) != 0)
+            .map(|i| support[i].0)
+            .collect();
+        let w = fit_weights(poses, &subset, k, &moved, &target);
+        let e = error(&w);
+        if best.as_ref().is_none_or(|b| e < b.0) {
+            best = Some((e, w));
+        }
+    }
+    best.map_or(support, |b| b.1)
+}
+
+/// The largest NNLS support [`fit_weights_best_subset`] searches exhaustively.
+const MAX_SUBSET_SUPPORT: usize = 16;
+
 fn nnls_sum_to_one(
     poses: usize,
     candidates: &[usize],
@@ -163,4 +209,52 @@ fn nnls_sum_to_one(
         }
     }
     nnls(&g, &h)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Where the k largest NNLS weights are not the best k, the subset search finds a k-subset
+    /// that fits better, and never one that fits worse; its weights sum to one.
+    #[test]
+    fn the_best_subset_fits_no_worse_than_the_largest_weights() {
+        // Candidates: 6 random affine maps of one point per sample; the target blends 5 of them.
+        let mut seed = 7u64;
+        let mut rand = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (poses, c) = (12, 6);
+        let table: Vec<Vec<DVec3>> = (0..poses)
+            .map(|_| (0..c).map(|_| DVec3::new(rand(), rand(), rand())).collect())
+            .collect();
+        let truth = [0.3, 0.25, 0.2, 0.15, 0.1, 0.0];
+        let target = |n: usize| -> DVec3 { (0..c).map(|e| table[n][e] * truth[e]).sum() };
+        let moved = |n: usize, e: usize| table[n][e];
+        let candidates: Vec<usize> = (0..c).collect();
+        let error = |w: &[(usize, f64)]| -> f64 {
+            (0..poses)
+                .map(|n| {
+                    let y: DVec3 = w.iter().map(|&(e, x)| moved(n, e) * x).sum();
+                    (y - target(n)).length_squared()
+                })
+                .sum()
+        };
+        let mut better = 0;
+        for k in 1..=4 {
+            let largest = fit_weights(poses, &candidates, k, moved, target);
+            let best = fit_weights_best_subset(poses, &candidates, k, moved, target);
+            assert!(best.len() <= k, "{best:?}");
+            let total: f64 = best.iter().map(|x| x.1).sum();
+            assert!((total - 1.0).abs() < 1e-9, "{best:?}");
+            assert!(error(&best) <= error(&largest) + 1e-12, "k = {k}");
+            if error(&best) < 0.99 * error(&largest) {
+                better += 1;
+            }
+        }
+        assert!(better > 0, "the search never beat the largest weights here");
+    }
 }

@@ -10,7 +10,9 @@
 //! ```
 //!
 //! (r: the vertices less their bones' share), solved by conjugate gradients. Δ = S v is local:
-//! proxy e sees its own key and the bones its geometry already uses, so a fit on wide random
+//! proxy e sees its own key, the keys of the other proxies on its joint (the same rotation at
+//! other fractions, so the correction can bend non-linearly in that one joint's rotation) and
+//! the bones its geometry already uses, so a fit on wide random
 //! poses cannot learn that one elbow bulges the other (STAR's lesson; a dense Δ measured worse
 //! on held-out animation). And Δ is invariant to rigid motion: a column of Δ multiplies one
 //! entry of one frame's matrix, and within each row the entries that multiply the same entry
@@ -26,8 +28,12 @@ use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use rayon::prelude::*;
 
-/// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0.
-pub const RIDGES: [Option<f64>; 8] = [
+/// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0. (The
+/// cross-validation picked the weakest of 1e-6..1 on both public sets, so the grid reaches
+/// further down; conjugate gradients' fixed iteration count bounds the fit as well.)
+pub const RIDGES: [Option<f64>; 10] = [
+    Some(1e-8),
+    Some(1e-7),
     Some(1e-6),
     Some(1e-5),
     Some(1e-4),
@@ -83,8 +89,10 @@ struct Problem {
     terms: Vec<PoseTerms>,
 }
 
-/// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
-/// uses and the bone its key turns.
+/// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the keys of the other
+/// proxies on the same joint (other fractions of the same rotation: a correction that is not
+/// linear in the joint's rotation matrix), the bones its geometry uses and the bone its key
+/// turns.
 pub fn refit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -154,13 +162,20 @@ impl Problem {
                 })
             })
             .collect();
-        // Per row, the frames it sees (key e, then bones), each as the column of its entry 0.
+        // Per row, the frames it sees (key e, the keys on its joint, then bones), each as the
+        // column of its entry 0 and its entry count.
+        let joint = |l: usize| reduced.predictors[l].rotation.map(|t| t.first.bone);
         let mut free = Vec::new();
         for r in 0..n4p {
             let e = r / 4;
-            let turned = reduced.predictors[e].rotation.map(|t| t.first.bone);
+            let turned = joint(e);
             let uses = |b: usize| (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0);
             let frames: Vec<(usize, usize)> = std::iter::once((3 * e, 3))
+                .chain(
+                    (0..p)
+                        .filter(|&l| l != e && turned.is_some() && joint(l) == turned)
+                        .map(|l| (3 * l, 3)),
+                )
                 .chain(
                     (0..j)
                         .filter(|&b| Some(b) == turned || uses(b))
