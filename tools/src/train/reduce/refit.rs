@@ -10,9 +10,9 @@
 //! ```
 //!
 //! (r: the vertices less their bones' share), solved by conjugate gradients. Δ = S v is local:
-//! proxy e sees its own key, the keys of the other proxies on its joint (the same rotation at
-//! other fractions, so the correction can bend non-linearly in that one joint's rotation) and
-//! the bones its geometry already uses, so a fit on wide random
+//! proxy e sees its own key and the bones its geometry already uses (one key per proxy: the
+//! runtime then evaluates that key inside the product, `glsl/fused_product.comp`; also seeing
+//! the other keys of its joint gained 0.15 / 0.06 EE points and would lose that), so a fit on wide random
 //! poses cannot learn that one elbow bulges the other (STAR's lesson; a dense Δ measured worse
 //! on held-out animation). And Δ is invariant to rigid motion: a column of Δ multiplies one
 //! entry of one frame's matrix, and within each row the entries that multiply the same entry
@@ -89,10 +89,8 @@ struct Problem {
     terms: Vec<PoseTerms>,
 }
 
-/// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the keys of the other
-/// proxies on the same joint (other fractions of the same rotation: a correction that is not
-/// linear in the joint's rotation matrix), the bones its geometry uses and the bone its key
-/// turns.
+/// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
+/// uses and the bone its key turns.
 pub fn refit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -162,20 +160,14 @@ impl Problem {
                 })
             })
             .collect();
-        // Per row, the frames it sees (key e, the keys on its joint, then bones), each as the
+        // Per row, the frames it sees (key e, then bones), each as the
         // column of its entry 0 and its entry count.
-        let joint = |l: usize| reduced.predictors[l].rotation.map(|t| t.first.bone);
         let mut free = Vec::new();
         for r in 0..n4p {
             let e = r / 4;
-            let turned = joint(e);
+            let turned = reduced.predictors[e].rotation.map(|t| t.first.bone);
             let uses = |b: usize| (0..4).any(|k| c0[(4 * e + 3) * f + 3 * p + 4 * b + k] != 0.0);
             let frames: Vec<(usize, usize)> = std::iter::once((3 * e, 3))
-                .chain(
-                    (0..p)
-                        .filter(|&l| l != e && turned.is_some() && joint(l) == turned)
-                        .map(|l| (3 * l, 3)),
-                )
                 .chain(
                     (0..j)
                         .filter(|&b| Some(b) == turned || uses(b))
