@@ -22,6 +22,7 @@ pub enum Pass {
     Predict,
     BlendGemm,
     SparseProduct,
+    FusedProduct,
     SkinK4,
     SkinK8,
     Normals,
@@ -29,12 +30,13 @@ pub enum Pass {
 }
 
 impl Pass {
-    pub const COUNT: usize = 7;
+    pub const COUNT: usize = 8;
     /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
     pub const ALL: [Pass; Self::COUNT] = [
         Pass::Predict,
         Pass::BlendGemm,
         Pass::SparseProduct,
+        Pass::FusedProduct,
         Pass::SkinK4,
         Pass::SkinK8,
         Pass::Normals,
@@ -46,6 +48,7 @@ impl Pass {
             Pass::Predict => &PREDICT,
             Pass::BlendGemm => &BLEND_GEMM,
             Pass::SparseProduct => &SPARSE_PRODUCT,
+            Pass::FusedProduct => &FUSED_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
             Pass::Normals => &NORMALS,
@@ -71,15 +74,21 @@ impl Pass {
 }
 
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
-/// a block-sparse [C1 | C2], for each K, with and without bounds.
+/// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
+/// with and without bounds.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
-    let products = [(0, false), (3, false), (3, true)];
-    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s)| (k, p, s)));
+    let products = [
+        (0, false, false),
+        (3, false, false),
+        (3, true, false),
+        (3, true, true),
+    ];
+    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s, f)| (k, p, s, f)));
     kinds
         .into_iter()
         .flatten()
-        .flat_map(|(k, proxies, sparse)| {
+        .flat_map(|(k, proxies, sparse, fused)| {
             [false, true].map(|bounds| Dims {
                 vertices: 10,
                 proxies,
@@ -87,12 +96,14 @@ pub fn model_kinds() -> impl Iterator<Item = Dims> {
                 influences: k as usize,
                 bounds,
                 sparse,
+                fused,
             })
         })
 }
 
 /// Key gradients D_ℓ(q) for every (predictor, character), written with the bone transforms into
-/// B = [d; q], the right-hand side of the GEMM. Reduced models (P > 0) only.
+/// B = [d; q], the right-hand side of the GEMM. Reduced models (P > 0) whose product does not
+/// evaluate them itself.
 const PREDICT: PassDesc = PassDesc {
     #[cfg(test)]
     glsl: "predict.comp",
@@ -106,7 +117,7 @@ const PREDICT: PassDesc = PassDesc {
     push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over predictors then bones, one row of groups per character.
     groups: [over(PredictorsAndBones, 64), over(Characters, 1), ONE],
-    runs: |d| d.proxies > 0,
+    runs: |d| d.proxies > 0 && !d.fused,
 };
 
 /// Proxy transforms T (4P x 3C) = [C1 | C2] (4P x (3P + 4J)) · B ((3P + 4J) x 3C) for all
@@ -142,7 +153,29 @@ const SPARSE_PRODUCT: PassDesc = PassDesc {
     push: &[W::Proxies, W::Characters],
     // local_size_x = 64 over characters, one row of groups per proxy.
     groups: [over(Characters, 64), over(Proxies, 1), ONE],
-    runs: |d| d.proxies > 0 && d.sparse,
+    runs: |d| d.proxies > 0 && d.sparse && !d.fused,
+};
+
+/// The same T for a block-sparse model whose proxies read at most one key each: each
+/// (character, proxy) evaluates its key's predictor from the bones and multiplies B's entries
+/// as it makes them, so neither the predictor pass nor B's round trip through memory remain.
+const FUSED_PRODUCT: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "fused_product.comp",
+    spirv: spirv!("fused_product"),
+    bindings: &[
+        Model(M::BlendOffsets),
+        Model(M::BlendColumns),
+        Model(M::BlendValues),
+        Reads(Crowd::Bones),
+        Model(M::Parents),
+        Model(M::Predictors),
+        Writes(Crowd::Proxies),
+    ],
+    push: &[W::Proxies, W::Bones, W::Characters],
+    // As the sparse product's.
+    groups: [over(Characters, 64), over(Proxies, 1), ONE],
+    runs: |d| d.proxies > 0 && d.fused,
 };
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)] (the bones are read in
@@ -344,6 +377,7 @@ mod tests {
             influences: 4,
             bounds: false,
             sparse: false,
+            fused: false,
         };
         // skin (6 buffers) and normals (5)
         assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
@@ -366,5 +400,11 @@ mod tests {
         };
         // + predict (4) and the sparse product (5)
         assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 20));
+        let fused = Dims {
+            fused: true,
+            ..sparse
+        };
+        // + the fused product (7)
+        assert_eq!(Pass::descriptors_per_chunk(&fused), (3, 18));
     }
 }
