@@ -177,8 +177,9 @@ pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::pred
 /// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
 /// device in one run, from GPU timestamps; and the cost of the runtime's optional outputs,
 /// previous positions and bounds, as rotational-regression frames with each. RR and SSD frames
-/// alternate (RR, SSD, RR, SSD ..., the same poses for both), so that load on the machine drifts
-/// into both alike, and each pair gives a ratio: [`Bench::paired_ratio`] is their median.
+/// alternate in pairs of the same poses (RR SSD, SSD RR, RR SSD ...), so that load on the
+/// machine drifts into both alike and neither is always first; each pair gives a ratio:
+/// [`Bench::paired_ratio`] is their median.
 pub struct Bench {
     pub rr: Profile,
     pub ssd: Profile,
@@ -213,7 +214,14 @@ impl Bench {
                 (Vec::with_capacity(frames), Vec::with_capacity(frames));
             for frame in 0..WARM_UP_FRAMES + frames {
                 let bones = poses(model, characters, frame);
-                let pair = (rr.frame(&bones)?, ssd.frame(&bones)?);
+                // Which runs first alternates: on lavapipe the frame after the host's pose
+                // work runs measurably slower than the one right after it.
+                let pair = if frame % 2 == 0 {
+                    (rr.frame(&bones)?, ssd.frame(&bones)?)
+                } else {
+                    let ssd_first = ssd.frame(&bones)?;
+                    (rr.frame(&bones)?, ssd_first)
+                };
                 if frame >= WARM_UP_FRAMES {
                     rr_samples.push(pair.0);
                     ssd_samples.push(pair.1);
