@@ -572,7 +572,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 );
                 for (name, ms) in [
                     ("predictors", t.predict_ms),
-                    ("C1/C2 GEMM", t.blend_ms),
+                    ("C1/C2 prod.", t.blend_ms),
                     ("skinning", t.skin_ms),
                     ("normals", t.normals_ms),
                 ] {
