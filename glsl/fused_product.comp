@@ -4,7 +4,8 @@
 // parent bone): sparse_product.comp's T with the entries of B = [d; q] computed where they are
 // used, key l's D_l(q) by predictor.glsl (as pass 1 does) and a bone's from the input, so B is
 // neither written nor read and pass 1 does not run. One invocation per (character, proxy); the
-// invocations of a workgroup share the proxy, hence its predictor and its column loop.
+// invocations of a workgroup share the proxy, hence its predictor and its column loop; rows
+// e >= P of workgroups copy bone e - P into the skinning palette [t; q].
 layout(local_size_x = 64) in;
 
 #include "predictor_types.glsl"
@@ -15,7 +16,7 @@ layout(std430, set = 0, binding = 2) readonly buffer BlendValues { vec4 vals[]; 
 layout(std430, set = 0, binding = 3) readonly buffer Bones { Affine bones[]; };         // chars x J
 layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J
 layout(std430, set = 0, binding = 5) readonly buffer Predictors { Predictor preds[]; }; // P
-layout(std430, set = 0, binding = 6) buffer Proxies { vec4 proxies[]; };      // chars x P x 3 rows
+layout(std430, set = 0, binding = 6) buffer Proxies { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
@@ -26,6 +27,14 @@ void main() {
     uint e = gl_WorkGroupID.y;
     if (ch >= pc.chars) { return; }
     uint base = ch * pc.J;
+    uint out_at = (ch * (pc.P + pc.J) + e) * 3u;
+    if (e >= pc.P) {
+        Affine t = bones[base + e - pc.P];
+        proxies[out_at] = t.r0;
+        proxies[out_at + 1u] = t.r1;
+        proxies[out_at + 2u] = t.r2;
+        return;
+    }
     uint keys = 3u * pc.P;
     uint begin = offsets[e];
     uint end = offsets[e + 1u];
@@ -52,7 +61,6 @@ void main() {
         acc1 += v * b.y;
         acc2 += v * b.z;
     }
-    uint out_at = (ch * pc.P + e) * 3u;
     proxies[out_at] = acc0;
     proxies[out_at + 1u] = acc1;
     proxies[out_at + 2u] = acc2;

@@ -828,13 +828,14 @@ fn memory_queries_are_the_bytes_created() {
         ..two
     };
     assert_eq!(bytes(bounded) - bytes(two), 2 * 10 * 32);
-    // The largest buffer per character, of bones (48 J), B = [d; q] (12 (3P + 4J)), proxies
-    // (48 P), positions and normals (12 V); never more than a character's whole share.
+    // The largest buffer per character, of bones (48 J), B = [d; q] (12 (3P + 4J)), the
+    // palette [t; q] (48 (P + J)), positions and normals (12 V); never more than a character's
+    // whole share.
     let largest = crowd_largest_buffer_bytes(&sizes, &plain).expect("query");
     let p = model.proxy_count() as u64;
     assert_eq!(
         largest,
-        [48 * j, 12 * (3 * p + 4 * j), 48 * p, 12 * v]
+        [48 * j, 12 * (3 * p + 4 * j), 48 * (p + j), 12 * v]
             .into_iter()
             .max()
             .unwrap_or(0)

@@ -102,8 +102,8 @@ pub fn model_kinds() -> impl Iterator<Item = Dims> {
 }
 
 /// Key gradients D_ℓ(q) for every (predictor, character), written with the bone transforms into
-/// B = [d; q], the right-hand side of the GEMM. Reduced models (P > 0) whose product does not
-/// evaluate them itself.
+/// B = [d; q], the right-hand side of the GEMM, and the bones into the skinning palette
+/// [t; q]. Reduced models (P > 0) whose product does not evaluate them itself.
 const PREDICT: PassDesc = PassDesc {
     #[cfg(test)]
     glsl: "predict.comp",
@@ -113,6 +113,7 @@ const PREDICT: PassDesc = PassDesc {
         Model(M::Parents),
         Model(M::Predictors),
         Writes(Crowd::Rhs),
+        Writes(Crowd::Proxies),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over predictors then bones, one row of groups per character.
@@ -150,7 +151,7 @@ const SPARSE_PRODUCT: PassDesc = PassDesc {
         Reads(Crowd::Rhs),
         Writes(Crowd::Proxies),
     ],
-    push: &[W::Proxies, W::Characters],
+    push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over characters, one row of groups per proxy.
     groups: [over(Characters, 64), over(Proxies, 1), ONE],
     runs: |d| d.proxies > 0 && d.sparse && !d.fused,
@@ -173,13 +174,13 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
         Writes(Crowd::Proxies),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
-    // As the sparse product's.
-    groups: [over(Characters, 64), over(Proxies, 1), ONE],
+    // As the sparse product's, and a row per bone (copied into the palette).
+    groups: [over(Characters, 64), over(PredictorsAndBones, 1), ONE],
     runs: |d| d.proxies > 0 && d.fused,
 };
 
-/// Matrix-palette skinning over the palette [proxies (P); bones (J)] (the bones are read in
-/// place, never copied); one pipeline per K.
+/// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
+/// of it in the Proxies buffer, of a plain LBS model the bones in place; one pipeline per K.
 const SKIN_K4: PassDesc = PassDesc {
     #[cfg(test)]
     glsl: "skin.comp",
@@ -344,8 +345,8 @@ mod tests {
     }
 
     /// Every model runs exactly one writer of each output, and every crowd buffer its passes
-    /// read is either the bone input or written by one of them (with P = 0 the proxies are
-    /// bound but never read: no palette index is below P).
+    /// read is either the bone input or written by one of them (the palette by two: the bones
+    /// and t; with P = 0 it is bound but never read).
     #[test]
     fn every_model_writes_its_outputs_once_and_reads_only_what_is_written() {
         for d in model_kinds() {
@@ -361,7 +362,9 @@ mod tests {
                     let input =
                         b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Proxies);
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
-                        assert_eq!(writers(b), 1, "{p:?} reads {b:?} of {d:?}");
+                        let palette = b == CrowdBuffer::Proxies && !d.fused;
+                        let expected = if palette { 2 } else { 1 };
+                        assert_eq!(writers(b), expected, "{p:?} reads {b:?} of {d:?}");
                     }
                 }
             }
@@ -392,14 +395,14 @@ mod tests {
             influences: 8,
             ..lbs
         };
-        // + predict (4) and the GEMM (3)
-        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 18));
+        // + predict (5) and the GEMM (3)
+        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 19));
         let sparse = Dims {
             sparse: true,
             ..reduced
         };
-        // + predict (4) and the sparse product (5)
-        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 20));
+        // + predict (5) and the sparse product (5)
+        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 21));
         let fused = Dims {
             fused: true,
             ..sparse
