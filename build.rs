@@ -1,6 +1,8 @@
 //! Compiles the runtime's compute passes in `glsl/` to SPIR-V with naga (pure Rust, no shaderc).
 //! The SPIR-V lands in OUT_DIR and is embedded by the pass table, `src/vk/passes.rs`; it is never committed.
-//! A shader may be built in several variants, each with its own `#define`s (skinning and tangents: K = 4, 8).
+//! A shader may be built in several variants, each with its own `#define`s (skinning and
+//! tangents: K = 4, 8), and may `#include "file.glsl"` from its folder (naga has no `#include`:
+//! see [`splice`]).
 //! rrskin-render's build script (`tools/render/build.rs`) includes this file for [`build`]
 //! (the stage follows the file extension: `.vert`, `.frag`, else compute).
 
@@ -16,6 +18,7 @@ const SHADERS: &[Shader] = &[
     ("predict.comp", "predict", &[]),
     ("blend_gemm.comp", "blend_gemm", &[]),
     ("sparse_product.comp", "sparse_product", &[]),
+    ("fused_product.comp", "fused_product", &[]),
     ("skin.comp", "skin_k4", &[("K", "4")]),
     ("skin.comp", "skin_k8", &[("K", "8")]),
     ("normals.comp", "normals", &[]),
@@ -34,14 +37,31 @@ pub fn build(dir: &Path, shaders: &[Shader]) {
     let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
     for (src, name, defines) in shaders {
         let path = dir.join(src);
-        println!("cargo:rerun-if-changed={}", path.display());
-        let source = std::fs::read_to_string(&path)
-            .unwrap_or_else(|e| panic!("reading {}: {e}", path.display()));
+        let source = splice(dir, &read(&path));
         let words = compile(&path, &source, defines);
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
         std::fs::write(Path::new(&out_dir).join(format!("{name}.spv")), bytes)
             .expect("writing SPIR-V to OUT_DIR");
     }
+}
+
+fn read(path: &Path) -> String {
+    println!("cargo:rerun-if-changed={}", path.display());
+    std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {}: {e}", path.display()))
+}
+
+/// `source` with each line `#include "name"` replaced by the file `dir/name` (one level: an
+/// included file includes nothing), so that passes share functions (the key predictors).
+fn splice(dir: &Path, source: &str) -> String {
+    let mut out = String::with_capacity(source.len());
+    for line in source.lines() {
+        match line.trim().strip_prefix("#include ") {
+            Some(name) => out.push_str(&read(&dir.join(name.trim().trim_matches('"')))),
+            None => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    out
 }
 
 fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {

@@ -21,7 +21,7 @@ const uint WG = 64u;
 
 layout(std430, set = 0, binding = 0) readonly buffer Matrix { float a[]; };      // 4P x (3P+4J)
 layout(std430, set = 0, binding = 1) readonly buffer Rhs { float bmat[]; };      // (3P+4J) x 3 chars
-layout(std430, set = 0, binding = 2) buffer Proxies { vec4 proxies[]; };         // chars x P x 3 rows
+layout(std430, set = 0, binding = 2) buffer Proxies { vec4 proxies[]; };   // chars x (P + J) x 3 rows
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
@@ -83,7 +83,7 @@ void main() {
             uint ch = col / 3u;
             uint c = col - 3u * ch;
             for (uint q = 0u; q < 4u; q++) {
-                if (b0 + q < pc.P) { proxies[(ch * pc.P + b0 + q) * 3u + c] = acc[4u * t + q]; }
+                if (b0 + q < pc.P) { proxies[(ch * (pc.P + pc.J) + b0 + q) * 3u + c] = acc[4u * t + q]; }
             }
         }
     }

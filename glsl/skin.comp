@@ -1,8 +1,6 @@
 #version 450
 // Pass 3: matrix-palette skinning, K influences (built with K = 4 and K = 8).
-// One invocation per (vertex = x, character = y). The palette is [t (P proxies); q (J bones)]:
-// index i < P reads the proxy transforms of pass 2, otherwise bone i - P straight from the
-// input, so bones are never copied into a palette.
+// One invocation per (vertex = x, character = y), over the palette of palette.glsl.
 layout(local_size_x = 64) in;
 
 struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
@@ -10,11 +8,13 @@ struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
 layout(std430, set = 0, binding = 0) readonly buffer Rest { float rest[]; };          // V x 3
 layout(std430, set = 0, binding = 1) readonly buffer SkinIndex { uint skin_index[]; };   // V x K
 layout(std430, set = 0, binding = 2) readonly buffer SkinWeight { float skin_weight[]; }; // V x K
-layout(std430, set = 0, binding = 3) readonly buffer Proxies { Affine proxies[]; };   // chars x P
+layout(std430, set = 0, binding = 3) readonly buffer Proxies { Affine proxies[]; };   // chars x (P + J)
 layout(std430, set = 0, binding = 4) readonly buffer Bones { Affine bones[]; };       // chars x J
 layout(std430, set = 0, binding = 5) buffer Positions { float pos[]; };               // chars x V x 3
 
 layout(push_constant) uniform Push { uint V; uint P; uint J; uint chars; } pc;
+
+#include "palette.glsl"
 
 void main() {
     uint a = gl_GlobalInvocationID.x;
@@ -22,25 +22,10 @@ void main() {
     if (a >= pc.V || ch >= pc.chars) {
         return;
     }
-    vec4 r0 = vec4(0.0);
-    vec4 r1 = vec4(0.0);
-    vec4 r2 = vec4(0.0);
-    for (uint k = 0u; k < uint(K); k++) {
-        uint i = skin_index[a * uint(K) + k];
-        float w = skin_weight[a * uint(K) + k];
-        Affine m;
-        if (i < pc.P) {
-            m = proxies[ch * pc.P + i];
-        } else {
-            m = bones[ch * pc.J + (i - pc.P)];
-        }
-        r0 += w * m.r0;
-        r1 += w * m.r1;
-        r2 += w * m.r2;
-    }
+    Affine m = blended(a, ch);
     vec4 y = vec4(rest[3u * a], rest[3u * a + 1u], rest[3u * a + 2u], 1.0);
     uint o = (ch * pc.V + a) * 3u;
-    pos[o] = dot(r0, y);
-    pos[o + 1u] = dot(r1, y);
-    pos[o + 2u] = dot(r2, y);
+    pos[o] = dot(m.r0, y);
+    pos[o + 1u] = dot(m.r1, y);
+    pos[o + 2u] = dot(m.r2, y);
 }

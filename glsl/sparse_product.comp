@@ -12,9 +12,9 @@ layout(std430, set = 0, binding = 0) readonly buffer BlendOffsets { uint offsets
 layout(std430, set = 0, binding = 1) readonly buffer BlendColumns { uint columns[]; };  // stored
 layout(std430, set = 0, binding = 2) readonly buffer BlendValues { vec4 vals[]; };      // stored
 layout(std430, set = 0, binding = 3) readonly buffer Rhs { float bmat[]; };   // (3P+4J) x 3 chars
-layout(std430, set = 0, binding = 4) buffer Proxies { vec4 proxies[]; };      // chars x P x 3 rows
+layout(std430, set = 0, binding = 4) buffer Proxies { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 
-layout(push_constant) uniform Push { uint P; uint chars; } pc;
+layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
 void main() {
     uint ch = gl_GlobalInvocationID.x;
@@ -32,7 +32,7 @@ void main() {
         acc1 += v * bmat[at + 1u];
         acc2 += v * bmat[at + 2u];
     }
-    uint out_at = (ch * pc.P + e) * 3u;
+    uint out_at = (ch * (pc.P + pc.J) + e) * 3u;
     proxies[out_at] = acc0;
     proxies[out_at + 1u] = acc1;
     proxies[out_at + 2u] = acc2;

@@ -6,7 +6,9 @@
 //! 1. predictors `d(q)`: P key deformation gradients per character (paper §3, Eq. 3–4);
 //! 2. proxy transforms `t = C1 d + C2 q`: one matrix product over all characters (Eq. 5),
 //!    dense, or block-sparse per proxy where `[C1 | C2]` is mostly zeros (joint-blend proxies:
-//!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]);
+//!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]); where each proxy
+//!    reads one key, the product evaluates that key's predictor itself and pass 1 does not run
+//!    ([`vk::GpuModel::fuses_predictors`]);
 //! 3. matrix-palette skinning over `[t (P); q (J)]` with K = 4 or 8 influences;
 //! 4. normals, gathered from incident triangles;
 //! 5. optionally tangent frames (models with rest tangents): each rest tangent through its

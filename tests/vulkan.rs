@@ -118,15 +118,16 @@ fn gemm_tiles_cover_odd_sizes() {
     }
 }
 
-/// `model` with [C1 | C2] cut to the pattern of a joint-blend proxy: proxy e's rows keep its own
-/// key's 3 columns of C1 and two bones' 4 columns of C2 (e mod J and 2e + 1 mod J).
-fn joint_blend_pattern(model: &Model) -> Model {
+/// `model` with [C1 | C2] cut to the pattern of a joint-blend proxy: proxy e's rows keep the 3
+/// columns of C1 of `keys` keys (its own, e, and the next ones mod P; joint-blend proxies read
+/// one) and two bones' 4 columns of C2 (e mod J and 2e + 1 mod J).
+fn joint_blend_pattern(model: &Model, keys: usize) -> Model {
     let (p, j) = (model.proxy_count(), model.bone_count());
     let mut parts = model.parts().clone();
     for r in 0..4 * p {
         let e = r / 4;
         for k in 0..3 * p {
-            if k / 3 != e {
+            if (k / 3 + p - e) % p >= keys {
                 parts.c1[r * 3 * p + k] = 0.0;
             }
         }
@@ -139,13 +140,16 @@ fn joint_blend_pattern(model: &Model) -> Model {
     Model::new(parts).expect("the same model with fewer non-zeros")
 }
 
-/// Models whose C1|C2 is sparse take the block-sparse product, dense ones the GEMM, and both
-/// match the CPU (odd proxy counts, 1, 7, 65 and 1000 characters). With P = J = 1 the pattern
-/// keeps all 7 columns: too dense, the GEMM stays.
+/// Models whose C1|C2 is sparse take the block-sparse product, dense ones the GEMM; sparse ones
+/// whose proxies read one key each evaluate their predictors in the product (the fused one),
+/// those reading two keys run the predictor pass and the sparse product; all match the CPU (odd
+/// proxy counts, 1, 7, 65 and 1000 characters). With P = J = 1 the pattern keeps all 7
+/// columns: too dense, the GEMM stays.
 #[test]
 fn the_sparse_product_is_chosen_for_sparse_models_and_matches_cpu() {
     let ctx = validated_context();
-    for (p, j, k, sparse_product) in [(7, 9, 4, true), (1, 1, 8, false), (40, 12, 8, true)] {
+    let sizes = [(7, 9, 4, true), (1, 1, 8, false), (40, 12, 8, true)];
+    for ((p, j, k, sparse_product), keys) in sizes.into_iter().flat_map(|s| [(s, 1), (s, 2)]) {
         let dense = random_model(
             Spec {
                 grid: 8,
@@ -158,13 +162,15 @@ fn the_sparse_product_is_chosen_for_sparse_models_and_matches_cpu() {
         assert!(!GpuModel::new(&ctx, &dense)
             .expect("upload")
             .is_block_sparse());
-        let sparse = joint_blend_pattern(&dense);
+        let sparse = joint_blend_pattern(&dense, keys);
+        let gpu = GpuModel::new(&ctx, &sparse).expect("upload");
+        assert_eq!(gpu.is_block_sparse(), sparse_product, "P = {p}, J = {j}");
+        // With P = 1 the two keys are one.
+        let one_key = keys == 1 || p == 1;
         assert_eq!(
-            GpuModel::new(&ctx, &sparse)
-                .expect("upload")
-                .is_block_sparse(),
-            sparse_product,
-            "P = {p}, J = {j}"
+            gpu.fuses_predictors(),
+            sparse_product && one_key,
+            "P = {p}, J = {j}, {keys} keys"
         );
         for c in [1, 7, 65, 1000] {
             check(&ctx, &sparse, c, CrowdOptions::default(), c as u64);
@@ -269,20 +275,18 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
             },
             23,
         ),
-        joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 24)),
+        joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 24), 1),
+        joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 25), 2),
     ];
     let gpu: Vec<GpuModel> = models
         .iter()
         .map(|m| GpuModel::new(&ctx, m).expect("upload"))
         .collect();
-    assert_eq!(
-        gpu.iter()
-            .map(GpuModel::is_block_sparse)
-            .filter(|&s| s)
-            .count(),
-        1
-    );
-    let counts = [5, 9, 3, 6];
+    // Of the two block-sparse models, one fuses its predictors into the product.
+    let count = |f: fn(&GpuModel) -> bool| gpu.iter().filter(|g| f(g)).count();
+    assert_eq!(count(GpuModel::is_block_sparse), 2);
+    assert_eq!(count(GpuModel::fuses_predictors), 1);
+    let counts = [5, 9, 3, 6, 4];
     let mut crowds = Vec::new();
     let mut expected = Vec::new();
     for ((model, g), &c) in models.iter().zip(&gpu).zip(&counts) {
@@ -770,7 +774,7 @@ fn previous_positions_and_bounds_across_chunks_match_cpu() {
 }
 
 /// Tangents with every other output of three frames in flight, K = 4 and a reduced model;
-/// K = 8, block-sparse, across chunks.
+/// K = 8, block-sparse with the predictors fused in (the shipped models), across chunks.
 #[test]
 fn tangents_of_overlapping_frames_match_cpu() {
     let options = CrowdOptions {
@@ -791,7 +795,7 @@ fn tangents_of_overlapping_frames_match_cpu() {
         max_binding_bytes: Some(64 * 1024),
         ..CrowdOptions::default()
     };
-    let model = joint_blend_pattern(&random_model(k8, 52));
+    let model = joint_blend_pattern(&random_model(k8, 52), 1);
     overlapping_frames(&model, 40, chunked);
 }
 
@@ -878,7 +882,7 @@ fn memory_queries_are_the_bytes_created() {
         ..CrowdOptions::default()
     };
     let models = [(LBS, 41), (RR, 42)].map(|(spec, seed)| random_model(spec, seed));
-    let sparse = joint_blend_pattern(&models[1]);
+    let sparse = joint_blend_pattern(&models[1], 1);
     for model in models.iter().chain([&sparse]) {
         let sizes = ModelSizes::of(model);
         let gpu = GpuModel::new(&ctx, model).expect("upload");
@@ -926,13 +930,14 @@ fn memory_queries_are_the_bytes_created() {
         ..sizes
     };
     assert_eq!(model_bytes(&sizes) - model_bytes(&bare), v * 16 - 16);
-    // The largest buffer per character, of bones (48 J), B = [d; q] (12 (3P + 4J)), proxies
-    // (48 P), positions and normals (12 V); never more than a character's whole share.
+    // The largest buffer per character, of bones (48 J), B = [d; q] (12 (3P + 4J)), the
+    // palette [t; q] (48 (P + J)), positions and normals (12 V); never more than a character's
+    // whole share.
     let largest = crowd_largest_buffer_bytes(&sizes, &plain).expect("query");
     let p = model.proxy_count() as u64;
     assert_eq!(
         largest,
-        [48 * j, 12 * (3 * p + 4 * j), 48 * p, 12 * v]
+        [48 * j, 12 * (3 * p + 4 * j), 48 * (p + j), 12 * v]
             .into_iter()
             .max()
             .unwrap_or(0)
@@ -971,7 +976,8 @@ fn requirements_are_known_before_any_device_and_met_here() {
     assert_eq!(r.api_version, vk::API_VERSION_1_1);
     assert!(r.instance_extensions.is_empty() && r.device_extensions.is_empty());
     assert_eq!(r.queue_flags, vk::QueueFlags::COMPUTE);
-    // The tangents pass binds 7 storage buffers, beyond Vulkan's guaranteed 4.
+    // The fused product and the tangents pass bind 7 storage buffers (skinning 6), beyond
+    // Vulkan's guaranteed 4.
     assert_eq!(r.storage_buffers_per_stage, 7);
     let ctx = validated_context();
     // SAFETY: the context's live instance and physical device.

@@ -3,8 +3,8 @@
 //! frame has at most one barrier per phase whatever the number of crowds and chunks:
 //!
 //! ```text
-//! ts0 | barrier(prev. frame's reads/writes → compute) | predict (all crowds with P > 0)
-//! ts1 | barrier | C1/C2 product (all crowds with P > 0: the GEMM or the sparse product)
+//! ts0 | barrier(prev. frame's reads/writes → compute) | predict (crowds with P > 0, not fused)
+//! ts1 | barrier | C1/C2 product (all crowds with P > 0: the GEMM, the sparse or the fused one)
 //! ts2 | barrier | skin (all crowds, the pipeline of their K)
 //! ts3 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
 //! ts4 | barrier | tangents (crowds with tangents, the pipeline of their K)
@@ -30,7 +30,7 @@ use std::sync::Arc;
 /// timestamp per phase, reported by [`PassTimings`]).
 const SCHEDULE: [&[Pass]; 5] = [
     &[Pass::Predict],
-    &[Pass::BlendGemm, Pass::SparseProduct],
+    &[Pass::BlendGemm, Pass::SparseProduct, Pass::FusedProduct],
     &[Pass::SkinK4, Pass::SkinK8],
     &[Pass::Normals, Pass::Bounds],
     &[Pass::TangentsK4, Pass::TangentsK8],
@@ -57,7 +57,8 @@ const PASS_ACCESSES: [Access; 2] = [Access::ComputeShaderReadStorage, Access::Co
 /// Timestamps of one frame slot; the pool holds [`MAX_FRAMES_IN_FLIGHT`] slots.
 const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;
 
-/// GPU time per pass of a recorded frame, in milliseconds (the bounds count with the normals).
+/// GPU time per pass of a recorded frame, in milliseconds (the bounds count with the normals; a
+/// fused product's predictors with the product).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimings {
     pub predict_ms: f64,
@@ -422,7 +423,7 @@ mod tests {
     }
 
     /// A phase has no barrier inside: no model runs two passes of one phase that depend on
-    /// each other (the skinning variants, and the two products, share a phase because a model
+    /// each other (the skinning variants, and the products, share a phase because a model
     /// runs only one of each).
     #[test]
     fn no_model_runs_dependent_passes_in_one_phase() {

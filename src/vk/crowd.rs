@@ -689,7 +689,9 @@ pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
         // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
         CrowdBuffer::Rhs if p > 0 => (3 * p + 4 * j) * XYZ_BYTES,
         CrowdBuffer::Rhs => 0,
-        CrowdBuffer::Proxies => p * AFFINE_BYTES,
+        // The skinning palette [t (P); q (J)], only when P > 0.
+        CrowdBuffer::Proxies if p > 0 => (p + j) * AFFINE_BYTES,
+        CrowdBuffer::Proxies => 0,
         CrowdBuffer::Positions | CrowdBuffer::Normals => v * XYZ_BYTES,
         CrowdBuffer::Bounds if d.bounds => BOUNDS_STRIDE,
         CrowdBuffer::Bounds => 0,

@@ -99,6 +99,7 @@ impl GpuModel {
             bounds: false,
             tangents: false,
             sparse: sparse.is_some(),
+            fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
         };
         // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
         for pass in Pass::of_model(&dims) {
@@ -160,6 +161,13 @@ impl GpuModel {
     /// (the tiled GEMM runs): see [`BlockSparse::of`].
     pub fn is_block_sparse(&self) -> bool {
         self.inner.dims.sparse
+    }
+
+    /// Whether the product evaluates the key predictors itself (block-sparse, and every proxy
+    /// reads at most one key's columns: [`BlockSparse::one_key_per_proxy`]), so that the
+    /// predictor pass does not run.
+    pub fn fuses_predictors(&self) -> bool {
+        self.inner.dims.fused
     }
 
     /// Bytes of the model's buffers: what [`super::model_bytes`] said before the upload.
@@ -251,5 +259,21 @@ impl BlockSparse {
         }
         let stored = blocks.columns.len() as f64;
         (stored > 0.0 && stored < MAX_SPARSE_DENSITY * (p * width) as f64).then_some(blocks)
+    }
+
+    /// Whether each proxy's stored columns below 3P (its key columns) are those of one key:
+    /// then its invocation of the fused product evaluates that key's D_ℓ(q) and nothing else
+    /// (glsl/fused_product.comp). True of joint-blend proxies (key e, its parent bone).
+    pub fn one_key_per_proxy(&self) -> bool {
+        let keys = 3 * (self.offsets.len().saturating_sub(1)) as u32;
+        self.offsets.windows(2).all(|w| {
+            let stored = self.columns.get(w[0] as usize..w[1] as usize);
+            let mut key_columns = (stored.unwrap_or_default().iter())
+                .filter(|&&k| k < keys)
+                .map(|k| k / 3);
+            key_columns
+                .next()
+                .is_none_or(|first| key_columns.all(|k| k == first))
+        })
     }
 }

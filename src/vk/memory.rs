@@ -72,6 +72,9 @@ impl ModelSizes {
             bounds: options.bounds,
             tangents: options.tangents,
             sparse: self.blend_columns > 0,
+            // No crowd buffer's size depends on it (B stays allocated, unused, for a fused
+            // model: the sizes do not tell the two apart).
+            fused: false,
         })
     }
 }

@@ -25,6 +25,10 @@ pub struct Dims {
     /// Whether the model stores C1|C2 block-sparse per proxy (the sparse product runs instead
     /// of the dense GEMM; see `GpuModel::new`).
     pub sparse: bool,
+    /// Whether, besides, each proxy reads the columns of at most one key, so that the product
+    /// evaluates its predictors itself (the fused product runs instead of the predictor pass
+    /// and the sparse product; see `GpuModel::new`). Implies `sparse`.
+    pub fused: bool,
 }
 
 /// A buffer of the GPU model, uploaded once and only ever read.
@@ -319,6 +323,7 @@ mod tests {
         bounds: false,
         tangents: false,
         sparse: false,
+        fused: false,
     };
 
     #[test]

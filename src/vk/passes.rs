@@ -22,6 +22,7 @@ pub enum Pass {
     Predict,
     BlendGemm,
     SparseProduct,
+    FusedProduct,
     SkinK4,
     SkinK8,
     Normals,
@@ -31,12 +32,13 @@ pub enum Pass {
 }
 
 impl Pass {
-    pub const COUNT: usize = 9;
+    pub const COUNT: usize = 10;
     /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
     pub const ALL: [Pass; Self::COUNT] = [
         Pass::Predict,
         Pass::BlendGemm,
         Pass::SparseProduct,
+        Pass::FusedProduct,
         Pass::SkinK4,
         Pass::SkinK8,
         Pass::Normals,
@@ -50,6 +52,7 @@ impl Pass {
             Pass::Predict => &PREDICT,
             Pass::BlendGemm => &BLEND_GEMM,
             Pass::SparseProduct => &SPARSE_PRODUCT,
+            Pass::FusedProduct => &FUSED_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
             Pass::Normals => &NORMALS,
@@ -77,16 +80,22 @@ impl Pass {
 }
 
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
-/// a block-sparse [C1 | C2], for each K, with and without bounds, with and without tangents.
+/// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
+/// with and without bounds, with and without tangents.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
-    let products = [(0, false), (3, false), (3, true)];
-    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s)| (k, p, s)));
+    let products = [
+        (0, false, false),
+        (3, false, false),
+        (3, true, false),
+        (3, true, true),
+    ];
+    let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s, f)| (k, p, s, f)));
     let outputs = [(false, false), (true, false), (false, true), (true, true)];
     kinds
         .into_iter()
         .flatten()
-        .flat_map(move |(k, proxies, sparse)| {
+        .flat_map(move |(k, proxies, sparse, fused)| {
             outputs.map(|(bounds, tangents)| Dims {
                 vertices: 10,
                 proxies,
@@ -95,12 +104,14 @@ pub fn model_kinds() -> impl Iterator<Item = Dims> {
                 bounds,
                 tangents,
                 sparse,
+                fused,
             })
         })
 }
 
 /// Key gradients D_ℓ(q) for every (predictor, character), written with the bone transforms into
-/// B = [d; q], the right-hand side of the GEMM. Reduced models (P > 0) only.
+/// B = [d; q], the right-hand side of the GEMM, and the bones into the skinning palette
+/// [t; q]. Reduced models (P > 0) whose product does not evaluate them itself.
 const PREDICT: PassDesc = PassDesc {
     #[cfg(test)]
     glsl: "predict.comp",
@@ -110,11 +121,12 @@ const PREDICT: PassDesc = PassDesc {
         Model(M::Parents),
         Model(M::Predictors),
         Writes(Crowd::Rhs),
+        Writes(Crowd::Proxies),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over predictors then bones, one row of groups per character.
     groups: [over(PredictorsAndBones, 64), over(Characters, 1), ONE],
-    runs: |d| d.proxies > 0,
+    runs: |d| d.proxies > 0 && !d.fused,
 };
 
 /// Proxy transforms T (4P x 3C) = [C1 | C2] (4P x (3P + 4J)) · B ((3P + 4J) x 3C) for all
@@ -147,14 +159,36 @@ const SPARSE_PRODUCT: PassDesc = PassDesc {
         Reads(Crowd::Rhs),
         Writes(Crowd::Proxies),
     ],
-    push: &[W::Proxies, W::Characters],
+    push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over characters, one row of groups per proxy.
     groups: [over(Characters, 64), over(Proxies, 1), ONE],
-    runs: |d| d.proxies > 0 && d.sparse,
+    runs: |d| d.proxies > 0 && d.sparse && !d.fused,
 };
 
-/// Matrix-palette skinning over the palette [proxies (P); bones (J)] (the bones are read in
-/// place, never copied); one pipeline per K.
+/// The same T for a block-sparse model whose proxies read at most one key each: each
+/// (character, proxy) evaluates its key's predictor from the bones and multiplies B's entries
+/// as it makes them, so neither the predictor pass nor B's round trip through memory remain.
+const FUSED_PRODUCT: PassDesc = PassDesc {
+    #[cfg(test)]
+    glsl: "fused_product.comp",
+    spirv: spirv!("fused_product"),
+    bindings: &[
+        Model(M::BlendOffsets),
+        Model(M::BlendColumns),
+        Model(M::BlendValues),
+        Reads(Crowd::Bones),
+        Model(M::Parents),
+        Model(M::Predictors),
+        Writes(Crowd::Proxies),
+    ],
+    push: &[W::Proxies, W::Bones, W::Characters],
+    // As the sparse product's, and a row per bone (copied into the palette).
+    groups: [over(Characters, 64), over(PredictorsAndBones, 1), ONE],
+    runs: |d| d.proxies > 0 && d.fused,
+};
+
+/// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
+/// of it in the Proxies buffer, of a plain LBS model the bones in place; one pipeline per K.
 const SKIN_K4: PassDesc = PassDesc {
     #[cfg(test)]
     glsl: "skin.comp",
@@ -347,8 +381,8 @@ mod tests {
     }
 
     /// Every model runs exactly one writer of each output, and every crowd buffer its passes
-    /// read is either the bone input or written by one of them (with P = 0 the proxies are
-    /// bound but never read: no palette index is below P).
+    /// read is either the bone input or written by one of them (the palette by two: the bones
+    /// and t; with P = 0 it is bound but never read).
     #[test]
     fn every_model_writes_its_outputs_once_and_reads_only_what_is_written() {
         for d in model_kinds() {
@@ -370,7 +404,9 @@ mod tests {
                     let input =
                         b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Proxies);
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
-                        assert_eq!(writers(b), 1, "{p:?} reads {b:?} of {d:?}");
+                        let palette = b == CrowdBuffer::Proxies && !d.fused;
+                        let expected = if palette { 2 } else { 1 };
+                        assert_eq!(writers(b), expected, "{p:?} reads {b:?} of {d:?}");
                     }
                 }
             }
@@ -387,6 +423,7 @@ mod tests {
             bounds: false,
             tangents: false,
             sparse: false,
+            fused: false,
         };
         // skin (6 buffers) and normals (5)
         assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
@@ -401,19 +438,25 @@ mod tests {
             influences: 8,
             ..lbs
         };
-        // + predict (4) and the GEMM (3)
-        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 18));
+        // + predict (5) and the GEMM (3)
+        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 19));
         let sparse = Dims {
             sparse: true,
             ..reduced
         };
-        // + predict (4) and the sparse product (5)
-        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 20));
-        let tangents = Dims {
-            tangents: true,
+        // + predict (5) and the sparse product (5)
+        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 21));
+        let fused = Dims {
+            fused: true,
             ..sparse
         };
+        // + the fused product (7)
+        assert_eq!(Pass::descriptors_per_chunk(&fused), (3, 18));
+        let tangents = Dims {
+            tangents: true,
+            ..fused
+        };
         // + tangents (7)
-        assert_eq!(Pass::descriptors_per_chunk(&tangents), (5, 27));
+        assert_eq!(Pass::descriptors_per_chunk(&tangents), (4, 25));
     }
 }

@@ -457,10 +457,10 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 out!("{}", b.to_json());
             } else {
                 out!(
-                    "{}: {} x {} vertices, median of {}\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2}\n  RR + previous positions {:.3} ms ({:.2} x RR)\n  RR + bounds             {:.3} ms ({:.2} x RR)",
+                    "{}: {} x {} vertices, median of {}\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2} (median of the {} pairs' ratios {:.2})\n  RR + previous positions {:.3} ms ({:.2} x RR)\n  RR + bounds             {:.3} ms ({:.2} x RR)",
                     b.rr.device, count(b.rr.characters, "character"), b.rr.vertices, count(b.rr.frames, "frame"),
                     b.rr.total_ms, b.rr.pipeline_mverts_per_s(), b.ssd.total_ms, b.ssd.pipeline_mverts_per_s(),
-                    b.rr.total_ms / b.ssd.total_ms,
+                    b.rr.total_ms / b.ssd.total_ms, b.pair_ratios.len(), b.paired_ratio(),
                     b.previous_positions.total_ms, b.cost(&b.previous_positions),
                     b.bounds.total_ms, b.cost(&b.bounds)
                 );
@@ -587,7 +587,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 );
                 for (name, ms) in [
                     ("predictors", t.predict_ms),
-                    ("C1/C2 GEMM", t.blend_ms),
+                    ("C1/C2 prod.", t.blend_ms),
                     ("skinning", t.skin_ms),
                     ("normals", t.normals_ms),
                 ] {

@@ -424,6 +424,9 @@ fn a_trained_model_file_evaluates_as_trained() {
         "rr_ms",
         "ssd_ms",
         "ratio",
+        "paired_ratio",
+        "rr_passes",
+        "ssd_passes",
         "rr_mverts_per_s",
         "ssd_mverts_per_s",
         "previous_positions_ms",
@@ -444,6 +447,14 @@ fn a_trained_model_file_evaluates_as_trained() {
     let ratio = b["rr_ms"].as_f64().unwrap_or(f64::NAN) / b["ssd_ms"].as_f64().unwrap_or(f64::NAN);
     assert!(
         (b["ratio"].as_f64().unwrap_or(f64::NAN) - ratio).abs() < 1e-9 && ratio > 0.0,
+        "{b}"
+    );
+    // RR and SSD frames alternate: one ratio per pair of measured frames.
+    assert_eq!(b["pairs"], 2, "{b}");
+    assert!(
+        b["paired_ratio"]
+            .as_f64()
+            .is_some_and(|r| r > 0.0 && r.is_finite()),
         "{b}"
     );
     assert_eq!(b["vertices"], 2338);

@@ -95,21 +95,61 @@ pub fn measure(
     label: &'static str,
     quiet: bool,
 ) -> Result<Profile, Box<dyn std::error::Error>> {
-    let gpu_model = GpuModel::new(ctx, model)?;
-    let mut crowd = crate::run::capacity::crowd(ctx, &gpu_model, model, characters, options)?;
-    let mut batch = Batch::new(ctx)?;
+    let mut runner = Runner::new(ctx, model, characters, options)?;
     let progress = Progress::new(label, WARM_UP_FRAMES + frames, quiet);
     let mut samples = Vec::with_capacity(frames);
     for frame in 0..WARM_UP_FRAMES + frames {
-        crowd.set_bones(0, &poses(model, characters, frame))?;
-        batch.run(0, &[&crowd])?;
+        let timings = runner.frame(&poses(model, characters, frame))?;
         if frame >= WARM_UP_FRAMES {
-            samples.push(batch.timings(0)?);
+            samples.push(timings);
         }
         progress.step();
     }
     progress.finish();
-    let (median, total_ms) = PassTimings::median(&samples).ok_or(rrskin::Error::NotReady {
+    profile(ctx, model, characters, &samples)
+}
+
+/// One crowd of a model with its own batch, run one frame at a time.
+struct Runner {
+    crowd: rrskin::vk::Crowd,
+    batch: Batch,
+}
+
+impl Runner {
+    fn new(
+        ctx: &Context,
+        model: &Model,
+        characters: usize,
+        options: CrowdOptions,
+    ) -> Result<Runner, Box<dyn std::error::Error>> {
+        let gpu_model = GpuModel::new(ctx, model)?;
+        let crowd = crate::run::capacity::crowd(ctx, &gpu_model, model, characters, options)?;
+        Ok(Runner {
+            crowd,
+            batch: Batch::new(ctx)?,
+        })
+    }
+
+    /// Uploads `bones`, records all passes into one command buffer, submits, waits, and
+    /// returns the frame's GPU times.
+    fn frame(
+        &mut self,
+        bones: &[rrskin::predict::Affine],
+    ) -> Result<PassTimings, Box<dyn std::error::Error>> {
+        self.crowd.set_bones(0, bones)?;
+        self.batch.run(0, &[&self.crowd])?;
+        Ok(self.batch.timings(0)?)
+    }
+}
+
+/// The medians of `samples`, frames of a crowd of `model`.
+fn profile(
+    ctx: &Context,
+    model: &Model,
+    characters: usize,
+    samples: &[PassTimings],
+) -> Result<Profile, Box<dyn std::error::Error>> {
+    let (median, total_ms) = PassTimings::median(samples).ok_or(rrskin::Error::NotReady {
         what: "timestamps (no frame measured)",
     })?;
     Ok(Profile {
@@ -119,7 +159,7 @@ pub fn measure(
         bones: model.bone_count(),
         proxies: model.proxy_count(),
         influences: model.influences(),
-        frames,
+        frames: samples.len(),
         median,
         total_ms,
     })
@@ -136,12 +176,16 @@ pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::pred
 
 /// `rrskin bench`: the whole per-frame pipeline of rotational regression against plain
 /// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
-/// device in one run, median frame time from GPU timestamps; and the cost of the runtime's
-/// optional outputs, previous positions, bounds and tangents, as rotational-regression frames
-/// with each.
+/// device in one run, from GPU timestamps; and the cost of the runtime's optional outputs,
+/// previous positions, bounds and tangents, as rotational-regression frames with each. RR and
+/// SSD frames alternate in pairs of the same poses (RR SSD, SSD RR, RR SSD ...), so that load on
+/// the machine drifts into both alike and neither is always first; each pair gives a ratio:
+/// [`Bench::paired_ratio`] is their median.
 pub struct Bench {
     pub rr: Profile,
     pub ssd: Profile,
+    /// RR frame time over SSD frame time of each pair of consecutive frames.
+    pub pair_ratios: Vec<f64>,
     pub previous_positions: Profile,
     pub bounds: Profile,
     /// For models with rest tangents.
@@ -160,11 +204,45 @@ impl Bench {
             "the model has no SSD baseline to compare with (train it with `rrskin train`)",
         )?;
         let ctx = context(device)?;
+        let plain = CrowdOptions::default();
+        let (rr, ssd, pair_ratios) = {
+            let mut rr = Runner::new(&ctx, model, characters, plain)?;
+            let mut ssd = Runner::new(&ctx, &baseline, characters, plain)?;
+            let progress = Progress::new(
+                "rotational regression and SSD",
+                WARM_UP_FRAMES + frames,
+                quiet,
+            );
+            let (mut rr_samples, mut ssd_samples) =
+                (Vec::with_capacity(frames), Vec::with_capacity(frames));
+            for frame in 0..WARM_UP_FRAMES + frames {
+                let bones = poses(model, characters, frame);
+                // Which runs first alternates: on lavapipe the frame after the host's pose
+                // work runs measurably slower than the one right after it.
+                let pair = if frame % 2 == 0 {
+                    (rr.frame(&bones)?, ssd.frame(&bones)?)
+                } else {
+                    let ssd_first = ssd.frame(&bones)?;
+                    (rr.frame(&bones)?, ssd_first)
+                };
+                if frame >= WARM_UP_FRAMES {
+                    rr_samples.push(pair.0);
+                    ssd_samples.push(pair.1);
+                }
+                progress.step();
+            }
+            progress.finish();
+            let ratios = (rr_samples.iter().zip(&ssd_samples))
+                .map(|(r, s)| r.total_ms() / s.total_ms())
+                .collect();
+            (
+                profile(&ctx, model, characters, &rr_samples)?,
+                profile(&ctx, &baseline, characters, &ssd_samples)?,
+                ratios,
+            )
+        };
         let run =
             |m: &Model, options, label| measure(&ctx, m, characters, frames, options, label, quiet);
-        let plain = CrowdOptions::default();
-        let rr = run(model, plain, "rotational regression")?;
-        let ssd = run(&baseline, plain, "SSD")?;
         let previous = CrowdOptions {
             previous_positions: true,
             ..plain
@@ -186,6 +264,7 @@ impl Bench {
         Ok(Bench {
             rr,
             ssd,
+            pair_ratios,
             previous_positions,
             bounds,
             tangents,
@@ -197,8 +276,24 @@ impl Bench {
         p.total_ms / self.rr.total_ms
     }
 
+    /// The median of the per-pair ratios RR / SSD (NaN if no pair was measured; `run`
+    /// measures at least one).
+    pub fn paired_ratio(&self) -> f64 {
+        let mut r = self.pair_ratios.clone();
+        r.sort_by(f64::total_cmp);
+        r.get(r.len() / 2).copied().unwrap_or(f64::NAN)
+    }
+
     pub fn to_json(&self) -> serde_json::Value {
         let mverts = |p: &Profile| p.pipeline_mverts_per_s();
+        let passes = |p: &Profile| {
+            serde_json::json!({
+                "predict_ms": p.median.predict_ms,
+                "blend_ms": p.median.blend_ms,
+                "skin_ms": p.median.skin_ms,
+                "normals_ms": p.median.normals_ms,
+            })
+        };
         serde_json::json!({
             "device": self.rr.device,
             "characters": self.rr.characters,
@@ -206,6 +301,10 @@ impl Bench {
             "rr_ms": self.rr.total_ms,
             "ssd_ms": self.ssd.total_ms,
             "ratio": self.rr.total_ms / self.ssd.total_ms,
+            "paired_ratio": self.paired_ratio(),
+            "pairs": self.pair_ratios.len(),
+            "rr_passes": passes(&self.rr),
+            "ssd_passes": passes(&self.ssd),
             "rr_mverts_per_s": mverts(&self.rr),
             "ssd_mverts_per_s": mverts(&self.ssd),
             "previous_positions_ms": self.previous_positions.total_ms,
