@@ -461,14 +461,14 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     b.rr.device, count(b.rr.characters, "character"), b.rr.vertices, count(b.rr.frames, "frame"),
                     b.rr.total_ms, b.rr.pipeline_mverts_per_s(), b.ssd.total_ms, b.ssd.pipeline_mverts_per_s(),
                     b.rr.total_ms / b.ssd.total_ms, b.pair_ratios.len(), b.paired_ratio(),
-                    b.previous_positions.total_ms, b.cost(&b.previous_positions),
-                    b.bounds.total_ms, b.cost(&b.bounds)
+                    b.previous_positions.profile.total_ms, b.previous_positions.ratio(),
+                    b.bounds.profile.total_ms, b.bounds.ratio()
                 );
                 match &b.tangents {
                     Some(t) => out!(
                         "  RR + tangents           {:.3} ms ({:.2} x RR)",
-                        t.total_ms,
-                        b.cost(t)
+                        t.profile.total_ms,
+                        t.ratio()
                     ),
                     None => out!("  RR + tangents           - (the model has no rest tangents)"),
                 }

@@ -436,14 +436,13 @@ fn a_trained_model_file_evaluates_as_trained() {
     ] {
         assert!(!b[key].is_null(), "{key} missing in {b}");
     }
+    // The options' ratios are medians of per-frame ratios to the same frame's plain RR (not
+    // the ratio of the medians); a model trained from the NumPy layout has no tangents.
     for option in ["previous_positions", "bounds"] {
-        let ratio = b[format!("{option}_ms")].as_f64().unwrap_or(f64::NAN)
-            / b["rr_ms"].as_f64().unwrap_or(f64::NAN);
-        assert!(
-            (b[format!("{option}_ratio")].as_f64().unwrap_or(f64::NAN) - ratio).abs() < 1e-9,
-            "{b}"
-        );
+        let ratio = b[format!("{option}_ratio")].as_f64();
+        assert!(ratio.is_some_and(|r| r > 0.0 && r.is_finite()), "{b}");
     }
+    assert!(b["tangents_ratio"].is_null() && b["tangents_ms"].is_null(), "{b}");
     let ratio = b["rr_ms"].as_f64().unwrap_or(f64::NAN) / b["ssd_ms"].as_f64().unwrap_or(f64::NAN);
     assert!(
         (b["ratio"].as_f64().unwrap_or(f64::NAN) - ratio).abs() < 1e-9 && ratio > 0.0,

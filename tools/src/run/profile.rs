@@ -177,19 +177,40 @@ pub fn poses(model: &Model, characters: usize, frame: usize) -> Vec<rrskin::pred
 /// `rrskin bench`: the whole per-frame pipeline of rotational regression against plain
 /// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
 /// device in one run, from GPU timestamps; and the cost of the runtime's optional outputs,
-/// previous positions, bounds and tangents, as rotational-regression frames with each. RR and
-/// SSD frames alternate in pairs of the same poses (RR SSD, SSD RR, RR SSD ...), so that load on
-/// the machine drifts into both alike and neither is always first; each pair gives a ratio:
-/// [`Bench::paired_ratio`] is their median.
+/// previous positions, bounds and tangents, as rotational-regression frames with each. Every
+/// frame runs all of them on the same poses, one after another in an order that rotates from
+/// frame to frame (so that load on the machine drifts into all alike, and none is always first:
+/// on lavapipe the frame right after the host's pose work runs slower); each frame gives each a
+/// ratio to that frame's plain RR (RR's to SSD), and the medians of those are what is reported.
 pub struct Bench {
     pub rr: Profile,
     pub ssd: Profile,
-    /// RR frame time over SSD frame time of each pair of consecutive frames.
+    /// RR frame time over SSD frame time, per frame.
     pub pair_ratios: Vec<f64>,
-    pub previous_positions: Profile,
-    pub bounds: Profile,
+    pub previous_positions: OptionCost,
+    pub bounds: OptionCost,
     /// For models with rest tangents.
-    pub tangents: Option<Profile>,
+    pub tangents: Option<OptionCost>,
+}
+
+/// The frames of RR with one optional output, and per frame their time over the plain RR
+/// frame's on the same poses.
+pub struct OptionCost {
+    pub profile: Profile,
+    pub ratios: Vec<f64>,
+}
+
+impl OptionCost {
+    /// The median ratio to the plain RR frame.
+    pub fn ratio(&self) -> f64 {
+        median(&self.ratios)
+    }
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
 }
 
 impl Bench {
@@ -205,83 +226,84 @@ impl Bench {
         )?;
         let ctx = context(device)?;
         let plain = CrowdOptions::default();
-        let (rr, ssd, pair_ratios) = {
-            let mut rr = Runner::new(&ctx, model, characters, plain)?;
-            let mut ssd = Runner::new(&ctx, &baseline, characters, plain)?;
-            let progress = Progress::new(
-                "rotational regression and SSD",
-                WARM_UP_FRAMES + frames,
-                quiet,
-            );
-            let (mut rr_samples, mut ssd_samples) =
-                (Vec::with_capacity(frames), Vec::with_capacity(frames));
-            for frame in 0..WARM_UP_FRAMES + frames {
-                let bones = poses(model, characters, frame);
-                // Which runs first alternates: on lavapipe the frame after the host's pose
-                // work runs measurably slower than the one right after it.
-                let pair = if frame % 2 == 0 {
-                    (rr.frame(&bones)?, ssd.frame(&bones)?)
-                } else {
-                    let ssd_first = ssd.frame(&bones)?;
-                    (rr.frame(&bones)?, ssd_first)
-                };
-                if frame >= WARM_UP_FRAMES {
-                    rr_samples.push(pair.0);
-                    ssd_samples.push(pair.1);
-                }
-                progress.step();
+        let with = |f: fn(&mut CrowdOptions)| {
+            let mut o = plain;
+            f(&mut o);
+            o
+        };
+        // RR first, SSD second, then the options: the order of `Bench`'s fields.
+        let mut variants = vec![
+            (model, plain),
+            (&baseline, plain),
+            (model, with(|o| o.previous_positions = true)),
+            (model, with(|o| o.bounds = true)),
+        ];
+        if model.has_tangents() {
+            variants.push((model, with(|o| o.tangents = true)));
+        }
+        let mut runners = (variants.iter())
+            .map(|&(m, options)| Runner::new(&ctx, m, characters, options))
+            .collect::<Result<Vec<_>, _>>()?;
+        let n = runners.len();
+        let progress = Progress::new(
+            "RR, SSD and RR with each option",
+            WARM_UP_FRAMES + frames,
+            quiet,
+        );
+        let mut samples = vec![Vec::with_capacity(frames); n];
+        let mut frame_times = vec![PassTimings::default(); n];
+        for frame in 0..WARM_UP_FRAMES + frames {
+            let bones = poses(model, characters, frame);
+            for k in 0..n {
+                let i = (frame + k) % n;
+                frame_times[i] = runners[i].frame(&bones)?;
             }
-            progress.finish();
-            let ratios = (rr_samples.iter().zip(&ssd_samples))
-                .map(|(r, s)| r.total_ms() / s.total_ms())
-                .collect();
-            (
-                profile(&ctx, model, characters, &rr_samples)?,
-                profile(&ctx, &baseline, characters, &ssd_samples)?,
-                ratios,
-            )
+            if frame >= WARM_UP_FRAMES {
+                samples
+                    .iter_mut()
+                    .zip(&frame_times)
+                    .for_each(|(s, t)| s.push(*t));
+            }
+            progress.step();
+        }
+        progress.finish();
+        drop(runners);
+        let total = |s: &[PassTimings]| s.iter().map(PassTimings::total_ms).collect::<Vec<_>>();
+        let rr_totals = total(&samples[0]);
+        let over_rr = |s: &[PassTimings]| {
+            (total(s).iter().zip(&rr_totals))
+                .map(|(t, rr)| t / rr)
+                .collect::<Vec<_>>()
         };
-        let run =
-            |m: &Model, options, label| measure(&ctx, m, characters, frames, options, label, quiet);
-        let previous = CrowdOptions {
-            previous_positions: true,
-            ..plain
+        let costs = (2..n)
+            .map(|i| -> Result<OptionCost, Box<dyn std::error::Error>> {
+                Ok(OptionCost {
+                    profile: profile(&ctx, model, characters, &samples[i])?,
+                    ratios: over_rr(&samples[i]),
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut costs = costs.into_iter();
+        let (Some(previous_positions), Some(bounds)) = (costs.next(), costs.next()) else {
+            return Err("an optional output was not measured".into());
         };
-        let previous_positions = run(model, previous, "with previous positions")?;
-        let bounded = CrowdOptions {
-            bounds: true,
-            ..plain
-        };
-        let bounds = run(model, bounded, "with bounds")?;
-        let tangents = CrowdOptions {
-            tangents: true,
-            ..plain
-        };
-        let tangents = match model.has_tangents() {
-            true => Some(run(model, tangents, "with tangents")?),
-            false => None,
-        };
+        let tangents = costs.next();
         Ok(Bench {
-            rr,
-            ssd,
-            pair_ratios,
+            rr: profile(&ctx, model, characters, &samples[0])?,
+            ssd: profile(&ctx, &baseline, characters, &samples[1])?,
+            pair_ratios: (rr_totals.iter().zip(total(&samples[1])))
+                .map(|(rr, ssd)| rr / ssd)
+                .collect(),
             previous_positions,
             bounds,
             tangents,
         })
     }
 
-    /// The frame time of rotational regression with `p`'s option, over the plain frame's.
-    pub fn cost(&self, p: &Profile) -> f64 {
-        p.total_ms / self.rr.total_ms
-    }
-
     /// The median of the per-pair ratios RR / SSD (NaN if no pair was measured; `run`
     /// measures at least one).
     pub fn paired_ratio(&self) -> f64 {
-        let mut r = self.pair_ratios.clone();
-        r.sort_by(f64::total_cmp);
-        r.get(r.len() / 2).copied().unwrap_or(f64::NAN)
+        median(&self.pair_ratios)
     }
 
     pub fn to_json(&self) -> serde_json::Value {
@@ -307,16 +329,16 @@ impl Bench {
             "ssd_passes": passes(&self.ssd),
             "rr_mverts_per_s": mverts(&self.rr),
             "ssd_mverts_per_s": mverts(&self.ssd),
-            "previous_positions_ms": self.previous_positions.total_ms,
-            "previous_positions_ratio": self.cost(&self.previous_positions),
-            "bounds_ms": self.bounds.total_ms,
-            "bounds_ratio": self.cost(&self.bounds),
-            "tangents_ms": self.tangents.as_ref().map(|t| t.total_ms),
-            "tangents_ratio": self.tangents.as_ref().map(|t| self.cost(t)),
-            // The tangents pass alone, from the same frames (steadier than a ratio of totals),
-            // and every pass of those frames.
-            "tangents_pass_ms": self.tangents.as_ref().map(|t| t.median.tangents_ms),
-            "tangents_frame": self.tangents.as_ref().map(Profile::to_json),
+            // Medians over the frames, each frame's ratio to its own plain RR frame.
+            "previous_positions_ms": self.previous_positions.profile.total_ms,
+            "previous_positions_ratio": self.previous_positions.ratio(),
+            "bounds_ms": self.bounds.profile.total_ms,
+            "bounds_ratio": self.bounds.ratio(),
+            "tangents_ms": self.tangents.as_ref().map(|t| t.profile.total_ms),
+            "tangents_ratio": self.tangents.as_ref().map(OptionCost::ratio),
+            // The tangents pass alone, and every pass of the frames with tangents.
+            "tangents_pass_ms": self.tangents.as_ref().map(|t| t.profile.median.tangents_ms),
+            "tangents_frame": self.tangents.as_ref().map(|t| t.profile.to_json()),
         })
     }
 }
