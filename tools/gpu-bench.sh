@@ -11,7 +11,9 @@
 # the Debian packages of the Vulkan loader and the validation layer (TOOLCHAIN.md, "A GPU
 # machine": unpacked with dpkg -x, then ldconfig). OUT defaults to $OUT/gpu-bench.json when
 # $OUT is set (the device's output folder), else DIR/gpu-bench.json. CHARACTERS (default
-# "1 256 4096 16384") overrides the crowd sizes, e.g. to try the run on lavapipe.
+# "1 256 4096 16384") overrides the crowd sizes, e.g. to try the run on lavapipe; BANDWIDTH
+# (GB/s, default 4800: an H200's HBM3e peak) is the peak `rrskin bench --bandwidth` reports the
+# fraction of the bandwidth bound against.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 step=${1:-}
@@ -65,7 +67,8 @@ run() {
     for m in cesiumman human_heavy; do
         for c in ${CHARACTERS:-1 256 4096 16384}; do
             local b
-            b=$("$dir/bin/rrskin" bench "$dir/$m.rrs" --characters "$c" --json 2>>"$log") \
+            b=$("$dir/bin/rrskin" bench "$dir/$m.rrs" --characters "$c" \
+                --bandwidth "${BANDWIDTH:-4800}" --json 2>>"$log") \
                 || b="{\"error\": \"see gpu-bench.log\"}"
             benches+=("{\"model\": \"$m\", \"characters\": $c, \"bench\": $b}")
         done

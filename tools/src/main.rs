@@ -216,6 +216,11 @@ struct RunArgs {
     /// Use the first Vulkan device whose name contains this text.
     #[arg(long)]
     device: Option<String>,
+    /// The device's peak memory bandwidth in GB/s (e.g. 4800 for an H200): `bench` then reports
+    /// the fraction of the bandwidth bound each frame reaches (the least bytes a frame moves,
+    /// `run::traffic`, over this, over the frame's time).
+    #[arg(long)]
+    bandwidth: Option<f64>,
     #[arg(long)]
     json: bool,
 }
@@ -454,7 +459,7 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let (characters, frames, json) = (args.characters, args.frames, args.json);
             let b = rrskin_tools::run::profile::Bench::run(&m, characters, frames, choice, json)?;
             if json {
-                out!("{}", b.to_json());
+                out!("{}", b.to_json(args.bandwidth));
             } else {
                 out!(
                     "{}: {} x {} vertices, median of {}\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2} (median of the {} pairs' ratios {:.2})\n  RR + previous positions {:.3} ms ({:.2} x RR)\n  RR + bounds             {:.3} ms ({:.2} x RR)",
@@ -471,6 +476,20 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         t.ratio()
                     ),
                     None => out!("  RR + tangents           - (the model has no rest tangents)"),
+                }
+                for (name, p) in [("RR", &b.rr), ("SSD", &b.ssd)] {
+                    let bound = match args.bandwidth {
+                        Some(peak) => format!(
+                            ", {:.0} % of the bandwidth bound",
+                            100.0 * p.effective_gbps() / peak
+                        ),
+                        None => String::new(),
+                    };
+                    out!(
+                        "  {name}: {:.1} MB a frame at least, {:.1} GB/s{bound}",
+                        p.bytes as f64 / 1e6,
+                        p.effective_gbps()
+                    );
                 }
             }
         }

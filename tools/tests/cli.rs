@@ -429,6 +429,9 @@ fn a_trained_model_file_evaluates_as_trained() {
         "ssd_passes",
         "rr_mverts_per_s",
         "ssd_mverts_per_s",
+        "rr_bytes_per_frame",
+        "rr_effective_gbps",
+        "ssd_effective_gbps",
         "previous_positions_ms",
         "previous_positions_ratio",
         "bounds_ms",
@@ -442,7 +445,10 @@ fn a_trained_model_file_evaluates_as_trained() {
         let ratio = b[format!("{option}_ratio")].as_f64();
         assert!(ratio.is_some_and(|r| r > 0.0 && r.is_finite()), "{b}");
     }
-    assert!(b["tangents_ratio"].is_null() && b["tangents_ms"].is_null(), "{b}");
+    assert!(
+        b["tangents_ratio"].is_null() && b["tangents_ms"].is_null(),
+        "{b}"
+    );
     let ratio = b["rr_ms"].as_f64().unwrap_or(f64::NAN) / b["ssd_ms"].as_f64().unwrap_or(f64::NAN);
     assert!(
         (b["ratio"].as_f64().unwrap_or(f64::NAN) - ratio).abs() < 1e-9 && ratio > 0.0,

@@ -9,3 +9,4 @@ pub mod profile;
 pub mod reference;
 pub mod report;
 pub mod tradeoff;
+pub mod traffic;

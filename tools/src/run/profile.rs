@@ -25,6 +25,8 @@ pub struct Profile {
     pub median: PassTimings,
     /// Median of the per-frame totals.
     pub total_ms: f64,
+    /// The least bytes a frame moves (`run::traffic`).
+    pub bytes: u64,
 }
 
 impl Profile {
@@ -36,6 +38,12 @@ impl Profile {
     /// Vertices per second through the whole pipeline (all four passes), in millions.
     pub fn pipeline_mverts_per_s(&self) -> f64 {
         (self.characters * self.vertices) as f64 / self.total_ms / 1e3
+    }
+
+    /// The frame's least bytes over its median time, in GB/s: the fraction of a device's peak
+    /// bandwidth the frame reaches is this over the peak.
+    pub fn effective_gbps(&self) -> f64 {
+        self.bytes as f64 / (self.total_ms * 1e-3) / 1e9
     }
 
     pub fn to_json(&self) -> serde_json::Value {
@@ -55,6 +63,8 @@ impl Profile {
             "total_ms": self.total_ms,
             "skin_mverts_per_s": self.skin_mverts_per_s(),
             "pipeline_mverts_per_s": self.pipeline_mverts_per_s(),
+            "bytes_per_frame": self.bytes,
+            "effective_gbps": self.effective_gbps(),
         })
     }
 }
@@ -106,13 +116,15 @@ pub fn measure(
         progress.step();
     }
     progress.finish();
-    profile(ctx, model, characters, &samples)
+    profile(ctx, &runner, model, characters, &samples)
 }
 
 /// One crowd of a model with its own batch, run one frame at a time.
 struct Runner {
     crowd: rrskin::vk::Crowd,
     batch: Batch,
+    /// `run::traffic::frame_bytes` of the crowd.
+    bytes: u64,
 }
 
 impl Runner {
@@ -124,9 +136,11 @@ impl Runner {
     ) -> Result<Runner, Box<dyn std::error::Error>> {
         let gpu_model = GpuModel::new(ctx, model)?;
         let crowd = crate::run::capacity::crowd(ctx, &gpu_model, model, characters, options)?;
+        let fused = gpu_model.fuses_predictors();
         Ok(Runner {
             crowd,
             batch: Batch::new(ctx)?,
+            bytes: crate::run::traffic::frame_bytes(model, characters, &options, fused),
         })
     }
 
@@ -142,9 +156,10 @@ impl Runner {
     }
 }
 
-/// The medians of `samples`, frames of a crowd of `model`.
+/// The medians of `samples`, frames of `runner`'s crowd of `model`.
 fn profile(
     ctx: &Context,
+    runner: &Runner,
     model: &Model,
     characters: usize,
     samples: &[PassTimings],
@@ -162,6 +177,7 @@ fn profile(
         frames: samples.len(),
         median,
         total_ms,
+        bytes: runner.bytes,
     })
 }
 
@@ -267,7 +283,6 @@ impl Bench {
             progress.step();
         }
         progress.finish();
-        drop(runners);
         let total = |s: &[PassTimings]| s.iter().map(PassTimings::total_ms).collect::<Vec<_>>();
         let rr_totals = total(&samples[0]);
         let over_rr = |s: &[PassTimings]| {
@@ -278,7 +293,7 @@ impl Bench {
         let costs = (2..n)
             .map(|i| -> Result<OptionCost, Box<dyn std::error::Error>> {
                 Ok(OptionCost {
-                    profile: profile(&ctx, model, characters, &samples[i])?,
+                    profile: profile(&ctx, &runners[i], model, characters, &samples[i])?,
                     ratios: over_rr(&samples[i]),
                 })
             })
@@ -289,8 +304,8 @@ impl Bench {
         };
         let tangents = costs.next();
         Ok(Bench {
-            rr: profile(&ctx, model, characters, &samples[0])?,
-            ssd: profile(&ctx, &baseline, characters, &samples[1])?,
+            rr: profile(&ctx, &runners[0], model, characters, &samples[0])?,
+            ssd: profile(&ctx, &runners[1], &baseline, characters, &samples[1])?,
             pair_ratios: (rr_totals.iter().zip(total(&samples[1])))
                 .map(|(rr, ssd)| rr / ssd)
                 .collect(),
@@ -306,8 +321,11 @@ impl Bench {
         median(&self.pair_ratios)
     }
 
-    pub fn to_json(&self) -> serde_json::Value {
+    /// `bandwidth_gbps`: the device's peak memory bandwidth, if known, for the fraction of the
+    /// bandwidth bound each frame reaches (`run::traffic`).
+    pub fn to_json(&self, bandwidth_gbps: Option<f64>) -> serde_json::Value {
         let mverts = |p: &Profile| p.pipeline_mverts_per_s();
+        let fraction = |p: &Profile| bandwidth_gbps.map(|peak| p.effective_gbps() / peak);
         let passes = |p: &Profile| {
             serde_json::json!({
                 "predict_ms": p.median.predict_ms,
@@ -329,6 +347,13 @@ impl Bench {
             "ssd_passes": passes(&self.ssd),
             "rr_mverts_per_s": mverts(&self.rr),
             "ssd_mverts_per_s": mverts(&self.ssd),
+            "rr_bytes_per_frame": self.rr.bytes,
+            "ssd_bytes_per_frame": self.ssd.bytes,
+            "rr_effective_gbps": self.rr.effective_gbps(),
+            "ssd_effective_gbps": self.ssd.effective_gbps(),
+            "bandwidth_gbps": bandwidth_gbps,
+            "rr_bandwidth_fraction": fraction(&self.rr),
+            "ssd_bandwidth_fraction": fraction(&self.ssd),
             // Medians over the frames, each frame's ratio to its own plain RR frame.
             "previous_positions_ms": self.previous_positions.profile.total_ms,
             "previous_positions_ratio": self.previous_positions.ratio(),
