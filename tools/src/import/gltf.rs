@@ -65,13 +65,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     }
     check_frames(rig_path, options, &cache, &rig.key_times())?;
     let weld = weld(&rig.rest, &cache.positions);
-    let welded = weld.iter().max().map_or(0, |m| m + 1);
-    let mut representative = vec![usize::MAX; welded];
-    for (g, &w) in weld.iter().enumerate() {
-        if representative[w] == usize::MAX {
-            representative[w] = g;
-        }
-    }
+    let representative = first_duplicates(&weld);
     let faces: Vec<[usize; 3]> = rig
         .triangles
         .iter()
@@ -265,14 +259,21 @@ impl Imported {
     }
 }
 
-/// Each glTF vertex's normal group: the first glTF vertex welded with it.
-fn normal_groups(weld: &[usize]) -> Vec<usize> {
-    let mut first = vec![usize::MAX; weld.len()];
+/// Per training vertex (weld group), its first glTF vertex.
+fn first_duplicates(weld: &[usize]) -> Vec<usize> {
+    let welded = weld.iter().max().map_or(0, |m| m + 1);
+    let mut first = vec![usize::MAX; welded];
     for (g, &w) in weld.iter().enumerate() {
         if first[w] == usize::MAX {
             first[w] = g;
         }
     }
+    first
+}
+
+/// Each glTF vertex's normal group: the first glTF vertex welded with it.
+fn normal_groups(weld: &[usize]) -> Vec<usize> {
+    let first = first_duplicates(weld);
     weld.iter().map(|&w| first[w]).collect()
 }
 
@@ -289,12 +290,7 @@ impl Imported {
         }
         let parts = model.parts();
         let k = model.influences();
-        let mut first = vec![usize::MAX; self.set.vertex_count()];
-        for (g, &w) in self.weld.iter().enumerate() {
-            if first[w] == usize::MAX {
-                first[w] = g;
-            }
-        }
+        let first = first_duplicates(&self.weld);
         rrskin::Model::new(rrskin::ModelParts {
             rest_positions: self
                 .set
