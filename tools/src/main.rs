@@ -293,6 +293,10 @@ impl SetArgs {
             test_frames,
         };
         let imported = rrskin_tools::import::gltf::import(&self.set, &options)?;
+        // Facts about the inputs, not progress: printed under --json too (on stderr).
+        for line in &imported.notes {
+            note(format_args!("note: {}: {line}", cache.display()));
+        }
         Ok((imported.set.clone(), Some(imported)))
     }
 }

@@ -369,6 +369,13 @@ impl ExampleSet {
             warnings: Vec::new(),
         };
         set.warnings = set.mesh_warnings(&faces_path);
+        let limit = crate::import::preflight::RIG_SKIN_LIMIT;
+        if let Some(e) = crate::import::preflight::rig_skin_error(&set).filter(|&e| e >= limit) {
+            return Err(bad(
+                &weights_path,
+                format!("linear blend skinning with these weights follows pose_vertices.npy no better than rigid bones ({e:.1} % of the rigid error on the training poses; a rig's own weights are far below {limit} %): pose_vertices.npy is not in the space, vertex order or poses of pose_transforms.npy and rest_vertices.npy"),
+            ));
+        }
         Ok(set)
     }
 

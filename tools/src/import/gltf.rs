@@ -6,11 +6,13 @@
 //! can be expanded back to the file's own vertex order and count, with the file's rest tangents
 //! (TANGENT, or MikkTSpace from TEXCOORD_0: `import::tangents`).
 
+use crate::import::align::align;
 use crate::import::example_set::{
     rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE,
 };
-use crate::import::gltf_rig::{Rig, TIME_SLACK};
+use crate::import::gltf_rig::Rig;
 use crate::import::point_cache::PointCache;
+use crate::import::preflight::{rig_skin_error, RIG_SKIN_LIMIT};
 use crate::import::tangents::{rest_tangents, Source};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -40,6 +42,8 @@ pub struct Imported {
     /// Rest tangents over the glTF vertices, and their source; `None` without TANGENT or
     /// TEXCOORD_0 (the model then has no tangents, and the set says so in its warnings).
     pub tangents: Option<(Vec<[f32; 4]>, Source)>,
+    /// What was found and fixed in the inputs (cache alignment, morph targets), a line each.
+    pub notes: Vec<String>,
 }
 
 pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError> {
@@ -51,20 +55,16 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     }
     let rig = Rig::load(rig_path, &options.clip)?;
     let cache = PointCache::load(&options.cache, options.fps)?;
-    let bad = |message: String| InputError {
-        file: options.cache.clone(),
-        message,
-    };
-    if cache.point_count() != rig.rest.len() {
-        return Err(bad(format!(
-            "{} points per sample, but the rig {} has {} vertices",
-            cache.point_count(),
-            rig_path.display(),
-            rig.rest.len()
-        )));
-    }
-    check_frames(rig_path, options, &cache, &rig.key_times())?;
-    let weld = weld(&rig.rest, &cache.positions);
+    let aligned = align(
+        &rig,
+        rig_path,
+        &cache,
+        &options.cache,
+        &options.clip,
+        options.fps,
+    )?;
+    check_test_frames(options, &aligned.frames)?;
+    let weld = weld(&rig.rest, &aligned.positions);
     let representative = first_duplicates(&weld);
     let faces: Vec<[usize; 3]> = rig
         .triangles
@@ -72,8 +72,8 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         .map(|t| t.map(|g| weld[g]))
         .filter(|[a, b, c]| a != b && b != c && a != c)
         .collect();
-    let mut poses = Vec::with_capacity(cache.positions.len());
-    for (s, (positions, &time)) in cache.positions.iter().zip(&cache.times).enumerate() {
+    let mut poses = Vec::with_capacity(aligned.positions.len());
+    for (s, (positions, &time)) in aligned.positions.iter().zip(&aligned.times).enumerate() {
         let bones = rig.bones_at(time);
         if let Some((b, e)) = bones
             .iter()
@@ -91,7 +91,11 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
             vertices: representative.iter().map(|&g| positions[g]).collect(),
         });
     }
-    let is_test: Vec<bool> = cache
+    let bad = |message: String| InputError {
+        file: options.cache.clone(),
+        message,
+    };
+    let is_test: Vec<bool> = aligned
         .frames
         .iter()
         .map(|&f| options.test_frames.is_some_and(|r| in_range(f, r)))
@@ -131,7 +135,15 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         ),
         warnings,
     };
+    if let Some(e) = rig_skin_error(&set).filter(|&e| e >= RIG_SKIN_LIMIT) {
+        return Err(bad(format!(
+            "the glTF's own skin follows this cache no better than rigid bones (its LBS at {e:.1} % of the rigid error on the training poses; a rig's own skin is far below {RIG_SKIN_LIMIT} %): the cache is not this rig's motion as {} exports it. Bake the cache from this rig and clip, in world space (PC2: 'Export into Worldspace'), in the glTF's Y-up or Blender's Z-up, over the clip's frames",
+            rig_path.display()
+        )));
+    }
+    let notes = rig.notes.iter().chain(&aligned.notes).cloned().collect();
     Ok(Imported {
+        notes,
         set,
         weld,
         rest: rig.rest,
@@ -140,71 +152,27 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     })
 }
 
-/// Every cache sample must land on a key of the clip (else `--fps` or the cache's frame numbers
-/// are off, and the poses would not be the ones the cache baked), and `--test-frames` must
-/// select samples inside the cache.
-fn check_frames(
-    rig_path: &Path,
-    options: &Options,
-    cache: &PointCache,
-    keys: &[f64],
-) -> Result<(), InputError> {
-    let (clip, fps) = (&options.clip, options.fps);
+/// `--test-frames` must select samples inside the cache (`frames`: the clip's frame of each
+/// sample, the DCC's frame numbers).
+fn check_test_frames(options: &Options, frames: &[f64]) -> Result<(), InputError> {
+    let Some((a, b)) = options.test_frames else {
+        return Ok(());
+    };
     let bad = |message: String| InputError {
         file: options.cache.clone(),
         message,
     };
-    let (Some(&first), Some(&last)) = (keys.first(), keys.last()) else {
-        return Err(InputError {
-            file: rig_path.to_path_buf(),
-            message: format!("animation '{clip}' has no key times"),
-        });
-    };
-    let mut gaps: Vec<f64> = keys.windows(2).map(|w| w[1] - w[0]).collect();
-    gaps.sort_by(f64::total_cmp);
-    let spacing = gaps.get(gaps.len() / 2).copied();
-    for (s, (&time, &frame)) in cache.times.iter().zip(&cache.frames).enumerate() {
-        let k = keys.partition_point(|&t| t < time);
-        let on_key = [k.wrapping_sub(1), k]
-            .iter()
-            .filter_map(|&i| keys.get(i))
-            .any(|&t| (t - time).abs() <= TIME_SLACK);
-        if on_key {
-            continue;
-        }
-        let hint = match spacing.map(|d| 1.0 / d) {
-            Some(key_fps) if (key_fps - key_fps.round()).abs() < 1e-3 && key_fps.round() != fps => {
-                format!(
-                    "; the keys are 1/{} s apart: is it --fps {}?",
-                    key_fps.round(),
-                    key_fps.round()
-                )
-            }
-            _ => String::new(),
-        };
+    let lo = frames.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = frames.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if a < lo - FRAME_SLACK || b > hi + FRAME_SLACK {
         return Err(bad(format!(
-            "sample {s} (frame {frame}, t = {time:.4} s at --fps {fps}) lands on no key of animation '{clip}' in {} ({} keys, {first:.4}..{last:.4} s){hint}",
-            rig_path.display(),
-            keys.len()
+            "--test-frames {a}..{b} reaches outside the cache, whose frames are {lo}..{hi}"
         )));
     }
-    if let Some((a, b)) = options.test_frames {
-        let lo = cache.frames.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = cache
-            .frames
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
-        if a < lo - FRAME_SLACK || b > hi + FRAME_SLACK {
-            return Err(bad(format!(
-                "--test-frames {a}..{b} reaches outside the cache, whose frames are {lo}..{hi}"
-            )));
-        }
-        if !cache.frames.iter().any(|&f| in_range(f, (a, b))) {
-            return Err(bad(format!(
-                "--test-frames {a}..{b} holds none of the cache's frames: no test poses"
-            )));
-        }
+    if !frames.iter().any(|&f| in_range(f, (a, b))) {
+        return Err(bad(format!(
+            "--test-frames {a}..{b} holds none of the cache's frames: no test poses"
+        )));
     }
     Ok(())
 }

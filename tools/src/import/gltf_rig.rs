@@ -1,8 +1,9 @@
 //! A rig from glTF 2.0 (.glb, or .gltf with external buffers): the skinned mesh (all primitives
 //! of every skinned mesh node, concatenated in file order; all must share one skin), the skin's
 //! joints as bones (parent = nearest ancestor that is a joint), the rest mesh = the mesh skinned
-//! at the nodes' default pose (mesh-space POSITIONs are not always the rest pose), and per time
-//! `T_b = W_b(t) · W_b(default)⁻¹` from a sampled animation clip.
+//! at the nodes' default pose and default morph weights (mesh-space POSITIONs are not always the
+//! rest pose), and per time `T_b = W_b(t) · W_b(default)⁻¹` from a sampled animation clip. A
+//! clip's morph weight channels are not played: the cache carries their effect.
 
 use crate::import::example_set::{Bone, InputError};
 use glam::{DMat4, DQuat, DVec3, DVec4};
@@ -68,6 +69,13 @@ pub struct Rig {
     /// default pose's blended joint matrix, renormalised; w as stored), if every primitive has
     /// it.
     pub tangents: Option<Vec<[f32; 4]>>,
+    /// The skin's bind matrix `W_j(default) · IBM_j`, mesh space to world, when every joint has
+    /// the same one (the mesh was bound at the default pose): what takes an object-space cache
+    /// to the rig's world.
+    pub bind: Option<DMat4>,
+    /// What the user should know about the file that is not an error (morph targets), a line
+    /// each.
+    pub notes: Vec<String>,
     /// Node of each bone.
     joints: Vec<usize>,
     node_parents: Vec<Option<usize>>,
@@ -201,6 +209,7 @@ impl Rig {
             .collect();
         let (mut rest, mut triangles, mut weights) = (Vec::new(), Vec::new(), Vec::new());
         let (mut uvs, mut tangents) = (Some(Vec::new()), Some(Vec::new()));
+        let mut notes = Vec::new();
         for node in &skinned {
             let mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
             for prim in mesh.primitives() {
@@ -243,6 +252,18 @@ impl Rig {
                     })?
                     .into_f32()
                     .collect();
+                let positions = at_default_morph_weights(path, node, &mesh, &reader, positions)?;
+                if mesh.primitives().next().map(|p| p.index()) == Some(prim.index())
+                    && prim.morph_targets().len() > 0
+                {
+                    notes.push(format!(
+                        "mesh {}: {} morph targets, the rest mesh at their default weights {:?}",
+                        mesh.name()
+                            .map_or_else(|| mesh.index().to_string(), str::to_string),
+                        prim.morph_targets().len(),
+                        morph_weights(node, &mesh)
+                    ));
+                }
                 let uv: Option<Vec<[f32; 2]>> =
                     reader.read_tex_coords(0).map(|t| t.into_f32().collect());
                 let tangent: Option<Vec<[f32; 4]>> = reader.read_tangents().map(Iterator::collect);
@@ -368,7 +389,14 @@ impl Rig {
                         .map(|q| DQuat::from_array(q.map(f64::from)))
                         .collect(),
                 ),
-                gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => continue,
+                gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => {
+                    let node = ch.target().node();
+                    notes.push(format!(
+                        "animation '{clip}' animates the morph weights of node {}: not played (the cache carries their effect)",
+                        node.name().map_or_else(|| node.index().to_string(), str::to_string)
+                    ));
+                    continue;
+                }
             };
             let interpolation = ch.sampler().interpolation();
             let per_key = if interpolation == Interpolation::CubicSpline {
@@ -403,7 +431,10 @@ impl Rig {
                 values,
             });
         }
+        notes.dedup();
         Ok(Rig {
+            bind: common_bind(&joint_matrices),
+            notes,
             rest,
             weights,
             uvs,
@@ -425,6 +456,24 @@ impl Rig {
         times.sort_by(f64::total_cmp);
         times.dedup_by(|a, b| (*a - *b).abs() <= TIME_SLACK);
         times
+    }
+
+    /// The rest mesh under the rig's own skin (linear blend skinning with its weights).
+    pub fn skin(&self, bones: &[Bone]) -> Vec<DVec3> {
+        (0..self.rest.len())
+            .map(|v| self.skin_vertex(v, bones))
+            .collect()
+    }
+
+    /// Vertex `v` of [`Rig::skin`].
+    pub fn skin_vertex(&self, v: usize, bones: &[Bone]) -> DVec3 {
+        if self.weights[v].is_empty() {
+            return self.rest[v];
+        }
+        self.weights[v]
+            .iter()
+            .map(|&(b, w)| bones[b].apply(self.rest[v]) * w)
+            .sum()
     }
 
     /// Every bone's transform at `time` (seconds) relative to the rest pose.
@@ -455,6 +504,73 @@ impl Rig {
             })
             .collect()
     }
+}
+
+/// Joint matrices this close (largest element difference, relative to the largest element) are
+/// one bind matrix.
+const SAME_BIND: f64 = 1e-5;
+
+/// The joints' common bind matrix, if they have one.
+fn common_bind(joint_matrices: &[DMat4]) -> Option<DMat4> {
+    let first = *joint_matrices.first()?;
+    let size = first
+        .to_cols_array()
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.abs()));
+    joint_matrices
+        .iter()
+        .all(|m| {
+            (*m - first)
+                .to_cols_array()
+                .iter()
+                .all(|d| d.abs() <= SAME_BIND * size)
+        })
+        .then_some(first)
+}
+
+/// The node's morph weights (the node's own, else the mesh's default; glTF 2.0 §3.7.2.2).
+fn morph_weights(node: &gltf::Node, mesh: &gltf::Mesh) -> Vec<f32> {
+    node.weights()
+        .or_else(|| mesh.weights())
+        .map_or_else(Vec::new, <[f32]>::to_vec)
+}
+
+/// POSITION plus the morph targets' displacements at the default weights (absent weights are 0).
+fn at_default_morph_weights<'a, 's, F>(
+    path: &Path,
+    node: &gltf::Node,
+    mesh: &gltf::Mesh,
+    reader: &gltf::mesh::Reader<'a, 's, F>,
+    mut positions: Vec<[f32; 3]>,
+) -> Result<Vec<[f32; 3]>, InputError>
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    let weights = morph_weights(node, mesh);
+    for (t, (displacements, _, _)) in reader.read_morph_targets().enumerate() {
+        let w = weights.get(t).copied().unwrap_or(0.0);
+        let Some(displacements) = displacements else {
+            continue;
+        };
+        let displacements: Vec<[f32; 3]> = displacements.collect();
+        if displacements.len() != positions.len() {
+            return Err(bad(
+                path,
+                format!(
+                    "mesh {}: morph target {t} has {} positions for {} vertices",
+                    mesh.index(),
+                    displacements.len(),
+                    positions.len()
+                ),
+            ));
+        }
+        if w != 0.0 {
+            for (p, d) in positions.iter_mut().zip(&displacements) {
+                (0..3).for_each(|c| p[c] += w * d[c]);
+            }
+        }
+    }
+    Ok(positions)
 }
 
 /// World matrices of all nodes from local ones (parents before or after children).

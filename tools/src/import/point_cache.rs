@@ -5,19 +5,44 @@
 //!   `start + s · rate`; its time is frame / fps.
 //! - MDD (big-endian): frames i32, points i32, frames f32 times (seconds), then
 //!   frames x points x 3 f32.
+//!
+//! Frame numbers are the DCC's: a sample whose frame is within float32's reach of a whole
+//! number is that whole frame (MDD's f32 seconds put Blender's frame 59 at 58.99999809), so a
+//! `--test-frames` bound never moves a sample to the other side.
 
 use crate::import::example_set::InputError;
 use glam::DVec3;
 use std::path::Path;
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// Frames in the header (start, rate): `--fps` gives their times.
+    Pc2,
+    /// Times in seconds per sample: `--fps` only numbers their frames.
+    Mdd,
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct PointCache {
-    /// Per sample: its frame number (PC2) or time x fps (MDD).
+    pub format: Format,
+    /// Per sample: its frame number (PC2) or time x fps (MDD), whole where float32 allows.
     pub frames: Vec<f64>,
     /// Per sample: the time in seconds.
     pub times: Vec<f64>,
     /// [sample][point]
     pub positions: Vec<Vec<DVec3>>,
+}
+
+/// A frame this close to a whole number is that number: float32 seconds hold frame f to about
+/// 1e-7 f, so this reaches frame 10,000 with margin.
+const WHOLE_FRAME: f64 = 1e-3;
+
+/// `frame` rounded to a whole frame when float32 could have stored that whole frame.
+fn whole(frame: f64) -> f64 {
+    match (frame - frame.round()).abs() <= WHOLE_FRAME {
+        true => frame.round(),
+        false => frame,
+    }
 }
 
 const PC2_MAGIC: &[u8; 12] = b"POINTCACHE2\0";
@@ -62,6 +87,15 @@ impl PointCache {
         self.positions.first().map_or(0, |p| p.len())
     }
 
+    /// Samples per second, from the median spacing of the samples' times (None for one sample).
+    pub fn sample_rate(&self) -> Option<f64> {
+        let mut gaps: Vec<f64> = self.times.windows(2).map(|w| w[1] - w[0]).collect();
+        gaps.sort_by(f64::total_cmp);
+        gaps.get(gaps.len() / 2)
+            .filter(|&&g| g > 0.0)
+            .map(|g| 1.0 / g)
+    }
+
     pub fn from_pc2(b: &[u8], fps: f64) -> Result<PointCache, String> {
         if b.len() < 32 || &b[..12] != PC2_MAGIC {
             return Err("not a PC2 file (missing POINTCACHE2 header)".into());
@@ -77,9 +111,10 @@ impl PointCache {
         // The data first: its length bounds what the header's counts may allocate.
         let positions = read_points(&b[32..], points, samples, f32::from_le_bytes)?;
         let frames: Vec<f64> = (0..samples)
-            .map(|s| start as f64 + s as f64 * rate as f64)
+            .map(|s| whole(start as f64 + s as f64 * rate as f64))
             .collect();
         Ok(PointCache {
+            format: Format::Pc2,
             times: frames.iter().map(|f| f / fps).collect(),
             frames,
             positions,
@@ -105,9 +140,16 @@ impl PointCache {
             .map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]) as f64)
             .collect();
         let positions = read_points(&body[4 * samples..], points, samples, f32::from_be_bytes)?;
+        let frames: Vec<f64> = times.iter().map(|t| whole(t * fps)).collect();
         Ok(PointCache {
-            frames: times.iter().map(|t| t * fps).collect(),
-            times,
+            format: Format::Mdd,
+            // A whole frame's time is exact: the f32 seconds' rounding would miss keys.
+            times: frames
+                .iter()
+                .zip(&times)
+                .map(|(f, t)| if f.fract() == 0.0 { f / fps } else { *t })
+                .collect(),
+            frames,
             positions,
         })
     }
@@ -201,6 +243,7 @@ mod tests {
             })
             .collect();
         PointCache {
+            format: Format::Pc2,
             frames: vec![2.0, 3.0, 4.0, 5.0],
             times: vec![2.0 / 24.0, 3.0 / 24.0, 4.0 / 24.0, 5.0 / 24.0],
             positions,

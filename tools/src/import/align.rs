@@ -1,0 +1,294 @@
+//! Pre-flight alignment of a point cache with its glTF rig, before any training.
+//!
+//! The glTF's own skin, played at the clip's keys, predicts roughly where every vertex is; a
+//! cache that does not line up with it was exported with other settings. Three things are
+//! found from that prediction, each fixed with a line for the user when it is unambiguous:
+//!
+//! - **Frames**: the whole-frame offset o with which cache sample s holds the clip's frame
+//!   `frame_s + o` (MDD's times start at 0 whatever the scene's first frame).
+//! - **Space**: the cache in the rig's world, Y-up (as glTF), or Z-up (Blender's MDD), or in
+//!   the mesh's object space (PC2's default), which the skin's bind matrix takes to the world.
+//! - **Vertex order**: the glTF's, or the DCC's own ([`vertex_map`]).
+//!
+//! The frames and the space are told apart without knowing the vertex order: each hypothesis is
+//! scored by how far the skinned mesh's points are from the nearest cache point (a one-sided
+//! Chamfer distance on a subsample), and the best must be at most [`MARGIN`] of the next best.
+
+use crate::import::example_set::InputError;
+use crate::import::gltf_rig::{Rig, TIME_SLACK};
+use crate::import::point_cache::{Format, PointCache};
+use crate::import::vertex_map::{self, diagonal, tree};
+use glam::{DMat3, DMat4, DVec3};
+use kdtree::distance::squared_euclidean;
+use rayon::prelude::*;
+use std::path::Path;
+
+/// The best hypothesis's score must be at most this fraction of the next one's.
+pub const MARGIN: f64 = 0.5;
+/// Samples and skinned vertices the hypotheses are scored on.
+const SCORED_SAMPLES: usize = 16;
+const SCORED_VERTICES: usize = 128;
+/// A sample is at the bind pose when every bone's transform is the identity to this (rotation
+/// elements; translation relative to the mesh size).
+const AT_BIND: f64 = 1e-4;
+
+/// The cache lined up with the rig.
+#[derive(Debug, Clone)]
+pub struct Aligned {
+    /// [sample][glTF vertex]: the cache's positions in the rig's world, in the glTF's order.
+    pub positions: Vec<Vec<DVec3>>,
+    /// Per sample: the clip's frame it holds (the DCC's frame number) and its time in seconds.
+    pub frames: Vec<f64>,
+    pub times: Vec<f64>,
+    /// One line per fix made.
+    pub notes: Vec<String>,
+}
+
+/// Where the cache's coordinates are.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Space {
+    World,
+    WorldZUp,
+    Object,
+    ObjectZUp,
+}
+
+impl Space {
+    /// Cache coordinates to the rig's world.
+    fn matrix(self, bind: DMat4) -> DMat4 {
+        // Blender's Z-up to glTF's Y-up: (x, y, z) → (x, z, −y).
+        let z_up = DMat4::from_mat3(DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y));
+        match self {
+            Space::World => DMat4::IDENTITY,
+            Space::WorldZUp => z_up,
+            Space::Object => bind,
+            Space::ObjectZUp => bind * z_up,
+        }
+    }
+
+    fn note(self) -> Option<&'static str> {
+        match self {
+            Space::World => None,
+            Space::WorldZUp => Some("cache is Z-up: converted to the glTF's Y-up"),
+            Space::Object => Some("cache is in the mesh's object space: converted to world space by the skin's bind matrix"),
+            Space::ObjectZUp => Some("cache is Z-up and in the mesh's object space: converted to the glTF's Y-up world space by the skin's bind matrix"),
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            Space::World => "world space, Y-up",
+            Space::WorldZUp => "world space, Z-up",
+            Space::Object => "object space, Y-up",
+            Space::ObjectZUp => "object space, Z-up",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Hypothesis {
+    space: Space,
+    offset: f64,
+    /// Mean distance of the skinned points to the nearest cache point, over the mesh size.
+    score: f64,
+}
+
+pub fn align(
+    rig: &Rig,
+    rig_path: &Path,
+    cache: &PointCache,
+    cache_path: &Path,
+    clip: &str,
+    fps: f64,
+) -> Result<Aligned, InputError> {
+    let bad = |message: String| InputError {
+        file: cache_path.to_path_buf(),
+        message,
+    };
+    let keys = rig.key_times();
+    if keys.is_empty() {
+        return Err(InputError {
+            file: rig_path.to_path_buf(),
+            message: format!("animation '{clip}' has no key times"),
+        });
+    }
+    let offsets = offsets(&cache.frames, &keys, fps);
+    if offsets.is_empty() {
+        return Err(bad(off_the_keys(rig_path, cache, &keys, clip, fps)));
+    }
+    let size = diagonal(&rig.rest);
+    let bind = rig.bind.unwrap_or(DMat4::IDENTITY);
+    let mut spaces = vec![Space::World, Space::WorldZUp];
+    if rig.bind.is_some() && !bind.abs_diff_eq(DMat4::IDENTITY, 1e-6) {
+        spaces.extend([Space::Object, Space::ObjectZUp]);
+    }
+    let mut hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
+    hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));
+    let best = hypotheses[0];
+    if let Some(next) = hypotheses.get(1).filter(|n| best.score > MARGIN * n.score) {
+        let what = |h: &Hypothesis| {
+            format!(
+                "{} with cache frame {} as the clip's frame {} ({:.2} % of the mesh size apart)",
+                h.space.describe(),
+                cache.frames[0],
+                cache.frames[0] + h.offset,
+                100.0 * h.score
+            )
+        };
+        return Err(bad(format!(
+            "cannot tell how the cache lines up with animation '{clip}' of {}: as {} or as {} (the glTF's own skin against the cache's points); export the cache in world space, in the glTF's Y-up, over the clip's own frame range",
+            rig_path.display(),
+            what(&best),
+            what(next)
+        )));
+    }
+
+    let mut notes: Vec<String> = best.space.note().map(str::to_string).into_iter().collect();
+    let frames: Vec<f64> = cache.frames.iter().map(|f| f + best.offset).collect();
+    let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
+    if best.offset != 0.0 {
+        notes.push(format!(
+            "cache sample 0 holds the clip's frame {}, not frame {}{}: shifted by {} frame{}",
+            frames[0],
+            cache.frames[0],
+            match cache.format {
+                Format::Mdd => " (MDD times start at 0, whatever the scene's first frame)",
+                Format::Pc2 => "",
+            },
+            best.offset,
+            if best.offset.abs() == 1.0 { "" } else { "s" }
+        ));
+    }
+    let to_world = best.space.matrix(bind);
+    let world: Vec<Vec<DVec3>> = cache
+        .positions
+        .iter()
+        .map(|s| s.iter().map(|&p| to_world.transform_point3(p)).collect())
+        .collect();
+    let bones: Vec<_> = times.iter().map(|&t| rig.bones_at(t)).collect();
+    let skin: Vec<Vec<DVec3>> = bones.iter().map(|b| rig.skin(b)).collect();
+    let at_bind = bones.iter().position(|b| {
+        b.iter()
+            .all(|x| x.q.abs_diff_eq(DMat3::IDENTITY, AT_BIND) && x.d.length() <= AT_BIND * size)
+    });
+    let map = vertex_map::map(&rig.rest, &rig.triangles, &skin, &world, at_bind).map_err(bad)?;
+    notes.extend(map.note);
+    let positions = world
+        .iter()
+        .map(|s| map.point_of.iter().map(|&p| s[p]).collect())
+        .collect();
+    Ok(Aligned {
+        positions,
+        frames,
+        times,
+        notes,
+    })
+}
+
+/// The whole-frame offsets under which every sample lands on a key of the clip.
+fn offsets(frames: &[f64], keys: &[f64], fps: f64) -> Vec<f64> {
+    let on_key = |time: f64| {
+        let k = keys.partition_point(|&t| t < time);
+        [k.wrapping_sub(1), k]
+            .iter()
+            .filter_map(|&i| keys.get(i))
+            .any(|&t| (t - time).abs() <= TIME_SLACK)
+    };
+    let mut offsets: Vec<f64> = keys
+        .iter()
+        .map(|&k| (k * fps - frames[0]).round())
+        .collect();
+    offsets.dedup();
+    offsets.retain(|&o| frames.iter().all(|&f| on_key((f + o) / fps)));
+    offsets
+}
+
+/// Every hypothesis scored: over a few samples, the mean distance from a subsample of the
+/// skinned mesh's points to the nearest cache point, in world units over the mesh size.
+fn score(
+    rig: &Rig,
+    cache: &PointCache,
+    fps: f64,
+    spaces: &[Space],
+    offsets: &[f64],
+    size: f64,
+) -> Vec<Hypothesis> {
+    let n = cache.positions.len();
+    let samples: Vec<usize> = (0..SCORED_SAMPLES.min(n))
+        .map(|i| i * n / SCORED_SAMPLES.min(n))
+        .collect();
+    let trees: Vec<_> = samples.iter().map(|&s| tree(&cache.positions[s])).collect();
+    let step = rig.rest.len().div_ceil(SCORED_VERTICES).max(1);
+    let probes: Vec<usize> = (0..rig.rest.len()).step_by(step).collect();
+    let bind = rig.bind.unwrap_or(DMat4::IDENTITY);
+    let to_cache: Vec<(DMat4, f64)> = spaces
+        .iter()
+        .map(|s| {
+            let m = s.matrix(bind);
+            (m.inverse(), m.determinant().abs().cbrt())
+        })
+        .collect();
+    offsets
+        .par_iter()
+        .flat_map_iter(|&offset| {
+            let mut sums = vec![0.0; spaces.len()];
+            for (tree, &s) in trees.iter().zip(&samples) {
+                let bones = rig.bones_at((cache.frames[s] + offset) / fps);
+                for &v in &probes {
+                    let p = rig.skin_vertex(v, &bones);
+                    for (sum, (inverse, scale)) in sums.iter_mut().zip(&to_cache) {
+                        let q = inverse.transform_point3(p).to_array();
+                        *sum += tree
+                            .nearest(&q, 1, &squared_euclidean)
+                            .ok()
+                            .and_then(|n| n.first().map(|x| x.0.sqrt() * scale))
+                            .unwrap_or(f64::INFINITY);
+                    }
+                }
+            }
+            let count = (samples.len() * probes.len()) as f64;
+            spaces
+                .iter()
+                .zip(sums)
+                .map(move |(&space, sum)| Hypothesis {
+                    space,
+                    offset,
+                    score: sum / count / size,
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// Why no offset puts the samples on the clip's keys, with the likely cause.
+fn off_the_keys(rig_path: &Path, cache: &PointCache, keys: &[f64], clip: &str, fps: f64) -> String {
+    let mut gaps: Vec<f64> = keys.windows(2).map(|w| w[1] - w[0]).collect();
+    gaps.sort_by(f64::total_cmp);
+    let key_fps = gaps
+        .get(gaps.len() / 2)
+        .map(|d| 1.0 / d)
+        .filter(|r| (r - r.round()).abs() < 1e-3)
+        .map(f64::round);
+    let hint = match (cache.format, key_fps, cache.sample_rate()) {
+        (Format::Mdd, Some(k), Some(c)) if (c - k).abs() > 1e-3 * k => format!(
+            "; the cache was sampled at {c:.3} fps (its samples are 1/{c:.3} s apart) and the clip's keys are 1/{k} s apart: bake the cache at the clip's {k} fps (an MDD stores seconds: --fps only numbers its frames)"
+        ),
+        (Format::Pc2, Some(k), _) if k != fps => format!("; the keys are 1/{k} s apart: is it --fps {k}?"),
+        _ => "; no whole-frame shift of the cache fits either: bake the cache at the clip's keys".into(),
+    };
+    let s = (0..cache.times.len())
+        .find(|&s| {
+            offsets(&cache.frames[s..=s], keys, fps)
+                .iter()
+                .all(|&o| o != 0.0)
+        })
+        .unwrap_or(0);
+    let (first, last) = (keys[0], keys[keys.len() - 1]);
+    format!(
+        "sample {s} (frame {}, t = {:.4} s at --fps {fps}) lands on no key of animation '{clip}' in {} ({} keys, {first:.4}..{last:.4} s){hint}",
+        cache.frames[s],
+        cache.times[s],
+        rig_path.display(),
+        keys.len()
+    )
+}
