@@ -244,13 +244,16 @@ struct SetArgs {
     /// glTF rig: the animation that poses the rig at the cache's samples.
     #[arg(long)]
     clip: Option<String>,
-    /// glTF rig: the point cache (.pc2 or .mdd) of the black-box rig's vertices, glTF order.
+    /// glTF rig: the point cache (.pc2 or .mdd) of the black-box rig's vertices, in the glTF's
+    /// vertex order or the DCC's own (mapped), world or object space, Y-up or Z-up (detected).
     #[arg(long)]
     cache: Option<PathBuf>,
-    /// glTF rig: frames per second of the cache's frame numbers.
+    /// glTF rig: the clip's frames per second (glTF key time x fps = the DCC's frame number;
+    /// PC2 frames become times with it, MDD times frames).
     #[arg(long, default_value_t = 24.0)]
     fps: f64,
-    /// glTF rig: cache frames held out as test poses, e.g. 41..60 (inclusive).
+    /// glTF rig: frames held out as test poses, e.g. 41..60 (inclusive; the DCC's frame
+    /// numbers, after any shift of the cache onto the clip).
     #[arg(long)]
     test_frames: Option<String>,
 }

@@ -272,7 +272,9 @@ fn bad_clips_and_caches_are_refused_with_their_numbers() {
     std::fs::write(&path, few.to_pc2()).expect("write");
     let e = error_of(&path, "examples");
     assert!(
-        e.contains("few.pc2") && e.contains("10 points per sample") && e.contains("3273 vertices"),
+        e.contains("few.pc2")
+            && e.contains("10 points for the rig's 3273 vertices")
+            && e.contains("2338 distinct"),
         "{e}"
     );
     let mut nan = good.to_pc2();
@@ -348,6 +350,7 @@ fn frames_off_the_keys_or_the_cache_are_refused_before_training() {
 
     let good = PointCache::load(Path::new(&cache), 24.0).expect("cache");
     let one = PointCache {
+        format: good.format,
         frames: good.frames[..1].to_vec(),
         times: good.times[..1].to_vec(),
         positions: good.positions[..1].to_vec(),

@@ -377,6 +377,7 @@ fn gltf_rigs_and_point_caches_never_panic() {
     let good =
         PointCache::load(&data("cesiumman_gltf/CesiumMan_examples.pc2"), 24.0).expect("cache");
     let short = PointCache {
+        format: good.format,
         frames: good.frames[..4].to_vec(),
         times: good.times[..4].to_vec(),
         positions: good.positions[..4].to_vec(),

@@ -171,7 +171,15 @@ pub fn align(
         b.iter()
             .all(|x| x.q.abs_diff_eq(DMat3::IDENTITY, AT_BIND) && x.d.length() <= AT_BIND * size)
     });
-    let map = vertex_map::map(&rig.rest, &rig.triangles, &skin, &world, at_bind).map_err(bad)?;
+    let map = vertex_map::map(
+        &rig.rest,
+        &rig.triangles,
+        &rig.primitives,
+        &skin,
+        &world,
+        at_bind,
+    )
+    .map_err(bad)?;
     notes.extend(map.note);
     let positions = world
         .iter()

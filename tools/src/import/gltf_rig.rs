@@ -57,6 +57,8 @@ pub struct Rig {
     pub rest: Vec<DVec3>,
     /// glTF triangles (indices into `rest`).
     pub triangles: Vec<[usize; 3]>,
+    /// The vertices of each primitive, in file order.
+    pub primitives: Vec<std::ops::Range<usize>>,
     /// J bone names (node names, or "joint N").
     pub names: Vec<String>,
     pub parents: Vec<Option<usize>>,
@@ -210,6 +212,7 @@ impl Rig {
         let (mut rest, mut triangles, mut weights) = (Vec::new(), Vec::new(), Vec::new());
         let (mut uvs, mut tangents) = (Some(Vec::new()), Some(Vec::new()));
         let mut notes = Vec::new();
+        let mut primitives = Vec::new();
         for node in &skinned {
             let mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
             for prim in mesh.primitives() {
@@ -332,6 +335,7 @@ impl Rig {
                     }
                 }
                 let count = positions.len();
+                primitives.push(base..base + count);
                 let indices: Vec<usize> = match reader.read_indices() {
                     Some(i) => i.into_u32().map(|x| x as usize).collect(),
                     None => (0..count).collect(),
@@ -434,6 +438,7 @@ impl Rig {
         notes.dedup();
         Ok(Rig {
             bind: common_bind(&joint_matrices),
+            primitives,
             notes,
             rest,
             weights,

@@ -1,25 +1,31 @@
 //! Which cache point is which glTF vertex.
 //!
-//! A DCC's point cache holds the DCC's vertices: Blender, Maya and Houdini split a vertex into
-//! several glTF vertices along UV and normal seams, so the cache has fewer points than the glTF
-//! file and in another order. Split copies share their rest position and skin, so they are one
+//! A DCC's point cache holds the DCC's vertices, which the glTF exporters of Blender, Maya and
+//! Houdini split into several glTF vertices along UV and normal seams: the cache has fewer
+//! points than the glTF file, in another order. Split copies share their rest position and skin, so they are one
 //! *group* here (welded on rest position and skinned trajectory), and each group must be one
 //! cache point:
 //!
 //! - **By position**, when a sample holds the bind pose: the group's rest position against the
 //!   cache's points in that sample (they agree to float precision).
 //! - **By trajectory** otherwise: the group's trajectory under the glTF's own skin against the
-//!   points' trajectories over every sample (they differ by the rig's deviation from its skin).
+//!   points' trajectories (the median over samples of the distance, so that the few extreme
+//!   poses where a deformer departs most from the skin do not decide). A deformer's departure
+//!   is smooth on the mesh, so after each round every prediction is refined by the residuals of
+//!   its clearly matched mesh neighbours, and the points are matched again.
 //!
 //! Candidates are the nearest points in one sample; pairs are taken cheapest first (a greedy
-//! assignment), and every match must be clearly better than the next distinct point
-//! ([`MARGIN`]), every point must be used (or duplicate a used one), else the mapping is refused.
+//! assignment). A match is clear when every exchange with another distinct candidate (the
+//! group takes it, its owner takes the group's point) costs at least 1/[`MARGIN`] as much. Every
+//! match must be clear and every point used (or a copy of a used one), else the mapping is
+//! refused: a wrong mapping would train on garbage.
 
 use crate::import::gltf::weld;
 use glam::DVec3;
 use kdtree::distance::squared_euclidean;
 use kdtree::KdTree;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Nearest points (in the reference sample) considered per group.
 const CANDIDATES: usize = 12;
@@ -43,29 +49,53 @@ pub struct VertexMap {
 pub fn map(
     rest: &[DVec3],
     triangles: &[[usize; 3]],
+    primitives: &[Range<usize>],
     skin: &[Vec<DVec3>],
     cache: &[Vec<DVec3>],
     bind: Option<usize>,
 ) -> Result<VertexMap, String> {
     let (g, m) = (rest.len(), cache.first().map_or(0, Vec::len));
+    let identity = VertexMap {
+        point_of: (0..g).collect(),
+        note: None,
+    };
+    let mesh = Mesh {
+        rest,
+        triangles,
+        primitives,
+        skin,
+    };
+    if m == g && in_gltf_order(&mesh, cache, bind) {
+        return Ok(identity);
+    }
+    match by_matching(&mesh, cache, bind) {
+        // As many points as vertices, none matched: the glTF's order it is, and the rig's skin
+        // judges it before training (with a message about the cache's space).
+        Err(_) if m == g => Ok(identity),
+        found => found,
+    }
+}
+
+/// The glTF side of the mapping.
+struct Mesh<'a> {
+    rest: &'a [DVec3],
+    triangles: &'a [[usize; 3]],
+    primitives: &'a [Range<usize>],
+    skin: &'a [Vec<DVec3>],
+}
+
+/// Whether the cache's points, as many as the vertices, are the vertices in the glTF's order:
+/// unless some other order fits far better.
+fn in_gltf_order(mesh: &Mesh, cache: &[Vec<DVec3>], bind: Option<usize>) -> bool {
+    let (rest, skin) = (mesh.rest, mesh.skin);
+    let g = rest.len();
     let size = diagonal(rest);
     let by_position = bind.is_some();
     let reference = bind.unwrap_or_else(|| least_moving(rest, skin));
     let points = tree(&cache[reference]);
-    // Up to CANDIDATES points nearest `query` in the reference sample, cheapest first.
-    let near = |query: DVec3, cost: &dyn Fn(usize) -> f64| -> Vec<(f64, usize)> {
-        let mut c: Vec<(f64, usize)> = points
-            .nearest(&query.to_array(), CANDIDATES.min(m), &squared_euclidean)
-            .map_or_else(
-                |_| Vec::new(),
-                |n| n.iter().map(|&(_, &p)| (cost(p), p)).collect(),
-            );
-        c.sort_by(|a, b| a.0.total_cmp(&b.0));
-        c
-    };
+    let near = |query: DVec3, cost: &dyn Fn(usize) -> f64| candidates(&points, query, cost);
 
-    if m == g {
-        // The glTF's own order, unless some other order fits far better.
+    {
         let cost = |v: usize, p: usize| match bind {
             Some(s) => (cache[s][p] - rest[v]).length(),
             None => trajectory_distance(skin, cache, v, p),
@@ -85,13 +115,24 @@ pub fn map(
                     .map_or(f64::INFINITY, |c| c.0.powi(2))
             })
             .sum();
-        if identity <= 4.0 * nearest + (1e-9 * size).powi(2) * g as f64 {
-            return Ok(VertexMap {
-                point_of: (0..g).collect(),
-                note: None,
-            });
-        }
+        identity <= 4.0 * nearest + (1e-9 * size).powi(2) * g as f64
     }
+}
+
+/// Each cache point found among the glTF's vertices (module docs).
+fn by_matching(
+    mesh: &Mesh,
+    cache: &[Vec<DVec3>],
+    bind: Option<usize>,
+) -> Result<VertexMap, String> {
+    let (rest, triangles, primitives, skin) =
+        (mesh.rest, mesh.triangles, mesh.primitives, mesh.skin);
+    let (g, m) = (rest.len(), cache.first().map_or(0, Vec::len));
+    let size = diagonal(rest);
+    let by_position = bind.is_some();
+    let reference = bind.unwrap_or_else(|| least_moving(rest, skin));
+    let points = tree(&cache[reference]);
+    let near = |query: DVec3, cost: &dyn Fn(usize) -> f64| candidates(&points, query, cost);
 
     let group = weld(rest, skin);
     let groups = group.iter().max().map_or(0, |x| x + 1);
@@ -129,7 +170,7 @@ pub fn map(
         a.dedup();
     });
     let mut round = 0;
-    let matched = loop {
+    let mut matched = loop {
         let matched = assign(
             &representative,
             m,
@@ -159,6 +200,10 @@ pub fn map(
             &matched,
             &rest_tree,
         );
+    };
+    let placed = match (by_position, matched.ambiguous) {
+        (false, 1..) => by_order(&mut matched, &group, primitives)?,
+        _ => 0,
     };
     let Matched {
         point_of_group,
@@ -207,11 +252,14 @@ pub fn map(
                     trajectory_distance(skin, cache, representative[k], point_of_group[k]).powi(2)
                 })
                 .sum();
+            let order = match placed {
+                0 => String::new(),
+                n => format!(", {n} of them placed by the exporter's vertex order, which the other matches keep"),
+            };
             format!(
-                "by trajectory over {} samples against the glTF's own skin ({round} rounds), RMS residual {:.2} % of the mesh size (the rig's deviation from its skin), every match within {:.2} of the next point's distance",
+                "by trajectory over {} samples against the glTF's own skin ({round} rounds{order}), RMS residual {:.2} % of the mesh size (the rig's deviation from its skin)",
                 cache.len(),
                 100.0 * (deviation / groups as f64).sqrt() / size,
-                worst.0
             )
         }
     };
@@ -313,6 +361,97 @@ fn assign(
     matched
 }
 
+/// Clear matches that keep the DCC's order within a primitive this often show an exporter
+/// that keeps it.
+const IN_ORDER: f64 = 0.999;
+
+/// Places unclear matches by the exporter's vertex order, when the clear matches show that it
+/// keeps the DCC's order within each primitive (Blender's does: a primitive's vertices are the
+/// DCC's in increasing order, split copies beside their original). Between two clear matches
+/// of a primitive, the unclear groups' points lie between theirs; where exactly as many
+/// points are free there as groups wait, they are those points, in order. Returns how many
+/// were placed.
+fn by_order(
+    matched: &mut Matched,
+    group: &[usize],
+    primitives: &[Range<usize>],
+) -> Result<usize, String> {
+    let m = matched.used.len();
+    let runs: Vec<Vec<usize>> = primitives
+        .iter()
+        .map(|r| {
+            // Each group where it first appears (Blender writes a vertex's copies together).
+            let mut seen = std::collections::HashSet::new();
+            group[r.clone()]
+                .iter()
+                .copied()
+                .filter(|&k| seen.insert(k))
+                .collect()
+        })
+        .collect();
+    let (mut rising, mut pairs) = (0usize, 0usize);
+    for run in &runs {
+        let anchors: Vec<usize> = run
+            .iter()
+            .filter(|&&k| matched.clear[k])
+            .map(|&k| matched.point_of_group[k])
+            .collect();
+        pairs += anchors.len().saturating_sub(1);
+        rising += anchors.windows(2).filter(|w| w[1] > w[0]).count();
+    }
+    if pairs == 0 || (rising as f64) < IN_ORDER * pairs as f64 {
+        return Ok(0);
+    }
+    let mut taken = vec![false; m];
+    for (k, &p) in matched.point_of_group.iter().enumerate() {
+        if matched.clear[k] && p != usize::MAX {
+            taken[p] = true;
+        }
+    }
+    let mut placed = 0;
+    for run in &runs {
+        let mut i = 0;
+        while i < run.len() {
+            if matched.clear[run[i]] {
+                i += 1;
+                continue;
+            }
+            let start = i;
+            while i < run.len() && !matched.clear[run[i]] {
+                i += 1;
+            }
+            let lo = start
+                .checked_sub(1)
+                .map_or(0, |a| matched.point_of_group[run[a]] + 1);
+            let hi = run.get(i).map_or(m, |&k| matched.point_of_group[k]);
+            let free: Vec<usize> = (lo..hi.max(lo)).filter(|&p| !taken[p]).collect();
+            if free.len() == i - start {
+                for (&k, &p) in run[start..i].iter().zip(&free) {
+                    matched.point_of_group[k] = p;
+                    matched.clear[k] = true;
+                    taken[p] = true;
+                    placed += 1;
+                }
+            }
+        }
+    }
+    // Every point at most once, else the order was not the DCC's after all.
+    let mut owner = vec![usize::MAX; m];
+    for (k, &p) in matched.point_of_group.iter().enumerate() {
+        if p != usize::MAX && matched.clear[k] {
+            if owner[p] != usize::MAX {
+                return Err(format!(
+                    "the glTF's vertex order places two vertices on cache point {p}: the cache is not in the DCC's order"
+                ));
+            }
+            owner[p] = k;
+        }
+    }
+    matched.used = owner.iter().map(|&o| o != usize::MAX).collect();
+    matched.ambiguous = matched.clear.iter().filter(|&&c| !c).count();
+    Ok(placed)
+}
+
 /// The skin's prediction plus, per sample, the mean residual (cache − skin) of the nearest
 /// clearly matched groups around each vertex (by rest position, the vertex's own excluded).
 fn refined(
@@ -370,6 +509,26 @@ fn refined(
                 .collect()
         })
         .collect()
+}
+
+/// The CANDIDATES points of `points` nearest `query`, cheapest first by `cost`.
+fn candidates(
+    points: &KdTree<f64, usize, [f64; 3]>,
+    query: DVec3,
+    cost: &dyn Fn(usize) -> f64,
+) -> Vec<(f64, usize)> {
+    let mut c: Vec<(f64, usize)> = points
+        .nearest(
+            &query.to_array(),
+            CANDIDATES.min(points.size()),
+            &squared_euclidean,
+        )
+        .map_or_else(
+            |_| Vec::new(),
+            |n| n.iter().map(|&(_, &p)| (cost(p), p)).collect(),
+        );
+    c.sort_by(|a, b| a.0.total_cmp(&b.0));
+    c
 }
 
 /// The length of the bounding box's diagonal (at least 1e-12).

@@ -1,0 +1,378 @@
+//! A point cache exported with a DCC's own settings, against the glTF rig it was baked from:
+//! the DCC's vertex order, Z-up, object space and a cache whose times start at 0 are each found
+//! and fixed with one printed line (the same examples as the aligned cache), and what cannot be
+//! told apart or does not follow the rig is refused before training, naming the setting.
+//!
+//! The variants are made here from the bundled aligned cache (`data/cesiumman_gltf`), so the
+//! expected result of each is exactly the aligned import. `tools/tests/blender_exports.rs` runs
+//! the same cases through Blender's own exporters.
+
+mod support;
+
+use glam::{DMat4, DVec3};
+use rrskin_tools::import::gltf::{import, weld, Imported, Options};
+use rrskin_tools::import::gltf_rig::Rig;
+use rrskin_tools::import::point_cache::{Format, PointCache};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use support::temp_dir;
+
+fn data(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../data")
+        .join(path)
+}
+
+fn rig() -> PathBuf {
+    data("cesiumman_gltf/CesiumMan_examples.glb")
+}
+
+fn aligned_cache() -> PointCache {
+    PointCache::load(&data("cesiumman_gltf/CesiumMan_examples.pc2"), 24.0).expect("cache")
+}
+
+fn options(cache: &Path) -> Options {
+    Options {
+        clip: "examples".into(),
+        cache: cache.to_path_buf(),
+        fps: 24.0,
+        test_frames: Some((41.0, 60.0)),
+    }
+}
+
+fn reference() -> Imported {
+    import(
+        &rig(),
+        &options(&data("cesiumman_gltf/CesiumMan_examples.pc2")),
+    )
+    .expect("the aligned cache imports")
+}
+
+/// The cache as a DCC writes it: one point per welded vertex (seams merged), in a shuffled
+/// order; `point_of[g]` is glTF vertex g's point.
+fn in_dcc_order(cache: &PointCache) -> (PointCache, Vec<usize>) {
+    let rig = Rig::load(&rig(), "examples").expect("rig");
+    let group = weld(&rig.rest, &cache.positions);
+    let groups = group.iter().max().map_or(0, |m| m + 1);
+    // A fixed scramble of the groups (an LCG: no RNG crate needed for a permutation).
+    let mut order: Vec<usize> = (0..groups).collect();
+    let mut x: u64 = 12345;
+    for i in (1..groups).rev() {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        order.swap(i, (x >> 33) as usize % (i + 1));
+    }
+    let mut point_of_group = vec![0; groups];
+    order
+        .iter()
+        .enumerate()
+        .for_each(|(p, &k)| point_of_group[k] = p);
+    let mut first = vec![usize::MAX; groups];
+    for (g, &k) in group.iter().enumerate() {
+        if first[k] == usize::MAX {
+            first[k] = g;
+        }
+    }
+    let positions = cache
+        .positions
+        .iter()
+        .map(|s| order.iter().map(|&k| s[first[k]]).collect())
+        .collect();
+    (
+        PointCache {
+            positions,
+            ..cache.clone()
+        },
+        group.iter().map(|&k| point_of_group[k]).collect(),
+    )
+}
+
+fn transformed(cache: &PointCache, m: DMat4) -> PointCache {
+    PointCache {
+        positions: cache
+            .positions
+            .iter()
+            .map(|s| s.iter().map(|&p| m.transform_point3(p)).collect())
+            .collect(),
+        ..cache.clone()
+    }
+}
+
+/// Glam's (x, y, z) → (x, −z, y): glTF's Y-up as Blender's Z-up.
+fn to_z_up() -> DMat4 {
+    DMat4::from_cols(
+        glam::DVec4::X,
+        glam::DVec4::Z,
+        -glam::DVec4::Y,
+        glam::DVec4::W,
+    )
+}
+
+fn write(dir: &Path, name: &str, cache: &PointCache) -> PathBuf {
+    let path = dir.join(name);
+    let bytes = match name.ends_with(".mdd") {
+        true => cache.to_mdd(),
+        false => cache.to_pc2(),
+    };
+    std::fs::write(&path, bytes).expect("write cache");
+    path
+}
+
+/// The same examples as the reference import: poses (bones and vertices, to float32), split,
+/// and the weld of the glTF vertices.
+fn assert_same_examples(got: &Imported, want: &Imported, skip_first: usize) {
+    assert_eq!(got.weld, want.weld, "the weld of the glTF vertices");
+    let want_poses = &want.set.poses[skip_first..];
+    assert_eq!(got.set.poses.len(), want_poses.len());
+    for (i, (a, b)) in got.set.poses.iter().zip(want_poses).enumerate() {
+        let worst = a
+            .vertices
+            .iter()
+            .zip(&b.vertices)
+            .map(|(x, y)| (*x - *y).length())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-5, "pose {i}: vertices {worst} apart");
+        assert_eq!(a.bones, b.bones, "pose {i}: bones");
+    }
+    assert_eq!(got.set.is_test, want.set.is_test[skip_first..].to_vec());
+}
+
+fn imported(cache: &Path) -> Imported {
+    import(&rig(), &options(cache)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn refused(cache: &Path) -> String {
+    match import(&rig(), &options(cache)) {
+        Err(e) => e.to_string(),
+        Ok(i) => panic!("expected a refusal, got {:?}", i.notes),
+    }
+}
+
+#[test]
+fn a_cache_in_the_dccs_vertex_order_is_mapped_by_the_bind_pose_sample() {
+    let dir = temp_dir("align-order");
+    let (dcc, point_of) = in_dcc_order(&aligned_cache());
+    assert_eq!(
+        dcc.point_count(),
+        2338,
+        "seams welded: fewer points than 3273"
+    );
+    let got = imported(&write(&dir, "dcc.pc2", &dcc));
+    let want = reference();
+    assert_same_examples(&got, &want, 0);
+    let note = got.notes.join("\n");
+    assert!(
+        note.contains("2338 points")
+            && note.contains("3273 glTF vertices")
+            && note.contains("by position at the bind pose (sample 0)"),
+        "{note}"
+    );
+    // The model stays over the glTF's own vertices: the expansion of a trained model is the
+    // reference's (same weld), checked above; the mapping itself is the scramble's inverse.
+    let _ = point_of;
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Without a bind-pose sample the points are matched by trajectory; on gentle poses (the
+/// walk) every match is clear. On the extreme range-of-motion poses some are not, and the
+/// mapping is refused naming both ways out.
+#[test]
+fn without_a_bind_pose_points_are_matched_by_trajectory_or_refused() {
+    let dir = temp_dir("align-trajectory");
+    let (dcc, _) = in_dcc_order(&aligned_cache());
+    let walk = PointCache {
+        frames: dcc.frames[41..].to_vec(),
+        times: dcc.times[41..].to_vec(),
+        positions: dcc.positions[41..].to_vec(),
+        ..dcc.clone()
+    };
+    let path = write(&dir, "walk.pc2", &walk);
+    let got = import(
+        &rig(),
+        &Options {
+            test_frames: Some((55.0, 60.0)),
+            ..options(&path)
+        },
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let want = reference();
+    assert_eq!(got.weld, want.weld);
+    for (a, b) in got.set.poses.iter().zip(&want.set.poses[41..]) {
+        assert_eq!(a.vertices, b.vertices, "every point found");
+    }
+    assert!(
+        got.notes
+            .join("\n")
+            .contains("by trajectory over 20 samples"),
+        "{:?}",
+        got.notes
+    );
+
+    let no_bind = PointCache {
+        frames: dcc.frames[1..].to_vec(),
+        times: dcc.times[1..].to_vec(),
+        positions: dcc.positions[1..].to_vec(),
+        ..dcc.clone()
+    };
+    let e = refused(&write(&dir, "no-bind.pc2", &no_bind));
+    assert!(
+        e.contains("no-bind.pc2")
+            && e.contains("cannot tell which of the cache's 2338 points")
+            && e.contains("bind pose on one frame")
+            && e.contains("glTF file's vertex order"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_z_up_mdd_and_an_object_space_pc2_are_converted() {
+    let dir = temp_dir("align-space");
+    let want = reference();
+    let mut mdd = transformed(&aligned_cache(), to_z_up());
+    mdd.format = Format::Mdd;
+    let got = imported(&write(&dir, "z-up.mdd", &mdd));
+    assert_same_examples(&got, &want, 0);
+    assert_eq!(
+        got.notes,
+        vec!["cache is Z-up: converted to the glTF's Y-up"]
+    );
+
+    let bind = Rig::load(&rig(), "examples")
+        .expect("rig")
+        .bind
+        .expect("CesiumMan's joints share one bind matrix");
+    assert!(
+        !bind.abs_diff_eq(DMat4::IDENTITY, 1e-3),
+        "CesiumMan's mesh space is not its world"
+    );
+    let (dcc, _) = in_dcc_order(&aligned_cache());
+    let object = transformed(&dcc, bind.inverse());
+    let got = imported(&write(&dir, "object.pc2", &object));
+    assert_same_examples(&got, &want, 0);
+    assert!(
+        got.notes[0].contains("object space") && got.notes[1].contains("mapped by position"),
+        "{:?}",
+        got.notes
+    );
+    let both = transformed(&dcc, to_z_up() * bind.inverse());
+    let got = imported(&write(&dir, "object-z-up.pc2", &both));
+    assert_same_examples(&got, &want, 0);
+    assert!(got.notes[0].contains("Z-up and in the mesh's object space"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Blender's MDD of a scene starting at frame 1 holds frames 1..60 at times 0..59/fps: found
+/// and shifted, and frame numbers are then the clip's (the DCC's), for --test-frames too.
+#[test]
+fn an_mdd_whose_times_start_at_zero_is_shifted_to_the_clips_frames() {
+    let dir = temp_dir("align-offset");
+    let c = aligned_cache();
+    let late = PointCache {
+        format: Format::Mdd,
+        frames: (0..60).map(f64::from).collect(),
+        times: (0..60).map(|f| f64::from(f) / 24.0).collect(),
+        positions: c.positions[1..].to_vec(),
+    };
+    let got = imported(&write(&dir, "late.mdd", &late));
+    assert_same_examples(&got, &reference(), 1);
+    assert_eq!(
+        got.notes,
+        vec!["cache sample 0 holds the clip's frame 1, not frame 0 (MDD times start at 0, whatever the scene's first frame): shifted by 1 frame"]
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// MDD stores float32 seconds: 59/24 s reads as frame 58.99999…, which is frame 59, so
+/// `--test-frames 41..60` holds the same samples as for the PC2.
+#[test]
+fn mdd_times_are_whole_frames_and_another_sample_rate_is_named() {
+    let dir = temp_dir("align-mdd");
+    let mut mdd = aligned_cache();
+    mdd.format = Format::Mdd;
+    let path = write(&dir, "walk.mdd", &mdd);
+    let read = PointCache::load(&path, 24.0).expect("mdd");
+    assert_eq!(read.frames, (0..61).map(f64::from).collect::<Vec<_>>());
+    assert_same_examples(&imported(&path), &reference(), 0);
+
+    let fast = PointCache {
+        times: (0..61).map(|f| f64::from(f) / 25.0).collect(),
+        ..mdd.clone()
+    };
+    let e = refused(&write(&dir, "fast.mdd", &fast));
+    assert!(
+        e.contains("sampled at 25.000 fps")
+            && e.contains("1/24 s apart")
+            && e.contains("--fps only numbers its frames"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A cache in a space none of the hypotheses covers (here scaled by 1.5 about the origin, as a
+/// unit mismatch would), or of other poses, is refused by the rig's own skin before training.
+#[test]
+fn a_cache_the_rigs_skin_does_not_follow_is_refused() {
+    let dir = temp_dir("align-refused");
+    let c = aligned_cache();
+    let scaled = transformed(&c, DMat4::from_scale(DVec3::splat(1.5)));
+    let e = refused(&write(&dir, "scaled.pc2", &scaled));
+    assert!(
+        e.contains("scaled.pc2")
+            && e.contains("no better than rigid bones")
+            && e.contains("world space"),
+        "{e}"
+    );
+    // Poses out of step with the keys: each sample holds the next key's pose, and its last
+    // sample the first's. No whole shift explains it.
+    let mut rolled = c.positions.clone();
+    rolled.rotate_left(1);
+    let e = refused(&write(
+        &dir,
+        "rolled.pc2",
+        &PointCache {
+            positions: rolled,
+            ..c.clone()
+        },
+    ));
+    assert!(e.contains("no better than rigid bones"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Through the CLI: the fix is printed on stderr (under --json too), and the JSON is the
+/// aligned cache's.
+#[test]
+fn the_cli_prints_each_fix_on_one_line() {
+    let dir = temp_dir("align-cli");
+    let (dcc, _) = in_dcc_order(&aligned_cache());
+    let mut mdd = transformed(&dcc, to_z_up());
+    mdd.format = Format::Mdd;
+    let path = write(&dir, "blender.mdd", &mdd);
+    let run = Command::new(env!("CARGO_BIN_EXE_rrskin"))
+        .args([
+            "eval",
+            rig().to_str().expect("utf-8"),
+            "--clip",
+            "examples",
+            "--cache",
+            path.to_str().expect("utf-8"),
+            "--test-frames",
+            "41..60",
+            "--proxies",
+            "0",
+            "--json",
+        ])
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("note: ")).collect();
+    assert_eq!(lines.len(), 2, "{err}");
+    assert!(lines[0].contains("blender.mdd: cache is Z-up"), "{err}");
+    assert!(lines[1].contains("mapped by position"), "{err}");
+    let json: serde_json::Value = serde_json::from_slice(&run.stdout).expect("JSON");
+    assert_eq!(json["vertices"], 2338);
+    assert!(json["rig_lbs"]["train"].as_f64().is_some_and(|e| e < 60.0));
+    std::fs::remove_dir_all(&dir).ok();
+}
