@@ -51,8 +51,8 @@ fn runtime(c: &mut Criterion) {
 }
 
 /// `rrskin train`'s work (the runtime model only) on the bundled example, on a synthetic set
-/// of the human's size (13,360 vertices, 53 bones, 41 training poses) and, when the shared
-/// data sits beside the checkout, on `human_heavy` itself.
+/// of the human's size (13,360 vertices, 53 bones, 41 training poses) and on `human_heavy`
+/// itself (`data/human_heavy`, when it loads).
 fn training(c: &mut Criterion) {
     let runtime_model = TrainOptions {
         full_model: false,
@@ -64,7 +64,7 @@ fn training(c: &mut Criterion) {
         bones: 53,
         poses: 51,
     };
-    let human = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/human_heavy");
+    let human = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/human_heavy");
     let mut sets = vec![
         ("cesiumman", cesiumman()),
         ("chain_13k", chain.build().expect("a valid chain")),

@@ -1,6 +1,6 @@
 #version 450
 // Pass 2: proxy transforms t_c = C1 d_c + C2 q_c for c = x, y, z and every character
-// (paper Eq. 5 in the separable form of METHOD.md §8), as ONE matrix product:
+// (paper Eq. 5 in the separable form of docs/method.md §8), as ONE matrix product:
 //
 //     T (4P x 3C) = A (4P x (3P + 4J)) * B ((3P + 4J) x 3C),    A = [C1 | C2],
 //

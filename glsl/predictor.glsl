@@ -1,4 +1,4 @@
-// Key predictor D_l(q) = R(q) S(q) (paper §3, Eq. 3-4; METHOD.md §2-3), shared by predict.comp
+// Key predictor D_l(q) = R(q) S(q) (paper §3, Eq. 3-4; docs/method.md §2-3), shared by predict.comp
 // and fused_product.comp. Mirrors src/predict.rs in f32 with the same branch thresholds, so CPU
 // and GPU agree away from the log's branch cut at pi. Reads the including shader's `bones`
 // (chars x J Affine), `parents` (J int) and `preds` (P Predictor).

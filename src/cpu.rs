@@ -1,8 +1,8 @@
-//! CPU reference evaluator of the whole per-frame pipeline (paper §6, METHOD.md §9), in `f64`:
+//! CPU reference evaluator of the whole per-frame pipeline (paper §6, docs/method.md §9), in `f64`:
 //! the oracle every GPU test compares against.
 //!
 //! Per character: (1) key gradients `d = D_ℓ(q)`; (2) proxy transforms `t_c = C1 d_c + C2 q_c`
-//! for c = x, y, z (Eq. 5 in the separable form of METHOD.md §8); (3) palette skinning over
+//! for c = x, y, z (Eq. 5 in the separable form of docs/method.md §8); (3) palette skinning over
 //! `[t (P); q (J)]` with K influences; (4) normals: area-weighted sum of incident triangle
 //! normals, normalised (zero where the sum vanishes); (5) with [`CpuEvaluator::evaluate_with_tangents`],
 //! tangents: the rest tangent through the blended palette matrix's 3x3, made orthogonal to the

@@ -1,4 +1,4 @@
-//! Key-predictor evaluation `D_ℓ(q)` (paper §3, Eq. 3–4; METHOD.md §2–3) and the rotation
+//! Key-predictor evaluation `D_ℓ(q)` (paper §3, Eq. 3–4; docs/method.md §2–3) and the rotation
 //! math it needs, in `f64`. `glsl/predict.comp` mirrors these functions line for line in `f32`
 //! (same branch thresholds), so the two agree away from the rotation log's branch cut at π.
 
@@ -78,8 +78,8 @@ pub fn exp_rotation(w: DVec3) -> DMat3 {
     DMat3::IDENTITY + k * s + k * k * c
 }
 
-/// Joint rotation of bone b in rest-world coordinates: `θ~_b = log(Q_p(b)ᵀ Q_b)` (METHOD.md
-/// conventions), `log Q_b` for a root. `bones`: the J transforms of one character.
+/// Joint rotation of bone b in rest-world coordinates: `θ~_b = log(Q_p(b)ᵀ Q_b)` (docs/method.md
+/// §0), `log Q_b` for a root. `bones`: the J transforms of one character.
 pub fn joint_rotation(model: &Model, bones: &[Affine], b: usize) -> DVec3 {
     let q = rotation_of(&bones[b]);
     match model.parent(b) {

@@ -8,8 +8,8 @@
 #
 # DIR (default target/gpu-bench, ~60 MiB, an ignored path: hand it to the device's `carry`)
 # holds release builds of `rrskin` and of the Vulkan test binaries, the two trained models and
-# the Debian packages of the Vulkan loader and the validation layer (TOOLCHAIN.md, "A GPU
-# machine": unpacked with dpkg -x, then ldconfig). OUT defaults to $OUT/gpu-bench.json when
+# the Debian packages of the Vulkan loader and the validation layer (docs/gpu-measurement.md:
+# unpacked with dpkg -x, then ldconfig). OUT defaults to $OUT/gpu-bench.json when
 # $OUT is set (the device's output folder), else DIR/gpu-bench.json. CHARACTERS (default
 # "1 256 4096 16384") overrides the crowd sizes, e.g. to try the run on lavapipe; BANDWIDTH
 # (GB/s, default 4800: an H200's HBM3e peak) is the peak `rrskin bench --bandwidth` reports the
@@ -32,7 +32,7 @@ for line in sys.stdin:
         print(m["target"]["name"], m["executable"])' \
         | while read -r name exe; do cp "$exe" "$dir/bin/test-$name"; done
     target/release/rrskin train data/cesiumman -o "$dir/cesiumman.rrs"
-    target/release/rrskin train ../shared/data/human_heavy -o "$dir/human_heavy.rrs"
+    target/release/rrskin train data/human_heavy -o "$dir/human_heavy.rrs"
     (cd "$dir/debs" && apt-get download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 \
         libgles2 vulkan-validationlayers)
     du -sh "$dir"

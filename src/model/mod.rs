@@ -10,8 +10,8 @@
 //! | `bone_parents`     | J                | parent bone, -1 for a root                           |
 //! | `skin_indices`     | V x K            | palette entries: `< P` a proxy bone, `P + b` bone b  |
 //! | `skin_weights`     | V x K            | blend weights, >= 0, summing to 1 per vertex          |
-//! | `predictors`       | P                | key predictors d_ℓ(q) (METHOD.md §2–3, paper §3)      |
-//! | `c1`               | 4P x 3P          | t_c = C1 d_c + C2 q_c (METHOD.md §8, paper Eq. 5)    |
+//! | `predictors`       | P                | key predictors d_ℓ(q) (docs/method.md §2–3, paper §3) |
+//! | `c1`               | 4P x 3P          | t_c = C1 d_c + C2 q_c (docs/method.md §8, paper Eq. 5) |
 //! | `c2`               | 4P x 4J          |                                                      |
 //! | `normal_groups`    | V or empty       | vertices sharing a normal (welded seams)             |
 //! | `baseline_*`       | V x K or empty   | SSD skinning of the same mesh (bone indices, weights)|
@@ -35,12 +35,12 @@ pub type Mat3Rows = [f32; 9];
 
 /// A key predictor (paper §3): `D(q) = R(q) S(q)`.
 ///
-/// Rotation (paper Eq. 3, METHOD.md §2), with p = parent(`bone`) and joint rotations
+/// Rotation (paper Eq. 3, docs/method.md §2), with p = parent(`bone`) and joint rotations
 /// `θ~_b = log(Q_p(b)ᵀ Q_b)` (roots: `log Q_b`):
 /// `R₁(q) = Q_p(q) · exp(u W θ~_bone(q))`, and with a second bone
 /// `R(q) = R₁(q) · exp(u₂ W₂ θ~_second(q))`.
 ///
-/// Scale/shear (paper Eq. 4, METHOD.md §3): `vec(S) = H x`, `x = [θ~_bone; θ~_p; 1]`
+/// Scale/shear (paper Eq. 4, docs/method.md §3): `vec(S) = H x`, `x = [θ~_bone; θ~_p; 1]`
 /// (θ~_p = 0 when `bone` is a root), vec stacking the rows of S.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KeyPredictor {

@@ -88,7 +88,7 @@ pub fn svd3(a: DMat3) -> (DMat3, DVec3, DMat3) {
     (u, DVec3::new(sigma[0], u1.dot(av[1]), s2), v)
 }
 
-/// Polar decomposition `d = R S`, R a proper rotation, S symmetric (METHOD.md §1).
+/// Polar decomposition `d = R S`, R a proper rotation, S symmetric (docs/method.md §1).
 pub fn polar(d: DMat3) -> (DMat3, DMat3) {
     let (u, sigma, v) = svd3(d);
     let r = u * v.transpose();

@@ -1,4 +1,4 @@
-//! The `rrskin` command line (contract: ../shared/ARCHITECTURE.md, "Command-line contract").
+//! The `rrskin` command line (its contract: docs/cli.md).
 
 use clap::{Parser, Subcommand};
 use rrskin::vk::DeviceChoice;
@@ -171,7 +171,7 @@ struct TrainArgs {
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     no_gentle_poses: bool,
-    /// One JSON object (the contract of ARCHITECTURE.md) on stdout, no progress.
+    /// One JSON object (the contract of docs/cli.md) on stdout, no progress.
     #[arg(long)]
     json: bool,
 }

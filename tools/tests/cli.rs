@@ -258,9 +258,9 @@ fn reference_writes_the_c_examples_inputs() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of ARCHITECTURE.md and the
-/// figures of METHOD.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good as the
-/// reference's best row, 35.1 / 49.3), with every choice made on the training poses; the
+/// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of docs/cli.md and the
+/// reference figures of docs/method.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good
+/// as the reference's best row, 35.1 / 49.3), with every choice made on the training poses; the
 /// runtime model at most 0.75 of SSD's held-out error (measured: 0.69), below DQS with SSD's
 /// weights and within 10 % (relative) of the full model; the error budget's oracle proxies no
 /// worse than the model on the training poses (they are its per-pose least-squares optimum).
@@ -407,7 +407,7 @@ fn a_trained_model_file_evaluates_as_trained() {
             "{split}: trained {a}, evaluated {b}"
         );
     }
-    // `bench` compares it with its SSD baseline (the contract of ARCHITECTURE.md).
+    // `bench` compares it with its SSD baseline (the contract of docs/cli.md).
     let b = json(&rrskin(&[
         "bench",
         m,

@@ -1,5 +1,5 @@
 //! `rrskin eval`: trains every method on the training poses ([`crate::train::run`]) and
-//! reports the enveloping error (paper §7.1, METHOD.md §10) on training and test poses, beside
+//! reports the enveloping error (paper §7.1, docs/method.md §10) on training and test poses, beside
 //! the baselines an engine would pick instead; optionally the error budget ([`diagnose`]) and
 //! leave-one-out over the training poses.
 //!

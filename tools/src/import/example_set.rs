@@ -1,5 +1,5 @@
 //! Example sets: N pairs (skeleton pose q_i, deformed mesh y_i) from a black-box rig, read from
-//! the NumPy folder layout of ../shared/data/README.md and validated. Errors name the file and
+//! the NumPy folder layout of data/README.md and validated. Errors name the file and
 //! the index of what is wrong; oddities that do not stop training (degenerate triangles,
 //! unreferenced vertices) are collected as warnings.
 
@@ -22,7 +22,7 @@ impl Bone {
         self.q * x + self.d
     }
 
-    /// Row c of the 3x4 transform `[Q | d]`: what C2 multiplies (METHOD.md §8, `q_c`).
+    /// Row c of the 3x4 transform `[Q | d]`: what C2 multiplies (docs/method.md §8, `q_c`).
     pub fn row(&self, c: usize) -> [f64; 4] {
         [
             self.q.x_axis[c],

@@ -76,7 +76,7 @@ pub fn fit(
 pub struct Rotations(pub Vec<Option<RotationPredictor>>);
 
 /// Candidate bones of each triangle: those skinning its vertices in SSD, their parents and their
-/// children. Nearby bones only (METHOD.md §2: all bones sometimes pair a shoulder with a leg).
+/// children. Nearby bones only (docs/method.md §2: all bones sometimes pair a shoulder with a leg).
 pub fn nearby_bones(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
     let j = set.bone_count();
     let mut children = vec![Vec::new(); j];

@@ -1,4 +1,4 @@
-//! Deformation gradients (paper §3, METHOD.md §1): per triangle k and pose i,
+//! Deformation gradients (paper §3, docs/method.md §1): per triangle k and pose i,
 //! `D = [v2 v3 n][v̂2 v̂3 n̂]⁻¹` with edges v2 = y_k2 − y_k1, v3 = y_k3 − y_k1 and the
 //! Sumner–Popović fourth direction n = (v2 × v3) / sqrt|v2 × v3|.
 

@@ -1,5 +1,5 @@
-//! Poisson reconstruction (paper §4.1–4.2, Eq. 2; METHOD.md §5): positions whose triangle edges
-//! best match predicted gradients, `min Σ_k Σ_j=2,3 |y_kj − y_k1 − D_k v̂_kj|²`, with the
+//! Poisson reconstruction (paper §4.1–4.2, Eq. 2; docs/method.md §5): positions whose triangle
+//! edges best match predicted gradients, `min Σ_k Σ_j=2,3 |y_kj − y_k1 − D_k v̂_kj|²`, with the
 //! near-rigid vertices F fixed to their SSD positions. Per coordinate c with one matrix:
 //! `A_Uᵀ A_U y_U,c = A_Uᵀ (b_c − A_F y_F,c)`, A the 2T x V edge incidence. `A_Uᵀ A_U` is
 //! factored once (faer sparse Cholesky) and reused for every pose.

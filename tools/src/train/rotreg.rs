@@ -1,4 +1,4 @@
-//! Rotational regression (paper §3.2, Eq. 3; METHOD.md §2): a rotation sequence R^i is
+//! Rotational regression (paper §3.2, Eq. 3; docs/method.md §2): a rotation sequence R^i is
 //! predicted from one bone's joint rotation θ~_b as `R(q) = Q_p(q) · exp(u W θ~_b(q))`, with
 //! p = parent(b), W ∈ SO(3), u ∈ R, optionally times `exp(u₂ W₂ θ~_b₂(q))` for a second bone.
 
@@ -8,7 +8,7 @@ use glam::{DMat3, DVec3};
 use rrskin::predict::{exp_rotation, log_rotation};
 use std::f64::consts::PI;
 
-/// Alternating W/u rounds (METHOD.md: two to five suffice).
+/// Alternating W/u rounds (docs/method.md §2: two to five suffice).
 const ROUNDS: usize = 5;
 /// A second bone is kept only if it cuts the training geodesic error by this fraction.
 pub const SECOND_BONE_GAIN: f64 = 0.1;

@@ -1,4 +1,4 @@
-//! Scale/shear regression (paper §3.3, Eq. 4; METHOD.md §3): `vec(S(q)) = H x(q)` with
+//! Scale/shear regression (paper §3.3, Eq. 4; docs/method.md §3): `vec(S(q)) = H x(q)` with
 //! `x = [θ~_b1; θ~_p(b1); 1] ∈ R⁷`, vec stacking the rows of S, H (9 x 7) by ridge regression
 //! toward H₀ (bias column vec(I), rest 0): with fewer poses than unknowns the plain least
 //! squares problem is underdetermined.

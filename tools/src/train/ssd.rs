@@ -1,6 +1,6 @@
 //! The baselines of paper §4.2 / §7.1: the best rigid predictor (one bone per vertex) and SSD
 //! (linear blend skinning with weights by non-negative least squares over the training poses,
-//! James & Twigg 2005; METHOD.md §4).
+//! James & Twigg 2005; docs/method.md §4).
 
 use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::nnls;

@@ -1,4 +1,4 @@
-//! The reduced reconstruction (paper §4.3, Eq. 5–6; METHOD.md §8) and the runtime model file.
+//! The reduced reconstruction (paper §4.3, Eq. 5–6; docs/method.md §8) and the runtime model file.
 //!
 //! Per coordinate c the residual of every edge row e = (k, j) is
 //! `G t_c + K q_c − B d_c − L q_c` with

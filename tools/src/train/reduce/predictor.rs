@@ -1,10 +1,10 @@
-//! Predictor reduction (paper §5.2, METHOD.md §7): P key gradient sequences D_ℓ^i and sparse
+//! Predictor reduction (paper §5.2, docs/method.md §7): P key gradient sequences D_ℓ^i and sparse
 //! blend weights β (T x P) with `Σ_i Σ_k Σ_j |Σ_ℓ β_kℓ D_ℓ^i v̂_kj − v_kj^i|²` small, by
 //! coordinate descent from D_ℓ^i = the 3x3 part of proxy ℓ's transforms; then a predictor
 //! (rotation §3.2 + scale/shear §3.3) is trained on each key sequence.
 //!
 //! j runs over the two edges *and* the Sumner–Popović normal n̂ of each triangle (the frame D is
-//! defined by, METHOD.md §1): the edges alone leave each D_ℓ free along the normal, and the
+//! defined by, docs/method.md §1): the edges alone leave each D_ℓ free along the normal, and the
 //! predictors are trained on the polar factors of the whole D_ℓ. With one key per triangle the
 //! keys are then exactly the triangles' gradients.
 

@@ -1,5 +1,5 @@
-//! A local end-to-end refit of the runtime form to the vertices (beyond the paper; METHOD.md
-//! §12). With the skinning weights fixed, a vertex moves by
+//! A local end-to-end refit of the runtime form to the vertices (beyond the paper;
+//! docs/method.md §12). With the skinning weights fixed, a vertex moves by
 //! `y_a,c = Σ_e α_ae ŷh_aᵀ (C x_c)_e + (its bones' share)`, `x_c = [d_c(q); q_c]` (F = 3P + 4J,
 //! the predicted key gradients, then the bones), so the training vertex error is quadratic in
 //! C = [C1 C2] (4P x F):

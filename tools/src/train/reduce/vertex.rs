@@ -1,4 +1,4 @@
-//! Vertex reduction to P proxy bones (paper §5.1, METHOD.md §6).
+//! Vertex reduction to P proxy bones (paper §5.1, docs/method.md §6).
 //!
 //! 1. Greedy merging: every triangle starts as a group whose transform maps it (with a
 //!    normal-offset fourth point, so the affine fit is determined) from rest to each pose; the
@@ -49,7 +49,7 @@ impl Proxies {
     }
 }
 
-/// Moments of a group over its sample points (METHOD.md §6).
+/// Moments of a group over its sample points (docs/method.md §6).
 #[derive(Clone)]
 struct Moments {
     m: DMat4,
