@@ -200,7 +200,7 @@ class PoseState:
         arm.data.pose_position = self.pose_position
         if arm.animation_data:
             arm.animation_data.action = self.action
-            arm.animation_data.use_nla = self.use_nla
+            arm.animation_data.use_nla = True if self.use_nla is None else self.use_nla
         for pb in arm.pose.bones:
             mode, loc, quat, euler, axis_angle, scale = self.bones[pb.name]
             pb.rotation_mode = mode

@@ -142,7 +142,17 @@ fn user_mistakes_are_one_line_and_status_1() {
         file.to_str().expect("utf-8").to_string(),
     );
     let exporter = exporter();
-    let cases: [(&[&str], &str); 5] = [
+    // A Weld modifier (merge by distance) after the Armature modifier: the vertex count
+    // changes with the pose, and the error names the modifier.
+    let weld = format!(
+        "import bpy, numpy as np\nnp.bool = bool\nbpy.ops.import_scene.gltf(filepath={glb:?})\n\
+         bpy.data.objects['Cesium_Man'].modifiers.new('Weld', 'WELD').merge_threshold = 0.02"
+    );
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["--python-expr", &weld, "--out", &out, "--poses", "3"],
+            "modifier 'Weld' (WELD) changes it",
+        ),
         // The factory scene: a cube, a camera and a light.
         (&["--out", &out], "no armature"),
         (&["--input", &glb, "--out", &out, "--test-action", "Walk"], "no action named 'Walk'"),
@@ -151,14 +161,14 @@ fn user_mistakes_are_one_line_and_status_1() {
         (&["--input", &glb], "--out"),
     ];
     for (args, expected) in cases {
-        let mut all = vec![
-            "--factory-startup",
-            "--python-exit-code",
-            "1",
-            "--python",
-            exporter.to_str().expect("utf-8"),
-            "--",
-        ];
+        // `--python-expr CODE` (a scene set-up) runs before the exporter.
+        let (setup, args) = match args {
+            ["--python-expr", code, rest @ ..] => (vec!["--python-expr", *code], rest),
+            _ => (vec![], args),
+        };
+        let mut all = vec!["--factory-startup", "--python-exit-code", "1"];
+        all.extend(setup);
+        all.extend(["--python", exporter.to_str().expect("utf-8"), "--"]);
         all.extend_from_slice(args);
         let run = blender(&all);
         let stderr = String::from_utf8_lossy(&run.stderr);
