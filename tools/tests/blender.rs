@@ -13,7 +13,11 @@ fn exporter() -> std::path::PathBuf {
 
 fn bundled_rig() -> String {
     let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
-    assert!(glb.is_file(), "the bundled rig must be at {}", glb.display());
+    assert!(
+        glb.is_file(),
+        "the bundled rig must be at {}",
+        glb.display()
+    );
     glb.to_str().expect("utf-8 path").to_string()
 }
 
@@ -53,7 +57,11 @@ fn exports_the_bundled_rig_with_its_walk_as_test_poses() {
     let set = ExampleSet::load(&out).expect("the exported set loads");
     let reference = ExampleSet::load(repo().join("data/cesiumman")).expect("data/cesiumman");
     let map = read_i32(&repo().join("data/cesiumman/gltf_vertex_map.npy"));
-    assert_eq!(set.rest.len(), map.len(), "one vertex per glTF vertex (not welded)");
+    assert_eq!(
+        set.rest.len(),
+        map.len(),
+        "one vertex per glTF vertex (not welded)"
+    );
     let worst = set
         .rest
         .iter()
@@ -71,7 +79,10 @@ fn exports_the_bundled_rig_with_its_walk_as_test_poses() {
     assert_eq!(count(&e, "test_poses"), 48);
     for split in ["train", "test"] {
         let lbs = figure(&e, "rig_lbs", split);
-        assert!(lbs < 0.05, "rig_lbs {split} {lbs}: the set's weights and transforms disagree");
+        assert!(
+            lbs < 0.05,
+            "rig_lbs {split} {lbs}: the set's weights and transforms disagree"
+        );
         assert!(figure(&e, "ssd", split) < 10.0, "{e}");
         assert!(figure(&e, "rr_full", split) < 10.0, "{e}");
     }
@@ -123,9 +134,18 @@ fn exports_a_black_box_blend_that_trains() {
     assert_eq!(count(&e, "test_poses"), 48);
     let (rigid, lbs) = (figure(&e, "rigid", "test"), figure(&e, "rig_lbs", "test"));
     let (ssd, rr) = (figure(&e, "ssd", "test"), figure(&e, "rr_reduced", "test"));
-    assert!(lbs > 1.0 && lbs < rigid, "rig_lbs {lbs}, rigid {rigid}: {e}");
-    assert!(rr < ssd, "rr_reduced {rr} not below ssd {ssd} on the walk: {e}");
-    assert!(figure(&e, "rr_full", "train") < figure(&e, "ssd", "train"), "{e}");
+    assert!(
+        lbs > 1.0 && lbs < rigid,
+        "rig_lbs {lbs}, rigid {rigid}: {e}"
+    );
+    assert!(
+        rr < ssd,
+        "rr_reduced {rr} not below ssd {ssd} on the walk: {e}"
+    );
+    assert!(
+        figure(&e, "rr_full", "train") < figure(&e, "ssd", "train"),
+        "{e}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -155,9 +175,15 @@ fn user_mistakes_are_one_line_and_status_1() {
         ),
         // The factory scene: a cube, a camera and a light.
         (&["--out", &out], "no armature"),
-        (&["--input", &glb, "--out", &out, "--test-action", "Walk"], "no action named 'Walk'"),
+        (
+            &["--input", &glb, "--out", &out, "--test-action", "Walk"],
+            "no action named 'Walk'",
+        ),
         (&["--input", &glb, "--out", &file], "not a folder"),
-        (&["--input", &glb, "--out", &out, "--armature", "Rig"], "no armature named 'Rig'"),
+        (
+            &["--input", &glb, "--out", &out, "--armature", "Rig"],
+            "no armature named 'Rig'",
+        ),
         (&["--input", &glb], "--out"),
     ];
     for (args, expected) in cases {

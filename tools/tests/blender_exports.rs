@@ -89,13 +89,21 @@ fn entry(cache: &str) -> (serde_json::Value, serde_json::Value) {
 }
 
 fn path(file: &str) -> String {
-    scenarios().dir.join(file).to_str().expect("utf-8").to_string()
+    scenarios()
+        .dir
+        .join(file)
+        .to_str()
+        .expect("utf-8")
+        .to_string()
 }
 
 /// `rrskin eval RIG --clip CLIP --cache CACHE --fps F --test-frames A..B --json` args.
 fn eval_args(cache: &str) -> Vec<String> {
     let (c, rig) = entry(cache);
-    let clip = scenarios().manifest["clip"].as_str().expect("clip").to_string();
+    let clip = scenarios().manifest["clip"]
+        .as_str()
+        .expect("clip")
+        .to_string();
     [
         "eval".to_string(),
         path(c["rig"].as_str().expect("rig")),
@@ -174,7 +182,13 @@ fn same_as_reference_or_refused(cache: &str, notes: &[&str]) {
         return;
     }
     let e: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
-    for key in ["train_poses", "test_poses", "vertices", "triangles", "bones"] {
+    for key in [
+        "train_poses",
+        "test_poses",
+        "vertices",
+        "triangles",
+        "bones",
+    ] {
         assert_eq!(count(&e, key), count(&expected, key), "{cache}: {key}");
     }
     for method in ["rigid", "ssd", "rig_lbs"] {
@@ -204,11 +218,22 @@ fn the_aligned_references_train_and_agree() {
     // The glTF file's 4416 vertices, welded for training: Blender's own 2338.
     assert_eq!(
         count(&main, "vertices"),
-        scenarios().manifest["blender_vertices"].as_u64().expect("count")
+        scenarios().manifest["blender_vertices"]
+            .as_u64()
+            .expect("count")
     );
-    let (rigid, lbs) = (figure(&main, "rigid", "test"), figure(&main, "rig_lbs", "test"));
-    let (ssd, rr) = (figure(&main, "ssd", "test"), figure(&main, "rr_reduced", "test"));
-    assert!(lbs > 1.0 && lbs < rigid, "rig_lbs {lbs}, rigid {rigid}: {main}");
+    let (rigid, lbs) = (
+        figure(&main, "rigid", "test"),
+        figure(&main, "rig_lbs", "test"),
+    );
+    let (ssd, rr) = (
+        figure(&main, "ssd", "test"),
+        figure(&main, "rr_reduced", "test"),
+    );
+    assert!(
+        lbs > 1.0 && lbs < rigid,
+        "rig_lbs {lbs}, rigid {rigid}: {main}"
+    );
     assert!(rr < ssd, "rr_reduced {rr} not below ssd {ssd}: {main}");
     for rig in ["rig_start1.glb", "rig_scaled.glb"] {
         let other = reference(rig);
@@ -258,27 +283,48 @@ fn the_scenario_files_match_the_manifest() {
     for c in s.manifest["caches"].as_array().expect("caches") {
         let file = c["file"].as_str().expect("file");
         let bytes = std::fs::read(s.dir.join(file)).expect("cache file");
-        let (frames, vertices) = (c["frames"].as_u64().expect("frames"), c["vertices"].as_u64().expect("v"));
+        let (frames, vertices) = (
+            c["frames"].as_u64().expect("frames"),
+            c["vertices"].as_u64().expect("v"),
+        );
         let header = match c["format"].as_str() {
             Some("pc2") => {
                 assert_eq!(&bytes[..12], b"POINTCACHE2\0", "{file}");
-                let int = |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().expect("4")) as u64;
+                let int =
+                    |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().expect("4")) as u64;
                 let float = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4"));
-                assert_eq!((int(16), int(28)), (vertices, frames), "{file}: points, samples");
-                assert_eq!(float(20) as u64, c["start_frame"].as_u64().expect("start"), "{file}");
+                assert_eq!(
+                    (int(16), int(28)),
+                    (vertices, frames),
+                    "{file}: points, samples"
+                );
+                assert_eq!(
+                    float(20) as u64,
+                    c["start_frame"].as_u64().expect("start"),
+                    "{file}"
+                );
                 assert_eq!(float(24), 1.0, "{file}: sample rate");
                 32
             }
             Some("mdd") => {
-                let int = |o: usize| i32::from_be_bytes(bytes[o..o + 4].try_into().expect("4")) as u64;
-                assert_eq!((int(0), int(4)), (frames, vertices), "{file}: frames, points");
+                let int =
+                    |o: usize| i32::from_be_bytes(bytes[o..o + 4].try_into().expect("4")) as u64;
+                assert_eq!(
+                    (int(0), int(4)),
+                    (frames, vertices),
+                    "{file}: frames, points"
+                );
                 let t1 = f32::from_be_bytes(bytes[12..16].try_into().expect("4"));
                 assert!((t1 - 1.0 / 24.0).abs() < 1e-6, "{file}: second time {t1}");
                 8 + 4 * frames as usize
             }
             other => panic!("{file}: format {other:?}"),
         };
-        assert_eq!(bytes.len() as u64, header as u64 + frames * vertices * 12, "{file}: size");
+        assert_eq!(
+            bytes.len() as u64,
+            header as u64 + frames * vertices * 12,
+            "{file}: size"
+        );
         assert!(Path::new(&path(c["rig"].as_str().expect("rig"))).is_file());
     }
 }
