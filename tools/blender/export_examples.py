@@ -1,0 +1,573 @@
+"""rrskin example set exporter for Blender (3.4 and later).
+
+Writes, from an armature and the mesh it deforms, the NumPy example-set layout that
+`rrskin train DIR` and `rrskin eval DIR` read (see data/README.md):
+
+    rest_vertices.npy    (V,3)     f4  the evaluated mesh at pose 0 (the bind/rest pose)
+    faces.npy            (T,3)     i4  the evaluated mesh's triangles (loop_triangles)
+    bone_parents.npy     (J,)      i4  nearest deform-bone ancestor, -1 for a root
+    bone_names.json      [J]           the deform bones, in the armature's bone order
+    pose_transforms.npy  (N,J,3,4) f4  per deform bone posed_world @ inv(rest_world), top 3 rows,
+                                       world = armature.matrix_world @ bone matrix
+    pose_vertices.npy    (N,V,3)   f4  the evaluated mesh (every modifier, shape key and driver)
+                                       in world space, in each pose
+    split.npy            (N,)      i4  0 = training pose, 1 = held-out test pose
+    skin_weights.npy     (V,J)     f4  the mesh's vertex-group weights of the deform bones, rows
+                                       normalised to 1 (a vertex with none goes to the root)
+
+Poses: 0 = the rest pose; 1..P = random range-of-motion poses (per deform bone, except the
+roots, a swing of up to --swing degrees about a random axis perpendicular to the bone's Y
+axis, times a twist of up to +-twist degrees about it; numpy Generator seeded by --seed);
+then, with --test-action NAME, every frame of that action as held-out poses (split 1).
+
+Axes: everything is converted from Blender's Z-up world to glTF's Y-up, (x, y, z) ->
+(x, z, -y), the convention of Blender's glTF exporter (export_yup, on by default), so that a
+model trained from this folder matches a glTF export of the same rig and its vertices.
+
+Use it as an add-on (File > Export > rrskin example set) or headless:
+
+    blender -b RIG.blend --python export_examples.py -- --out DIR [--poses 40] [--seed S]
+        [--test-action NAME] [--swing DEG] [--twist DEG] [--armature NAME] [--mesh NAME]
+    blender -b --factory-startup --python export_examples.py -- --input FILE.glb --out DIR ...
+
+Headless, every stage prints one line, the last line says what was written, and a user
+mistake (no armature, no mesh, a bad action name, an unwritable --out) is one "error:" line
+on stderr and exit status 1.
+"""
+
+bl_info = {
+    "name": "rrskin example set",
+    "author": "rrskin",
+    "version": (1, 0, 0),
+    "blender": (3, 4, 0),
+    "location": "File > Export > rrskin example set",
+    "description": "Export range-of-motion example poses of a rig for rrskin training",
+    "category": "Import-Export",
+}
+
+import json
+import math
+import os
+import sys
+import time
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Quaternion, Vector
+
+# Blender Z-up world -> glTF Y-up: (x, y, z) -> (x, z, -y).
+Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+LAYOUT_FILES = (
+    "rest_vertices.npy", "faces.npy", "bone_parents.npy", "bone_names.json",
+    "pose_transforms.npy", "pose_vertices.npy", "split.npy", "skin_weights.npy",
+)
+
+
+class UserError(Exception):
+    """A mistake in the scene or the arguments: reported as one line, never a traceback."""
+
+
+def say(log, text):
+    if log is not None:
+        log(text)
+
+
+# ---------------------------------------------------------------------------------------------
+# Choosing the rig
+
+
+def deformed_meshes(scene_objects, arm):
+    """Meshes with an (enabled) Armature modifier on `arm`."""
+    found = []
+    for obj in scene_objects:
+        if obj.type != 'MESH':
+            continue
+        if any(m.type == 'ARMATURE' and m.object == arm for m in obj.modifiers):
+            found.append(obj)
+    return found
+
+
+def choose_rig(context, armature_name=None, mesh_name=None):
+    objects = list(context.scene.objects)
+    if armature_name:
+        arm = bpy.data.objects.get(armature_name)
+        if arm is None or arm.type != 'ARMATURE':
+            names = [o.name for o in objects if o.type == 'ARMATURE']
+            raise UserError(f"no armature named {armature_name!r} (armatures: {names or 'none'})")
+    else:
+        arms = [o for o in objects if o.type == 'ARMATURE']
+        active = context.view_layer.objects.active if context.view_layer else None
+        selected = [o for o in arms if o.select_get()]
+        if active is not None and active.type == 'MESH':
+            # The active mesh's armature, if it has exactly one.
+            mods = [m.object for m in active.modifiers if m.type == 'ARMATURE' and m.object]
+            if len(mods) == 1:
+                selected = [mods[0]]
+        if active is not None and active.type == 'ARMATURE':
+            selected = [active]
+        if len(selected) == 1:
+            arm = selected[0]
+        elif len(arms) == 1:
+            arm = arms[0]
+        elif not arms:
+            raise UserError("the scene has no armature")
+        else:
+            raise UserError(
+                f"the scene has {len(arms)} armatures ({', '.join(o.name for o in arms)}): "
+                "select one or pass --armature NAME")
+    meshes = deformed_meshes(objects, arm)
+    if mesh_name:
+        mesh = bpy.data.objects.get(mesh_name)
+        if mesh is None or mesh.type != 'MESH':
+            raise UserError(f"no mesh object named {mesh_name!r} "
+                            f"(meshes deformed by {arm.name}: {[m.name for m in meshes] or 'none'})")
+        if mesh not in meshes:
+            raise UserError(f"mesh {mesh_name!r} has no Armature modifier on {arm.name!r}")
+    elif not meshes:
+        raise UserError(f"no mesh has an Armature modifier on armature {arm.name!r}")
+    elif len(meshes) > 1:
+        raise UserError(f"{len(meshes)} meshes are deformed by {arm.name!r} "
+                        f"({', '.join(m.name for m in meshes)}): pass --mesh NAME")
+    else:
+        mesh = meshes[0]
+    return arm, mesh
+
+
+def find_action(name, arm):
+    """The action `name`, or the one Blender's glTF importer made of animation `name`."""
+    action = bpy.data.actions.get(name) or bpy.data.actions.get(f"{name}_{arm.name}")
+    if action is None:
+        names = ", ".join(a.name for a in bpy.data.actions) or "none"
+        raise UserError(f"no action named {name!r} (actions: {names})")
+    return action
+
+
+# ---------------------------------------------------------------------------------------------
+# Poses
+
+
+def deform_bones(arm):
+    """Deform bones in the armature's order, and each one's nearest deform ancestor."""
+    bones = [b for b in arm.data.bones if b.use_deform]
+    if not bones:
+        raise UserError(f"armature {arm.name!r} has no deform bones")
+    index = {b.name: i for i, b in enumerate(bones)}
+    parents = []
+    for b in bones:
+        p = b.parent
+        while p is not None and p.name not in index:
+            p = p.parent
+        parents.append(-1 if p is None else index[p.name])
+    return bones, parents
+
+
+def random_rotations(rng, count, bones, parents, swing_deg, twist_deg):
+    """count x J quaternions (w, x, y, z) in bone space; roots stay at identity."""
+    out = np.zeros((count, len(bones), 4))
+    out[:, :, 0] = 1.0
+    swing, twist = math.radians(swing_deg), math.radians(twist_deg)
+    for i in range(count):
+        for j in range(len(bones)):
+            if parents[j] < 0:
+                continue
+            # Swing about a random axis perpendicular to the bone's Y axis, then twist about Y.
+            phi = rng.uniform(0.0, 2.0 * math.pi)
+            axis = Vector((math.cos(phi), 0.0, math.sin(phi)))
+            q_swing = Quaternion(axis, rng.uniform(0.0, swing))
+            q_twist = Quaternion((0.0, 1.0, 0.0), rng.uniform(-twist, twist))
+            q = q_swing @ q_twist
+            out[i, j] = (q.w, q.x, q.y, q.z)
+    return out
+
+
+class PoseState:
+    """Saves what the export changes on the armature (action, NLA, pose) and restores it."""
+
+    def __init__(self, scene, arm):
+        self.scene, self.arm = scene, arm
+        self.frame = scene.frame_current
+        self.pose_position = arm.data.pose_position
+        ad = arm.animation_data
+        self.action = ad.action if ad else None
+        self.use_nla = ad.use_nla if ad else None
+        self.bones = {pb.name: (pb.rotation_mode, pb.location.copy(), pb.rotation_quaternion.copy(),
+                                pb.rotation_euler.copy(), pb.rotation_axis_angle[:], pb.scale.copy())
+                      for pb in arm.pose.bones}
+
+    def restore(self):
+        arm = self.arm
+        arm.data.pose_position = self.pose_position
+        if arm.animation_data:
+            arm.animation_data.action = self.action
+            arm.animation_data.use_nla = True if self.use_nla is None else self.use_nla
+        for pb in arm.pose.bones:
+            mode, loc, quat, euler, axis_angle, scale = self.bones[pb.name]
+            pb.rotation_mode = mode
+            pb.location, pb.rotation_quaternion, pb.rotation_euler = loc, quat, euler
+            pb.rotation_axis_angle, pb.scale = axis_angle, scale
+        self.scene.frame_set(self.frame)
+
+
+def clear_animation(arm):
+    arm.data.pose_position = 'POSE'
+    if arm.animation_data:
+        arm.animation_data.action = None
+        arm.animation_data.use_nla = False
+
+
+def reset_pose(arm):
+    for pb in arm.pose.bones:
+        pb.rotation_mode = 'QUATERNION'
+        pb.location = (0.0, 0.0, 0.0)
+        pb.rotation_quaternion = (1.0, 0.0, 0.0, 0.0)
+        pb.scale = (1.0, 1.0, 1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading the evaluated scene
+
+
+def evaluated_vertices(context, mesh_obj):
+    """World-space (Z-up) vertex positions of the evaluated mesh, float64 (V, 3)."""
+    dg = context.evaluated_depsgraph_get()
+    ev = mesh_obj.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        co = np.empty(len(me.vertices) * 3)
+        me.vertices.foreach_get("co", co)
+        co = co.reshape(-1, 3)
+        mw = np.array(ev.matrix_world)
+        return co @ mw[:3, :3].T + mw[:3, 3]
+    finally:
+        ev.to_mesh_clear()
+
+
+def evaluated_faces(context, mesh_obj):
+    dg = context.evaluated_depsgraph_get()
+    ev = mesh_obj.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        me.calc_loop_triangles()
+        tris = np.empty(len(me.loop_triangles) * 3, dtype=np.int32)
+        me.loop_triangles.foreach_get("vertices", tris)
+        return tris.reshape(-1, 3)
+    finally:
+        ev.to_mesh_clear()
+
+
+def bone_worlds(context, arm, bones):
+    """(J, 4, 4) posed world matrices (Z-up) of the deform bones, and their rest worlds."""
+    dg = context.evaluated_depsgraph_get()
+    ev = arm.evaluated_get(dg)
+    mw = np.array(ev.matrix_world)
+    posed = np.array([mw @ np.array(ev.pose.bones[b.name].matrix) for b in bones])
+    rest = np.array([mw @ np.array(b.matrix_local) for b in bones])
+    return posed, rest
+
+
+def skin_weights(mesh_obj, bones, parents, vertex_count):
+    """(V, J) vertex-group weights of the deform bones, rows normalised; None if unavailable."""
+    me = mesh_obj.data
+    if len(me.vertices) != vertex_count:
+        return None
+    column = {b.name: j for j, b in enumerate(bones)}
+    group_column = {g.index: column[g.name] for g in mesh_obj.vertex_groups if g.name in column}
+    w = np.zeros((vertex_count, len(bones)))
+    for v in me.vertices:
+        for g in v.groups:
+            j = group_column.get(g.group)
+            if j is not None and g.weight > 0.0:
+                w[v.index, j] += g.weight
+    sums = w.sum(axis=1)
+    root = parents.index(-1)
+    w[sums <= 0.0, root] = 1.0
+    sums[sums <= 0.0] = 1.0
+    return w / sums[:, None]
+
+
+def topology_culprit(context, mesh_obj, set_pose_a, set_pose_b):
+    """The first modifier after which poses a and b give different vertex counts, or None."""
+    mods = list(mesh_obj.modifiers)
+    shown = [m.show_viewport for m in mods]
+
+    def count(set_pose):
+        set_pose()
+        dg = context.evaluated_depsgraph_get()
+        ev = mesh_obj.evaluated_get(dg)
+        me = ev.to_mesh()
+        n = len(me.vertices)
+        ev.to_mesh_clear()
+        return n
+
+    try:
+        for k in range(len(mods)):
+            for i, m in enumerate(mods):
+                m.show_viewport = shown[i] and i <= k
+            if count(set_pose_a) != count(set_pose_b):
+                return mods[k]
+        return None
+    finally:
+        for m, s in zip(mods, shown):
+            m.show_viewport = s
+
+
+# ---------------------------------------------------------------------------------------------
+# The export
+
+
+def check_out_dir(out):
+    if not out:
+        raise UserError("--out DIR is required")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise UserError(f"--out {out}: exists and is not a folder")
+    try:
+        os.makedirs(out, exist_ok=True)
+        probe = os.path.join(out, ".rrskin-write-test")
+        with open(probe, "w") as f:
+            f.write("")
+        os.remove(probe)
+    except OSError as e:
+        raise UserError(f"--out {out}: cannot write there ({e.strerror or e})")
+
+
+def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0, twist=60.0,
+                    armature=None, mesh=None, log=print):
+    """Writes the example set into `out`; returns a one-line summary. Raises UserError."""
+    if poses < 0:
+        raise UserError(f"--poses {poses}: must be at least 0")
+    if not (0.0 <= swing <= 180.0) or not (0.0 <= twist <= 180.0):
+        raise UserError("--swing and --twist must lie in 0..180 degrees")
+    check_out_dir(out)
+    scene = context.scene
+    arm, mesh_obj = choose_rig(context, armature, mesh)
+    action = find_action(test_action, arm) if test_action else None
+    bones, parents = deform_bones(arm)
+    say(log, f"rig: armature {arm.name!r} ({len(bones)} deform bones), mesh {mesh_obj.name!r}")
+
+    rng = np.random.default_rng(seed)
+    rotations = random_rotations(rng, poses, bones, parents, swing, twist)
+    test_frames = []
+    if action is not None:
+        start, end = action.frame_range
+        test_frames = list(range(int(round(start)), int(round(end)) + 1))
+
+    # The poses, as functions that put the armature there.
+    def rest_pose():
+        clear_animation(arm)
+        reset_pose(arm)
+        context.view_layer.update()
+
+    def random_pose(i):
+        def set_pose():
+            clear_animation(arm)
+            reset_pose(arm)
+            for j, b in enumerate(bones):
+                arm.pose.bones[b.name].rotation_quaternion = rotations[i, j]
+            context.view_layer.update()
+        return set_pose
+
+    def action_pose(frame):
+        def set_pose():
+            clear_animation(arm)
+            reset_pose(arm)
+            if arm.animation_data is None:
+                arm.animation_data_create()
+            arm.animation_data.action = action
+            scene.frame_set(frame)
+        return set_pose
+
+    setters = [rest_pose] + [random_pose(i) for i in range(poses)] + [action_pose(f) for f in test_frames]
+    split = np.array([0] * (1 + poses) + [1] * len(test_frames), dtype=np.int32)
+    n = len(setters)
+    say(log, f"poses: 1 rest + {poses} random (swing <= {swing:g} deg, twist <= +-{twist:g} deg, "
+             f"seed {seed})" + (f" + {len(test_frames)} test frames of action {action.name!r} "
+                                f"({test_frames[0]}..{test_frames[-1]})" if test_frames else ""))
+
+    state = PoseState(scene, arm)
+    t0 = time.time()
+    try:
+        rest_pose()
+        rest_co = evaluated_vertices(context, mesh_obj)
+        faces = evaluated_faces(context, mesh_obj)
+        v = len(rest_co)
+        if v == 0 or len(faces) == 0:
+            raise UserError(f"mesh {mesh_obj.name!r} evaluates to no vertices or no triangles")
+        _, rest_world = bone_worlds(context, arm, bones)
+        rest_inv = np.linalg.inv(rest_world)
+        to_y = np.eye(4)
+        to_y[:3, :3] = Y_UP
+        from_y = np.linalg.inv(to_y)
+        transforms = np.empty((n, len(bones), 3, 4))
+        vertices = np.empty((n, v, 3))
+        for i, set_pose in enumerate(setters):
+            set_pose()
+            co = evaluated_vertices(context, mesh_obj)
+            if len(co) != v:
+                culprit = topology_culprit(context, mesh_obj, rest_pose, set_pose)
+                where = (f"modifier {culprit.name!r} ({culprit.type}) changes it"
+                         if culprit is not None else "a modifier or a driver changes it")
+                raise UserError(f"mesh {mesh_obj.name!r} has {v} evaluated vertices in the rest "
+                                f"pose but {len(co)} in pose {i}: {where}; the vertex count must "
+                                "not depend on the pose")
+            posed_world, _ = bone_worlds(context, arm, bones)
+            q = to_y @ posed_world @ rest_inv @ from_y
+            transforms[i] = q[:, :3, :]
+            vertices[i] = co @ Y_UP.T
+        say(log, f"evaluated {n} poses of {v} vertices in {time.time() - t0:.1f} s")
+    finally:
+        state.restore()
+
+    weights = skin_weights(mesh_obj, bones, parents, v)
+    for name in LAYOUT_FILES:
+        path = os.path.join(out, name)
+        if os.path.isfile(path):
+            os.remove(path)
+    f4 = np.dtype("<f4")
+    i4 = np.dtype("<i4")
+    np.save(os.path.join(out, "rest_vertices.npy"), np.ascontiguousarray(rest_co @ Y_UP.T, dtype=f4))
+    np.save(os.path.join(out, "faces.npy"), np.ascontiguousarray(faces, dtype=i4))
+    np.save(os.path.join(out, "bone_parents.npy"), np.array(parents, dtype=i4))
+    with open(os.path.join(out, "bone_names.json"), "w") as f:
+        json.dump([b.name for b in bones], f)
+    np.save(os.path.join(out, "pose_transforms.npy"), np.ascontiguousarray(transforms, dtype=f4))
+    np.save(os.path.join(out, "pose_vertices.npy"), np.ascontiguousarray(vertices, dtype=f4))
+    np.save(os.path.join(out, "split.npy"), split.astype(i4))
+    written = ["rest_vertices", "faces", "bone_parents", "bone_names", "pose_transforms",
+               "pose_vertices", "split"]
+    if weights is not None:
+        np.save(os.path.join(out, "skin_weights.npy"), np.ascontiguousarray(weights, dtype=f4))
+        written.append("skin_weights")
+    else:
+        say(log, "skin_weights.npy not written: the evaluated mesh's vertex count differs from "
+                 "the mesh's own, so its vertex groups do not apply")
+    return (f"wrote {out}: {v} vertices, {len(faces)} triangles, {len(bones)} bones, {n} poses "
+            f"({int((split == 0).sum())} train, {int((split == 1).sum())} test); "
+            + ", ".join(written))
+
+
+# ---------------------------------------------------------------------------------------------
+# Headless use
+
+
+def import_input(path, log):
+    if not os.path.isfile(path):
+        raise UserError(f"--input {path}: no such file")
+    ext = os.path.splitext(path)[1].lower()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if ext in (".glb", ".gltf"):
+        if "bool" not in np.__dict__:
+            np.bool = bool  # io_scene_gltf2 3.4 still uses the alias numpy 1.24 removed
+        op = bpy.ops.import_scene.gltf
+    elif ext == ".fbx":
+        op = bpy.ops.import_scene.fbx
+    elif ext == ".blend":
+        bpy.ops.wm.open_mainfile(filepath=path)
+        say(log, f"opened {path}")
+        return
+    else:
+        raise UserError(f"--input {path}: not a .glb, .gltf, .fbx or .blend file")
+    try:
+        result = op(filepath=path)
+    except RuntimeError as e:
+        raise UserError(f"--input {path}: the importer failed: {str(e).strip().splitlines()[-1]}")
+    if "FINISHED" not in result:
+        raise UserError(f"--input {path}: the importer failed")
+    say(log, f"imported {path}")
+
+
+def parse_args(argv):
+    import argparse
+
+    class Parser(argparse.ArgumentParser):
+        def error(self, message):
+            raise UserError(message)
+
+    p = Parser(prog="blender -b [RIG.blend] --python export_examples.py --",
+               description="Export an rrskin example set (NumPy layout) from a rig.")
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--input", help="import this .glb/.gltf/.fbx/.blend first (empty scene)")
+    p.add_argument("--poses", type=int, default=40, help="random range-of-motion poses (40)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--test-action", help="append this action's frames as held-out poses")
+    p.add_argument("--swing", type=float, default=40.0, help="largest swing, degrees (40)")
+    p.add_argument("--twist", type=float, default=60.0, help="largest twist, degrees (60)")
+    p.add_argument("--armature", help="the armature object (default: the selected or only one)")
+    p.add_argument("--mesh", help="the deformed mesh object (needed when several)")
+    return p.parse_args(argv)
+
+
+def main(argv):
+    def log(text):
+        print(f"rrskin export: {text}", flush=True)
+
+    try:
+        args = parse_args(argv)
+        if args.input:
+            import_input(args.input, log)
+        summary = export_examples(bpy.context, args.out, poses=args.poses, seed=args.seed,
+                                  test_action=args.test_action, swing=args.swing,
+                                  twist=args.twist, armature=args.armature, mesh=args.mesh,
+                                  log=log)
+    except UserError as e:
+        print(f"rrskin export: error: {e}", file=sys.stderr, flush=True)
+        return 1
+    log(summary)
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------
+# The add-on
+
+
+class EXPORT_OT_rrskin_examples(bpy.types.Operator):
+    """Export range-of-motion example poses of the selected armature for rrskin"""
+    bl_idname = "export_scene.rrskin_examples"
+    bl_label = "Export rrskin example set"
+    bl_options = {'REGISTER'}
+
+    directory: bpy.props.StringProperty(subtype='DIR_PATH')
+    poses: bpy.props.IntProperty(name="Random poses", default=40, min=0)
+    seed: bpy.props.IntProperty(name="Seed", default=0, min=0)
+    swing: bpy.props.FloatProperty(name="Swing (deg)", default=40.0, min=0.0, max=180.0)
+    twist: bpy.props.FloatProperty(name="Twist (deg)", default=60.0, min=0.0, max=180.0)
+    test_action: bpy.props.StringProperty(name="Test action",
+                                          description="Append this action's frames as test poses")
+    mesh: bpy.props.StringProperty(name="Mesh", description="Needed when several meshes are deformed")
+
+    def invoke(self, context, event):
+        context.window_manager.fileselect_add(self)
+        return {'RUNNING_MODAL'}
+
+    def execute(self, context):
+        try:
+            summary = export_examples(context, bpy.path.abspath(self.directory), poses=self.poses,
+                                      seed=self.seed, test_action=self.test_action or None,
+                                      swing=self.swing, twist=self.twist, mesh=self.mesh or None,
+                                      log=lambda t: print(f"rrskin export: {t}"))
+        except UserError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        self.report({'INFO'}, summary)
+        return {'FINISHED'}
+
+
+def menu_func_export(self, context):
+    self.layout.operator(EXPORT_OT_rrskin_examples.bl_idname, text="rrskin example set")
+
+
+def register():
+    bpy.utils.register_class(EXPORT_OT_rrskin_examples)
+    bpy.types.TOPBAR_MT_file_export.append(menu_func_export)
+
+
+def unregister():
+    bpy.types.TOPBAR_MT_file_export.remove(menu_func_export)
+    bpy.utils.unregister_class(EXPORT_OT_rrskin_examples)
+
+
+if __name__ == "__main__":
+    if "--" in sys.argv:
+        sys.exit(main(sys.argv[sys.argv.index("--") + 1:]))
+    else:
+        register()

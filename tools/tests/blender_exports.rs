@@ -1,0 +1,330 @@
+//! Blender's own exporters with their default settings (tools/tests/blender/scenarios.py: a
+//! glTF rig from `export_scene.gltf`, MDD and PC2 point caches from the bundled add-ons) fed to
+//! `rrskin eval RIG.glb --clip rom --cache CACHE`: what a user who never heard of vertex
+//! orders, up axes, object space or start frames gets.
+//!
+//! Each scenario cache holds the same evaluated vertex positions as the aligned reference cache
+//! of its rig (glTF vertex order, world space, Y-up, the scene's frame numbers), written
+//! differently: Blender's welded vertex order (2338 vertices against the glTF file's 4416, split
+//! at UV and normal seams), Z-up (MDD), object space (PC2 defaults; for `rig_scaled.glb` in the
+//! cm of an armature object at scale 0.01), times from 0 for a scene starting at frame 1 (MDD).
+//! Every one must either give the reference's figures with one line on stderr saying what was
+//! detected, or be refused (exit status 1) with a message naming the export setting at fault.
+
+#[path = "support/blender.rs"]
+mod blender;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, OnceLock};
+
+use blender::{blender_script, count, figure, repo, rrskin, temp_dir};
+
+/// Allowed gap between a scenario's `rigid`/`ssd`/`rig_lbs` EE (%) and its reference's. The
+/// caches hold the very same float32 positions (checked in scenarios.py to 1.2e-7), so mapping
+/// vertices, swapping axes and shifting frames are exact; the three references of three
+/// differently written rigs (start frame 1, armature at 0.01) already agree to 1e-4 EE points
+/// here. An object-space cache needs the object's transform recovered (rotation and a
+/// scale of 100), which float32 round-off (1e-7 relative) moves far less than this. 0.1 EE
+/// points is still 1/400 of SSD's error, so a wrong vertex map, axis or frame (tens of points)
+/// cannot pass.
+const TOLERANCE: f64 = 0.1;
+
+/// What `rrskin eval` may print when it adapts a cache: the words of its stderr lines.
+const NOTES: [&str; 4] = ["mapped", "z-up", "object space", "shifted"];
+
+/// Words of a refusal that names an export setting.
+const SETTINGS: [&str; 10] = [
+    "export",
+    "setting",
+    "world space",
+    "worldspace",
+    "object space",
+    "y-up",
+    "z-up",
+    "start frame",
+    "frame range",
+    "vertex order",
+];
+
+struct Scenarios {
+    dir: PathBuf,
+    manifest: serde_json::Value,
+}
+
+/// The scenario files, made once per test binary (about 10 s of Blender).
+fn scenarios() -> &'static Scenarios {
+    static SCENARIOS: OnceLock<Scenarios> = OnceLock::new();
+    SCENARIOS.get_or_init(|| {
+        let dir = temp_dir("blender-scenarios");
+        let script = repo().join("tools/tests/blender/scenarios.py");
+        let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
+        blender_script(
+            &script,
+            &[
+                "--out",
+                dir.to_str().expect("utf-8"),
+                "--glb",
+                glb.to_str().expect("utf-8"),
+            ],
+        );
+        let manifest = std::fs::read(dir.join("manifest.json")).expect("manifest.json");
+        let manifest = serde_json::from_slice(&manifest).expect("manifest JSON");
+        Scenarios { dir, manifest }
+    })
+}
+
+/// The manifest's entry of `cache`, and its rig's.
+fn entry(cache: &str) -> (serde_json::Value, serde_json::Value) {
+    let s = scenarios();
+    let c = s.manifest["caches"]
+        .as_array()
+        .expect("caches")
+        .iter()
+        .find(|c| c["file"] == cache)
+        .unwrap_or_else(|| panic!("no {cache} in the manifest"))
+        .clone();
+    let rig = s.manifest["rigs"][c["rig"].as_str().expect("rig")].clone();
+    (c, rig)
+}
+
+fn path(file: &str) -> String {
+    scenarios()
+        .dir
+        .join(file)
+        .to_str()
+        .expect("utf-8")
+        .to_string()
+}
+
+/// `rrskin eval RIG --clip CLIP --cache CACHE --fps F --test-frames A..B --json` args.
+fn eval_args(cache: &str) -> Vec<String> {
+    let (c, rig) = entry(cache);
+    let clip = scenarios().manifest["clip"]
+        .as_str()
+        .expect("clip")
+        .to_string();
+    [
+        "eval".to_string(),
+        path(c["rig"].as_str().expect("rig")),
+        "--clip".into(),
+        clip,
+        "--cache".into(),
+        path(cache),
+        "--fps".into(),
+        c["fps"].to_string(),
+        "--test-frames".into(),
+        rig["test_frames"].as_str().expect("test_frames").into(),
+        "--json".into(),
+    ]
+    .to_vec()
+}
+
+/// The reference eval of `rig` (its aligned cache), once per rig.
+fn reference(rig: &str) -> serde_json::Value {
+    static REFS: Mutex<BTreeMap<String, serde_json::Value>> = Mutex::new(BTreeMap::new());
+    let mut refs = REFS.lock().unwrap_or_else(|e| e.into_inner());
+    refs.entry(rig.to_string())
+        .or_insert_with(|| {
+            let file = match rig {
+                "rig.glb" => "ref.pc2",
+                "rig_start1.glb" => "ref_start1.pc2",
+                "rig_scaled.glb" => "ref_scaled.pc2",
+                _ => panic!("no reference cache for {rig}"),
+            };
+            let args = eval_args(file);
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let out = rrskin(&args);
+            let dir = scenarios().dir.to_str().expect("utf-8");
+            let stderr = String::from_utf8_lossy(&out.stderr).replace(dir, "DIR").to_lowercase();
+            assert!(out.status.success(), "reference {file}: {stderr}");
+            for note in NOTES {
+                assert!(
+                    !stderr.contains(note),
+                    "the aligned reference {file} needs no adapting, but rrskin says {note}:\n{stderr}"
+                );
+            }
+            serde_json::from_slice(&out.stdout).expect("JSON")
+        })
+        .clone()
+}
+
+/// `cache` either gives its reference's figures and prints each of `notes`, or is refused with
+/// exit status 1 naming an export setting.
+fn same_as_reference_or_refused(cache: &str, notes: &[&str]) {
+    let (c, _) = entry(cache);
+    let rig = c["rig"].as_str().expect("rig").to_string();
+    let expected = reference(&rig);
+    let mut args = eval_args(cache);
+    args.extend(["--proxies".to_string(), "0".to_string()]);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = rrskin(&args);
+    // The folder's name ("...blender-exports...") must not count as naming a setting.
+    let dir = scenarios().dir.to_str().expect("utf-8");
+    let stderr = String::from_utf8_lossy(&out.stderr).replace(dir, "DIR");
+    let lower = stderr.to_lowercase();
+    assert!(!lower.contains("panicked"), "{cache}: a panic:\n{stderr}");
+    if !out.status.success() {
+        assert_eq!(
+            out.status.code(),
+            Some(1),
+            "{cache}: neither success nor a refusal:\n{stderr}"
+        );
+        assert!(
+            SETTINGS.iter().any(|s| lower.contains(s)),
+            "{cache} ({} space, {}-up, {} vertex order, start frame {}) refused without naming \
+             an export setting:\n{stderr}",
+            c["space"].as_str().unwrap_or("?"),
+            c["up"].as_str().unwrap_or("?"),
+            c["vertex_order"].as_str().unwrap_or("?"),
+            c["start_frame"]
+        );
+        return;
+    }
+    let e: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    for key in [
+        "train_poses",
+        "test_poses",
+        "vertices",
+        "triangles",
+        "bones",
+    ] {
+        assert_eq!(count(&e, key), count(&expected, key), "{cache}: {key}");
+    }
+    for method in ["rigid", "ssd", "rig_lbs"] {
+        for split in ["train", "test"] {
+            let (got, want) = (figure(&e, method, split), figure(&expected, method, split));
+            assert!(
+                (got - want).abs() <= TOLERANCE,
+                "{cache}: {method} {split} {got:.4} against the reference's {want:.4}"
+            );
+        }
+    }
+    for note in notes {
+        assert!(
+            lower.lines().any(|l| l.contains(&note.to_lowercase())),
+            "{cache}: accepted, but no line says {note:?}:\n{stderr}"
+        );
+    }
+}
+
+#[test]
+fn the_aligned_references_train_and_agree() {
+    let main = reference("rig.glb");
+    assert_eq!(count(&main, "train_poses"), 23);
+    assert_eq!(count(&main, "test_poses"), 8);
+    assert_eq!(count(&main, "triangles"), 4672);
+    assert_eq!(count(&main, "bones"), 19);
+    // The glTF file's 4416 vertices, welded for training: Blender's own 2338.
+    assert_eq!(
+        count(&main, "vertices"),
+        scenarios().manifest["blender_vertices"]
+            .as_u64()
+            .expect("count")
+    );
+    let (rigid, lbs) = (
+        figure(&main, "rigid", "test"),
+        figure(&main, "rig_lbs", "test"),
+    );
+    let (ssd, rr) = (
+        figure(&main, "ssd", "test"),
+        figure(&main, "rr_reduced", "test"),
+    );
+    assert!(
+        lbs > 1.0 && lbs < rigid,
+        "rig_lbs {lbs}, rigid {rigid}: {main}"
+    );
+    assert!(rr < ssd, "rr_reduced {rr} not below ssd {ssd}: {main}");
+    for rig in ["rig_start1.glb", "rig_scaled.glb"] {
+        let other = reference(rig);
+        for method in ["rigid", "ssd", "rig_lbs"] {
+            for split in ["train", "test"] {
+                let (got, want) = (figure(&other, method, split), figure(&main, method, split));
+                assert!(
+                    (got - want).abs() <= TOLERANCE,
+                    "{rig}: {method} {split} {got:.4} against rig.glb's {want:.4}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn default_mdd_z_up_world_blender_order() {
+    same_as_reference_or_refused("mdd_start0.mdd", &["Z-up", "mapped"]);
+}
+
+#[test]
+fn default_mdd_of_a_scene_starting_at_frame_1() {
+    // Times 0..30/24 s hold frames 1..31; the glTF clip's keys are at frame/fps (1/24..31/24).
+    same_as_reference_or_refused("mdd_start1.mdd", &["Z-up", "mapped", "shifted"]);
+}
+
+#[test]
+fn world_space_pc2_blender_order() {
+    same_as_reference_or_refused("pc2_world.pc2", &["mapped"]);
+}
+
+#[test]
+fn default_object_space_pc2() {
+    same_as_reference_or_refused("pc2_object.pc2", &["object space", "mapped"]);
+}
+
+#[test]
+fn default_object_space_pc2_of_an_armature_at_scale_0_01() {
+    same_as_reference_or_refused("pc2_object_scaled.pc2", &["object space", "mapped"]);
+}
+
+/// The scenario files are what the manifest says (sizes from the headers), so a change in
+/// Blender's exporters shows here first.
+#[test]
+fn the_scenario_files_match_the_manifest() {
+    let s = scenarios();
+    for c in s.manifest["caches"].as_array().expect("caches") {
+        let file = c["file"].as_str().expect("file");
+        let bytes = std::fs::read(s.dir.join(file)).expect("cache file");
+        let (frames, vertices) = (
+            c["frames"].as_u64().expect("frames"),
+            c["vertices"].as_u64().expect("v"),
+        );
+        let header = match c["format"].as_str() {
+            Some("pc2") => {
+                assert_eq!(&bytes[..12], b"POINTCACHE2\0", "{file}");
+                let int =
+                    |o: usize| i32::from_le_bytes(bytes[o..o + 4].try_into().expect("4")) as u64;
+                let float = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4"));
+                assert_eq!(
+                    (int(16), int(28)),
+                    (vertices, frames),
+                    "{file}: points, samples"
+                );
+                assert_eq!(
+                    float(20) as u64,
+                    c["start_frame"].as_u64().expect("start"),
+                    "{file}"
+                );
+                assert_eq!(float(24), 1.0, "{file}: sample rate");
+                32
+            }
+            Some("mdd") => {
+                let int =
+                    |o: usize| i32::from_be_bytes(bytes[o..o + 4].try_into().expect("4")) as u64;
+                assert_eq!(
+                    (int(0), int(4)),
+                    (frames, vertices),
+                    "{file}: frames, points"
+                );
+                let t1 = f32::from_be_bytes(bytes[12..16].try_into().expect("4"));
+                assert!((t1 - 1.0 / 24.0).abs() < 1e-6, "{file}: second time {t1}");
+                8 + 4 * frames as usize
+            }
+            other => panic!("{file}: format {other:?}"),
+        };
+        assert_eq!(
+            bytes.len() as u64,
+            header as u64 + frames * vertices * 12,
+            "{file}: size"
+        );
+        assert!(Path::new(&path(c["rig"].as_str().expect("rig"))).is_file());
+    }
+}

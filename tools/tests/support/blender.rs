@@ -1,0 +1,98 @@
+//! Running Blender headless and the `rrskin` binary, for tests/blender.rs and
+//! tests/blender_exports.rs (included with `#[path]`).
+#![allow(dead_code)] // each test binary uses a different subset
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository's root.
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// `blender -b ARGS` with Python errors as exit status 1. Fails (never skips) when Blender is
+/// missing: the suite needs it.
+pub fn blender(args: &[&str]) -> Output {
+    let out = Command::new("blender")
+        .arg("-b")
+        .args(args)
+        .env("PYTHONDONTWRITEBYTECODE", "1")
+        .output();
+    match out {
+        Ok(out) => out,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => panic!(
+            "`blender` is not on PATH: run .ci/install-deps (it installs Debian's blender and \
+             python3-numpy, which these tests run headless)"
+        ),
+        Err(e) => panic!("cannot run blender: {e}"),
+    }
+}
+
+/// Runs `blender -b --factory-startup --python-exit-code 1 --python SCRIPT -- ARGS`, and
+/// panics with its output unless it succeeds.
+pub fn blender_script(script: &Path, args: &[&str]) -> Output {
+    let mut all = vec![
+        "--factory-startup",
+        "--python-exit-code",
+        "1",
+        "--python",
+        script.to_str().expect("utf-8 path"),
+        "--",
+    ];
+    all.extend_from_slice(args);
+    let out = blender(&all);
+    assert!(
+        out.status.success(),
+        "blender {} failed ({}):\n{}\n{}",
+        script.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+pub fn rrskin(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rrskin"))
+        .args(args)
+        .output()
+        .expect("run rrskin")
+}
+
+/// The JSON object `rrskin eval ... --json` printed; panics with stderr if it failed.
+pub fn eval_json(args: &[&str]) -> serde_json::Value {
+    let out = rrskin(args);
+    assert!(
+        out.status.success(),
+        "rrskin {} failed ({}):\n{}",
+        args.join(" "),
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "rrskin {}: not JSON ({e}):\n{}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })
+}
+
+/// `e[method][split]` (split "train" or "test") as a number.
+pub fn figure(e: &serde_json::Value, method: &str, split: &str) -> f64 {
+    e[method][split]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no {method}.{split} in {e}"))
+}
+
+pub fn count(e: &serde_json::Value, key: &str) -> u64 {
+    e[key].as_u64().unwrap_or_else(|| panic!("no {key} in {e}"))
+}
+
+/// A fresh empty folder under the system temp dir.
+pub fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rrskin-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
