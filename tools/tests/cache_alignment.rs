@@ -48,16 +48,16 @@ fn reference() -> Imported {
     .expect("the aligned cache imports")
 }
 
-/// The cache as a DCC writes it: one point per welded vertex (seams merged), in a shuffled
-/// order; `point_of[g]` is glTF vertex g's point.
-fn in_dcc_order(cache: &PointCache) -> (PointCache, Vec<usize>) {
+/// The cache as a DCC writes it: one point per welded vertex (seams merged), in the order of
+/// their first glTF vertices (as Blender's glTF exporter keeps it), or `scrambled`.
+fn in_dcc_order(cache: &PointCache, scrambled: bool) -> PointCache {
     let rig = Rig::load(&rig(), "examples").expect("rig");
     let group = weld(&rig.rest, &cache.positions);
     let groups = group.iter().max().map_or(0, |m| m + 1);
     // A fixed scramble of the groups (an LCG: no RNG crate needed for a permutation).
     let mut order: Vec<usize> = (0..groups).collect();
     let mut x: u64 = 12345;
-    for i in (1..groups).rev() {
+    for i in (1..groups).rev().filter(|_| scrambled) {
         x = x
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
@@ -79,13 +79,10 @@ fn in_dcc_order(cache: &PointCache) -> (PointCache, Vec<usize>) {
         .iter()
         .map(|s| order.iter().map(|&k| s[first[k]]).collect())
         .collect();
-    (
-        PointCache {
-            positions,
-            ..cache.clone()
-        },
-        group.iter().map(|&k| point_of_group[k]).collect(),
-    )
+    PointCache {
+        positions,
+        ..cache.clone()
+    }
 }
 
 fn transformed(cache: &PointCache, m: DMat4) -> PointCache {
@@ -152,7 +149,7 @@ fn refused(cache: &Path) -> String {
 #[test]
 fn a_cache_in_the_dccs_vertex_order_is_mapped_by_the_bind_pose_sample() {
     let dir = temp_dir("align-order");
-    let (dcc, point_of) = in_dcc_order(&aligned_cache());
+    let dcc = in_dcc_order(&aligned_cache(), true);
     assert_eq!(
         dcc.point_count(),
         2338,
@@ -168,56 +165,35 @@ fn a_cache_in_the_dccs_vertex_order_is_mapped_by_the_bind_pose_sample() {
             && note.contains("by position at the bind pose (sample 0)"),
         "{note}"
     );
-    // The model stays over the glTF's own vertices: the expansion of a trained model is the
-    // reference's (same weld), checked above; the mapping itself is the scramble's inverse.
-    let _ = point_of;
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Without a bind-pose sample the points are matched by trajectory; on gentle poses (the
-/// walk) every match is clear. On the extreme range-of-motion poses some are not, and the
-/// mapping is refused naming both ways out.
+/// Without a bind-pose sample the points are matched by trajectory. On CesiumMan's extreme
+/// range-of-motion poses some matches are unclear (at the hips, where the deformer departs
+/// most from the skin); in the exporter's order they are placed by it, scrambled they are
+/// refused, naming both ways out.
 #[test]
 fn without_a_bind_pose_points_are_matched_by_trajectory_or_refused() {
     let dir = temp_dir("align-trajectory");
-    let (dcc, _) = in_dcc_order(&aligned_cache());
-    let walk = PointCache {
-        frames: dcc.frames[41..].to_vec(),
-        times: dcc.times[41..].to_vec(),
-        positions: dcc.positions[41..].to_vec(),
-        ..dcc.clone()
+    let after_bind = |c: PointCache| PointCache {
+        frames: c.frames[1..].to_vec(),
+        times: c.times[1..].to_vec(),
+        positions: c.positions[1..].to_vec(),
+        ..c
     };
-    let path = write(&dir, "walk.pc2", &walk);
-    let got = import(
-        &rig(),
-        &Options {
-            test_frames: Some((55.0, 60.0)),
-            ..options(&path)
-        },
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
-    let want = reference();
-    assert_eq!(got.weld, want.weld);
-    for (a, b) in got.set.poses.iter().zip(&want.set.poses[41..]) {
-        assert_eq!(a.vertices, b.vertices, "every point found");
-    }
+    let in_order = after_bind(in_dcc_order(&aligned_cache(), false));
+    let got = imported(&write(&dir, "in-order.pc2", &in_order));
+    assert_same_examples(&got, &reference(), 1);
+    let note = got.notes.join("\n");
     assert!(
-        got.notes
-            .join("\n")
-            .contains("by trajectory over 20 samples"),
-        "{:?}",
-        got.notes
+        note.contains("by trajectory over 60 samples") && note.contains("exporter's vertex order"),
+        "{note}"
     );
 
-    let no_bind = PointCache {
-        frames: dcc.frames[1..].to_vec(),
-        times: dcc.times[1..].to_vec(),
-        positions: dcc.positions[1..].to_vec(),
-        ..dcc.clone()
-    };
-    let e = refused(&write(&dir, "no-bind.pc2", &no_bind));
+    let scrambled = after_bind(in_dcc_order(&aligned_cache(), true));
+    let e = refused(&write(&dir, "scrambled.pc2", &scrambled));
     assert!(
-        e.contains("no-bind.pc2")
+        e.contains("scrambled.pc2")
             && e.contains("cannot tell which of the cache's 2338 points")
             && e.contains("bind pose on one frame")
             && e.contains("glTF file's vertex order"),
@@ -247,7 +223,7 @@ fn a_z_up_mdd_and_an_object_space_pc2_are_converted() {
         !bind.abs_diff_eq(DMat4::IDENTITY, 1e-3),
         "CesiumMan's mesh space is not its world"
     );
-    let (dcc, _) = in_dcc_order(&aligned_cache());
+    let dcc = in_dcc_order(&aligned_cache(), true);
     let object = transformed(&dcc, bind.inverse());
     let got = imported(&write(&dir, "object.pc2", &object));
     assert_same_examples(&got, &want, 0);
@@ -345,7 +321,7 @@ fn a_cache_the_rigs_skin_does_not_follow_is_refused() {
 #[test]
 fn the_cli_prints_each_fix_on_one_line() {
     let dir = temp_dir("align-cli");
-    let (dcc, _) = in_dcc_order(&aligned_cache());
+    let dcc = in_dcc_order(&aligned_cache(), true);
     let mut mdd = transformed(&dcc, to_z_up());
     mdd.format = Format::Mdd;
     let path = write(&dir, "blender.mdd", &mdd);

@@ -7,7 +7,8 @@
 //! - **Frames**: the whole-frame offset o with which cache sample s holds the clip's frame
 //!   `frame_s + o` (MDD's times start at 0 whatever the scene's first frame).
 //! - **Space**: the cache in the rig's world, Y-up (as glTF), or Z-up (Blender's MDD), or in
-//!   the mesh's object space (PC2's default), which the skin's bind matrix takes to the world.
+//!   the mesh's object space (PC2's default), which the mesh node's world matrix (or the skin's
+//!   bind matrix) takes to the world.
 //! - **Vertex order**: the glTF's, or the DCC's own ([`vertex_map`]).
 //!
 //! The frames and the space are told apart without knowing the vertex order: each hypothesis is
@@ -44,44 +45,46 @@ pub struct Aligned {
     pub notes: Vec<String>,
 }
 
-/// Where the cache's coordinates are.
+/// Where the cache's coordinates are: Y-up or Z-up, in the world or in an object space (the
+/// matrix that takes it to the world, and what that matrix is).
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Space {
-    World,
-    WorldZUp,
-    Object,
-    ObjectZUp,
+struct Space {
+    z_up: bool,
+    object: Option<(DMat4, &'static str)>,
 }
 
 impl Space {
     /// Cache coordinates to the rig's world.
-    fn matrix(self, bind: DMat4) -> DMat4 {
+    fn matrix(self) -> DMat4 {
         // Blender's Z-up to glTF's Y-up: (x, y, z) → (x, z, −y).
-        let z_up = DMat4::from_mat3(DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y));
-        match self {
-            Space::World => DMat4::IDENTITY,
-            Space::WorldZUp => z_up,
-            Space::Object => bind,
-            Space::ObjectZUp => bind * z_up,
+        let up = match self.z_up {
+            true => DMat4::from_mat3(DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y)),
+            false => DMat4::IDENTITY,
+        };
+        self.object.map_or(DMat4::IDENTITY, |o| o.0) * up
+    }
+
+    fn note(self) -> Option<String> {
+        match (self.z_up, self.object) {
+            (false, None) => None,
+            (true, None) => Some("cache is Z-up: converted to the glTF's Y-up".into()),
+            (false, Some((_, by))) => Some(format!(
+                "cache is in the mesh's object space: converted to world space by {by}"
+            )),
+            (true, Some((_, by))) => Some(format!(
+                "cache is Z-up and in the mesh's object space: converted to the glTF's Y-up world space by {by}"
+            )),
         }
     }
 
-    fn note(self) -> Option<&'static str> {
-        match self {
-            Space::World => None,
-            Space::WorldZUp => Some("cache is Z-up: converted to the glTF's Y-up"),
-            Space::Object => Some("cache is in the mesh's object space: converted to world space by the skin's bind matrix"),
-            Space::ObjectZUp => Some("cache is Z-up and in the mesh's object space: converted to the glTF's Y-up world space by the skin's bind matrix"),
-        }
-    }
-
-    fn describe(self) -> &'static str {
-        match self {
-            Space::World => "world space, Y-up",
-            Space::WorldZUp => "world space, Z-up",
-            Space::Object => "object space, Y-up",
-            Space::ObjectZUp => "object space, Z-up",
-        }
+    fn describe(self) -> String {
+        format!(
+            "{}, {}",
+            self.object.map_or("world space".into(), |(_, by)| format!(
+                "object space ({by})"
+            )),
+            if self.z_up { "Z-up" } else { "Y-up" }
+        )
     }
 }
 
@@ -117,11 +120,23 @@ pub fn align(
         return Err(bad(off_the_keys(rig_path, cache, &keys, clip, fps)));
     }
     let size = diagonal(&rig.rest);
-    let bind = rig.bind.unwrap_or(DMat4::IDENTITY);
-    let mut spaces = vec![Space::World, Space::WorldZUp];
-    if rig.bind.is_some() && !bind.abs_diff_eq(DMat4::IDENTITY, 1e-6) {
-        spaces.extend([Space::Object, Space::ObjectZUp]);
+    let mut objects: Vec<(DMat4, &'static str)> = Vec::new();
+    for object in [
+        rig.mesh_world.map(|m| (m, "the mesh node's world matrix")),
+        rig.bind.map(|m| (m, "the skin's bind matrix")),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        let known = |m: &DMat4| m.abs_diff_eq(object.0, 1e-6 * object.0.w_axis.length().max(1.0));
+        if !known(&DMat4::IDENTITY) && !objects.iter().any(|o| known(&o.0)) {
+            objects.push(object);
+        }
     }
+    let spaces: Vec<Space> = std::iter::once(None)
+        .chain(objects.into_iter().map(Some))
+        .flat_map(|object| [false, true].map(|z_up| Space { z_up, object }))
+        .collect();
     let mut hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
     hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));
     let best = hypotheses[0];
@@ -143,7 +158,7 @@ pub fn align(
         )));
     }
 
-    let mut notes: Vec<String> = best.space.note().map(str::to_string).into_iter().collect();
+    let mut notes: Vec<String> = best.space.note().into_iter().collect();
     let frames: Vec<f64> = cache.frames.iter().map(|f| f + best.offset).collect();
     let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
     if best.offset != 0.0 {
@@ -159,7 +174,7 @@ pub fn align(
             if best.offset.abs() == 1.0 { "" } else { "s" }
         ));
     }
-    let to_world = best.space.matrix(bind);
+    let to_world = best.space.matrix();
     let world: Vec<Vec<DVec3>> = cache
         .positions
         .iter()
@@ -228,11 +243,10 @@ fn score(
     let trees: Vec<_> = samples.iter().map(|&s| tree(&cache.positions[s])).collect();
     let step = rig.rest.len().div_ceil(SCORED_VERTICES).max(1);
     let probes: Vec<usize> = (0..rig.rest.len()).step_by(step).collect();
-    let bind = rig.bind.unwrap_or(DMat4::IDENTITY);
     let to_cache: Vec<(DMat4, f64)> = spaces
         .iter()
         .map(|s| {
-            let m = s.matrix(bind);
+            let m = s.matrix();
             (m.inverse(), m.determinant().abs().cbrt())
         })
         .collect();

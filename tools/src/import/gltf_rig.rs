@@ -75,6 +75,9 @@ pub struct Rig {
     /// the same one (the mesh was bound at the default pose): what takes an object-space cache
     /// to the rig's world.
     pub bind: Option<DMat4>,
+    /// The skinned mesh node's world matrix at the default pose (the mesh object's transform in
+    /// the DCC), unless it is the identity: what takes the DCC's object space to the world.
+    pub mesh_world: Option<DMat4>,
     /// What the user should know about the file that is not an error (morph targets), a line
     /// each.
     pub notes: Vec<String>,
@@ -438,6 +441,8 @@ impl Rig {
         notes.dedup();
         Ok(Rig {
             bind: common_bind(&joint_matrices),
+            mesh_world: Some(world_default[first.index()])
+                .filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
             primitives,
             notes,
             rest,

@@ -41,10 +41,23 @@ def build_rig(glb, corrective_key=True, keep_animations=False):
     skin.use_deform_preserve_volume = True
     if corrective_key:
         add_knee_key(arm, mesh)
+    second_material(mesh)
     smooth = mesh.modifiers.new("CorrectiveSmooth", 'CORRECTIVE_SMOOTH')
     smooth.iterations = 10
     smooth.factor = 0.5
     return arm, mesh
+
+
+def second_material(mesh):
+    """The mesh's right half (x < 0) in a second material: its glTF then has two primitives,
+    each holding the vertices of its faces (the seam between them duplicated)."""
+    if len(mesh.data.materials) == 0:
+        mesh.data.materials.append(bpy.data.materials.new("left"))
+    mesh.data.materials.append(bpy.data.materials.new("right"))
+    right = len(mesh.data.materials) - 1
+    for poly in mesh.data.polygons:
+        if poly.center.x < 0.0:
+            poly.material_index = right
 
 
 def add_knee_key(arm, mesh, knee="leg_joint_L_2", upper="leg_joint_L_1", lower="leg_joint_L_3"):

@@ -209,6 +209,14 @@ def export_variant(args, variant, manifest):
                                  frame_end=end)
         cache(name, "mdd", "world", "Z", times="seconds from 0")
     if variant == "start0":
+        # The scene's range set to 1..end after keying the bind pose on frame 0: the MDD holds
+        # frames 1..end at times 0..(end-1)/fps, and no sample at the bind pose.
+        bpy.ops.export_shape.mdd(filepath=os.path.join(out, "mdd_range1.mdd"), fps=FPS,
+                                 frame_start=start + 1, frame_end=end)
+        caches.append(dict(file="mdd_range1.mdd", rig=glb, format="mdd", fps=FPS,
+                           start_frame=start + 1, frames=frames - 1, space="world", up="Z",
+                           vertex_order="blender", vertices=blender_vertices,
+                           times="seconds from 0"))
         bpy.ops.export_shape.pc2(filepath=os.path.join(out, "pc2_world.pc2"), world_space=True,
                                  range_start=start, range_end=end)
         cache("pc2_world.pc2", "pc2", "world", "Y")
