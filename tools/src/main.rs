@@ -297,8 +297,8 @@ impl SetArgs {
         };
         let imported = rrskin_tools::import::gltf::import(&self.set, &options)?;
         // Facts about the inputs, not progress: printed under --json too (on stderr).
-        for line in &imported.notes {
-            note(format_args!("note: {}: {line}", cache.display()));
+        for (file, line) in &imported.notes {
+            note(format_args!("note: {}: {line}", file.display()));
         }
         Ok((imported.set.clone(), Some(imported)))
     }

@@ -135,6 +135,12 @@ fn assert_same_examples(got: &Imported, want: &Imported, skip_first: usize) {
     assert_eq!(got.set.is_test, want.set.is_test[skip_first..].to_vec());
 }
 
+/// The import's notes, a line each.
+fn notes(i: &Imported) -> String {
+    let lines: Vec<&str> = i.notes.iter().map(|n| n.1.as_str()).collect();
+    lines.join("\n")
+}
+
 fn imported(cache: &Path) -> Imported {
     import(&rig(), &options(cache)).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -158,7 +164,7 @@ fn a_cache_in_the_dccs_vertex_order_is_mapped_by_the_bind_pose_sample() {
     let got = imported(&write(&dir, "dcc.pc2", &dcc));
     let want = reference();
     assert_same_examples(&got, &want, 0);
-    let note = got.notes.join("\n");
+    let note = notes(&got);
     assert!(
         note.contains("2338 points")
             && note.contains("3273 glTF vertices")
@@ -184,7 +190,7 @@ fn without_a_bind_pose_points_are_matched_by_trajectory_or_refused() {
     let in_order = after_bind(in_dcc_order(&aligned_cache(), false));
     let got = imported(&write(&dir, "in-order.pc2", &in_order));
     assert_same_examples(&got, &reference(), 1);
-    let note = got.notes.join("\n");
+    let note = notes(&got);
     assert!(
         note.contains("by trajectory over 60 samples") && note.contains("exporter's vertex order"),
         "{note}"
@@ -210,10 +216,7 @@ fn a_z_up_mdd_and_an_object_space_pc2_are_converted() {
     mdd.format = Format::Mdd;
     let got = imported(&write(&dir, "z-up.mdd", &mdd));
     assert_same_examples(&got, &want, 0);
-    assert_eq!(
-        got.notes,
-        vec!["cache is Z-up: converted to the glTF's Y-up"]
-    );
+    assert_eq!(notes(&got), "cache is Z-up: converted to the glTF's Y-up");
 
     let bind = Rig::load(&rig(), "examples")
         .expect("rig")
@@ -228,14 +231,16 @@ fn a_z_up_mdd_and_an_object_space_pc2_are_converted() {
     let got = imported(&write(&dir, "object.pc2", &object));
     assert_same_examples(&got, &want, 0);
     assert!(
-        got.notes[0].contains("object space") && got.notes[1].contains("mapped by position"),
+        got.notes[0].1.contains("object space") && got.notes[1].1.contains("mapped by position"),
         "{:?}",
         got.notes
     );
     let both = transformed(&dcc, to_z_up() * bind.inverse());
     let got = imported(&write(&dir, "object-z-up.pc2", &both));
     assert_same_examples(&got, &want, 0);
-    assert!(got.notes[0].contains("Z-up and in the mesh's object space"));
+    assert!(got.notes[0]
+        .1
+        .contains("Z-up and in the mesh's object space"));
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -254,8 +259,8 @@ fn an_mdd_whose_times_start_at_zero_is_shifted_to_the_clips_frames() {
     let got = imported(&write(&dir, "late.mdd", &late));
     assert_same_examples(&got, &reference(), 1);
     assert_eq!(
-        got.notes,
-        vec!["cache sample 0 holds the clip's frame 1, not frame 0 (MDD times start at 0, whatever the scene's first frame): shifted by 1 frame"]
+        notes(&got),
+        "cache sample 0 holds the clip's frame 1, not frame 0 (MDD times start at 0, whatever the scene's first frame): shifted by 1 frame"
     );
     std::fs::remove_dir_all(&dir).ok();
 }

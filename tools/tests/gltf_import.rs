@@ -534,3 +534,61 @@ fn a_files_tangents_are_carried_to_the_rest_mesh_and_checked() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The rest mesh is the mesh at its default morph weights (here one target moving every vertex
+/// by (0, 0, 1) at weight 0.5), and a clip animating morph weights is named on a line.
+#[test]
+fn the_rest_mesh_is_at_the_default_morph_weights() {
+    use rrskin_tools::import::gltf_rig::Rig;
+    let dir = temp_dir("gltf-morph");
+    let path = tiny_rig(&dir, true, 1.0);
+    let mut bin = std::fs::read(dir.join("tiny.bin")).expect("bin");
+    let offset = bin.len();
+    for _ in 0..3 {
+        for x in [0.0f32, 0.0, 1.0] {
+            bin.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for w in [0.5f32, 1.0] {
+        bin.extend_from_slice(&w.to_le_bytes()); // the clip's morph weights at its 2 keys
+    }
+    std::fs::write(dir.join("tiny.bin"), &bin).expect("write bin");
+    let gltf = std::fs::read_to_string(&path).expect("gltf")
+        .replace(r#""byteLength": 128}"#, &format!(r#""byteLength": {}}}"#, bin.len()))
+        .replace(
+            r#"{"buffer": 0, "byteOffset": 104, "byteLength": 24}"#,
+            &format!(
+                r#"{{"buffer": 0, "byteOffset": 104, "byteLength": 24}}, {{"buffer": 0, "byteOffset": {offset}, "byteLength": 36}}, {{"buffer": 0, "byteOffset": {}, "byteLength": 8}}"#,
+                offset + 36
+            ),
+        )
+        .replace(
+            r#"{"bufferView": 4, "componentType": 5126, "count": 2, "type": "VEC3"}"#,
+            r#"{"bufferView": 4, "componentType": 5126, "count": 2, "type": "VEC3"}, {"bufferView": 5, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0,0,1], "max": [0,0,1]}, {"bufferView": 6, "componentType": 5126, "count": 2, "type": "SCALAR"}"#,
+        )
+        .replace(
+            r#""WEIGHTS_0": 2}}]}]"#,
+            r#""WEIGHTS_0": 2}, "targets": [{"POSITION": 5}]}], "weights": [0.5]}]"#,
+        )
+        .replace(
+            r#""samplers": [{"input": 3, "output": 4}]"#,
+            r#""samplers": [{"input": 3, "output": 4}, {"input": 3, "output": 6}]"#,
+        )
+        .replace(
+            r#""path": "translation"}}]"#,
+            r#""path": "translation"}}, {"sampler": 1, "target": {"node": 1, "path": "weights"}}]"#,
+        );
+    std::fs::write(&path, gltf).expect("write gltf");
+    let rig = Rig::load(&path, "a").expect("a rig with a morph target");
+    let want = [[0.0, 0.0, 0.5], [1.0, 0.0, 0.5], [0.0, 1.0, 0.5]];
+    for (p, w) in rig.rest.iter().zip(want) {
+        assert!((*p - DVec3::from(w)).length() < 1e-6, "{p} against {w:?}");
+    }
+    let notes = rig.notes.join("\n");
+    assert!(
+        notes.contains("1 morph target(s), the rest mesh at their default weights [0.5]")
+            && notes.contains("animation 'a' animates the morph weights"),
+        "{notes}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

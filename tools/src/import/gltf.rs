@@ -42,8 +42,9 @@ pub struct Imported {
     /// Rest tangents over the glTF vertices, and their source; `None` without TANGENT or
     /// TEXCOORD_0 (the model then has no tangents, and the set says so in its warnings).
     pub tangents: Option<(Vec<[f32; 4]>, Source)>,
-    /// What was found and fixed in the inputs (cache alignment, morph targets), a line each.
-    pub notes: Vec<String>,
+    /// What was found and fixed in the inputs (morph targets, cache alignment): the file and a
+    /// line each.
+    pub notes: Vec<(PathBuf, String)>,
 }
 
 pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError> {
@@ -141,7 +142,17 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
             rig_path.display()
         )));
     }
-    let notes = rig.notes.iter().chain(&aligned.notes).cloned().collect();
+    let notes = (rig
+        .notes
+        .iter()
+        .map(|n| (rig_path.to_path_buf(), n.clone())))
+    .chain(
+        aligned
+            .notes
+            .iter()
+            .map(|n| (options.cache.clone(), n.clone())),
+    )
+    .collect();
     Ok(Imported {
         notes,
         set,

@@ -263,7 +263,7 @@ impl Rig {
                     && prim.morph_targets().len() > 0
                 {
                     notes.push(format!(
-                        "mesh {}: {} morph targets, the rest mesh at their default weights {:?}",
+                        "mesh {}: {} morph target(s), the rest mesh at their default weights {:?}",
                         mesh.name()
                             .map_or_else(|| mesh.index().to_string(), str::to_string),
                         prim.morph_targets().len(),
