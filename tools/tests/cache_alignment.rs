@@ -357,3 +357,37 @@ fn the_cli_prints_each_fix_on_one_line() {
     assert!(json["rig_lbs"]["train"].as_f64().is_some_and(|e| e < 60.0));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Duplicate positions on the DCC's side: a point written twice (two coincident vertices that
+/// move together) is one of the rig's vertices; two coincident points that move apart are
+/// equally good matches of the one glTF vertex there, and the cache is refused.
+#[test]
+fn coincident_cache_points_are_one_vertex_or_refused() {
+    let dir = temp_dir("align-duplicates");
+    let dcc = in_dcc_order(&aligned_cache(), true);
+    let with = |extra: &dyn Fn(usize, DVec3) -> DVec3| PointCache {
+        positions: dcc
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(s, p)| {
+                let mut p = p.clone();
+                p.push(extra(s, p[7]));
+                p
+            })
+            .collect(),
+        ..dcc.clone()
+    };
+    let twice = with(&|_, p| p);
+    let got = imported(&write(&dir, "twice.pc2", &twice));
+    assert_same_examples(&got, &reference(), 0);
+    let apart = with(&|s, p| p + DVec3::Y * 0.01 * s as f64);
+    let e = refused(&write(&dir, "apart.pc2", &apart));
+    assert!(
+        e.contains("apart.pc2")
+            && e.contains("cannot tell which of the cache's 2339 points")
+            && e.contains("1 of 2338"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
