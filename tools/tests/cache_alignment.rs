@@ -10,18 +10,12 @@
 mod support;
 
 use glam::{DMat4, DVec3};
-use rrskin_tools::import::gltf::{import, weld, Imported, Options};
+use rrskin_tools::import::gltf::{import, weld, Imported};
 use rrskin_tools::import::gltf_rig::Rig;
 use rrskin_tools::import::point_cache::{Format, PointCache};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use support::temp_dir;
-
-fn data(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../data")
-        .join(path)
-}
+use support::{cesiumman_options as options, data, temp_dir};
 
 fn rig() -> PathBuf {
     data("cesiumman_gltf/CesiumMan_examples.glb")
@@ -29,15 +23,6 @@ fn rig() -> PathBuf {
 
 fn aligned_cache() -> PointCache {
     PointCache::load(&data("cesiumman_gltf/CesiumMan_examples.pc2"), 24.0).expect("cache")
-}
-
-fn options(cache: &Path) -> Options {
-    Options {
-        clip: "examples".into(),
-        cache: cache.to_path_buf(),
-        fps: 24.0,
-        test_frames: Some((41.0, 60.0)),
-    }
 }
 
 fn reference() -> Imported {

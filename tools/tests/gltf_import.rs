@@ -9,13 +9,7 @@ use rrskin_tools::import::gltf::{import, Options};
 use rrskin_tools::import::point_cache::PointCache;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use support::temp_dir;
-
-fn data(path: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../data")
-        .join(path)
-}
+use support::{cesiumman_options as options, data, temp_dir};
 
 fn rrskin(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rrskin"))
@@ -43,15 +37,6 @@ fn cache() -> String {
     data("cesiumman_gltf/CesiumMan_examples.pc2")
         .to_string_lossy()
         .into_owned()
-}
-
-fn options(cache: &Path) -> Options {
-    Options {
-        clip: "examples".into(),
-        cache: cache.to_path_buf(),
-        fps: 24.0,
-        test_frames: Some((41.0, 60.0)),
-    }
 }
 
 /// Rigid, SSD and the full model to 1e-3. The reduced model is checked to 0.1: its greedy

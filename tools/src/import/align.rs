@@ -15,7 +15,7 @@
 //! scored by how far the skinned mesh's points are from the nearest cache point (a one-sided
 //! Chamfer distance on a subsample), and the best must be at most [`MARGIN`] of the next best.
 
-use crate::import::example_set::InputError;
+use crate::import::example_set::{Bone, InputError};
 use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::{Format, PointCache};
 use crate::import::vertex_map::{self, diagonal, tree};
@@ -41,6 +41,8 @@ pub struct Aligned {
     /// Per sample: the clip's frame it holds (the DCC's frame number) and its time in seconds.
     pub frames: Vec<f64>,
     pub times: Vec<f64>,
+    /// Per sample: every bone's transform at its time (`Rig::bones_at`).
+    pub bones: Vec<Vec<Bone>>,
     /// One line per fix made.
     pub notes: Vec<String>,
 }
@@ -180,7 +182,7 @@ pub fn align(
         .iter()
         .map(|s| s.iter().map(|&p| to_world.transform_point3(p)).collect())
         .collect();
-    let bones: Vec<_> = times.iter().map(|&t| rig.bones_at(t)).collect();
+    let bones: Vec<Vec<Bone>> = times.iter().map(|&t| rig.bones_at(t)).collect();
     let skin: Vec<Vec<DVec3>> = bones.iter().map(|b| rig.skin(b)).collect();
     let at_bind = bones.iter().position(|b| {
         b.iter()
@@ -204,6 +206,7 @@ pub fn align(
         positions,
         frames,
         times,
+        bones,
         notes,
     })
 }

@@ -74,8 +74,13 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         .filter(|[a, b, c]| a != b && b != c && a != c)
         .collect();
     let mut poses = Vec::with_capacity(aligned.positions.len());
-    for (s, (positions, &time)) in aligned.positions.iter().zip(&aligned.times).enumerate() {
-        let bones = rig.bones_at(time);
+    for (s, ((positions, bones), &time)) in aligned
+        .positions
+        .iter()
+        .zip(aligned.bones)
+        .zip(&aligned.times)
+        .enumerate()
+    {
         if let Some((b, e)) = bones
             .iter()
             .enumerate()
@@ -309,11 +314,7 @@ impl Imported {
 /// Groups vertices with equal rest positions and trajectories; returns each vertex's group, the
 /// groups numbered in order of first appearance.
 pub fn weld(rest: &[DVec3], trajectories: &[Vec<DVec3>]) -> Vec<usize> {
-    let (lo, hi) = rest.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    let scale = (hi - lo).length().max(1e-12);
+    let scale = crate::import::vertex_map::diagonal(rest);
     let cell = WELD_REST * scale * 4.0;
     let key = |p: DVec3| ((p / cell).round().as_i64vec3()).to_array();
     let mut buckets: HashMap<[i64; 3], Vec<usize>> = HashMap::new();

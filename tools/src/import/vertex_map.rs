@@ -2,9 +2,9 @@
 //!
 //! A DCC's point cache holds the DCC's vertices, which the glTF exporters of Blender, Maya and
 //! Houdini split into several glTF vertices along UV and normal seams: the cache has fewer
-//! points than the glTF file, in another order. Split copies share their rest position and skin, so they are one
-//! *group* here (welded on rest position and skinned trajectory), and each group must be one
-//! cache point:
+//! points than the glTF file, in another order. Split copies share their rest position and
+//! skin, so they are one *group* here (welded on rest position and skinned trajectory), and
+//! each group must be one cache point:
 //!
 //! - **By position**, when a sample holds the bind pose: the group's rest position against the
 //!   cache's points in that sample (they agree to float precision).
@@ -54,21 +54,27 @@ pub fn map(
     cache: &[Vec<DVec3>],
     bind: Option<usize>,
 ) -> Result<VertexMap, String> {
-    let (g, m) = (rest.len(), cache.first().map_or(0, Vec::len));
-    let identity = VertexMap {
-        point_of: (0..g).collect(),
-        note: None,
-    };
-    let mesh = Mesh {
+    let reference = bind.unwrap_or_else(|| least_moving(rest, skin));
+    let problem = Problem {
         rest,
         triangles,
         primitives,
         skin,
+        cache,
+        bind,
+        reference,
+        points: tree(&cache[reference]),
+        size: diagonal(rest),
     };
-    if m == g && in_gltf_order(&mesh, cache, bind) {
+    let (g, m) = (rest.len(), problem.points.size());
+    let identity = VertexMap {
+        point_of: (0..g).collect(),
+        note: None,
+    };
+    if m == g && problem.in_gltf_order() {
         return Ok(identity);
     }
-    match by_matching(&mesh, cache, bind) {
+    match problem.by_matching() {
         // As many points as vertices, none matched: the glTF's order it is, and the rig's skin
         // judges it before training (with a message about the cache's space).
         Err(_) if m == g => Ok(identity),
@@ -76,199 +82,211 @@ pub fn map(
     }
 }
 
-/// The glTF side of the mapping.
-struct Mesh<'a> {
+/// What a mapping is found from, and the search every step of it shares.
+struct Problem<'a> {
     rest: &'a [DVec3],
     triangles: &'a [[usize; 3]],
     primitives: &'a [Range<usize>],
     skin: &'a [Vec<DVec3>],
+    cache: &'a [Vec<DVec3>],
+    /// The sample at the bind pose: points are then matched by position.
+    bind: Option<usize>,
+    /// The sample whose points are searched: the bind pose's, else the least moving one.
+    reference: usize,
+    /// The cache's points in the reference sample.
+    points: KdTree<f64, usize, [f64; 3]>,
+    size: f64,
 }
 
-/// Whether the cache's points, as many as the vertices, are the vertices in the glTF's order:
-/// unless some other order fits far better.
-fn in_gltf_order(mesh: &Mesh, cache: &[Vec<DVec3>], bind: Option<usize>) -> bool {
-    let (rest, skin) = (mesh.rest, mesh.skin);
-    let g = rest.len();
-    let size = diagonal(rest);
-    let by_position = bind.is_some();
-    let reference = bind.unwrap_or_else(|| least_moving(rest, skin));
-    let points = tree(&cache[reference]);
-    let near = |query: DVec3, cost: &dyn Fn(usize) -> f64| candidates(&points, query, cost);
+impl Problem<'_> {
+    /// The cost of glTF vertex `v` being cache point `p`: by position at the bind pose, else
+    /// by trajectory against `predicted` (the skin, or its refinement).
+    fn cost(&self, predicted: &[Vec<DVec3>], v: usize, p: usize) -> f64 {
+        match self.bind {
+            Some(s) => (self.cache[s][p] - self.rest[v]).length(),
+            None => trajectory_distance(predicted, self.cache, v, p),
+        }
+    }
 
-    {
-        let cost = |v: usize, p: usize| match bind {
-            Some(s) => (cache[s][p] - rest[v]).length(),
-            None => trajectory_distance(skin, cache, v, p),
+    /// The CANDIDATES points nearest `v`'s prediction in the reference sample, cheapest first.
+    fn candidates(&self, predicted: &[Vec<DVec3>], v: usize) -> Vec<(f64, usize)> {
+        let query = match self.bind {
+            Some(_) => self.rest[v],
+            None => predicted[self.reference][v],
         };
-        let query = |v: usize| {
-            if by_position {
-                rest[v]
-            } else {
-                skin[reference][v]
-            }
-        };
-        let identity: f64 = (0..g).map(|v| cost(v, v).powi(2)).sum();
+        let mut c: Vec<(f64, usize)> = self
+            .points
+            .nearest(
+                &query.to_array(),
+                CANDIDATES.min(self.points.size()),
+                &squared_euclidean,
+            )
+            .map_or_else(
+                |_| Vec::new(),
+                |n| {
+                    n.iter()
+                        .map(|&(_, &p)| (self.cost(predicted, v, p), p))
+                        .collect()
+                },
+            );
+        c.sort_by(|a, b| a.0.total_cmp(&b.0));
+        c
+    }
+
+    /// Whether cache points `a` and `b` are one point written twice.
+    fn same_point(&self, a: usize, b: usize) -> bool {
+        self.cache
+            .iter()
+            .all(|s| (s[a] - s[b]).length() <= SAME_POINT * self.size)
+    }
+
+    /// Whether the cache's points, as many as the vertices, are the vertices in the glTF's
+    /// order: unless some other order fits far better.
+    fn in_gltf_order(&self) -> bool {
+        let g = self.rest.len();
+        let identity: f64 = (0..g).map(|v| self.cost(self.skin, v, v).powi(2)).sum();
         let nearest: f64 = (0..g)
             .map(|v| {
-                near(query(v), &|p| cost(v, p))
+                self.candidates(self.skin, v)
                     .first()
                     .map_or(f64::INFINITY, |c| c.0.powi(2))
             })
             .sum();
-        identity <= 4.0 * nearest + (1e-9 * size).powi(2) * g as f64
+        identity <= 4.0 * nearest + (1e-9 * self.size).powi(2) * g as f64
+    }
+
+    /// Each cache point found among the glTF's vertices (module docs).
+    fn by_matching(&self) -> Result<VertexMap, String> {
+        let (rest, skin, cache, size) = (self.rest, self.skin, self.cache, self.size);
+        let (g, m) = (rest.len(), self.points.size());
+        let groups = Groups::of(rest, skin, self.triangles);
+        let count = groups.representative.len();
+        if count > m {
+            return Err(format!(
+                "{m} points for the rig's {g} vertices, which are {count} distinct ones (by rest position and skin): the cache has too few points for this mesh"
+            ));
+        }
+        let way_out = "either put the bind pose on one frame of the clip and the cache (points are then matched by position), or write the cache in the glTF file's vertex order (tools/blender/export_examples.py writes examples directly)";
+        // By trajectory, the skin's prediction is refined by the residual of the confident
+        // matches around each vertex (a deformer's deviation from the skin is smooth on the
+        // mesh).
+        let mut predicted: Vec<Vec<DVec3>> = skin.to_vec();
+        let mut round = 0;
+        let mut matched = loop {
+            let matched = assign(self, &groups.representative, &predicted);
+            round += 1;
+            if self.bind.is_some() || matched.ambiguous() == 0 || round == REFINEMENTS {
+                break matched;
+            }
+            predicted = refined(self, &groups, &matched);
+        };
+        let placed = match (self.bind, matched.ambiguous()) {
+            (None, 1..) => by_order(&mut matched, &groups.of, self.primitives, m)?,
+            _ => 0,
+        };
+        if let Some(k) = matched.point_of_group.iter().position(|&p| p == usize::MAX) {
+            return Err(format!(
+                "glTF vertex {} matches none of its {CANDIDATES} nearest free cache points: the cache's points are not the rig's vertices; {way_out}",
+                groups.representative[k]
+            ));
+        }
+        let ambiguous = matched.ambiguous();
+        if ambiguous > 0 {
+            let (ratio, k) = matched.worst();
+            return Err(format!(
+                "cannot tell which of the cache's {m} points are the rig's {g} glTF vertices: {ambiguous} of {count} match a second point nearly as well (worst: glTF vertex {}, {ratio:.2} of the next point's distance; at most {MARGIN} is taken){}; {way_out}",
+                groups.representative[k],
+                if self.bind.is_some() { "" } else { ", matched by trajectory: the clip has no frame at the bind pose" }
+            ));
+        }
+        let mut used = vec![false; m];
+        matched.point_of_group.iter().for_each(|&p| used[p] = true);
+        let copies_a_used_point = |p: usize| {
+            self.points
+                .nearest(
+                    &cache[self.reference][p].to_array(),
+                    4.min(m),
+                    &squared_euclidean,
+                )
+                .is_ok_and(|n| n.iter().any(|&(_, &q)| used[q] && self.same_point(p, q)))
+        };
+        if let Some(p) = (0..m).find(|&p| !used[p] && !copies_a_used_point(p)) {
+            return Err(format!(
+                "cache point {p} is none of the rig's vertices (the cache has {m} points, the rig {count} distinct vertices): the cache is of another mesh, or of more of it; {way_out}"
+            ));
+        }
+        let how = match self.bind {
+            Some(s) => format!(
+                "by position at the bind pose (sample {s}), largest residual {:.1e} of the mesh size",
+                matched.cost.iter().copied().fold(0.0, f64::max) / size
+            ),
+            None => {
+                let deviation: f64 = groups
+                    .representative
+                    .iter()
+                    .zip(&matched.point_of_group)
+                    .map(|(&v, &p)| trajectory_distance(skin, cache, v, p).powi(2))
+                    .sum();
+                let order = match placed {
+                    0 => String::new(),
+                    n => format!(", {n} of them placed by the exporter's vertex order, which the other matches keep"),
+                };
+                format!(
+                    "by trajectory over {} samples against the glTF's own skin ({round} rounds{order}), RMS residual {:.2} % of the mesh size (the rig's deviation from its skin)",
+                    cache.len(),
+                    100.0 * (deviation / count as f64).sqrt() / size,
+                )
+            }
+        };
+        Ok(VertexMap {
+            point_of: groups.of.iter().map(|&k| matched.point_of_group[k]).collect(),
+            note: Some(format!(
+                "cache has {m} points in its own order for the rig's {g} glTF vertices ({count} distinct: the DCC's vertices, split at seams in the glTF): mapped {how}"
+            )),
+        })
     }
 }
 
-/// Each cache point found among the glTF's vertices (module docs).
-fn by_matching(
-    mesh: &Mesh,
-    cache: &[Vec<DVec3>],
-    bind: Option<usize>,
-) -> Result<VertexMap, String> {
-    let (rest, triangles, primitives, skin) =
-        (mesh.rest, mesh.triangles, mesh.primitives, mesh.skin);
-    let (g, m) = (rest.len(), cache.first().map_or(0, Vec::len));
-    let size = diagonal(rest);
-    let by_position = bind.is_some();
-    let reference = bind.unwrap_or_else(|| least_moving(rest, skin));
-    let points = tree(&cache[reference]);
-    let near = |query: DVec3, cost: &dyn Fn(usize) -> f64| candidates(&points, query, cost);
+/// The glTF vertices welded into groups (split copies of one DCC vertex), each group's first
+/// vertex, its mesh neighbours, and a tree of the groups' rest positions.
+struct Groups {
+    /// Per glTF vertex, its group.
+    of: Vec<usize>,
+    representative: Vec<usize>,
+    adjacent: Vec<Vec<usize>>,
+    rest_tree: KdTree<f64, usize, [f64; 3]>,
+}
 
-    let group = weld(rest, skin);
-    let groups = group.iter().max().map_or(0, |x| x + 1);
-    let mut representative = vec![usize::MAX; groups];
-    for (v, &k) in group.iter().enumerate().rev() {
-        representative[k] = v;
-    }
-    if groups > m {
-        return Err(format!(
-            "{m} points for the rig's {g} vertices, which are {groups} distinct ones (by rest position and skin): the cache has too few points for this mesh"
-        ));
-    }
-    let same_point = |a: usize, b: usize| {
-        cache
-            .iter()
-            .all(|s| (s[a] - s[b]).length() <= SAME_POINT * size)
-    };
-    let way_out = "either put the bind pose on one frame of the clip and the cache (points are then matched by position), or write the cache in the glTF file's vertex order (tools/blender/export_examples.py writes examples directly)";
-    // By trajectory, the skin's prediction is refined by the residual of the confident
-    // matches around each vertex (a deformer's deviation from the skin is smooth on the mesh).
-    let mut predicted: Vec<Vec<DVec3>> = skin.to_vec();
-    let rest_tree = tree(&representative.iter().map(|&v| rest[v]).collect::<Vec<_>>());
-    let mut adjacent = vec![Vec::new(); groups];
-    for t in triangles {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            let (a, b) = (group[a], group[b]);
-            if a != b {
-                adjacent[a].push(b);
-                adjacent[b].push(a);
+impl Groups {
+    fn of(rest: &[DVec3], skin: &[Vec<DVec3>], triangles: &[[usize; 3]]) -> Groups {
+        let of = weld(rest, skin);
+        let count = of.iter().max().map_or(0, |x| x + 1);
+        let mut representative = vec![usize::MAX; count];
+        for (v, &k) in of.iter().enumerate().rev() {
+            representative[k] = v;
+        }
+        let mut adjacent = vec![Vec::new(); count];
+        for t in triangles {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                let (a, b) = (of[a], of[b]);
+                if a != b {
+                    adjacent[a].push(b);
+                    adjacent[b].push(a);
+                }
             }
         }
-    }
-    adjacent.iter_mut().for_each(|a| {
-        a.sort_unstable();
-        a.dedup();
-    });
-    let mut round = 0;
-    let mut matched = loop {
-        let matched = assign(
-            &representative,
-            m,
-            |v| match bind {
-                Some(_) => near(rest[v], &|p| (cache[reference][p] - rest[v]).length()),
-                None => near(predicted[reference][v], &|p| {
-                    trajectory_distance(&predicted, cache, v, p)
-                }),
-            },
-            |v, p| match bind {
-                Some(s) => (cache[s][p] - rest[v]).length(),
-                None => trajectory_distance(&predicted, cache, v, p),
-            },
-            &same_point,
-        );
-        round += 1;
-        if by_position || matched.ambiguous == 0 || round == REFINEMENTS {
-            break matched;
+        adjacent.iter_mut().for_each(|a| {
+            a.sort_unstable();
+            a.dedup();
+        });
+        let rest_tree = tree(&representative.iter().map(|&v| rest[v]).collect::<Vec<_>>());
+        Groups {
+            of,
+            representative,
+            adjacent,
+            rest_tree,
         }
-        predicted = refined(
-            rest,
-            skin,
-            cache,
-            &representative,
-            &group,
-            &adjacent,
-            &matched,
-            &rest_tree,
-        );
-    };
-    let placed = match (by_position, matched.ambiguous) {
-        (false, 1..) => by_order(&mut matched, &group, primitives)?,
-        _ => 0,
-    };
-    let Matched {
-        point_of_group,
-        used,
-        ambiguous,
-        worst,
-        largest,
-        ..
-    } = matched;
-    if let Some(k) = point_of_group.iter().position(|&p| p == usize::MAX) {
-        return Err(format!(
-            "glTF vertex {} matches none of its {CANDIDATES} nearest free cache points: the cache's points are not the rig's vertices; {way_out}",
-            representative[k]
-        ));
     }
-    if ambiguous > 0 {
-        return Err(format!(
-            "cannot tell which of the cache's {m} points are the rig's {g} glTF vertices: {ambiguous} of {groups} match a second point nearly as well (worst: glTF vertex {}, {:.2} of the next point's distance; at most {MARGIN} is taken){}; {way_out}",
-            worst.1,
-            worst.0,
-            if by_position { "" } else { ", matched by trajectory: the clip has no frame at the bind pose" }
-        ));
-    }
-    let copies_a_used_point = |p: usize| {
-        points
-            .nearest(
-                &cache[reference][p].to_array(),
-                4.min(m),
-                &squared_euclidean,
-            )
-            .is_ok_and(|n| n.iter().any(|&(_, &q)| used[q] && same_point(p, q)))
-    };
-    if let Some(p) = (0..m).find(|&p| !used[p] && !copies_a_used_point(p)) {
-        return Err(format!(
-            "cache point {p} is none of the rig's vertices (the cache has {m} points, the rig {groups} distinct vertices): the cache is of another mesh, or of more of it; {way_out}"
-        ));
-    }
-    let how = match bind {
-        Some(s) => format!(
-            "by position at the bind pose (sample {s}), largest residual {:.1e} of the mesh size",
-            largest / size
-        ),
-        None => {
-            let deviation: f64 = (0..groups)
-                .map(|k| {
-                    trajectory_distance(skin, cache, representative[k], point_of_group[k]).powi(2)
-                })
-                .sum();
-            let order = match placed {
-                0 => String::new(),
-                n => format!(", {n} of them placed by the exporter's vertex order, which the other matches keep"),
-            };
-            format!(
-                "by trajectory over {} samples against the glTF's own skin ({round} rounds{order}), RMS residual {:.2} % of the mesh size (the rig's deviation from its skin)",
-                cache.len(),
-                100.0 * (deviation / groups as f64).sqrt() / size,
-            )
-        }
-    };
-    Ok(VertexMap {
-        point_of: group.iter().map(|&k| point_of_group[k]).collect(),
-        note: Some(format!(
-            "cache has {m} points in its own order for the rig's {g} glTF vertices ({groups} distinct: the DCC's vertices, split at seams in the glTF): mapped {how}"
-        )),
-    })
 }
 
 /// Rounds of matching by trajectory (the first against the skin alone).
@@ -278,30 +296,41 @@ const NEIGHBOURS: usize = 6;
 
 /// A greedy assignment of groups to points and how clear it is.
 struct Matched {
-    /// Per group its point (usize::MAX: none left).
+    /// Per group its point (usize::MAX: none left), the match's cost, and its largest cost
+    /// ratio to an exchange with another distinct candidate.
     point_of_group: Vec<usize>,
-    used: Vec<bool>,
-    /// Groups whose match is not clearly better than the next distinct point.
-    ambiguous: usize,
-    /// The largest cost ratio to the next distinct point, and its glTF vertex.
-    worst: (f64, usize),
-    /// The largest cost of a match.
-    largest: f64,
-    /// Per group: whether its match is clear.
+    cost: Vec<f64>,
+    ratio: Vec<f64>,
+    /// Per group: whether its match is clear (by its ratio, or placed by the vertex order).
     clear: Vec<bool>,
 }
 
+impl Matched {
+    /// Whether group `k` has a point but no clear match.
+    fn unclear(&self, k: usize) -> bool {
+        !self.clear[k] && self.point_of_group[k] != usize::MAX
+    }
+
+    /// Groups with a match that is not clear.
+    fn ambiguous(&self) -> usize {
+        (0..self.clear.len()).filter(|&k| self.unclear(k)).count()
+    }
+
+    /// The largest ratio of an unclear match, and its group.
+    fn worst(&self) -> (f64, usize) {
+        (0..self.ratio.len())
+            .filter(|&k| self.unclear(k))
+            .map(|k| (self.ratio[k], k))
+            .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a })
+    }
+}
+
 /// Pairs (group, candidate point) taken cheapest first while both are free.
-fn assign(
-    representative: &[usize],
-    m: usize,
-    candidates_of: impl Fn(usize) -> Vec<(f64, usize)> + Sync,
-    cost: impl Fn(usize, usize) -> f64,
-    same_point: &(dyn Fn(usize, usize) -> bool + Sync),
-) -> Matched {
+fn assign(problem: &Problem, representative: &[usize], predicted: &[Vec<DVec3>]) -> Matched {
+    let m = problem.points.size();
     let candidates: Vec<Vec<(f64, usize)>> = representative
         .par_iter()
-        .map(|&v| candidates_of(v))
+        .map(|&v| problem.candidates(predicted, v))
         .collect();
     let mut pairs: Vec<(f64, usize, usize)> = candidates
         .iter()
@@ -310,55 +339,44 @@ fn assign(
         .collect();
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let groups = representative.len();
-    let (mut point_of_group, mut cost_of_group, mut used) =
-        (vec![usize::MAX; groups], vec![0.0; groups], vec![false; m]);
+    let (mut point_of_group, mut cost, mut owner) = (
+        vec![usize::MAX; groups],
+        vec![0.0; groups],
+        vec![usize::MAX; m],
+    );
     for &(d, k, p) in &pairs {
-        if point_of_group[k] == usize::MAX && !used[p] {
+        if point_of_group[k] == usize::MAX && owner[p] == usize::MAX {
             point_of_group[k] = p;
-            cost_of_group[k] = d;
-            used[p] = true;
-        }
-    }
-    let mut owner = vec![usize::MAX; m];
-    for (k, &p) in point_of_group.iter().enumerate() {
-        if p != usize::MAX {
+            cost[k] = d;
             owner[p] = k;
         }
     }
-    let mut matched = Matched {
+    // Each match against every exchange with another distinct candidate q (not a copy of p):
+    // k takes q and q's group, if any, takes p. The match is clear when each costs far more.
+    let ratio: Vec<f64> = candidates
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let (p, d) = (point_of_group[k], cost[k]);
+            if p == usize::MAX {
+                return f64::INFINITY;
+            }
+            c.iter()
+                .filter(|&&(_, q)| q != p && !problem.same_point(p, q))
+                .map(|&(dq, q)| match owner[q] {
+                    usize::MAX => d / dq,
+                    o => (d + cost[o]) / (dq + problem.cost(predicted, representative[o], p)),
+                })
+                .map(|r| if r.is_nan() { f64::INFINITY } else { r })
+                .fold(0.0, f64::max)
+        })
+        .collect();
+    Matched {
+        clear: ratio.iter().map(|&r| r <= MARGIN).collect(),
         point_of_group,
-        used,
-        ambiguous: 0,
-        worst: (0.0, 0),
-        largest: 0.0,
-        clear: vec![false; groups],
-    };
-    for (k, c) in candidates.iter().enumerate() {
-        let (p, d) = (matched.point_of_group[k], cost_of_group[k]);
-        if p == usize::MAX {
-            continue;
-        }
-        matched.largest = matched.largest.max(d);
-        // Against every exchange with another distinct candidate q (not a copy of p): k takes
-        // q and q's group, if any, takes p. The match is clear when each costs far more.
-        let ratio = c
-            .iter()
-            .filter(|&&(_, q)| q != p && !same_point(p, q))
-            .map(|&(dq, q)| match owner[q] {
-                usize::MAX => d / dq,
-                o => (d + cost_of_group[o]) / (dq + cost(representative[o], p)),
-            })
-            .map(|r| if r.is_nan() { f64::INFINITY } else { r })
-            .fold(0.0, f64::max);
-        matched.clear[k] = ratio <= MARGIN;
-        if !matched.clear[k] {
-            matched.ambiguous += 1;
-        }
-        if ratio > matched.worst.0 {
-            matched.worst = (ratio, representative[k]);
-        }
+        cost,
+        ratio,
     }
-    matched
 }
 
 /// Clear matches that keep the DCC's order within a primitive this often show an exporter
@@ -375,8 +393,8 @@ fn by_order(
     matched: &mut Matched,
     group: &[usize],
     primitives: &[Range<usize>],
+    m: usize,
 ) -> Result<usize, String> {
-    let m = matched.used.len();
     let runs: Vec<Vec<usize>> = primitives
         .iter()
         .map(|r| {
@@ -447,23 +465,20 @@ fn by_order(
             owner[p] = k;
         }
     }
-    matched.used = owner.iter().map(|&o| o != usize::MAX).collect();
-    matched.ambiguous = matched.clear.iter().filter(|&&c| !c).count();
     Ok(placed)
 }
 
-/// The skin's prediction plus, per sample, the mean residual (cache − skin) of the nearest
-/// clearly matched groups around each vertex (by rest position, the vertex's own excluded).
-fn refined(
-    rest: &[DVec3],
-    skin: &[Vec<DVec3>],
-    cache: &[Vec<DVec3>],
-    representative: &[usize],
-    group: &[usize],
-    adjacent: &[Vec<usize>],
-    matched: &Matched,
-    rest_tree: &KdTree<f64, usize, [f64; 3]>,
-) -> Vec<Vec<DVec3>> {
+/// The skin's prediction plus, per sample, the mean residual (cache − skin) of the clearly
+/// matched groups around each vertex: its mesh neighbours, or where fewer than two of those
+/// are clear, the nearest clear groups by rest position (its own excluded).
+fn refined(problem: &Problem, groups: &Groups, matched: &Matched) -> Vec<Vec<DVec3>> {
+    let (rest, skin, cache) = (problem.rest, problem.skin, problem.cache);
+    let Groups {
+        of: group,
+        representative,
+        adjacent,
+        rest_tree,
+    } = groups;
     let groups = representative.len();
     let residual =
         |k: usize, s: usize| cache[s][matched.point_of_group[k]] - skin[s][representative[k]];
@@ -511,26 +526,6 @@ fn refined(
         .collect()
 }
 
-/// The CANDIDATES points of `points` nearest `query`, cheapest first by `cost`.
-fn candidates(
-    points: &KdTree<f64, usize, [f64; 3]>,
-    query: DVec3,
-    cost: &dyn Fn(usize) -> f64,
-) -> Vec<(f64, usize)> {
-    let mut c: Vec<(f64, usize)> = points
-        .nearest(
-            &query.to_array(),
-            CANDIDATES.min(points.size()),
-            &squared_euclidean,
-        )
-        .map_or_else(
-            |_| Vec::new(),
-            |n| n.iter().map(|&(_, &p)| (cost(p), p)).collect(),
-        );
-    c.sort_by(|a, b| a.0.total_cmp(&b.0));
-    c
-}
-
 /// The length of the bounding box's diagonal (at least 1e-12).
 pub fn diagonal(points: &[DVec3]) -> f64 {
     let (lo, hi) = points.iter().fold(
@@ -550,7 +545,7 @@ pub fn tree(points: &[DVec3]) -> KdTree<f64, usize, [f64; 3]> {
     tree
 }
 
-/// RMS over samples of |cache[s][p] − skin[s][v]|.
+/// The median over samples of |cache[s][p] − skin[s][v]|.
 fn trajectory_distance(skin: &[Vec<DVec3>], cache: &[Vec<DVec3>], v: usize, p: usize) -> f64 {
     let mut d: Vec<f64> = skin
         .iter()
@@ -564,16 +559,16 @@ fn trajectory_distance(skin: &[Vec<DVec3>], cache: &[Vec<DVec3>], v: usize, p: u
 /// The sample in which the skinned mesh is nearest its rest pose (where a neighbour in space is
 /// most likely a neighbour on the mesh).
 fn least_moving(rest: &[DVec3], skin: &[Vec<DVec3>]) -> usize {
-    (0..skin.len())
-        .min_by(|&a, &b| {
-            let moved = |s: usize| -> f64 {
-                skin[s]
-                    .iter()
-                    .zip(rest)
-                    .map(|(p, r)| (*p - *r).length_squared())
-                    .sum()
-            };
-            moved(a).total_cmp(&moved(b))
+    let moved: Vec<f64> = skin
+        .iter()
+        .map(|s| {
+            s.iter()
+                .zip(rest)
+                .map(|(p, r)| (*p - *r).length_squared())
+                .sum()
         })
+        .collect();
+    (0..moved.len())
+        .min_by(|&a, &b| moved[a].total_cmp(&moved[b]))
         .unwrap_or(0)
 }

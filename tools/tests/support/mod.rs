@@ -18,3 +18,21 @@ pub fn temp_dir(name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir
 }
+
+/// A file of the repository's `data/`.
+pub fn data(path: &str) -> std::path::PathBuf {
+    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../data")
+        .join(path)
+}
+
+/// Importing the bundled CesiumMan rig (`data/cesiumman_gltf`) with `cache`: its clip
+/// `examples` at 24 fps, frames 41–60 held out.
+pub fn cesiumman_options(cache: &Path) -> rrskin_tools::import::gltf::Options {
+    rrskin_tools::import::gltf::Options {
+        clip: "examples".into(),
+        cache: cache.to_path_buf(),
+        fps: 24.0,
+        test_frames: Some((41.0, 60.0)),
+    }
+}
