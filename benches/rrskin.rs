@@ -1,7 +1,9 @@
 //! Criterion benches: per-frame runtime of rotational regression and of its SSD baseline at
-//! C = 1, 16, 256, 1024 characters, and training (benches/README.md).
+//! C = 1, 16, 256, 1024 characters, the CPU palette per character and batched over threads, and
+//! training (benches/README.md).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
+use rrskin::palette::Palette;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_render::phased_poses;
 use rrskin_tools::cylinder_chain::Chain;
@@ -84,5 +86,61 @@ fn training(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, runtime, training);
+/// The CPU palette (`rrskin_palette_compute`'s work) of the runtime models trained on the
+/// bundled example and on `data/human_heavy` (53 bones): one character on one thread, and 1024
+/// characters on 1, 2, ... up to every core's threads (the batched form).
+fn palette(c: &mut Criterion) {
+    let mut models = vec![("cesiumman", cesiumman())];
+    let human = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/human_heavy");
+    if let Ok(set) = ExampleSet::load(human) {
+        models.push(("human_heavy", set));
+    }
+    let runtime_model = TrainOptions {
+        full_model: false,
+        ..options()
+    };
+    let mut group = c.benchmark_group("palette");
+    group
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(3))
+        .warm_up_time(Duration::from_secs(1));
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    for (name, set) in models {
+        let model = train::run(&set, &runtime_model)
+            .expect("training")
+            .model
+            .expect("a model");
+        let palette = Palette::new(model).expect("palette");
+        let characters = 1024;
+        let bones = phased_poses(palette.model(), characters, 0);
+        let mut out = vec![[0.0; 12]; characters * palette.len()];
+        let (j, n) = (palette.model().bone_count(), palette.len());
+        group.throughput(criterion::Throughput::Elements(1));
+        group.bench_function(BenchmarkId::new(format!("{name}/character"), 1), |b| {
+            b.iter(|| {
+                palette
+                    .compute(&bones[..j], &mut out[..n])
+                    .expect("palette")
+            })
+        });
+        group.throughput(criterion::Throughput::Elements(characters as u64));
+        let mut threads = 1;
+        while threads <= cores {
+            group.bench_function(
+                BenchmarkId::new(format!("{name}/1024/threads"), threads),
+                |b| {
+                    b.iter(|| {
+                        palette
+                            .compute_batch_parallel(&bones, &mut out, threads)
+                            .expect("palette")
+                    })
+                },
+            );
+            threads *= 2;
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, runtime, palette, training);
 criterion_main!(benches);

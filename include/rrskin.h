@@ -78,6 +78,26 @@ typedef int32_t rrskin_status;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
+// One dispatch axis: ceil(extent / per_group) workgroups.
+typedef struct Axis Axis;
+
+// A per-character buffer of a crowd, bound per chunk of characters.
+typedef struct CrowdBuffer CrowdBuffer;
+
+// What one axis of a dispatch counts.
+typedef struct Extent Extent;
+
+// A buffer of the GPU model, uploaded once and only ever read.
+typedef struct ModelBuffer ModelBuffer;
+
+// A pipeline of the table; adding one means a variant here, in `ALL` and in `desc`, its
+// entry below and its place in `batch.rs`'s schedule.
+typedef struct Pass Pass;
+
+// A model loaded for CPU palette evaluation (opaque). Immutable: every call but
+// `rrskin_palette_model_destroy` may run on one from many threads at once.
+typedef struct rrskin_palette_model rrskin_palette_model;
+
 // What the runtime needs of a Vulkan implementation (`rrskin_get_requirements`): no device
 // feature beyond core Vulkan 1.1 is enabled or used.
 typedef struct rrskin_requirements {
@@ -203,6 +223,38 @@ typedef struct rrskin_pass_timings {
   // 0 without tangents.
   double tangents_ms;
 } rrskin_pass_timings;
+
+// What an engine skins with, borrowed from a palette model (valid until it is destroyed).
+// Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
+// * (rest_positions[a], 1)`, each palette entry a 3x4 row-major matrix.
+typedef struct rrskin_palette_skin {
+  // V.
+  uint32_t vertices;
+  uint32_t triangles;
+  // J: bone transforms in.
+  uint32_t bones;
+  // P: proxies at the front of the palette (0 for a plain linear-blend-skinning model).
+  uint32_t proxies;
+  // P + J: palette entries out.
+  uint32_t palette_entries;
+  // K, 4 or 8.
+  uint32_t influences;
+  // V x K palette indices (< P a proxy, P + b bone b).
+  const uint32_t *joints;
+  // V x K weights, >= 0, summing to 1 per vertex.
+  const float *weights;
+  // V x 3.
+  const float *rest_positions;
+  // V x 3 unit normals of the rest mesh, as the Vulkan path computes them.
+  const float *rest_normals;
+  // V x 4 (xyz unit, w = +-1 as glTF's TANGENT), or NULL for a model without rest tangents.
+  const float *rest_tangents;
+  // T x 3 vertex indices.
+  const uint32_t *triangle_indices;
+} rrskin_palette_skin;
+
+// A bone transform relative to the rest pose, 3x4 row-major: `x ↦ Q x + d`.
+typedef float Affine[12];
 
 #ifdef __cplusplus
 extern "C" {
@@ -420,6 +472,65 @@ rrskin_status rrskin_crowds_run(struct rrskin_context context,
 rrskin_status rrskin_context_get_timings(struct rrskin_context context,
                                          uint32_t frame,
                                          struct rrskin_pass_timings *out);
+
+// Loads and validates a `.rrs` file (UTF-8 path) for CPU palette evaluation. Destroy with
+// `rrskin_palette_model_destroy`.
+//
+// # Safety
+// `path` is NULL or a NUL-terminated string readable during the call; `out` is NULL or points
+// to writable memory for one pointer.
+rrskin_status rrskin_palette_model_load_file(const char *path, struct rrskin_palette_model **out);
+
+// Validates a `.rrs` image of `size` bytes for CPU palette evaluation (the bytes are copied).
+//
+// # Safety
+// `data` is NULL or points to `size` readable bytes; `out` is NULL or points to writable memory
+// for one pointer.
+rrskin_status rrskin_palette_model_load_memory(const uint8_t *data,
+                                               size_t size,
+                                               struct rrskin_palette_model **out);
+
+// The model's sizes and skin.
+//
+// # Safety
+// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+// `rrskin_palette_skin`.
+rrskin_status rrskin_palette_model_get_skin(const struct rrskin_palette_model *model,
+                                            struct rrskin_palette_skin *out);
+
+// The palette of `characters` characters on the calling thread: `bones` is characters x J
+// transforms (`bone_floats` = characters * J * 12 floats, 3x4 row-major, world space, relative
+// to the rest pose), `out` characters x (P + J) palette matrices (`out_floats` floats, same
+// layout), proxies first. Allocates nothing (after a thread's first call for a model of that
+// size) and takes no lock: call it from an engine's worker threads on disjoint characters.
+//
+// # Safety
+// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+// readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
+// overlap.
+rrskin_status rrskin_palette_compute(const struct rrskin_palette_model *model,
+                                     const float *bones,
+                                     size_t bone_floats,
+                                     float *out,
+                                     size_t out_floats);
+
+// `rrskin_palette_compute` split over `threads` threads it starts and joins (0: one per
+// core), for an engine without a job system of its own. Starting threads allocates.
+//
+// # Safety
+// As `rrskin_palette_compute`.
+rrskin_status rrskin_palette_compute_parallel(const struct rrskin_palette_model *model,
+                                              const float *bones,
+                                              size_t bone_floats,
+                                              float *out,
+                                              size_t out_floats,
+                                              uint32_t threads);
+
+// Destroys a palette model (NULL: nothing). No call may be using it.
+//
+// # Safety
+// `model` is NULL or a live palette model that no other thread is using; it is invalid after.
+rrskin_status rrskin_palette_model_destroy(struct rrskin_palette_model *model);
 
 #ifdef __cplusplus
 }  // extern "C"

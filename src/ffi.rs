@@ -16,6 +16,10 @@
 //!   The Vulkan rules of the Rust crate's contract (src/lib.rs) apply: no submitted work reading
 //!   a crowd may be executing when its bones are set or it is destroyed.
 
+mod palette;
+
+pub use palette::*;
+
 use crate::error::Error;
 use crate::model::Model;
 use crate::predict::Affine;
@@ -305,7 +309,9 @@ fn registry() -> MutexGuard<'static, Registry> {
 }
 
 thread_local! {
-    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+    /// The calling thread's last failure; `None` after a success (so that a successful call
+    /// allocates nothing: the CPU palette is called per character per frame).
+    static LAST_ERROR: RefCell<Option<CString>> = const { RefCell::new(None) };
 }
 
 /// An error on its way to C: status and message.
@@ -373,10 +379,9 @@ fn guard(body: impl FnOnce() -> Result<(), Failure>) -> RrskinStatus {
         ))
     });
     let (status, message) = match outcome {
-        Ok(()) => (RrskinStatus::Ok, String::new()),
-        Err(f) => (f.status, f.message),
+        Ok(()) => (RrskinStatus::Ok, None),
+        Err(f) => (f.status, CString::new(f.message.replace('\0', " ")).ok()),
     };
-    let message = CString::new(message.replace('\0', " ")).unwrap_or_default();
     LAST_ERROR.with(|slot| *slot.borrow_mut() = message);
     status
 }
@@ -508,7 +513,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
 /// next rrskin call on this thread; never NULL.
 #[no_mangle]
 pub extern "C" fn rrskin_last_error() -> *const c_char {
-    LAST_ERROR.with(|slot| slot.borrow().as_ptr())
+    LAST_ERROR.with(|slot| slot.borrow().as_deref().unwrap_or(c"").as_ptr())
 }
 
 /// Creates a context with its own Vulkan instance and device (the best GPU, else lavapipe).

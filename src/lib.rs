@@ -15,7 +15,9 @@
 //!    vertex's blended palette matrix, made orthogonal to the normal.
 //!
 //! [`cpu::CpuEvaluator`] runs them on the CPU in `f64` (the reference); [`vk`] runs them as
-//! Vulkan compute passes, recorded for all crowds into one command buffer.
+//! Vulkan compute passes, recorded for all crowds into one command buffer. For an engine that
+//! skins with its own shaders, [`palette::Palette`] runs steps 1–2 on the CPU in `f32`: bones in,
+//! the P + J palette out, with no Vulkan at all.
 //!
 //! ## Contract
 //!
@@ -96,6 +98,7 @@ pub mod cpu;
 pub mod error;
 pub mod ffi;
 pub mod model;
+pub mod palette;
 pub mod predict;
 pub mod vk;
 

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{random_model, random_poses, Spec};
+use common::{joint_blend_pattern, random_model, random_poses, Spec};
 use rrskin::cpu::CpuEvaluator;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -53,11 +53,76 @@ fn static_library() -> PathBuf {
     lib
 }
 
+/// Poses of `frames` x `characters` and the CPU reference's positions (and tangents) of them,
+/// as the C examples read them (`rrskin reference` writes the same).
+fn write_reference(dir: &Path, model: &rrskin::Model, frames: usize, characters: usize) {
+    let (mut poses, mut expected, mut tangents) = (Vec::new(), Vec::new(), Vec::new());
+    let v = model.vertex_count();
+    for frame in 0..frames {
+        let bones = random_poses(model, characters, frame as u64);
+        let (mut p, mut n, mut t) = (
+            vec![[0.0; 3]; characters * v],
+            vec![[0.0; 3]; characters * v],
+            vec![[0.0; 4]; characters * v],
+        );
+        CpuEvaluator::new(model)
+            .evaluate_with_tangents(&bones, &mut p, &mut n, &mut t)
+            .expect("CPU evaluator");
+        poses.extend(bones.as_flattened());
+        expected.extend(p.as_flattened());
+        tangents.extend(t.as_flattened());
+    }
+    write_floats(&dir.join("poses.bin"), &poses);
+    write_floats(&dir.join("expected.bin"), &expected);
+    write_floats(&dir.join("tangents.bin"), &tangents);
+}
+
+/// Compiles `examples/c/{name}.c` against the header and the static library with the system C
+/// compiler (warnings are errors), linking `libraries`.
+fn compile_example(dir: &Path, name: &str, libraries: &[&str]) -> PathBuf {
+    let exe = dir.join(name);
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let build = Command::new(&cc)
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-o"])
+        .arg(&exe)
+        .arg(root().join(format!("examples/c/{name}.c")))
+        .arg("-I")
+        .arg(root().join("include"))
+        .arg(static_library())
+        .args(libraries)
+        .args(["-lgcc_s", "-lutil", "-lrt", "-lpthread", "-lm", "-ldl"])
+        .output()
+        .expect("a C compiler");
+    assert!(
+        build.status.success(),
+        "{cc} failed:\n{}",
+        String::from_utf8_lossy(&build.stderr)
+    );
+    exe
+}
+
+fn example_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rrskin-c-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+fn assert_passes(run: std::process::Output, dir: &Path) {
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        run.status.success() && stdout.contains("passed, 0 failed"),
+        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    );
+    if std::env::var_os("RRSKIN_KEEP_C_DIR").is_none() {
+        std::fs::remove_dir_all(dir).ok();
+    }
+}
+
 #[test]
 fn the_c_example_drives_the_runtime_on_the_engines_device() {
     let (frames, characters) = (3usize, 64usize);
-    let dir = std::env::temp_dir().join(format!("rrskin-c-abi-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let dir = example_dir("crowd");
     let model = random_model(
         Spec {
             grid: 12,
@@ -68,52 +133,8 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         5,
     );
     model.save(dir.join("model.rrs")).expect("save model");
-    let (mut poses, mut expected, mut tangents) = (Vec::new(), Vec::new(), Vec::new());
-    let v = model.vertex_count();
-    for frame in 0..frames {
-        let bones = random_poses(&model, characters, frame as u64);
-        let (mut p, mut n, mut t) = (
-            vec![[0.0; 3]; characters * v],
-            vec![[0.0; 3]; characters * v],
-            vec![[0.0; 4]; characters * v],
-        );
-        CpuEvaluator::new(&model)
-            .evaluate_with_tangents(&bones, &mut p, &mut n, &mut t)
-            .expect("CPU evaluator");
-        poses.extend(bones.as_flattened());
-        expected.extend(p.as_flattened());
-        tangents.extend(t.as_flattened());
-    }
-    write_floats(&dir.join("poses.bin"), &poses);
-    write_floats(&dir.join("expected.bin"), &expected);
-    write_floats(&dir.join("tangents.bin"), &tangents);
-
-    let exe = dir.join("crowd");
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let build = Command::new(&cc)
-        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-o"])
-        .arg(&exe)
-        .arg(root().join("examples/c/crowd.c"))
-        .arg("-I")
-        .arg(root().join("include"))
-        .arg(static_library())
-        .args([
-            "-lvulkan",
-            "-lgcc_s",
-            "-lutil",
-            "-lrt",
-            "-lpthread",
-            "-lm",
-            "-ldl",
-        ])
-        .output()
-        .expect("a C compiler");
-    assert!(
-        build.status.success(),
-        "{cc} failed:\n{}",
-        String::from_utf8_lossy(&build.stderr)
-    );
-
+    write_reference(&dir, &model, frames, characters);
+    let exe = compile_example(&dir, "crowd", &["-lvulkan"]);
     let run = Command::new(&exe)
         .arg(dir.join("model.rrs"))
         .arg(dir.join("poses.bin"))
@@ -123,15 +144,39 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         .arg(dir.join("tangents.bin"))
         .output()
         .expect("run the C example");
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(
-        run.status.success() && stdout.contains("passed, 0 failed"),
-        "stdout:\n{stdout}\nstderr:\n{stderr}"
+    assert_passes(run, &dir);
+}
+
+/// The CPU palette from C, linked without the Vulkan loader: an engine that skins with its own
+/// shaders needs no Vulkan.
+#[test]
+fn the_c_palette_example_skins_without_vulkan() {
+    let (frames, characters) = (3usize, 20usize);
+    let dir = example_dir("palette");
+    let model = joint_blend_pattern(
+        &random_model(
+            Spec {
+                grid: 12,
+                bones: 9,
+                proxies: 14,
+                influences: 8,
+            },
+            6,
+        ),
+        1,
     );
-    if std::env::var_os("RRSKIN_KEEP_C_DIR").is_none() {
-        std::fs::remove_dir_all(&dir).ok();
-    }
+    model.save(dir.join("model.rrs")).expect("save model");
+    write_reference(&dir, &model, frames, characters);
+    let exe = compile_example(&dir, "palette", &[]);
+    let run = Command::new(&exe)
+        .arg(dir.join("model.rrs"))
+        .arg(dir.join("poses.bin"))
+        .arg(dir.join("expected.bin"))
+        .arg(frames.to_string())
+        .arg(characters.to_string())
+        .output()
+        .expect("run the C palette example");
+    assert_passes(run, &dir);
 }
 
 /// The headless path through the ABI (called in-process): a context of its own with

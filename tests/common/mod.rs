@@ -182,3 +182,25 @@ pub fn cargo_build(what: &[&str]) -> PathBuf {
     );
     profile_dir
 }
+
+/// `model` with [C1 | C2] cut to the pattern of a joint-blend proxy: proxy e's rows keep the 3
+/// columns of C1 of `keys` keys (its own, e, and the next ones mod P; joint-blend proxies read
+/// one) and two bones' 4 columns of C2 (e mod J and 2e + 1 mod J).
+pub fn joint_blend_pattern(model: &Model, keys: usize) -> Model {
+    let (p, j) = (model.proxy_count(), model.bone_count());
+    let mut parts = model.parts().clone();
+    for r in 0..4 * p {
+        let e = r / 4;
+        for k in 0..3 * p {
+            if (k / 3 + p - e) % p >= keys {
+                parts.c1[r * 3 * p + k] = 0.0;
+            }
+        }
+        for k in 0..4 * j {
+            if k / 4 != e % j && k / 4 != (2 * e + 1) % j {
+                parts.c2[r * 4 * j + k] = 0.0;
+            }
+        }
+    }
+    Model::new(parts).expect("the same model with fewer non-zeros")
+}

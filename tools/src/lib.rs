@@ -5,6 +5,7 @@
 //! - [`train`]: the training pipeline of the paper, one module per stage, and [`train::run`];
 //! - [`eval`]: the enveloping error (§7.1), the baselines, the error budget, leave-one-out;
 //! - [`run`]: what runs a trained model on the Vulkan runtime: bench, profile, the demo;
+//! - [`export`]: a trained model as a standard skinned glTF, for any engine's own skinning;
 //! - [`output`]: outputs checked before long work, and paths shown as a user types them;
 //! - [`cylinder_chain`]: a synthetic example set of any size, for timing training.
 //!
@@ -20,6 +21,7 @@
 pub mod cylinder_chain;
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod import;
 pub mod linalg;
 pub mod output;

@@ -27,6 +27,30 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Write MODEL as a skinned glTF 2.0 binary (.glb) that any viewer or engine plays with its
+    /// own skinning: the palette as joints, every clip baked through the model.
+    Export {
+        model: PathBuf,
+        /// The .glb to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The glTF rig the model was trained from: its mesh, materials, joint names and clips.
+        #[arg(long)]
+        rig: Option<PathBuf>,
+        /// A clip of the rig to bake (repeatable; default: every clip).
+        #[arg(long = "clip")]
+        clips: Vec<String>,
+        /// Frames a second of the model's own animation (without --rig).
+        #[arg(long, default_value_t = 30.0)]
+        fps: f64,
+        /// Largest vertex distance allowed between the played file and the model, as a fraction
+        /// of the rest mesh's bounding-box diagonal.
+        #[arg(long, default_value_t = rrskin_tools::export::TOLERANCE)]
+        tolerance: f64,
+        /// One JSON object on stdout.
+        #[arg(long)]
+        json: bool,
+    },
     /// The main job on the bundled example: train, print the error table, write the model and
     /// render a comparison image and a crowd image.
     Demo {
@@ -541,6 +565,28 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 m.vertex_count()
             ));
         }
+        Command::Export {
+            model,
+            output,
+            rig,
+            clips,
+            fps,
+            tolerance,
+            json,
+        } => {
+            if let Some(dir) = output.parent() {
+                check_writable(dir)?;
+            }
+            let options = rrskin_tools::export::Options {
+                model,
+                output,
+                rig,
+                clips,
+                fps,
+                tolerance,
+            };
+            print_export(&rrskin_tools::export::run(&options)?, json);
+        }
         Command::Info { model, json } => {
             let m = Model::load(&model)?;
             let dims = serde_json::json!({
@@ -632,4 +678,42 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     Ok(())
+}
+
+fn print_export(e: &rrskin_tools::export::Exported, json: bool) {
+    for line in &e.notes {
+        note(format_args!("note: {}: {line}", shown(&e.output)));
+    }
+    if json {
+        let clips: Vec<_> = e
+            .clips
+            .iter()
+            .map(|c| {
+                serde_json::json!({"name": c.name, "keys": c.keys, "samples": c.samples,
+                    "worst_at_samples": c.worst_at_samples, "worst_between": c.worst_between})
+            })
+            .collect();
+        out!(
+            "{}",
+            serde_json::json!({"output": shown(&e.output), "vertices": e.vertices,
+                "joints": e.joints, "clips": clips})
+        );
+        return;
+    }
+    out!(
+        "{}: {} vertices skinned by {} palette joints",
+        shown(&e.output),
+        e.vertices,
+        e.joints
+    );
+    for c in &e.clips {
+        out!(
+            "  clip '{}': {} keys baked into {} samples; played vs the model: {:.2e} at the samples, {:.2e} between them (of the mesh's size)",
+            c.name,
+            c.keys,
+            c.samples,
+            c.worst_at_samples,
+            c.worst_between
+        );
+    }
 }

@@ -671,7 +671,7 @@ fn sample_quat(ch: &Channel, q: &[DQuat], time: f64) -> DQuat {
 }
 
 /// The binary buffers: the .glb's BIN chunk, or files next to a .gltf.
-fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, InputError> {
+pub(crate) fn load_buffers(path: &Path, gltf: &gltf::Gltf) -> Result<Vec<Vec<u8>>, InputError> {
     gltf.document
         .buffers()
         .map(|b| {

@@ -1,0 +1,236 @@
+//! The CPU palette through the C ABI ([`crate::palette`]): for an engine that skins with its
+//! own shaders. No Vulkan, no handle registry: a palette model is an opaque pointer, and no
+//! call on it takes a lock, so threads run palettes of one model (or many) in parallel.
+
+use super::{guard, put, slice, Failure, RrskinStatus};
+use crate::model::Model;
+use crate::palette::Palette;
+use crate::predict::Affine;
+use std::ffi::{c_char, CStr};
+
+/// A model loaded for CPU palette evaluation (opaque). Immutable: every call but
+/// `rrskin_palette_model_destroy` may run on one from many threads at once.
+pub struct RrskinPaletteModel {
+    palette: Palette,
+}
+
+/// What an engine skins with, borrowed from a palette model (valid until it is destroyed).
+/// Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
+/// * (rest_positions[a], 1)`, each palette entry a 3x4 row-major matrix.
+#[repr(C)]
+#[derive(Debug, Clone, Copy)]
+pub struct RrskinPaletteSkin {
+    /// V.
+    pub vertices: u32,
+    pub triangles: u32,
+    /// J: bone transforms in.
+    pub bones: u32,
+    /// P: proxies at the front of the palette (0 for a plain linear-blend-skinning model).
+    pub proxies: u32,
+    /// P + J: palette entries out.
+    pub palette_entries: u32,
+    /// K, 4 or 8.
+    pub influences: u32,
+    /// V x K palette indices (< P a proxy, P + b bone b).
+    pub joints: *const u32,
+    /// V x K weights, >= 0, summing to 1 per vertex.
+    pub weights: *const f32,
+    /// V x 3.
+    pub rest_positions: *const f32,
+    /// V x 3 unit normals of the rest mesh, as the Vulkan path computes them.
+    pub rest_normals: *const f32,
+    /// V x 4 (xyz unit, w = +-1 as glTF's TANGENT), or NULL for a model without rest tangents.
+    pub rest_tangents: *const f32,
+    /// T x 3 vertex indices.
+    pub triangle_indices: *const u32,
+}
+
+/// Loads and validates a `.rrs` file (UTF-8 path) for CPU palette evaluation. Destroy with
+/// `rrskin_palette_model_destroy`.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string readable during the call; `out` is NULL or points
+/// to writable memory for one pointer.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_model_load_file(
+    path: *const c_char,
+    out: *mut *mut RrskinPaletteModel,
+) -> RrskinStatus {
+    guard(|| {
+        if path.is_null() {
+            return Err(Failure::null("path"));
+        }
+        // SAFETY: non-null NUL-terminated string, as the caller guarantees.
+        let path = unsafe { CStr::from_ptr(path) }
+            .to_str()
+            .map_err(|_| Failure::new(RrskinStatus::ErrorInvalidArgument, "path is not UTF-8"))?;
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { give(Model::load(path)?, out) }
+    })
+}
+
+/// Validates a `.rrs` image of `size` bytes for CPU palette evaluation (the bytes are copied).
+///
+/// # Safety
+/// `data` is NULL or points to `size` readable bytes; `out` is NULL or points to writable memory
+/// for one pointer.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_model_load_memory(
+    data: *const u8,
+    size: usize,
+    out: *mut *mut RrskinPaletteModel,
+) -> RrskinStatus {
+    // SAFETY: `data` and `out` as the function's contract requires.
+    guard(|| unsafe { give(Model::from_bytes(slice(data, size, "data")?)?, out) })
+}
+
+/// # Safety
+/// `out` is NULL or valid for writing one pointer.
+unsafe fn give(model: Model, out: *mut *mut RrskinPaletteModel) -> Result<(), Failure> {
+    if out.is_null() {
+        return Err(Failure::null("out"));
+    }
+    let palette = Palette::new(model)?;
+    let model = Box::into_raw(Box::new(RrskinPaletteModel { palette }));
+    // SAFETY: non-null, and valid for the write by the function's contract.
+    unsafe { put(out, model, "out") }
+}
+
+/// The model's sizes and skin.
+///
+/// # Safety
+/// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+/// `rrskin_palette_skin`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_model_get_skin(
+    model: *const RrskinPaletteModel,
+    out: *mut RrskinPaletteSkin,
+) -> RrskinStatus {
+    guard(|| {
+        // SAFETY: NULL or live, as the caller guarantees.
+        let palette = &unsafe { model.as_ref() }
+            .ok_or(Failure::null("model"))?
+            .palette;
+        let (m, skin) = (palette.model(), palette.skin());
+        let info = RrskinPaletteSkin {
+            vertices: m.vertex_count() as u32,
+            triangles: m.triangle_count() as u32,
+            bones: m.bone_count() as u32,
+            proxies: m.proxy_count() as u32,
+            palette_entries: palette.len() as u32,
+            influences: skin.influences as u32,
+            joints: skin.indices.as_ptr(),
+            weights: skin.weights.as_ptr(),
+            rest_positions: skin.rest_positions.as_flattened().as_ptr(),
+            rest_normals: skin.rest_normals.as_flattened().as_ptr(),
+            rest_tangents: match skin.rest_tangents {
+                [] => std::ptr::null(),
+                t => t.as_flattened().as_ptr(),
+            },
+            triangle_indices: skin.triangles.as_flattened().as_ptr(),
+        };
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, info, "out") }
+    })
+}
+
+/// The palette of `characters` characters on the calling thread: `bones` is characters x J
+/// transforms (`bone_floats` = characters * J * 12 floats, 3x4 row-major, world space, relative
+/// to the rest pose), `out` characters x (P + J) palette matrices (`out_floats` floats, same
+/// layout), proxies first. Allocates nothing (after a thread's first call for a model of that
+/// size) and takes no lock: call it from an engine's worker threads on disjoint characters.
+///
+/// # Safety
+/// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+/// readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
+/// overlap.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_compute(
+    model: *const RrskinPaletteModel,
+    bones: *const f32,
+    bone_floats: usize,
+    out: *mut f32,
+    out_floats: usize,
+) -> RrskinStatus {
+    // SAFETY: the pointers as the function's contract requires.
+    guard(|| unsafe { compute(model, bones, bone_floats, out, out_floats, 1) })
+}
+
+/// `rrskin_palette_compute` split over `threads` threads it starts and joins (0: one per
+/// core), for an engine without a job system of its own. Starting threads allocates.
+///
+/// # Safety
+/// As `rrskin_palette_compute`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_compute_parallel(
+    model: *const RrskinPaletteModel,
+    bones: *const f32,
+    bone_floats: usize,
+    out: *mut f32,
+    out_floats: usize,
+    threads: u32,
+) -> RrskinStatus {
+    // SAFETY: the pointers as the function's contract requires.
+    guard(|| unsafe { compute(model, bones, bone_floats, out, out_floats, threads as usize) })
+}
+
+/// # Safety
+/// As `rrskin_palette_compute`.
+unsafe fn compute(
+    model: *const RrskinPaletteModel,
+    bones: *const f32,
+    bone_floats: usize,
+    out: *mut f32,
+    out_floats: usize,
+    threads: usize,
+) -> Result<(), Failure> {
+    // SAFETY: NULL or live, as the caller guarantees.
+    let palette = &unsafe { model.as_ref() }
+        .ok_or(Failure::null("model"))?
+        .palette;
+    let (count, entries) = (
+        transforms(bone_floats, "bone floats")?,
+        transforms(out_floats, "palette floats")?,
+    );
+    // SAFETY: `bones` points to `bone_floats` floats, 12 to a transform (`[f32; 12]` has the
+    // alignment of `f32`), as the caller guarantees.
+    let bones = unsafe { slice(bones.cast::<Affine>(), count, "bones") }?;
+    if out.is_null() {
+        return Err(Failure::null("out"));
+    }
+    // SAFETY: non-null, `out_floats` writable floats not overlapping `bones`, as the caller
+    // guarantees.
+    let out = unsafe { std::slice::from_raw_parts_mut(out.cast::<Affine>(), entries) };
+    Ok(palette.compute_batch_parallel(bones, out, threads)?)
+}
+
+/// Transforms in `floats` floats: whole 3x4 matrices only.
+fn transforms(floats: usize, what: &'static str) -> Result<usize, Failure> {
+    if floats % 12 != 0 {
+        return Err(crate::Error::WrongLength {
+            what,
+            expected: floats.div_ceil(12) * 12,
+            actual: floats,
+        }
+        .into());
+    }
+    Ok(floats / 12)
+}
+
+/// Destroys a palette model (NULL: nothing). No call may be using it.
+///
+/// # Safety
+/// `model` is NULL or a live palette model that no other thread is using; it is invalid after.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_model_destroy(
+    model: *mut RrskinPaletteModel,
+) -> RrskinStatus {
+    guard(|| {
+        if !model.is_null() {
+            // SAFETY: made by `Box::into_raw` in `give`, destroyed once, as the caller
+            // guarantees.
+            drop(unsafe { Box::from_raw(model) });
+        }
+        Ok(())
+    })
+}

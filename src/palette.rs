@@ -1,0 +1,381 @@
+//! The runtime model's palette on the CPU, in `f32`, for an engine that skins with its own
+//! shaders (paper §4.3, Eq. 5–6; docs/method.md §8). No Vulkan: usable without a GPU or a
+//! Vulkan loader.
+//!
+//! Per character, the J bone transforms `q` in and the P + J palette out: the proxies
+//! `T_e = Σ_ℓ D_ℓ(q) A_eℓ + Σ_b Q_b B_eb`, where `A_eℓ: (3 x 4)` and `B_eb: (4 x 4)` are the
+//! rows 4e..4e + 4 of C1 and C2 seen per key and per bone, then the bones themselves. A vertex
+//! shader blends the K entries the [`Skin`] names: `x = Σ_k w_k M_{i_k} [x̂; 1]`, which is
+//! [`Palette::skin`].
+//!
+//! A [`Palette`] is immutable after [`Palette::new`]: any number of threads may call
+//! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
+//! call for a model of that size), so a frame allocates nothing.
+
+use crate::cpu::{check_finite, CpuEvaluator};
+use crate::error::{Error, Result};
+use crate::model::Model;
+use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
+use glam::{Mat3, Vec3};
+use std::cell::RefCell;
+
+/// The identity bone transform (the rest pose).
+pub const REST: Affine = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+/// A model prepared for CPU palette evaluation.
+#[derive(Debug, Clone)]
+pub struct Palette {
+    model: Model,
+    keys: Vec<Key>,
+    /// Bones whose joint rotation some key reads.
+    rotations: Vec<u32>,
+    /// Proxy e's stored columns of `[C1 | C2]` are `columns[offsets[e]..offsets[e + 1]]`; a
+    /// column below 3P is column j of key ℓ = k / 3 (j = k % 3), above it column k' % 4 of
+    /// bone k' / 4 (k' = k − 3P); `values` holds its 4 rows (T_e's columns 0..4).
+    offsets: Vec<u32>,
+    columns: Vec<u32>,
+    values: Vec<[f32; 4]>,
+    rest_normals: Vec<[f32; 3]>,
+}
+
+/// One key predictor, compiled: `D = Q_parent exp(uW θ~_bone) [exp(u₂W₂ θ~_second)] S`, with
+/// `vec(S) = H [θ~_bone; θ~_parent; 1]` (paper Eq. 3–4).
+#[derive(Debug, Clone)]
+struct Key {
+    bone: usize,
+    parent: Option<usize>,
+    uw: Mat3,
+    second: Option<(usize, Mat3)>,
+    /// H: 9 x 7, row-major.
+    h: [f32; 63],
+}
+
+/// The mesh an engine skins with the palette, borrowed from the model.
+#[derive(Debug, Clone, Copy)]
+pub struct Skin<'a> {
+    /// K, 4 or 8.
+    pub influences: usize,
+    /// V x K palette entries: `< P` a proxy, `P + b` bone b.
+    pub indices: &'a [u32],
+    /// V x K weights, >= 0, summing to 1 per vertex.
+    pub weights: &'a [f32],
+    pub rest_positions: &'a [[f32; 3]],
+    /// The rest mesh's unit normals, as the runtime computes them (area-weighted, shared
+    /// across welded seams).
+    pub rest_normals: &'a [[f32; 3]],
+    /// V rest tangents (xyz, handedness w), or empty where the model has none.
+    pub rest_tangents: &'a [[f32; 4]],
+    pub triangles: &'a [[u32; 3]],
+}
+
+#[derive(Default)]
+struct Scratch {
+    /// θ~_b per bone (only `rotations` are written).
+    theta: Vec<Vec3>,
+    /// The product's right-hand side: 3P key columns, then 4J bone columns, each (x, y, z).
+    rhs: Vec<Vec3>,
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Scratch> = RefCell::new(Scratch::default());
+}
+
+impl Palette {
+    /// Compiles `model`'s predictors and stores `[C1 | C2]` by proxy, zero columns left out
+    /// (the product then costs what the model's sparsity allows: joint-blend proxies read a
+    /// few columns each).
+    pub fn new(model: Model) -> Result<Palette> {
+        let (p, j) = (model.proxy_count(), model.bone_count());
+        let keys: Vec<Key> = model
+            .parts()
+            .predictors
+            .iter()
+            .map(|k| Key {
+                bone: k.bone as usize,
+                parent: model.parent(k.bone as usize),
+                uw: mat3(&k.w) * k.u,
+                second: k
+                    .second
+                    .as_ref()
+                    .map(|s| (s.bone as usize, mat3(&s.w) * s.u)),
+                h: k.h,
+            })
+            .collect();
+        let mut read = vec![false; j];
+        for k in &keys {
+            let second = k.second.map(|(b, _)| b);
+            for b in [Some(k.bone), k.parent, second].into_iter().flatten() {
+                read[b] = true;
+            }
+        }
+        let rotations = (0..j as u32).filter(|&b| read[b as usize]).collect();
+        let (width, a) = (3 * p + 4 * j, model.c1_c2());
+        let (mut offsets, mut columns, mut values) = (vec![0u32], Vec::new(), Vec::new());
+        for e in 0..p {
+            for k in 0..width {
+                let column = [0, 1, 2, 3].map(|r| a[(4 * e + r) * width + k]);
+                if column.iter().any(|&x| x != 0.0) {
+                    columns.push(k as u32);
+                    values.push(column);
+                }
+            }
+            offsets.push(columns.len() as u32);
+        }
+        let rest_normals = rest_normals(&model)?;
+        Ok(Palette {
+            model,
+            keys,
+            rotations,
+            offsets,
+            columns,
+            values,
+            rest_normals,
+        })
+    }
+
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// P + J: the palette's length.
+    pub fn len(&self) -> usize {
+        self.model.proxy_count() + self.model.bone_count()
+    }
+
+    /// Never true: a model has at least one bone.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn skin(&self) -> Skin<'_> {
+        let parts = self.model.parts();
+        Skin {
+            influences: self.model.influences(),
+            indices: &parts.skin_indices,
+            weights: &parts.skin_weights,
+            rest_positions: &parts.rest_positions,
+            rest_normals: &self.rest_normals,
+            rest_tangents: &parts.rest_tangents,
+            triangles: &parts.triangles,
+        }
+    }
+
+    /// The palette of one character: `bones` J transforms (3x4 row-major, relative to the rest
+    /// pose), `out` P + J.
+    pub fn compute(&self, bones: &[Affine], out: &mut [Affine]) -> Result<()> {
+        self.compute_batch(bones, out)
+    }
+
+    /// [`Palette::compute`] for C characters on this thread: `bones` C x J, `out` C x (P + J).
+    pub fn compute_batch(&self, bones: &[Affine], out: &mut [Affine]) -> Result<()> {
+        self.characters(bones, out)?;
+        SCRATCH.with(|scratch| {
+            let scratch = &mut *scratch.borrow_mut();
+            let j = self.model.bone_count();
+            for (q, out) in bones.chunks_exact(j).zip(out.chunks_exact_mut(self.len())) {
+                self.character(q, out, scratch);
+            }
+        });
+        Ok(())
+    }
+
+    /// [`Palette::compute_batch`] split over `threads` scoped threads (0: one per core), for
+    /// an engine without a job system of its own; one that has one calls
+    /// [`Palette::compute_batch`] from its workers on disjoint ranges instead (this spawns
+    /// threads, which allocates).
+    pub fn compute_batch_parallel(
+        &self,
+        bones: &[Affine],
+        out: &mut [Affine],
+        threads: usize,
+    ) -> Result<()> {
+        let c = self.characters(bones, out)?;
+        let threads = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        }
+        .min(c.max(1));
+        if threads <= 1 {
+            return self.compute_batch(bones, out);
+        }
+        let per = c.div_ceil(threads);
+        let j = self.model.bone_count();
+        std::thread::scope(|s| {
+            let work = bones.chunks(per * j).zip(out.chunks_mut(per * self.len()));
+            let handles: Vec<_> = work
+                .map(|(q, o)| s.spawn(move || self.compute_batch(q, o)))
+                .collect();
+            handles.into_iter().try_for_each(|h| {
+                h.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
+        })
+    }
+
+    /// The vertices an engine's skinning makes of one character's palette: `positions` V.
+    pub fn skin_positions(&self, palette: &[Affine], positions: &mut [[f32; 3]]) -> Result<()> {
+        let skin = self.skin();
+        for (what, expected, actual) in [
+            ("palette transforms", self.len(), palette.len()),
+            ("positions", skin.rest_positions.len(), positions.len()),
+        ] {
+            if expected != actual {
+                return Err(Error::WrongLength {
+                    what,
+                    expected,
+                    actual,
+                });
+            }
+        }
+        let k = skin.influences;
+        for (a, out) in positions.iter_mut().enumerate() {
+            let mut m = [0.0f32; 12];
+            for i in a * k..(a + 1) * k {
+                let (w, entry) = (skin.weights[i], &palette[skin.indices[i] as usize]);
+                m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
+            }
+            let [x, y, z] = skin.rest_positions[a];
+            *out = [0, 4, 8].map(|r| m[r] * x + m[r + 1] * y + m[r + 2] * z + m[r + 3]);
+        }
+        Ok(())
+    }
+
+    /// C, after checking the lengths and that the bones are finite.
+    fn characters(&self, bones: &[Affine], out: &[Affine]) -> Result<usize> {
+        let j = self.model.bone_count();
+        if bones.len() % j != 0 {
+            return Err(Error::WrongLength {
+                what: "bone transforms (characters x bones)",
+                expected: bones.len().div_ceil(j) * j,
+                actual: bones.len(),
+            });
+        }
+        let c = bones.len() / j;
+        if out.len() != c * self.len() {
+            return Err(Error::WrongLength {
+                what: "palette transforms (characters x (proxies + bones))",
+                expected: c * self.len(),
+                actual: out.len(),
+            });
+        }
+        check_finite(bones)?;
+        Ok(c)
+    }
+
+    fn character(&self, q: &[Affine], out: &mut [Affine], scratch: &mut Scratch) {
+        let (p, j) = (self.model.proxy_count(), self.model.bone_count());
+        scratch.theta.resize(j, Vec3::ZERO);
+        scratch.rhs.resize(3 * p + 4 * j, Vec3::ZERO);
+        let rotation = |b: usize| rotation_of(&q[b]);
+        for &b in &self.rotations {
+            let b = b as usize;
+            scratch.theta[b] = match self.model.parent(b) {
+                Some(parent) => log_rotation(rotation(parent).transpose() * rotation(b)),
+                None => log_rotation(rotation(b)),
+            };
+        }
+        for (l, key) in self.keys.iter().enumerate() {
+            let d = key.gradient(&scratch.theta, rotation);
+            scratch.rhs[3 * l..3 * l + 3].copy_from_slice(&[d.x_axis, d.y_axis, d.z_axis]);
+        }
+        for (b, t) in q.iter().enumerate() {
+            for k in 0..4 {
+                scratch.rhs[3 * p + 4 * b + k] = Vec3::new(t[k], t[4 + k], t[8 + k]);
+            }
+        }
+        for (e, t) in out[..p].iter_mut().enumerate() {
+            let range = self.offsets[e] as usize..self.offsets[e + 1] as usize;
+            let mut acc = [[0.0f32; 4]; 3];
+            for (&k, v) in self.columns[range.clone()].iter().zip(&self.values[range]) {
+                let x = scratch.rhs[k as usize];
+                for (row, xc) in acc.iter_mut().zip([x.x, x.y, x.z]) {
+                    row.iter_mut().zip(v).for_each(|(a, v)| *a += v * xc);
+                }
+            }
+            *t = bytemuck::cast(acc);
+        }
+        out[p..].copy_from_slice(q);
+    }
+}
+
+impl Key {
+    /// `D_ℓ(q) = R(q) S(q)`, mirroring [`crate::predict::key_gradient`] in `f32`.
+    fn gradient(&self, theta: &[Vec3], rotation: impl Fn(usize) -> Mat3) -> Mat3 {
+        let t = theta[self.bone];
+        let (q_parent, t_parent) = match self.parent {
+            Some(p) => (rotation(p), theta[p]),
+            None => (Mat3::IDENTITY, Vec3::ZERO),
+        };
+        let mut r = q_parent * exp_rotation(self.uw * t);
+        if let Some((b, uw)) = self.second {
+            r *= exp_rotation(uw * theta[b]);
+        }
+        let x = [t.x, t.y, t.z, t_parent.x, t_parent.y, t_parent.z, 1.0];
+        let s: [f32; 9] = std::array::from_fn(|i| (0..7).map(|j| self.h[7 * i + j] * x[j]).sum());
+        r * Mat3::from_cols_array(&s).transpose()
+    }
+}
+
+fn mat3(rows: &[f32; 9]) -> Mat3 {
+    Mat3::from_cols_array(rows).transpose()
+}
+
+fn rotation_of(t: &Affine) -> Mat3 {
+    Mat3::from_cols(
+        Vec3::new(t[0], t[4], t[8]),
+        Vec3::new(t[1], t[5], t[9]),
+        Vec3::new(t[2], t[6], t[10]),
+    )
+}
+
+/// [`crate::predict::log_rotation`] in `f32` (the same branches as `glsl/predictor.glsl`).
+fn log_rotation(r: Mat3) -> Vec3 {
+    let (c0, c1, c2) = (r.x_axis, r.y_axis, r.z_axis);
+    let v = Vec3::new(c1.z - c2.y, c2.x - c0.z, c0.y - c1.x);
+    let s = 0.5 * v.length();
+    let c = 0.5 * (c0.x + c1.y + c2.z - 1.0);
+    let angle = s.atan2(c);
+    if angle < SMALL_ANGLE as f32 {
+        return v * (0.5 * (1.0 + angle * angle / 6.0));
+    }
+    if s < NEAR_PI_SIN as f32 && c < 0.0 {
+        let sym = (r + r.transpose()) * 0.5 - Mat3::from_diagonal(Vec3::splat(c));
+        let b = [sym.x_axis, sym.y_axis, sym.z_axis];
+        let i = if b[0].x >= b[1].y && b[0].x >= b[2].z {
+            0
+        } else if b[1].y >= b[2].z {
+            1
+        } else {
+            2
+        };
+        let axis = b[i].normalize();
+        return if axis.dot(v) < 0.0 { -axis } else { axis } * angle;
+    }
+    v * (angle / (2.0 * s))
+}
+
+/// [`crate::predict::exp_rotation`] in `f32`.
+fn exp_rotation(w: Vec3) -> Mat3 {
+    let a2 = w.length_squared();
+    let a = a2.sqrt();
+    let (s, c) = if a < SMALL_ANGLE as f32 {
+        (1.0 - a2 / 6.0, 0.5 - a2 / 24.0)
+    } else {
+        (a.sin() / a, (1.0 - a.cos()) / a2)
+    };
+    let k = Mat3::from_cols(
+        Vec3::new(0.0, w.z, -w.y),
+        Vec3::new(-w.z, 0.0, w.x),
+        Vec3::new(w.y, -w.x, 0.0),
+    );
+    Mat3::IDENTITY + k * s + k * k * c
+}
+
+/// The runtime's normals of the rest pose (the CPU reference at the identity).
+fn rest_normals(model: &Model) -> Result<Vec<[f32; 3]>> {
+    let v = model.vertex_count();
+    let (mut positions, mut normals) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v]);
+    let rest = vec![REST; model.bone_count()];
+    CpuEvaluator::new(model).evaluate(&rest, &mut positions, &mut normals)?;
+    Ok(normals)
+}

@@ -1,0 +1,242 @@
+//! The CPU palette (`rrskin::palette`, and its C ABI in-process) against the f64 CPU reference
+//! evaluator: positions skinned from the f32 palette within `POSITION_TOLERANCE * max(1, |p|)`
+//! of `CpuEvaluator`'s, on dense, block-sparse (joint-blend pattern), plain-LBS and K = 8
+//! models; the serial, batched and threaded forms agree bit for bit; bad input is an error.
+
+mod common;
+
+use common::{joint_blend_pattern, random_model, random_poses, Spec, POSITION_TOLERANCE};
+use rrskin::cpu::CpuEvaluator;
+use rrskin::palette::{Palette, REST};
+use rrskin::predict::Affine;
+use rrskin::{Error, Model};
+
+fn models() -> Vec<(&'static str, Model)> {
+    let spec = |grid, bones, proxies, influences| Spec {
+        grid,
+        bones,
+        proxies,
+        influences,
+    };
+    vec![
+        ("dense", random_model(spec(9, 6, 5, 4), 1)),
+        ("dense K = 8", random_model(spec(10, 9, 7, 8), 2)),
+        ("plain LBS", random_model(spec(7, 4, 0, 4), 3)),
+        (
+            "one key per proxy",
+            joint_blend_pattern(&random_model(spec(9, 7, 12, 4), 4), 1),
+        ),
+        (
+            "two keys per proxy",
+            joint_blend_pattern(&random_model(spec(9, 7, 12, 8), 5), 2),
+        ),
+    ]
+}
+
+/// Every vertex of `characters` characters skinned from the palette against the reference.
+pub fn assert_matches_reference(model: &Model, bones: &[Affine], what: &str) {
+    let palette = Palette::new(model.clone()).expect("a palette of a valid model");
+    let (v, j, n) = (model.vertex_count(), model.bone_count(), palette.len());
+    let characters = bones.len() / j;
+    let mut out = vec![[0.0; 12]; characters * n];
+    palette.compute_batch(bones, &mut out).expect("palette");
+    let (mut want, mut normals) = (
+        vec![[0.0; 3]; characters * v],
+        vec![[0.0; 3]; characters * v],
+    );
+    CpuEvaluator::new(model)
+        .evaluate(bones, &mut want, &mut normals)
+        .expect("reference");
+    let mut got = vec![[0.0; 3]; v];
+    let mut worst = 0.0f32;
+    for c in 0..characters {
+        let entries = &out[c * n..(c + 1) * n];
+        assert_eq!(
+            &entries[n - j..],
+            &bones[c * j..(c + 1) * j],
+            "{what}: bones"
+        );
+        palette.skin_positions(entries, &mut got).expect("skin");
+        for (g, w) in got.iter().zip(&want[c * v..(c + 1) * v]) {
+            let d = (0..3).map(|i| (g[i] - w[i]).powi(2)).sum::<f32>().sqrt();
+            let size = (0..3).map(|i| w[i] * w[i]).sum::<f32>().sqrt().max(1.0);
+            worst = worst.max(d / size);
+        }
+    }
+    assert!(
+        worst <= POSITION_TOLERANCE,
+        "{what}: positions from the palette differ by {worst} (relative) from the reference"
+    );
+}
+
+#[test]
+fn positions_from_the_palette_match_the_reference() {
+    for (what, model) in models() {
+        assert_matches_reference(&model, &random_poses(&model, 16, 7), what);
+    }
+}
+
+#[test]
+fn serial_batched_and_threaded_palettes_agree_exactly() {
+    let (_, model) = models().swap_remove(1);
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (j, n, characters) = (model.bone_count(), palette.len(), 37);
+    let bones = random_poses(&model, characters, 11);
+    let mut one_by_one = vec![[0.0; 12]; characters * n];
+    for (q, out) in bones.chunks_exact(j).zip(one_by_one.chunks_exact_mut(n)) {
+        palette.compute(q, out).expect("one character");
+    }
+    for threads in [1, 3, 0, 64] {
+        let mut batch = vec![[0.0; 12]; characters * n];
+        palette
+            .compute_batch_parallel(&bones, &mut batch, threads)
+            .expect("batch");
+        assert!(batch == one_by_one, "{threads} threads");
+    }
+    // Threads sharing one palette, each on its own characters (an engine's job system).
+    let mut shared = vec![[0.0; 12]; characters * n];
+    std::thread::scope(|s| {
+        for (q, out) in bones.chunks(10 * j).zip(shared.chunks_mut(10 * n)) {
+            let palette = &palette;
+            s.spawn(move || palette.compute_batch(q, out).expect("worker"));
+        }
+    });
+    assert!(shared == one_by_one);
+}
+
+#[test]
+fn the_rest_pose_gives_the_rest_mesh_and_the_runtimes_normals() {
+    let (_, model) = models().swap_remove(0);
+    let palette = Palette::new(model.clone()).expect("palette");
+    let v = model.vertex_count();
+    let (mut p, mut n) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v]);
+    let rest = vec![REST; model.bone_count()];
+    CpuEvaluator::new(&model)
+        .evaluate(&rest, &mut p, &mut n)
+        .expect("reference");
+    let skin = palette.skin();
+    assert_eq!(skin.rest_normals, &n[..]);
+    assert_eq!(skin.rest_positions, &model.parts().rest_positions[..]);
+    assert_eq!(
+        skin.rest_tangents.len(),
+        v,
+        "synthetic models carry tangents"
+    );
+    assert_eq!(skin.indices.len(), v * skin.influences);
+}
+
+#[test]
+fn bad_input_is_an_error() {
+    let (_, model) = models().swap_remove(0);
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (j, n) = (model.bone_count(), palette.len());
+    let mut bones = random_poses(&model, 2, 1);
+    let mut out = vec![[0.0; 12]; 2 * n];
+    let short = palette.compute_batch(&bones[..j + 1], &mut out);
+    assert!(matches!(short, Err(Error::WrongLength { .. })), "{short:?}");
+    let small = palette.compute_batch(&bones, &mut out[..n]);
+    assert!(matches!(small, Err(Error::WrongLength { .. })), "{small:?}");
+    bones[j + 2][5] = f32::NAN;
+    let nan = palette.compute_batch(&bones, &mut out);
+    assert!(
+        matches!(nan, Err(Error::NonFinite { index, .. }) if index == (j + 2) * 12 + 5),
+        "{nan:?}"
+    );
+}
+
+#[test]
+fn the_c_abi_palette_matches_the_rust_one() {
+    use rrskin::ffi::*;
+    let (_, model) = models().swap_remove(3);
+    let bytes = model.to_bytes();
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (j, n, characters) = (model.bone_count(), palette.len(), 9usize);
+    let bones = random_poses(&model, characters, 2);
+    let mut want = vec![[0.0; 12]; characters * n];
+    palette.compute_batch(&bones, &mut want).expect("palette");
+
+    let ok = RrskinStatus::Ok;
+    let mut m: *mut RrskinPaletteModel = std::ptr::null_mut();
+    // SAFETY: valid pointers and lengths (so in every call below).
+    unsafe {
+        assert_eq!(
+            rrskin_palette_model_load_memory(bytes.as_ptr(), bytes.len(), &mut m),
+            ok
+        );
+        let mut skin = std::mem::zeroed::<RrskinPaletteSkin>();
+        assert_eq!(rrskin_palette_model_get_skin(m, &mut skin), ok);
+        assert_eq!(
+            (
+                skin.vertices,
+                skin.bones,
+                skin.palette_entries,
+                skin.influences
+            ),
+            (
+                model.vertex_count() as u32,
+                j as u32,
+                n as u32,
+                model.influences() as u32
+            )
+        );
+        let k = model.influences() * model.vertex_count();
+        assert_eq!(
+            std::slice::from_raw_parts(skin.joints, k),
+            &model.parts().skin_indices[..]
+        );
+        assert!(!skin.rest_tangents.is_null());
+        let floats = bones.as_flattened();
+        for threads in [None, Some(2)] {
+            let mut got = vec![0.0f32; characters * n * 12];
+            let status = match threads {
+                None => rrskin_palette_compute(
+                    m,
+                    floats.as_ptr(),
+                    floats.len(),
+                    got.as_mut_ptr(),
+                    got.len(),
+                ),
+                Some(t) => rrskin_palette_compute_parallel(
+                    m,
+                    floats.as_ptr(),
+                    floats.len(),
+                    got.as_mut_ptr(),
+                    got.len(),
+                    t,
+                ),
+            };
+            assert_eq!(status, ok);
+            assert!(got == want.as_flattened(), "{threads:?} threads");
+        }
+        let mut got = vec![0.0f32; n * 12];
+        let wrong = rrskin_palette_compute(m, floats.as_ptr(), 13, got.as_mut_ptr(), got.len());
+        assert_eq!(wrong, RrskinStatus::ErrorWrongLength);
+        let message = std::ffi::CStr::from_ptr(rrskin_last_error()).to_string_lossy();
+        assert!(message.contains("bone floats"), "{message}");
+        let null = rrskin_palette_compute(
+            std::ptr::null(),
+            floats.as_ptr(),
+            j * 12,
+            got.as_mut_ptr(),
+            got.len(),
+        );
+        assert_eq!(null, RrskinStatus::ErrorNullPointer);
+        assert_eq!(
+            rrskin_palette_compute(m, floats.as_ptr(), j * 12, got.as_mut_ptr(), got.len()),
+            ok
+        );
+        assert_eq!(
+            std::ffi::CStr::from_ptr(rrskin_last_error()).to_bytes(),
+            b"",
+            "a success clears the message"
+        );
+        let mut bad: *mut RrskinPaletteModel = std::ptr::null_mut();
+        assert_eq!(
+            rrskin_palette_model_load_memory(bytes.as_ptr(), 20, &mut bad),
+            RrskinStatus::ErrorBadModel
+        );
+        assert!(bad.is_null());
+        assert_eq!(rrskin_palette_model_destroy(m), ok);
+        assert_eq!(rrskin_palette_model_destroy(std::ptr::null_mut()), ok);
+    }
+}

@@ -1,0 +1,222 @@
+//! Baking a clip through the model into glTF node channels.
+//!
+//! Palette entry e's affine transform `A = [M | t]` becomes two nodes: an outer one with
+//! translation t, rotation U and scale Σ, and its child with rotation Vᵀ, where `M = U Σ Vᵀ` is
+//! a signed SVD (U, V rotations), so that the child's world matrix is exactly A, scale and shear
+//! included. Samples are placed where they are needed: between two samples a viewer lerps t and
+//! Σ and slerps U and Vᵀ, and every interval is halved (up to [`MAX_DEPTH`] times) until that
+//! playback stays within the tolerance of the model evaluated at the clip's own pose, at a
+//! quarter, half and three quarters of the interval.
+
+use crate::linalg::svd3;
+use glam::{DMat3, DQuat, DVec3};
+use rrskin::palette::Palette;
+use rrskin::predict::Affine;
+
+/// Intervals between keys are halved at most this often (32 samples per key interval).
+pub const MAX_DEPTH: u32 = 5;
+
+/// One palette entry at one sample: the outer node's (t, U, Σ) and the child's rotation Vᵀ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodePair {
+    pub translation: DVec3,
+    pub rotation: DQuat,
+    pub scale: DVec3,
+    pub child_rotation: DQuat,
+}
+
+/// A baked clip: sample times (seconds, increasing) and per sample the P + J node pairs.
+#[derive(Debug, Clone)]
+pub struct Baked {
+    pub times: Vec<f64>,
+    pub samples: Vec<Vec<NodePair>>,
+    /// The largest vertex distance between the played file and the model, at the samples and
+    /// between them (where it was checked), in the mesh's units.
+    pub worst_at_samples: f64,
+    pub worst_between: f64,
+}
+
+impl NodePair {
+    /// The rest pose: both nodes at the identity.
+    pub const REST: NodePair = NodePair {
+        translation: DVec3::ZERO,
+        rotation: DQuat::IDENTITY,
+        scale: DVec3::ONE,
+        child_rotation: DQuat::IDENTITY,
+    };
+
+    /// `a` split into the two nodes, continuing `previous` (the same entry's last sample):
+    /// of the 24 equivalent signed SVDs the one whose V is nearest, quaternions on its side.
+    pub fn of(a: &Affine, previous: Option<&NodePair>) -> NodePair {
+        let m =
+            glam::Mat3::from_cols_array(&[a[0], a[4], a[8], a[1], a[5], a[9], a[2], a[6], a[10]])
+                .as_dmat3();
+        let (u, sigma, v) = svd3(m);
+        let previous_v = previous.map_or(DMat3::IDENTITY, |p| {
+            DMat3::from_quat(p.child_rotation).transpose()
+        });
+        let spread = (sigma.max_element() - sigma.min_element()).abs();
+        let (u, sigma, v) = if spread <= 1e-7 * sigma.abs().max_element().max(1e-30) {
+            // Σ = σ I: any V serves, so keep the previous one (a rigid bone stays one rotation).
+            (u * v.transpose() * previous_v, sigma, previous_v)
+        } else {
+            nearest_signed_permutation(u, sigma, v, previous_v)
+        };
+        let mut rotation = DQuat::from_mat3(&u).normalize();
+        let mut child_rotation = DQuat::from_mat3(&v.transpose()).normalize();
+        if let Some(p) = previous {
+            if rotation.dot(p.rotation) < 0.0 {
+                rotation = -rotation;
+            }
+            if child_rotation.dot(p.child_rotation) < 0.0 {
+                child_rotation = -child_rotation;
+            }
+        }
+        NodePair {
+            translation: DVec3::new(a[3] as f64, a[7] as f64, a[11] as f64),
+            rotation,
+            scale: sigma,
+            child_rotation,
+        }
+    }
+
+    /// What a glTF viewer plays at fraction `f` between `self` and `next`.
+    pub fn lerp(&self, next: &NodePair, f: f64) -> NodePair {
+        NodePair {
+            translation: self.translation.lerp(next.translation, f),
+            rotation: self.rotation.slerp(next.rotation, f),
+            scale: self.scale.lerp(next.scale, f),
+            child_rotation: self.child_rotation.slerp(next.child_rotation, f),
+        }
+    }
+
+    /// The child node's world matrix (the outer node under an identity root).
+    pub fn affine(&self) -> Affine {
+        let m = DMat3::from_quat(self.rotation)
+            * DMat3::from_diagonal(self.scale)
+            * DMat3::from_quat(self.child_rotation);
+        let t = self.translation;
+        [
+            m.x_axis.x, m.y_axis.x, m.z_axis.x, t.x, m.x_axis.y, m.y_axis.y, m.z_axis.y, t.y,
+            m.x_axis.z, m.y_axis.z, m.z_axis.z, t.z,
+        ]
+        .map(|x| x as f32)
+    }
+}
+
+/// Of the 24 proper signed permutations P (U Σ Vᵀ = (UP)(PᵀΣP)(VP)ᵀ), the one that brings V
+/// nearest to `previous_v`.
+fn nearest_signed_permutation(
+    u: DMat3,
+    sigma: DVec3,
+    v: DMat3,
+    previous_v: DMat3,
+) -> (DMat3, DVec3, DMat3) {
+    const ORDERS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
+    let cols = |m: DMat3| [m.x_axis, m.y_axis, m.z_axis];
+    let (uc, vc, s) = (cols(u), cols(v), sigma.to_array());
+    let mut best = (f64::NEG_INFINITY, u, sigma, v);
+    for order in ORDERS {
+        for signs in 0..8u32 {
+            let sign = |i: usize| if signs >> i & 1 == 1 { -1.0 } else { 1.0 };
+            let pv = DMat3::from_cols(
+                vc[order[0]] * sign(0),
+                vc[order[1]] * sign(1),
+                vc[order[2]] * sign(2),
+            );
+            if pv.determinant() < 0.0 {
+                continue;
+            }
+            let score = (previous_v.transpose() * pv)
+                .to_cols_array()
+                .iter()
+                .step_by(4)
+                .sum::<f64>();
+            if score > best.0 {
+                let pu = DMat3::from_cols(
+                    uc[order[0]] * sign(0),
+                    uc[order[1]] * sign(1),
+                    uc[order[2]] * sign(2),
+                );
+                let ps = DVec3::new(s[order[0]], s[order[1]], s[order[2]]);
+                best = (score, pu, ps, pv);
+            }
+        }
+    }
+    (best.1, best.2, best.3)
+}
+
+/// Bakes one clip: `keys` its key times (at least one), `pose_at(t)` the J bone transforms at
+/// any time in their range, `tolerance` the largest vertex distance allowed between samples.
+pub fn bake(
+    palette: &Palette,
+    keys: &[f64],
+    pose_at: impl Fn(f64) -> Vec<Affine>,
+    tolerance: f64,
+) -> rrskin::Result<Baked> {
+    let entries = |t: f64| -> rrskin::Result<Vec<Affine>> {
+        let mut out = vec![[0.0; 12]; palette.len()];
+        palette.compute(&pose_at(t), &mut out)?;
+        Ok(out)
+    };
+    let pairs = |a: &[Affine], previous: Option<&[NodePair]>| -> Vec<NodePair> {
+        a.iter()
+            .enumerate()
+            .map(|(e, a)| NodePair::of(a, previous.map(|p| &p[e])))
+            .collect()
+    };
+    let v = palette.model().vertex_count();
+    let (mut want, mut got) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+    let mut distance = |reference: &[Affine], played: &[Affine]| -> rrskin::Result<f64> {
+        palette.skin_positions(reference, &mut want)?;
+        palette.skin_positions(played, &mut got)?;
+        Ok(want.iter().zip(&got).fold(0.0f64, |m, (a, b)| {
+            let d = (0..3).map(|i| ((a[i] - b[i]) as f64).powi(2)).sum::<f64>();
+            m.max(d.sqrt())
+        }))
+    };
+    let first = entries(keys[0])?;
+    let mut baked = Baked {
+        times: vec![keys[0]],
+        samples: vec![pairs(&first, None)],
+        worst_at_samples: 0.0,
+        worst_between: 0.0,
+    };
+    let played = |s: &[NodePair]| s.iter().map(NodePair::affine).collect::<Vec<_>>();
+    baked.worst_at_samples = distance(&first, &played(&baked.samples[0]))?;
+    for &key in &keys[1..] {
+        // Targets still to reach, with how often their interval was halved.
+        let mut targets = vec![(key, 0u32)];
+        while let Some(&(t1, depth)) = targets.last() {
+            let (t0, p0) = (
+                baked.times[baked.times.len() - 1],
+                &baked.samples[baked.samples.len() - 1],
+            );
+            let a1 = entries(t1)?;
+            let p1 = pairs(&a1, Some(p0));
+            let mut worst = 0.0f64;
+            for f in [0.25, 0.5, 0.75] {
+                let between: Vec<NodePair> =
+                    p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect();
+                worst = worst.max(distance(&entries(t0 + f * (t1 - t0))?, &played(&between))?);
+            }
+            if worst > tolerance && depth < MAX_DEPTH {
+                targets.push((0.5 * (t0 + t1), depth + 1));
+                continue;
+            }
+            targets.pop();
+            baked.worst_between = baked.worst_between.max(worst);
+            baked.worst_at_samples = baked.worst_at_samples.max(distance(&a1, &played(&p1))?);
+            baked.times.push(t1);
+            baked.samples.push(p1);
+        }
+    }
+    Ok(baked)
+}

@@ -1,0 +1,652 @@
+//! `rrskin export`: a runtime model as a standard skinned glTF 2.0 binary (.glb) that any
+//! viewer or engine plays with its own skinning.
+//!
+//! The skin's joints are the model's palette, in its order: P proxies, then the J bones, each
+//! an exact two-node form of its affine transform ([`bake`]); the vertices' JOINTS_0/WEIGHTS_0
+//! (and JOINTS_1/WEIGHTS_1 for K = 8) are the model's skin indices and weights, so a joint
+//! index is a palette index. Inverse bind matrices are the identity: the palette maps rest
+//! positions to posed ones. Every clip is baked through the model: the rig's clips with
+//! `--rig` (all, or those named), else the model's own animation at `fps` frames a second
+//! (between two of its frames the bones move as glTF would move them: slerped rotations,
+//! lerped translations). With `--rig`, the mesh is the rig's own: its primitives, materials,
+//! textures (embedded), UVs and joint names; without, the geometry alone.
+
+pub mod bake;
+pub mod glb;
+
+use crate::import::example_set::InputError;
+use crate::import::gltf_rig::{load_buffers, Rig};
+use crate::linalg::procrustes;
+use crate::{Error, Result};
+use bake::{bake, Baked, NodePair};
+use glam::{DMat3, DQuat, DVec3};
+use glb::{Buffer, ARRAY_BUFFER};
+use rrskin::palette::Palette;
+use rrskin::predict::Affine;
+use rrskin::Model;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub model: PathBuf,
+    pub output: PathBuf,
+    /// The glTF rig the model was trained from: its mesh, materials and clips.
+    pub rig: Option<PathBuf>,
+    /// Clips of the rig to bake (empty: every clip).
+    pub clips: Vec<String>,
+    /// Frames a second of the model's own animation (without `rig`).
+    pub fps: f64,
+    /// Largest vertex distance allowed between the played file and the model, relative to the
+    /// rest mesh's bounding-box diagonal.
+    pub tolerance: f64,
+}
+
+/// The default of [`Options::tolerance`]: 0.1 % of the character's size.
+pub const TOLERANCE: f64 = 1e-3;
+
+#[derive(Debug, Clone)]
+pub struct Exported {
+    pub output: PathBuf,
+    pub vertices: usize,
+    /// Palette entries (skin joints that vertices use): P + J.
+    pub joints: usize,
+    pub clips: Vec<ClipReport>,
+    /// What the user should know (vertices given a stand-in normal, ...).
+    pub notes: Vec<String>,
+}
+
+#[derive(Debug, Clone)]
+pub struct ClipReport {
+    pub name: String,
+    pub keys: usize,
+    pub samples: usize,
+    /// The largest vertex distance between the played file and the model at the samples and
+    /// between them, relative to the rest mesh's bounding-box diagonal.
+    pub worst_at_samples: f64,
+    pub worst_between: f64,
+}
+
+/// One clip to bake: its key times and the bones at any time between them.
+struct Clip {
+    name: String,
+    keys: Vec<f64>,
+    pose_at: Box<dyn Fn(f64) -> Vec<Affine>>,
+}
+
+/// What the mesh is drawn with: the rig's primitives and materials, or one bare primitive.
+struct Geometry {
+    /// Vertex range and material (an index into `materials`) of each primitive.
+    primitives: Vec<(std::ops::Range<usize>, Option<usize>)>,
+    uvs: Option<Vec<[f32; 2]>>,
+    names: Vec<String>,
+    mesh_name: String,
+    /// The rig's materials, textures, samplers and images (image bytes embedded), and the
+    /// extensions they use.
+    materials: serde_json::Map<String, Value>,
+    extensions: Vec<String>,
+}
+
+pub fn run(options: &Options) -> Result<Exported> {
+    let model = Model::load(&options.model)?;
+    let palette = Palette::new(model)?;
+    let mut buffer = Buffer::default();
+    let (geometry, clips) = match &options.rig {
+        Some(rig) => rig_source(rig, &options.clips, palette.model(), &mut buffer)?,
+        None => (
+            model_geometry(palette.model()),
+            model_clip(palette.model(), options.fps),
+        ),
+    };
+    let size = diagonal(&palette.model().parts().rest_positions);
+    let mut reports = Vec::new();
+    let mut baked = Vec::new();
+    for clip in clips {
+        let b = bake(
+            &palette,
+            &clip.keys,
+            &clip.pose_at,
+            options.tolerance * size,
+        )?;
+        reports.push(ClipReport {
+            name: clip.name.clone(),
+            keys: clip.keys.len(),
+            samples: b.times.len(),
+            worst_at_samples: b.worst_at_samples / size,
+            worst_between: b.worst_between / size,
+        });
+        baked.push((clip.name, b));
+    }
+    let mut notes = Vec::new();
+    let document = document(&palette, &geometry, &baked, &mut buffer, &mut notes)?;
+    let bytes = glb::encode(document, buffer);
+    std::fs::write(&options.output, bytes).map_err(|e| Error::Output {
+        path: options.output.clone(),
+        problem: format!("cannot write: {e}"),
+    })?;
+    Ok(Exported {
+        output: options.output.clone(),
+        vertices: palette.model().vertex_count(),
+        joints: palette.len(),
+        clips: reports,
+        notes,
+    })
+}
+
+fn diagonal(points: &[[f32; 3]]) -> f64 {
+    let (lo, hi) = points.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| {
+            let p = DVec3::from(p.map(f64::from));
+            (lo.min(p), hi.max(p))
+        },
+    );
+    (hi - lo).length().max(f64::MIN_POSITIVE)
+}
+
+fn model_geometry(model: &Model) -> Geometry {
+    Geometry {
+        primitives: vec![(0..model.vertex_count(), None)],
+        uvs: None,
+        names: (0..model.bone_count())
+            .map(|b| format!("bone {b}"))
+            .collect(),
+        mesh_name: "rrskin model".into(),
+        materials: serde_json::Map::new(),
+        extensions: Vec::new(),
+    }
+}
+
+/// The model's own animation as one clip, `fps` frames a second (none when it has none).
+fn model_clip(model: &Model, fps: f64) -> Vec<Clip> {
+    let frames: Vec<Vec<Affine>> = model.animation().map(<[Affine]>::to_vec).collect();
+    if frames.is_empty() {
+        return Vec::new();
+    }
+    let keys = (0..frames.len()).map(|f| f as f64 / fps).collect();
+    let pose_at = move |t: f64| {
+        let at = (t * fps).clamp(0.0, (frames.len() - 1) as f64);
+        let f = at.floor() as usize;
+        let next = (f + 1).min(frames.len() - 1);
+        let x = at - f as f64;
+        frames[f]
+            .iter()
+            .zip(&frames[next])
+            .map(|(a, b)| interpolate_bone(a, b, x))
+            .collect()
+    };
+    vec![Clip {
+        name: "animation".into(),
+        keys,
+        pose_at: Box::new(pose_at),
+    }]
+}
+
+/// A bone between two frames as glTF moves a node: the rotation slerped, the rest of the 3x3
+/// (scale, where there is any) and the translation lerped.
+fn interpolate_bone(a: &Affine, b: &Affine, x: f64) -> Affine {
+    let split = |t: &Affine| {
+        let m =
+            glam::Mat3::from_cols_array(&[t[0], t[4], t[8], t[1], t[5], t[9], t[2], t[6], t[10]])
+                .as_dmat3();
+        let r = procrustes(m);
+        (
+            DQuat::from_mat3(&r),
+            r.transpose() * m,
+            DVec3::new(t[3] as f64, t[7] as f64, t[11] as f64),
+        )
+    };
+    let ((ra, sa, da), (rb, sb, db)) = (split(a), split(b));
+    let rb = if ra.dot(rb) < 0.0 { -rb } else { rb };
+    let m = DMat3::from_quat(ra.slerp(rb, x)) * (sa * (1.0 - x) + sb * x);
+    let d = da.lerp(db, x);
+    [
+        m.x_axis.x, m.y_axis.x, m.z_axis.x, d.x, m.x_axis.y, m.y_axis.y, m.z_axis.y, d.y,
+        m.x_axis.z, m.y_axis.z, m.z_axis.z, d.z,
+    ]
+    .map(|v| v as f32)
+}
+
+fn input(file: &Path, message: impl Into<String>) -> Error {
+    Error::Input {
+        source: InputError {
+            file: file.to_path_buf(),
+            message: message.into(),
+        },
+    }
+}
+
+/// The rig's mesh, materials and clips, checked against the model.
+fn rig_source(
+    path: &Path,
+    wanted: &[String],
+    model: &Model,
+    buffer: &mut Buffer,
+) -> Result<(Geometry, Vec<Clip>)> {
+    let bytes = std::fs::read(path).map_err(|e| input(path, format!("cannot read: {e}")))?;
+    let gltf = gltf::Gltf::from_slice(&bytes)
+        .map_err(|e| input(path, format!("not a valid glTF file: {e}")))?;
+    let names: Vec<String> = gltf
+        .document
+        .animations()
+        .enumerate()
+        .map(|(i, a)| {
+            a.name()
+                .map_or_else(|| format!("animation {i}"), str::to_string)
+        })
+        .collect();
+    if names.is_empty() {
+        return Err(input(path, "the rig has no animation to bake"));
+    }
+    let clips: Vec<String> = if wanted.is_empty() {
+        names.clone()
+    } else {
+        for w in wanted {
+            if !names.contains(w) {
+                return Err(input(
+                    path,
+                    format!("no animation named '{w}' (the file has {names:?})"),
+                ));
+            }
+        }
+        wanted.to_vec()
+    };
+    let rig = Rig::load(path, &clips[0])?;
+    check_rig_matches(path, &rig, model)?;
+    let mut materials_of = Vec::new();
+    for node in gltf
+        .document
+        .nodes()
+        .filter(|n| n.mesh().is_some() && n.skin().is_some())
+    {
+        if let Some(mesh) = node.mesh() {
+            materials_of.extend(mesh.primitives().map(|p| p.material().index()));
+        }
+    }
+    let mesh_name = gltf
+        .document
+        .nodes()
+        .find(|n| n.mesh().is_some() && n.skin().is_some())
+        .and_then(|n| n.name().map(str::to_string))
+        .unwrap_or_else(|| "rrskin model".into());
+    let buffers = load_buffers(path, &gltf)?;
+    let (materials, extensions) = copy_materials(path, &gltf, &buffers, buffer)?;
+    let primitives = rig.primitives.iter().cloned().zip(materials_of).collect();
+    let geometry = Geometry {
+        primitives,
+        uvs: rig.uvs.clone(),
+        names: rig.names.clone(),
+        mesh_name,
+        materials,
+        extensions,
+    };
+    let mut out = Vec::new();
+    for name in clips {
+        let clip_rig = Rig::load(path, &name)?;
+        let keys = clip_rig.key_times();
+        if keys.is_empty() {
+            return Err(input(path, format!("animation '{name}' has no key times")));
+        }
+        let pose_at = move |t: f64| clip_rig.bones_at(t).iter().map(|b| b.to_affine()).collect();
+        out.push(Clip {
+            name,
+            keys,
+            pose_at: Box::new(pose_at),
+        });
+    }
+    Ok((geometry, out))
+}
+
+/// The model must have been trained from this rig: the same vertices in the same order, the
+/// same bones.
+fn check_rig_matches(path: &Path, rig: &Rig, model: &Model) -> Result<()> {
+    let rest = &model.parts().rest_positions;
+    if rig.rest.len() != rest.len() || rig.names.len() != model.bone_count() {
+        return Err(input(
+            path,
+            format!(
+                "the rig has {} vertices and {} bones, the model {} and {}: export with the rig the model was trained from",
+                rig.rest.len(),
+                rig.names.len(),
+                rest.len(),
+                model.bone_count()
+            ),
+        ));
+    }
+    let size = diagonal(rest);
+    let worst = rig
+        .rest
+        .iter()
+        .zip(rest)
+        .map(|(a, b)| (*a - DVec3::from(b.map(f64::from))).length())
+        .fold(0.0f64, f64::max);
+    if worst > 1e-4 * size {
+        return Err(input(
+            path,
+            format!(
+                "the rig's rest mesh is not the model's (vertices up to {:.3} % of its size apart): export with the rig the model was trained from",
+                100.0 * worst / size
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The rig's materials, textures, samplers and images as JSON, every image's bytes embedded in
+/// `buffer` (the rig's buffer views are not carried over), and the extensions they use.
+fn copy_materials(
+    path: &Path,
+    gltf: &gltf::Gltf,
+    buffers: &[Vec<u8>],
+    buffer: &mut Buffer,
+) -> Result<(serde_json::Map<String, Value>, Vec<String>)> {
+    let root = serde_json::to_value(gltf.document.clone().into_json())
+        .map_err(|e| input(path, format!("cannot read its JSON: {e}")))?;
+    let mut out = serde_json::Map::new();
+    for key in ["materials", "textures", "samplers"] {
+        if let Some(v) = root.get(key) {
+            out.insert(key.into(), v.clone());
+        }
+    }
+    let mut images = Vec::new();
+    for image in gltf.document.images() {
+        let (bytes, mime) = match image.source() {
+            gltf::image::Source::View { view, mime_type } => {
+                let data = buffers
+                    .get(view.buffer().index())
+                    .and_then(|b| b.get(view.offset()..view.offset() + view.length()))
+                    .ok_or_else(|| {
+                        input(
+                            path,
+                            format!("image {} lies outside its buffer", image.index()),
+                        )
+                    })?;
+                (data.to_vec(), mime_type.to_string())
+            }
+            gltf::image::Source::Uri { uri, mime_type } => {
+                if uri.starts_with("data:") {
+                    images.push(json!({"uri": uri}));
+                    continue;
+                }
+                let file = path.parent().unwrap_or(Path::new(".")).join(uri);
+                let data = std::fs::read(&file).map_err(|e| {
+                    input(
+                        &file,
+                        format!("image {} of {}: {e}", image.index(), path.display()),
+                    )
+                })?;
+                let mime = mime_type.map(str::to_string).unwrap_or_else(|| {
+                    if uri.to_ascii_lowercase().ends_with(".png") {
+                        "image/png"
+                    } else {
+                        "image/jpeg"
+                    }
+                    .into()
+                });
+                (data, mime)
+            }
+        };
+        let view = buffer.view(&bytes, None);
+        let mut entry = json!({"bufferView": view, "mimeType": mime});
+        if let Some(name) = image.name() {
+            entry["name"] = json!(name);
+        }
+        images.push(entry);
+    }
+    if !images.is_empty() {
+        out.insert("images".into(), Value::Array(images));
+    }
+    let text = Value::Object(out.clone()).to_string();
+    let extensions = gltf
+        .document
+        .extensions_used()
+        .filter(|e| text.contains(&format!("\"{e}\"")))
+        .map(str::to_string)
+        .collect();
+    Ok((out, extensions))
+}
+
+/// The glTF JSON (without buffers, views and accessors, which `buffer` holds).
+fn document(
+    palette: &Palette,
+    geometry: &Geometry,
+    clips: &[(String, Baked)],
+    buffer: &mut Buffer,
+    notes: &mut Vec<String>,
+) -> Result<Value> {
+    let model = palette.model();
+    let (p, entries) = (model.proxy_count(), palette.len());
+    if entries > u16::MAX as usize + 1 {
+        return Err(Error::Output {
+            path: PathBuf::from("<export>"),
+            problem: format!("{entries} palette entries do not fit glTF's 16-bit joint indices"),
+        });
+    }
+    // Nodes: 0 the mesh, 1 the palette's root, then per entry e its outer node 2 + 2e and the
+    // skinning joint 3 + 2e under it.
+    let name = |e: usize| {
+        if e < p {
+            format!("proxy {e}")
+        } else {
+            geometry.names[e - p].clone()
+        }
+    };
+    let mut nodes = vec![
+        json!({"name": geometry.mesh_name, "mesh": 0, "skin": 0}),
+        json!({"name": "rrskin palette", "children": (0..entries).map(|e| 2 + 2 * e).collect::<Vec<_>>()}),
+    ];
+    for e in 0..entries {
+        nodes.push(json!({"name": format!("{} (scale)", name(e)), "children": [3 + 2 * e]}));
+        nodes.push(json!({"name": name(e)}));
+    }
+    let joints: Vec<usize> = (0..entries)
+        .map(|e| 3 + 2 * e)
+        .chain((0..entries).map(|e| 2 + 2 * e))
+        .collect();
+    let primitives = primitives(palette, geometry, buffer, notes);
+    let animations: Vec<Value> = clips
+        .iter()
+        .map(|(name, baked)| animation(name, baked, buffer))
+        .collect();
+    let mut document = json!({
+        "asset": {"version": "2.0", "generator": concat!("rrskin export ", env!("CARGO_PKG_VERSION"))},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": nodes,
+        "meshes": [{"name": geometry.mesh_name, "primitives": primitives}],
+        "skins": [{"name": "rrskin palette", "joints": joints, "skeleton": 1}],
+    });
+    if !animations.is_empty() {
+        document["animations"] = Value::Array(animations);
+    }
+    for (key, value) in &geometry.materials {
+        document[key] = value.clone();
+    }
+    if !geometry.extensions.is_empty() {
+        document["extensionsUsed"] = json!(geometry.extensions);
+    }
+    Ok(document)
+}
+
+/// The mesh's primitives: rest positions, the runtime's rest normals, rest tangents and UVs
+/// where there are any, the skin as K joints and weights per vertex.
+fn primitives(
+    palette: &Palette,
+    geometry: &Geometry,
+    buffer: &mut Buffer,
+    notes: &mut Vec<String>,
+) -> Vec<Value> {
+    let skin = palette.skin();
+    let k = skin.influences;
+    let (mut no_normal, mut no_tangent) = (0usize, 0usize);
+    let normals: Vec<[f32; 3]> = skin
+        .rest_normals
+        .iter()
+        .map(|n| {
+            if n.iter().all(|x| *x == 0.0) {
+                no_normal += 1;
+                [0.0, 1.0, 0.0]
+            } else {
+                *n
+            }
+        })
+        .collect();
+    let tangents: Vec<[f32; 4]> = skin
+        .rest_tangents
+        .iter()
+        .zip(&normals)
+        .map(|(t, n)| {
+            if t[..3].iter().all(|x| *x == 0.0) {
+                no_tangent += 1;
+                let o = glam::Vec3::from(*n).any_orthonormal_vector();
+                [o.x, o.y, o.z, 1.0]
+            } else {
+                *t
+            }
+        })
+        .collect();
+    if no_normal > 0 {
+        notes.push(format!(
+            "{no_normal} vertices of no area have the normal +Y"
+        ));
+    }
+    if no_tangent > 0 {
+        notes.push(format!(
+            "{no_tangent} vertices without a rest tangent have one orthogonal to their normal"
+        ));
+    }
+    let (joints, weights) = skin_sets(skin.indices, skin.weights, k);
+    geometry
+        .primitives
+        .iter()
+        .map(|(range, material)| {
+            let r = range.clone();
+            let flat3 = |a: &[[f32; 3]]| a[r.clone()].as_flattened().to_vec();
+            let mut attributes = serde_json::Map::new();
+            attributes.insert(
+                "POSITION".into(),
+                json!(buffer.floats(&flat3(skin.rest_positions), 3, Some(ARRAY_BUFFER))),
+            );
+            attributes.insert(
+                "NORMAL".into(),
+                json!(buffer.floats(&flat3(&normals), 3, Some(ARRAY_BUFFER))),
+            );
+            if !tangents.is_empty() {
+                attributes.insert(
+                    "TANGENT".into(),
+                    json!(buffer.floats(tangents[r.clone()].as_flattened(), 4, Some(ARRAY_BUFFER))),
+                );
+            }
+            if let Some(uvs) = &geometry.uvs {
+                attributes.insert(
+                    "TEXCOORD_0".into(),
+                    json!(buffer.floats(uvs[r.clone()].as_flattened(), 2, Some(ARRAY_BUFFER))),
+                );
+            }
+            for (set, (j, w)) in joints.iter().zip(&weights).enumerate() {
+                attributes.insert(
+                    format!("JOINTS_{set}"),
+                    json!(buffer.shorts(&j[4 * r.start..4 * r.end], 4)),
+                );
+                attributes.insert(
+                    format!("WEIGHTS_{set}"),
+                    json!(buffer.floats(&w[4 * r.start..4 * r.end], 4, Some(ARRAY_BUFFER))),
+                );
+            }
+            let indices: Vec<u32> = skin
+                .triangles
+                .iter()
+                .filter(|t| r.contains(&(t[0] as usize)))
+                .flat_map(|t| t.map(|v| v - r.start as u32))
+                .collect();
+            let mut primitive =
+                json!({"attributes": attributes, "indices": buffer.indices(&indices)});
+            if let Some(m) = material {
+                primitive["material"] = json!(m);
+            }
+            primitive
+        })
+        .collect()
+}
+
+/// The skin as glTF sets of 4 (JOINTS_n, WEIGHTS_n): per vertex the K (index, weight) pairs
+/// with repeated indices merged, heaviest first, zero weights on joint 0, the weights summing
+/// to 1 in `f32` as exactly as it can (the last non-zero one takes the remainder).
+fn skin_sets(indices: &[u32], weights: &[f32], k: usize) -> (Vec<Vec<u16>>, Vec<Vec<f32>>) {
+    let sets = k / 4;
+    let v = indices.len() / k;
+    let mut joints = vec![Vec::with_capacity(4 * v); sets];
+    let mut out = vec![Vec::with_capacity(4 * v); sets];
+    for a in 0..v {
+        let mut pairs: Vec<(u32, f64)> = Vec::with_capacity(k);
+        for i in a * k..(a + 1) * k {
+            let w = weights[i] as f64;
+            if w <= 0.0 {
+                continue;
+            }
+            match pairs.iter_mut().find(|(j, _)| *j == indices[i]) {
+                Some(pair) => pair.1 += w,
+                None => pairs.push((indices[i], w)),
+            }
+        }
+        pairs.sort_by(|x, y| y.1.total_cmp(&x.1));
+        let total: f64 = pairs.iter().map(|p| p.1).sum();
+        let mut w: Vec<f32> = pairs.iter().map(|p| (p.1 / total) as f32).collect();
+        if let Some((last, rest)) = w.split_last_mut() {
+            *last = 1.0 - rest.iter().sum::<f32>();
+        }
+        for s in 0..k {
+            let (j, x) = pairs.get(s).map_or((0, 0.0), |p| (p.0 as u16, w[s]));
+            joints[s / 4].push(j);
+            out[s / 4].push(x);
+        }
+    }
+    (joints, out)
+}
+
+/// One clip's channels: per palette entry the outer node's translation, rotation and scale and
+/// the joint's rotation, sampled at the baked times, LINEAR.
+fn animation(name: &str, baked: &Baked, buffer: &mut Buffer) -> Value {
+    let times: Vec<f32> = baked.times.iter().map(|&t| t as f32).collect();
+    let input = buffer.floats(&times, 1, None);
+    let (mut samplers, mut channels) = (Vec::new(), Vec::new());
+    let entries = baked.samples.first().map_or(0, Vec::len);
+    for e in 0..entries {
+        let column = |f: &dyn Fn(&NodePair) -> Vec<f32>| -> Vec<f32> {
+            baked.samples.iter().flat_map(|s| f(&s[e])).collect()
+        };
+        let outputs: [(usize, &str, Vec<f32>, usize); 4] = [
+            (
+                2 + 2 * e,
+                "translation",
+                column(&|n| n.translation.as_vec3().to_array().to_vec()),
+                3,
+            ),
+            (
+                2 + 2 * e,
+                "rotation",
+                column(&|n| n.rotation.as_quat().to_array().to_vec()),
+                4,
+            ),
+            (
+                2 + 2 * e,
+                "scale",
+                column(&|n| n.scale.as_vec3().to_array().to_vec()),
+                3,
+            ),
+            (
+                3 + 2 * e,
+                "rotation",
+                column(&|n| n.child_rotation.as_quat().to_array().to_vec()),
+                4,
+            ),
+        ];
+        for (node, path, values, width) in outputs {
+            let output = buffer.floats(&values, width, None);
+            channels
+                .push(json!({"sampler": samplers.len(), "target": {"node": node, "path": path}}));
+            samplers.push(json!({"input": input, "output": output, "interpolation": "LINEAR"}));
+        }
+    }
+    json!({"name": name, "samplers": samplers, "channels": channels})
+}
