@@ -1,15 +1,16 @@
 //! The CPU palette (`rrskin::palette`, and its C ABI in-process) against the f64 CPU reference
-//! evaluator: positions skinned from the f32 palette within `POSITION_TOLERANCE * max(1, |p|)`
+//! evaluator: positions skinned from the f32 palette within `PALETTE_TOLERANCE * max(1, |p|)`
 //! of `CpuEvaluator`'s, on dense, block-sparse (joint-blend pattern), plain-LBS and K = 8
 //! models; the serial, batched and threaded forms agree bit for bit; bad input is an error.
 
 mod common;
 
-use common::{joint_blend_pattern, random_model, random_poses, Spec, POSITION_TOLERANCE};
+use common::{joint_blend_pattern, random_model, random_poses, Spec};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
 use rrskin::predict::Affine;
 use rrskin::{Error, Model};
+use rrskin_render::synthetic::{palette_error, PALETTE_TOLERANCE};
 
 fn models() -> Vec<(&'static str, Model)> {
     let spec = |grid, bones, proxies, influences| Spec {
@@ -33,40 +34,20 @@ fn models() -> Vec<(&'static str, Model)> {
     ]
 }
 
-/// Every vertex of `characters` characters skinned from the palette against the reference.
-pub fn assert_matches_reference(model: &Model, bones: &[Affine], what: &str) {
-    let palette = Palette::new(model.clone()).expect("a palette of a valid model");
-    let (v, j, n) = (model.vertex_count(), model.bone_count(), palette.len());
-    let characters = bones.len() / j;
-    let mut out = vec![[0.0; 12]; characters * n];
-    palette.compute_batch(bones, &mut out).expect("palette");
-    let (mut want, mut normals) = (
-        vec![[0.0; 3]; characters * v],
-        vec![[0.0; 3]; characters * v],
-    );
-    CpuEvaluator::new(model)
-        .evaluate(bones, &mut want, &mut normals)
-        .expect("reference");
-    let mut got = vec![[0.0; 3]; v];
-    let mut worst = 0.0f32;
-    for c in 0..characters {
-        let entries = &out[c * n..(c + 1) * n];
-        assert_eq!(
-            &entries[n - j..],
-            &bones[c * j..(c + 1) * j],
-            "{what}: bones"
-        );
-        palette.skin_positions(entries, &mut got).expect("skin");
-        for (g, w) in got.iter().zip(&want[c * v..(c + 1) * v]) {
-            let d = (0..3).map(|i| (g[i] - w[i]).powi(2)).sum::<f32>().sqrt();
-            let size = (0..3).map(|i| w[i] * w[i]).sum::<f32>().sqrt().max(1.0);
-            worst = worst.max(d / size);
-        }
-    }
+/// Positions skinned from the palette within the tolerance of the reference's, and the
+/// palette's last J entries the bones themselves.
+fn assert_matches_reference(model: &Model, bones: &[Affine], what: &str) {
+    let worst = palette_error(model, bones).expect("a palette of a valid model");
+    eprintln!("{what}: worst relative position error {worst:.2e}");
     assert!(
-        worst <= POSITION_TOLERANCE,
+        worst <= PALETTE_TOLERANCE,
         "{what}: positions from the palette differ by {worst} (relative) from the reference"
     );
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (j, n) = (model.bone_count(), palette.len());
+    let mut out = vec![[0.0; 12]; n];
+    palette.compute(&bones[..j], &mut out).expect("palette");
+    assert_eq!(&out[n - j..], &bones[..j], "{what}: bones");
 }
 
 #[test]

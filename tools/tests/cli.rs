@@ -395,6 +395,16 @@ fn a_trained_model_file_evaluates_as_trained() {
         (info["proxies"].as_u64(), info["vertices"].as_u64()),
         (Some(20), Some(2338))
     );
+    // The CPU palette of the trained file agrees with the reference playing its animation
+    // (tests/palette.rs's tolerance).
+    let trained_model = rrskin::Model::load(&model).expect("valid");
+    let frames: Vec<rrskin::predict::Affine> =
+        trained_model.animation().flatten().copied().collect();
+    let worst = rrskin_render::synthetic::palette_error(&trained_model, &frames).expect("palette");
+    assert!(
+        worst <= rrskin_render::synthetic::PALETTE_TOLERANCE,
+        "CPU palette {worst} off the reference"
+    );
     let evaluated = json(&rrskin(&["eval", set, "--model", m, "--json"]));
     assert_eq!(evaluated["proxies"], 20);
     for split in ["train", "test"] {

@@ -155,10 +155,13 @@ fn nearest_signed_permutation(
 
 /// Bakes one clip: `keys` its key times (at least one), `pose_at(t)` the J bone transforms at
 /// any time in their range, `tolerance` the largest vertex distance allowed between samples.
+/// A clip that holds each key until the next (`step`: glTF's STEP) is sampled at its keys and
+/// played held, so it is exact between them as at them.
 pub fn bake(
     palette: &Palette,
     keys: &[f64],
     pose_at: impl Fn(f64) -> Vec<Affine>,
+    step: bool,
     tolerance: f64,
 ) -> rrskin::Result<Baked> {
     let entries = |t: f64| -> rrskin::Result<Vec<Affine>> {
@@ -203,11 +206,13 @@ pub fn bake(
             let p1 = pairs(&a1, Some(p0));
             let mut worst = 0.0f64;
             for f in [0.25, 0.5, 0.75] {
-                let between: Vec<NodePair> =
-                    p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect();
+                let between: Vec<NodePair> = match step {
+                    true => p0.clone(),
+                    false => p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect(),
+                };
                 worst = worst.max(distance(&entries(t0 + f * (t1 - t0))?, &played(&between))?);
             }
-            if worst > tolerance && depth < MAX_DEPTH {
+            if !step && worst > tolerance && depth < MAX_DEPTH {
                 targets.push((0.5 * (t0 + t1), depth + 1));
                 continue;
             }

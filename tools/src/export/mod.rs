@@ -71,6 +71,8 @@ pub struct ClipReport {
 struct Clip {
     name: String,
     keys: Vec<f64>,
+    /// Every key held until the next (glTF's STEP), rather than interpolated.
+    step: bool,
     pose_at: Box<dyn Fn(f64) -> Vec<Affine>>,
 }
 
@@ -106,6 +108,7 @@ pub fn run(options: &Options) -> Result<Exported> {
             &palette,
             &clip.keys,
             &clip.pose_at,
+            clip.step,
             options.tolerance * size,
         )?;
         reports.push(ClipReport {
@@ -115,7 +118,7 @@ pub fn run(options: &Options) -> Result<Exported> {
             worst_at_samples: b.worst_at_samples / size,
             worst_between: b.worst_between / size,
         });
-        baked.push((clip.name, b));
+        baked.push((clip.name, clip.step, b));
     }
     let mut notes = Vec::new();
     let document = document(&palette, &geometry, &baked, &mut buffer, &mut notes)?;
@@ -159,27 +162,32 @@ fn model_geometry(model: &Model) -> Geometry {
 
 /// The model's own animation as one clip, `fps` frames a second (none when it has none).
 fn model_clip(model: &Model, fps: f64) -> Vec<Clip> {
-    let frames: Vec<Vec<Affine>> = model.animation().map(<[Affine]>::to_vec).collect();
-    if frames.is_empty() {
+    let frames = model.animation().count();
+    if frames == 0 {
         return Vec::new();
     }
-    let keys = (0..frames.len()).map(|f| f as f64 / fps).collect();
-    let pose_at = move |t: f64| {
-        let at = (t * fps).clamp(0.0, (frames.len() - 1) as f64);
-        let f = at.floor() as usize;
-        let next = (f + 1).min(frames.len() - 1);
-        let x = at - f as f64;
-        frames[f]
-            .iter()
-            .zip(&frames[next])
-            .map(|(a, b)| interpolate_bone(a, b, x))
-            .collect()
-    };
+    let model = model.clone();
     vec![Clip {
         name: "animation".into(),
-        keys,
-        pose_at: Box::new(pose_at),
+        keys: (0..frames).map(|f| f as f64 / fps).collect(),
+        step: false,
+        pose_at: Box::new(move |t| animation_pose(&model, fps, t)),
     }]
+}
+
+/// The bones of the model's own animation at time `t` (seconds, `fps` frames a second), what
+/// an export without a rig plays: between two frames each bone moves as glTF moves a node.
+pub fn animation_pose(model: &Model, fps: f64, t: f64) -> Vec<Affine> {
+    let frames: Vec<&[Affine]> = model.animation().collect();
+    let last = frames.len().saturating_sub(1);
+    let at = (t * fps).clamp(0.0, last as f64);
+    let f = at.floor() as usize;
+    let x = at - f as f64;
+    frames[f]
+        .iter()
+        .zip(frames[(f + 1).min(last)])
+        .map(|(a, b)| interpolate_bone(a, b, x))
+        .collect()
 }
 
 /// A bone between two frames as glTF moves a node: the rotation slerped, the rest of the 3x3
@@ -287,10 +295,12 @@ fn rig_source(
         if keys.is_empty() {
             return Err(input(path, format!("animation '{name}' has no key times")));
         }
+        let step = clip_rig.holds_keys();
         let pose_at = move |t: f64| clip_rig.bones_at(t).iter().map(|b| b.to_affine()).collect();
         out.push(Clip {
             name,
             keys,
+            step,
             pose_at: Box::new(pose_at),
         });
     }
@@ -410,7 +420,7 @@ fn copy_materials(
 fn document(
     palette: &Palette,
     geometry: &Geometry,
-    clips: &[(String, Baked)],
+    clips: &[(String, bool, Baked)],
     buffer: &mut Buffer,
     notes: &mut Vec<String>,
 ) -> Result<Value> {
@@ -446,7 +456,7 @@ fn document(
     let primitives = primitives(palette, geometry, buffer, notes);
     let animations: Vec<Value> = clips
         .iter()
-        .map(|(name, baked)| animation(name, baked, buffer))
+        .map(|(name, step, baked)| animation(name, *step, baked, buffer))
         .collect();
     let mut document = json!({
         "asset": {"version": "2.0", "generator": concat!("rrskin export ", env!("CARGO_PKG_VERSION"))},
@@ -605,8 +615,9 @@ fn skin_sets(indices: &[u32], weights: &[f32], k: usize) -> (Vec<Vec<u16>>, Vec<
 }
 
 /// One clip's channels: per palette entry the outer node's translation, rotation and scale and
-/// the joint's rotation, sampled at the baked times, LINEAR.
-fn animation(name: &str, baked: &Baked, buffer: &mut Buffer) -> Value {
+/// the joint's rotation, sampled at the baked times, LINEAR (STEP for a clip that holds keys).
+fn animation(name: &str, step: bool, baked: &Baked, buffer: &mut Buffer) -> Value {
+    let interpolation = if step { "STEP" } else { "LINEAR" };
     let times: Vec<f32> = baked.times.iter().map(|&t| t as f32).collect();
     let input = buffer.floats(&times, 1, None);
     let (mut samplers, mut channels) = (Vec::new(), Vec::new());
@@ -645,7 +656,8 @@ fn animation(name: &str, baked: &Baked, buffer: &mut Buffer) -> Value {
             let output = buffer.floats(&values, width, None);
             channels
                 .push(json!({"sampler": samplers.len(), "target": {"node": node, "path": path}}));
-            samplers.push(json!({"input": input, "output": output, "interpolation": "LINEAR"}));
+            samplers
+                .push(json!({"input": input, "output": output, "interpolation": interpolation}));
         }
     }
     json!({"name": name, "samplers": samplers, "channels": channels})

@@ -468,6 +468,13 @@ impl Rig {
         times
     }
 
+    /// Whether every channel of the clip holds its keys (STEP): the clip is a series of poses.
+    pub fn holds_keys(&self) -> bool {
+        self.channels
+            .iter()
+            .all(|c| c.interpolation == Interpolation::Step)
+    }
+
     /// The rest mesh under the rig's own skin (linear blend skinning with its weights).
     pub fn skin(&self, bones: &[Bone]) -> Vec<DVec3> {
         (0..self.rest.len())

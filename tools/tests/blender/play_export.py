@@ -12,16 +12,23 @@ import struct
 import sys
 
 import bpy
+import numpy
+
+# Debian 12's Blender 3.4 importer still calls numpy.bool, which Debian's NumPy 1.24 removed
+# (an alias of the builtin): give it back for the importer.
+if "bool" not in vars(numpy):
+    numpy.bool = bool
 
 path, clip, times_path, rest_path, out_path = sys.argv[sys.argv.index("--") + 1 :]
 times = [float(line) for line in open(times_path) if line.strip()]
 rest_bytes = open(rest_path, "rb").read()
 rest = list(struct.iter_unpack("<3f", rest_bytes))
 
+bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.ops.import_scene.gltf(filepath=path, merge_vertices=False)
 meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
 if len(meshes) != 1:
-    raise SystemExit(f"expected one mesh object, found {len(meshes)}")
+    raise SystemExit(f"expected one mesh object, found {[(o.name, len(o.data.vertices)) for o in meshes]}")
 mesh = meshes[0]
 armature = mesh.find_armature()
 if armature is None:
