@@ -242,6 +242,75 @@ fn blender_plays_an_exported_model_like_the_runtime() {
     );
 }
 
+/// A rig as Blender's own glTF exporter writes it (tools/tests/blender/scenarios.py: two
+/// materials, so two primitives; a morph target; a clip `rom` of random poses, LINEAR and STEP
+/// channels mixed), trained with its aligned cache and exported back with it: no Validator
+/// error, both materials kept, and Blender's importer plays it within [`PLAYED_TOLERANCE`].
+#[test]
+fn a_rig_from_blenders_exporter_exports_back_with_its_materials() {
+    let dir = temp_dir("export-blender-rig");
+    blender_script(
+        &repo().join("tools/tests/blender/scenarios.py"),
+        &[
+            "--out",
+            s(&dir),
+            "--glb",
+            s(&repo().join("data/cesiumman_gltf/CesiumMan_examples.glb")),
+        ],
+    );
+    let (rig, model_path, glb) = (dir.join("rig.glb"), dir.join("m.rrs"), dir.join("m.glb"));
+    let trained = rrskin(&[
+        "train",
+        s(&rig),
+        "--clip",
+        "rom",
+        "--cache",
+        s(&dir.join("ref.pc2")),
+        "--fps",
+        "24",
+        "--test-frames",
+        "23..30",
+        "--proxies",
+        "20",
+        "-o",
+        s(&model_path),
+        "--json",
+    ]);
+    assert!(
+        trained.status.success(),
+        "{}",
+        String::from_utf8_lossy(&trained.stderr)
+    );
+    let exported = export(&[s(&model_path), "-o", s(&glb), "--rig", s(&rig)]);
+    let report = assert_valid(&glb);
+    assert_eq!(report["info"]["materialCount"], 2, "{}", report["info"]);
+    assert_eq!(report["info"]["drawCallCount"], 2, "{}", report["info"]);
+    let clip = &exported["clips"][0];
+    assert!(
+        clip["worst_between"].as_f64() <= Some(1e-3),
+        "the export's own check: {clip}"
+    );
+    let model = Model::load(&model_path).expect("the trained model");
+    let frames: Vec<Affine> = model.animation().flatten().copied().collect();
+    let worst = palette_error(&model, &frames).expect("palette");
+    assert!(
+        worst <= rrskin_render::synthetic::PALETTE_TOLERANCE,
+        "CPU palette {worst} off"
+    );
+    let rom = Rig::load(&rig, "rom").expect("the rig");
+    let (at_keys, between) =
+        blender_against_model(&dir, &glb, "rom", &model, &rom.key_times(), |t| {
+            rom.bones_at(t).iter().map(|b| b.to_affine()).collect()
+        });
+    eprintln!(
+        "Blender's own rig, Blender vs rrskin of the mesh's size: {at_keys:.2e} at keys, {between:.2e} between; export's own check {clip}"
+    );
+    assert!(
+        at_keys <= PLAYED_TOLERANCE && between <= PLAYED_TOLERANCE,
+        "{at_keys:.2e} / {between:.2e}"
+    );
+}
+
 /// Plays `glb`'s clip in Blender at every other key and a third and a half of the way to the
 /// next, and returns the largest vertex distance from the model at `pose_at` of those times,
 /// relative to the rest mesh's size: (at keys, between keys).

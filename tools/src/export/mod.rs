@@ -101,8 +101,7 @@ pub fn run(options: &Options) -> Result<Exported> {
         ),
     };
     let size = diagonal(&palette.model().parts().rest_positions);
-    let mut reports = Vec::new();
-    let mut baked = Vec::new();
+    let (mut reports, mut baked, mut notes) = (Vec::new(), Vec::new(), Vec::new());
     for clip in clips {
         let b = bake(
             &palette,
@@ -111,6 +110,14 @@ pub fn run(options: &Options) -> Result<Exported> {
             clip.step,
             options.tolerance * size,
         )?;
+        if b.worst_between > options.tolerance * size {
+            notes.push(format!(
+                "clip '{}' moves too fast to follow within the tolerance: up to {:.1e} of the mesh's size between samples, {} samples a key interval at most",
+                clip.name,
+                b.worst_between / size,
+                1u32 << bake::MAX_DEPTH
+            ));
+        }
         reports.push(ClipReport {
             name: clip.name.clone(),
             keys: clip.keys.len(),
@@ -120,7 +127,6 @@ pub fn run(options: &Options) -> Result<Exported> {
         });
         baked.push((clip.name, clip.step, b));
     }
-    let mut notes = Vec::new();
     let document = document(&palette, &geometry, &baked, &mut buffer, &mut notes)?;
     let bytes = glb::encode(document, buffer);
     std::fs::write(&options.output, bytes).map_err(|e| Error::Output {
