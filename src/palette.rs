@@ -354,21 +354,24 @@ fn log_rotation(r: Mat3) -> Vec3 {
     v * (angle / (2.0 * s))
 }
 
-/// [`crate::predict::exp_rotation`] in `f32`.
+/// [`crate::predict::exp_rotation`] in `f32`, in the closed form `cos θ I + sin θ/θ [w]ₓ +
+/// (1 − cos θ)/θ² w wᵀ` (Rodrigues without the matrix product `[w]ₓ²`).
 fn exp_rotation(w: Vec3) -> Mat3 {
     let a2 = w.length_squared();
     let a = a2.sqrt();
     let (s, c) = if a < SMALL_ANGLE as f32 {
         (1.0 - a2 / 6.0, 0.5 - a2 / 24.0)
     } else {
-        (a.sin() / a, (1.0 - a.cos()) / a2)
+        let (sin, cos) = a.sin_cos();
+        (sin / a, (1.0 - cos) / a2)
     };
-    let k = Mat3::from_cols(
-        Vec3::new(0.0, w.z, -w.y),
-        Vec3::new(-w.z, 0.0, w.x),
-        Vec3::new(w.y, -w.x, 0.0),
-    );
-    Mat3::IDENTITY + k * s + k * k * c
+    let cos = 1.0 - c * a2;
+    let (sw, cw) = (w * s, w * c);
+    Mat3::from_cols(
+        Vec3::new(cos + cw.x * w.x, sw.z + cw.x * w.y, -sw.y + cw.x * w.z),
+        Vec3::new(-sw.z + cw.y * w.x, cos + cw.y * w.y, sw.x + cw.y * w.z),
+        Vec3::new(sw.y + cw.z * w.x, -sw.x + cw.z * w.y, cos + cw.z * w.z),
+    )
 }
 
 /// The runtime's normals of the rest pose (the CPU reference at the identity).
