@@ -89,7 +89,12 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
     let scale = ERROR_SCALE * height as f32;
     let gray = vec![[0.8f32, 0.8, 0.8]; truth.len()];
     let (c_ssd, c_rr) = (heat(&e_ssd, scale), heat(&e_rr, scale));
-    let truth_normals = vertex_normals(&truth, &triangles);
+    // The ground truth's normals, which no crowd computed.
+    let truth_normals: Vec<[f32; 3]> =
+        rrskin::cpu::area_weighted_normals(&set.poses[pose].vertices, &set.faces, |v| v)
+            .iter()
+            .map(|n| n.as_vec3().to_array())
+            .collect();
     let proxies = model.proxy_count();
     let panels = [
         (&truth, &truth_normals, &gray, "GROUND TRUTH".to_string()),
@@ -292,18 +297,5 @@ fn heat(errors: &[f32], scale: f32) -> Vec<[f32; 3]> {
                 t => [0.95, 0.8 - 0.65 * (t - 2.0), 0.1],
             }
         })
-        .collect()
-}
-
-/// Area-weighted vertex normals of a host mesh (for the ground truth, which no crowd computed).
-fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut sum = vec![glam::Vec3::ZERO; positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| glam::Vec3::from(positions[i as usize]));
-        let n = (b - a).cross(c - a);
-        t.iter().for_each(|&i| sum[i as usize] += n);
-    }
-    sum.iter()
-        .map(|n| n.normalize_or_zero().to_array())
         .collect()
 }
