@@ -19,9 +19,9 @@ indexed_enum! {
     /// A pipeline of the table. Adding one means: its shader and its line in
     /// `glsl/shaders.txt`, a variant here with its [`PassDesc`] below (the compiler asks for
     /// the arm of `desc`), and its place in `batch.rs`'s schedule (a test checks that every
-    /// pass has one). A new buffer is a variant of `ModelBuffer` or `CrowdBuffer` (the
-    /// compiler asks for its size in `memory.rs` and, for a model buffer, its data in
-    /// `gpu_model.rs`).
+    /// pass has one). A new buffer is a variant of `ModelBuffer` or `CrowdBuffer`: the
+    /// compiler asks for its size (`memory.rs`) and its data (`gpu_model.rs`) or its usage
+    /// (`crowd.rs`; the contract's table row, `contract.rs`).
     pub enum Pass {
         Predict,
         DenseProduct,

@@ -69,27 +69,7 @@ enum Command {
         json: bool,
     },
     /// Write a synthetic model (random, valid, untrained) of chosen size, for profiling.
-    Synth {
-        /// Vertices = grid x grid.
-        #[arg(long, default_value_t = 48)]
-        grid: usize,
-        #[arg(long, default_value_t = 19)]
-        bones: usize,
-        /// Proxy bones / key predictors (0: plain linear blend skinning).
-        #[arg(long, default_value_t = 60)]
-        proxies: usize,
-        /// Influences per vertex: 4 or 8.
-        #[arg(long, default_value_t = 4)]
-        influences: u32,
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// List every bone after its children (bones renumbered J−1, …, 0), as many glTF skins
-        /// order their joints.
-        #[arg(long)]
-        children_first: bool,
-        #[arg(short, long)]
-        output: PathBuf,
-    },
+    Synth(SynthArgs),
     /// Rotational regression against plain SSD skinning of the same mesh: GPU time per frame.
     Bench(RunArgs),
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
@@ -202,6 +182,30 @@ impl TrainArgs {
             ..defaults
         }
     }
+}
+
+/// The sizes and seed of `rrskin synth`'s model.
+#[derive(clap::Args)]
+struct SynthArgs {
+    /// Vertices = grid x grid.
+    #[arg(long, default_value_t = 48)]
+    grid: usize,
+    #[arg(long, default_value_t = 19)]
+    bones: usize,
+    /// Proxy bones / key predictors (0: plain linear blend skinning).
+    #[arg(long, default_value_t = 60)]
+    proxies: usize,
+    /// Influences per vertex: 4 or 8.
+    #[arg(long, default_value_t = 4)]
+    influences: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// List every bone after its children (bones renumbered J−1, …, 0), as many glTF skins
+    /// order their joints.
+    #[arg(long)]
+    children_first: bool,
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 /// A crowd of a model's characters run for some frames on one Vulkan device.
@@ -442,25 +446,7 @@ fn run(cli: Cli) -> Outcome {
             out,
         } => reference(&model, frames, characters, &out),
         Command::Info { model, json } => info(&model, json),
-        Command::Synth {
-            grid,
-            bones,
-            proxies,
-            influences,
-            seed,
-            children_first,
-            output,
-        } => synth(
-            Spec {
-                grid,
-                bones,
-                proxies,
-                influences,
-            },
-            seed,
-            children_first,
-            &output,
-        ),
+        Command::Synth(args) => synth(&args),
         Command::Profile(args) => profile(&args),
     }
 }
@@ -659,17 +645,23 @@ fn info(model: &Path, json: bool) -> Outcome {
     Ok(())
 }
 
-/// `rrskin synth`: a random valid model of the sizes of `spec`.
-fn synth(spec: Spec, seed: u64, children_first: bool, output: &Path) -> Outcome {
-    let mut m = random_model(spec, seed)?;
-    if children_first {
+/// `rrskin synth`: a random valid model of the chosen sizes.
+fn synth(args: &SynthArgs) -> Outcome {
+    let spec = Spec {
+        grid: args.grid,
+        bones: args.bones,
+        proxies: args.proxies,
+        influences: args.influences,
+    };
+    let mut m = random_model(spec, args.seed)?;
+    if args.children_first {
         let reversed: Vec<usize> = (0..m.bone_count()).rev().collect();
         m = renumber_bones(&m, &reversed)?;
     }
-    m.save(output)?;
+    m.save(&args.output)?;
     note(format_args!(
         "wrote {} ({} vertices)",
-        output.display(),
+        args.output.display(),
         m.vertex_count()
     ));
     Ok(())

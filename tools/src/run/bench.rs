@@ -7,9 +7,9 @@ use crate::progress::Progress;
 use rrskin::vk::{CrowdOptions, DeviceChoice, PassTimings};
 use rrskin::Model;
 
-/// The whole per-frame pipeline of rotational regression against plain
-/// matrix-palette skinning (the model's SSD baseline: same mesh, its NNLS weights), both on one
-/// device in one run, from GPU timestamps; and the cost of the runtime's optional outputs,
+/// The whole per-frame pipeline of rotational regression against plain matrix-palette skinning
+/// (the model's SSD baseline: same mesh, its NNLS weights), both on one device in one run, from
+/// GPU timestamps; and the cost of the runtime's optional outputs,
 /// previous positions, bounds and tangents, as rotational-regression frames with each. Every
 /// frame runs all of them on the same poses, one after another in an order that rotates from
 /// frame to frame (so that load on the machine drifts into all alike, and none is always first:
