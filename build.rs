@@ -1,48 +1,81 @@
 //! Compiles the runtime's compute passes in `glsl/` to SPIR-V with naga (pure Rust, no shaderc).
-//! The SPIR-V lands in OUT_DIR and is embedded by the pass table, `src/vk/passes.rs`; it is never committed.
+//! The shaders are the lines of `glsl/shaders.txt`, the one list: the SPIR-V lands in OUT_DIR
+//! with `OUT_DIR/shaders.rs`, a `Shader` constant per line that the pass table,
+//! `src/vk/passes.rs`, includes; it is never committed.
 //! A shader may be built in several variants, each with its own `#define`s (skinning and
 //! tangents: K = 4, 8), and may `#include "file.glsl"` from its folder (naga has no `#include`:
 //! see [`splice`]).
 //! rrskin-render's build script (`tools/render/build.rs`) includes this file for [`build`]
 //! (the stage follows the file extension: `.vert`, `.frag`, else compute).
 
+use std::fmt::Write;
 use std::path::Path;
 
-/// (source file, output name, defines)
-type Shader = (
-    &'static str,
-    &'static str,
-    &'static [(&'static str, &'static str)],
-);
-const SHADERS: &[Shader] = &[
-    ("predict.comp", "predict", &[]),
-    ("blend_gemm.comp", "blend_gemm", &[]),
-    ("sparse_product.comp", "sparse_product", &[]),
-    ("fused_product.comp", "fused_product", &[]),
-    ("skin.comp", "skin_k4", &[("K", "4")]),
-    ("skin.comp", "skin_k8", &[("K", "8")]),
-    ("normals.comp", "normals", &[]),
-    ("bounds.comp", "bounds", &[]),
-    ("tangents.comp", "tangents_k4", &[("K", "4")]),
-    ("tangents.comp", "tangents_k8", &[("K", "8")]),
-];
-
 fn main() {
-    build(Path::new("glsl"), SHADERS);
+    build(Path::new("glsl"));
 }
 
-/// Compiles each of `shaders` from `dir` to `OUT_DIR/<output name>.spv`. A build script fails by
-/// panicking: the message names the file and gives naga's diagnostic.
-pub fn build(dir: &Path, shaders: &[Shader]) {
+/// One line of a `shaders.txt`: output name, source file, `NAME=value` defines.
+struct Shader<'a> {
+    name: &'a str,
+    source: &'a str,
+    defines: Vec<(&'a str, &'a str)>,
+}
+
+/// The shaders `dir/shaders.txt` lists (blank lines and `#` comments skipped).
+fn list(text: &str) -> Vec<Shader<'_>> {
+    let lines = text.lines().map(str::trim);
+    let lines = lines.filter(|l| !l.is_empty() && !l.starts_with('#'));
+    lines
+        .map(|line| {
+            let mut words = line.split_whitespace();
+            let mut word = || {
+                words
+                    .next()
+                    .unwrap_or_else(|| panic!("shaders.txt: {line}"))
+            };
+            let (name, source) = (word(), word());
+            let defines = (words.map(|d| d.split_once('=')))
+                .map(|d| d.unwrap_or_else(|| panic!("shaders.txt: a define is NAME=value: {line}")))
+                .collect();
+            Shader {
+                name,
+                source,
+                defines,
+            }
+        })
+        .collect()
+}
+
+/// Compiles each shader of `dir/shaders.txt` to `OUT_DIR/<output name>.spv` and lists them in
+/// `OUT_DIR/shaders.rs` as `pub const NAME: Shader = Shader { glsl, spirv };` (`glsl` in test
+/// builds only). A build script fails by panicking: the message names the file and gives
+/// naga's diagnostic.
+pub fn build(dir: &Path) {
     let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
-    for (src, name, defines) in shaders {
+    let text = read(&dir.join("shaders.txt"));
+    let mut consts = String::new();
+    for Shader {
+        name,
+        source: src,
+        defines,
+    } in list(&text)
+    {
         let path = dir.join(src);
         let source = splice(dir, &read(&path));
-        let words = compile(&path, &source, defines);
+        let words = compile(&path, &source, &defines);
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_le_bytes()).collect();
-        std::fs::write(Path::new(&out_dir).join(format!("{name}.spv")), bytes)
-            .expect("writing SPIR-V to OUT_DIR");
+        let spv = Path::new(&out_dir).join(format!("{name}.spv"));
+        std::fs::write(&spv, bytes).expect("writing SPIR-V to OUT_DIR");
+        let upper = name.to_uppercase();
+        writeln!(
+            consts,
+            "pub const {upper}: Shader = Shader {{ #[cfg(test)] glsl: {src:?}, spirv: include_bytes!({spv:?}) }};"
+        )
+        .expect("writing to a String");
     }
+    std::fs::write(Path::new(&out_dir).join("shaders.rs"), consts)
+        .expect("writing shaders.rs to OUT_DIR");
 }
 
 fn read(path: &Path) -> String {

@@ -10,13 +10,13 @@ layout(local_size_x = 64) in;
 
 #include "predictor_types.glsl"
 
-layout(std430, set = 0, binding = 0) readonly buffer BlendOffsets { uint offsets[]; };  // P + 1
-layout(std430, set = 0, binding = 1) readonly buffer BlendColumns { uint columns[]; };  // stored
-layout(std430, set = 0, binding = 2) readonly buffer BlendValues { vec4 vals[]; };      // stored
+layout(std430, set = 0, binding = 0) readonly buffer ProductOffsets { uint offsets[]; };  // P + 1
+layout(std430, set = 0, binding = 1) readonly buffer ProductColumns { uint columns[]; };  // stored
+layout(std430, set = 0, binding = 2) readonly buffer ProductValues { vec4 vals[]; };      // stored
 layout(std430, set = 0, binding = 3) readonly buffer Bones { Affine bones[]; };         // chars x J
 layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J
 layout(std430, set = 0, binding = 5) readonly buffer Predictors { Predictor preds[]; }; // P
-layout(std430, set = 0, binding = 6) buffer Proxies { vec4 proxies[]; };  // chars x (P + J) x 3 rows
+layout(std430, set = 0, binding = 6) buffer Palette { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 

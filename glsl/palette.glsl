@@ -1,7 +1,7 @@
 // Vertex a's blended palette matrix for character ch, sum over its K influences of weight x
 // entry (3 rows of a 3x4), shared by skinning and tangents. The includer declares Affine,
-// SkinIndex, SkinWeight, Proxies, Bones and the push words P and J. The palette is
-// [t (P proxies); q (J bones)]: for a reduced model (P > 0) the Proxies buffer holds all of it per
+// SkinIndex, SkinWeight, Palette, Bones and the push words P and J. The palette is
+// [t (P proxies); q (J bones)]: for a reduced model (P > 0) the Palette buffer holds all of it per
 // character (the product passes write t, and the bones are copied beside it), so that an
 // influence's load does not branch between two buffers (on a CPU driver both sides ran for every
 // influence); a plain LBS model (P = 0) reads the bones in place.

@@ -8,7 +8,7 @@ struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
 layout(std430, set = 0, binding = 0) readonly buffer Rest { float rest[]; };          // V x 3
 layout(std430, set = 0, binding = 1) readonly buffer SkinIndex { uint skin_index[]; };   // V x K
 layout(std430, set = 0, binding = 2) readonly buffer SkinWeight { float skin_weight[]; }; // V x K
-layout(std430, set = 0, binding = 3) readonly buffer Proxies { Affine proxies[]; };   // chars x (P + J)
+layout(std430, set = 0, binding = 3) readonly buffer Palette { Affine proxies[]; };   // chars x (P + J)
 layout(std430, set = 0, binding = 4) readonly buffer Bones { Affine bones[]; };       // chars x J
 layout(std430, set = 0, binding = 5) buffer Positions { float pos[]; };               // chars x V x 3
 

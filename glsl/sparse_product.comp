@@ -1,18 +1,18 @@
 #version 450
 // Pass 2 for a block-sparse [C1 | C2] (the GEMM's alternative, chosen per model when it
-// uploads): the proxy transforms T = [C1 | C2] * B of blend_gemm.comp, multiplying only the
+// uploads): the proxy transforms T = [C1 | C2] * B of dense_product.comp, multiplying only the
 // columns a proxy's 4 rows touch. One invocation per (character, proxy): for each stored
 // column k of proxy e, acc[c] += vals[k] * B[k][3 ch + c] for c = x, y, z, where vals[k] holds
 // rows 4e .. 4e + 3 at that column; acc[c] is row c of proxy e's 3x4 transform, stored where
-// blend_gemm stores it. The invocations of a workgroup share the proxy (x counts characters),
+// dense_product stores it. The invocations of a workgroup share the proxy (x counts characters),
 // so the loop bounds and the column loads are the same for all of them.
 layout(local_size_x = 64) in;
 
-layout(std430, set = 0, binding = 0) readonly buffer BlendOffsets { uint offsets[]; };  // P + 1
-layout(std430, set = 0, binding = 1) readonly buffer BlendColumns { uint columns[]; };  // stored
-layout(std430, set = 0, binding = 2) readonly buffer BlendValues { vec4 vals[]; };      // stored
+layout(std430, set = 0, binding = 0) readonly buffer ProductOffsets { uint offsets[]; };  // P + 1
+layout(std430, set = 0, binding = 1) readonly buffer ProductColumns { uint columns[]; };  // stored
+layout(std430, set = 0, binding = 2) readonly buffer ProductValues { vec4 vals[]; };      // stored
 layout(std430, set = 0, binding = 3) readonly buffer Rhs { float bmat[]; };   // (3P+4J) x 3 chars
-layout(std430, set = 0, binding = 4) buffer Proxies { vec4 proxies[]; };  // chars x (P + J) x 3 rows
+layout(std430, set = 0, binding = 4) buffer Palette { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 

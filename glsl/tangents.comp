@@ -12,7 +12,7 @@ struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
 layout(std430, set = 0, binding = 0) readonly buffer SkinIndex { uint skin_index[]; };   // V x K
 layout(std430, set = 0, binding = 1) readonly buffer SkinWeight { float skin_weight[]; }; // V x K
 layout(std430, set = 0, binding = 2) readonly buffer RestTangents { vec4 rest_tangents[]; }; // V
-layout(std430, set = 0, binding = 3) readonly buffer Proxies { Affine proxies[]; };   // chars x (P + J)
+layout(std430, set = 0, binding = 3) readonly buffer Palette { Affine proxies[]; };   // chars x (P + J)
 layout(std430, set = 0, binding = 4) readonly buffer Bones { Affine bones[]; };       // chars x J
 layout(std430, set = 0, binding = 5) readonly buffer Normals { float nrm[]; };        // chars x V x 3
 layout(std430, set = 0, binding = 6) buffer Tangents { vec4 tangents[]; };            // chars x V

@@ -212,6 +212,35 @@ impl<'m> CpuEvaluator<'m> {
     }
 }
 
+/// Unit area-weighted vertex normals of a mesh, as the normals pass makes them: per vertex the
+/// sum of (b − a) × (c − a) over the triangles around it, normalised (zero where it vanishes).
+/// Where `group` maps vertices to shared ones (welded corners), the sums are per group.
+pub fn area_weighted_normals(
+    positions: &[DVec3],
+    triangles: &[[usize; 3]],
+    group: impl Fn(usize) -> usize,
+) -> Vec<DVec3> {
+    let mut sums = vec![DVec3::ZERO; positions.len()];
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i]);
+        let area_normal = (b - a).cross(c - a);
+        for &v in t {
+            sums[group(v)] += area_normal;
+        }
+    }
+    (0..positions.len())
+        .map(|v| sums[group(v)].normalize_or_zero())
+        .collect()
+}
+
+/// The median of `values` (of an even count, the upper of the two middle values; NaN sorts
+/// last), or `None` if there are none. Timings and sample spacings use it.
+pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
+    let mut sorted: Vec<f64> = values.into_iter().collect();
+    sorted.sort_by(f64::total_cmp);
+    sorted.get(sorted.len() / 2).copied()
+}
+
 /// Per-frame input must be finite: one NaN would spread through C1/C2 to a whole character.
 pub(crate) fn check_finite(bones: &[Affine]) -> Result<()> {
     match bones.as_flattened().iter().position(|x| !x.is_finite()) {

@@ -1,20 +1,29 @@
-//! The C ABI (header: `include/rrskin.h`, generated from this file by cbindgen).
+//! rrskin: the C ABI of the rrskin runtime (real-time enveloping with rotational regression).
+//! `include/rrskin.h` is generated from `src/ffi.rs` by cbindgen: do not edit it
+//! (`RRSKIN_BLESS=1 cargo test --test c_abi` regenerates it). Its preamble is the conventions
+//! below followed by the crate's contract (`src/lib.rs`, "## Contract"); `tests/c_abi.rs` puts
+//! them together.
 //!
-//! Conventions, for every function:
-//! - Returns an `RrskinStatus` (`int32_t`); `RRSKIN_OK` is 0. On failure
-//!   `rrskin_last_error()` holds a message for the calling thread.
-//! - Never unwinds into C: every body runs under `catch_unwind` (`RRSKIN_ERROR_PANIC`).
-//! - Handles are `{ uint64_t id }` values (0 is never valid). Destroying a handle invalidates it;
-//!   using it afterwards is the caller's error, but it is caught: slots carry a generation, so a
-//!   stale handle gives `RRSKIN_ERROR_INVALID_HANDLE` instead of touching freed memory.
-//! - Null pointers give `RRSKIN_ERROR_NULL_POINTER`; array lengths are passed explicitly and
-//!   checked (`RRSKIN_ERROR_WRONG_LENGTH`).
-//! - Every function that takes a pointer is `unsafe`: what a non-null pointer must be is what the
-//!   library cannot check, and its `# Safety` section (copied into the header) says it. Pointers
-//!   are used only during the call, never kept.
-//! - Threads: any function may be called from any thread; calls are serialised by one lock.
-//!   The Vulkan rules of the Rust crate's contract (src/lib.rs) apply: no submitted work reading
-//!   a crowd may be executing when its bones are set or it is destroyed.
+//! ## Conventions of every function
+//!
+//! - Status: it returns an `rrskin_status` (`int32_t`); `RRSKIN_STATUS_OK` is 0. After a
+//!   failure, `rrskin_last_error()` returns the calling thread's message (valid until the
+//!   thread's next rrskin call). It never unwinds or aborts: every body runs under
+//!   `catch_unwind`, and an internal fault gives `RRSKIN_STATUS_ERROR_PANIC`.
+//! - Handles: `{ uint64_t id }` values (0 is never valid). `rrskin_*_create` and
+//!   `rrskin_*_load_*` give handles the caller destroys with the matching `rrskin_*_destroy`,
+//!   in any order. Using a destroyed handle is the caller's error, but it is caught: slots
+//!   carry a generation, so a stale handle gives `RRSKIN_STATUS_ERROR_INVALID_HANDLE` instead
+//!   of touching freed memory. Borrowed Vulkan objects (engine devices, command buffers) stay
+//!   the engine's.
+//! - Pointers: a null one gives `RRSKIN_STATUS_ERROR_NULL_POINTER`; array lengths are passed
+//!   explicitly and checked (`RRSKIN_STATUS_ERROR_WRONG_LENGTH`). Every function that takes a
+//!   pointer is `unsafe`: what a non-null pointer must be is what the library cannot check,
+//!   and its `# Safety` section (copied into the header) says it. Pointers are used only
+//!   during the call, never kept.
+//! - Threads: it may be called from any thread; calls are serialised by one lock. The Vulkan
+//!   rules are the contract's: no submitted work reading a crowd may be executing when its
+//!   bones are set or it is destroyed.
 
 mod palette;
 
@@ -198,6 +207,7 @@ pub struct RrskinRequirements {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RrskinPassTimings {
     pub predict_ms: f64,
+    /// The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused; the Rust `product_ms`).
     pub blend_ms: f64,
     pub skin_ms: f64,
     pub normals_ms: f64,
@@ -486,7 +496,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             bones: i.bones as usize,
             proxies: i.proxies as usize,
             influences: i.influences as usize,
-            blend_columns: i.blend_columns as usize,
+            product_columns: i.blend_columns as usize,
             tangents: i.tangents != 0,
         };
         let options = if options.is_null() {
@@ -716,7 +726,7 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             bones: m.bone_count() as u32,
             proxies: m.proxy_count() as u32,
             influences: m.influences() as u32,
-            blend_columns: crate::vk::ModelSizes::of(m).blend_columns as u32,
+            blend_columns: crate::vk::ModelSizes::of(m).product_columns as u32,
             tangents: u32::from(m.has_tangents()),
         };
         // SAFETY: `out` as the function's contract requires.
@@ -1122,7 +1132,7 @@ pub unsafe extern "C" fn rrskin_context_get_timings(
             .timings(frame as usize)?;
         let timings = RrskinPassTimings {
             predict_ms: t.predict_ms,
-            blend_ms: t.blend_ms,
+            blend_ms: t.product_ms,
             skin_ms: t.skin_ms,
             normals_ms: t.normals_ms,
             tangents_ms: t.tangents_ms,

@@ -1,7 +1,7 @@
 //! # rrskin: the runtime of "Real-Time Enveloping with Rotational Regression"
 //!
 //! (Wang, Pulli, Popović, SIGGRAPH 2007.) A trained [`Model`] turns per-frame bone transforms
-//! into deformed vertex positions and normals through four passes, for many characters at once:
+//! into deformed vertex positions and normals through five passes, for many characters at once:
 //!
 //! 1. predictors `d(q)`: P key deformation gradients per character (paper §3, Eq. 3–4);
 //! 2. proxy transforms `t = C1 d + C2 q`: one matrix product over all characters (Eq. 5),
@@ -9,7 +9,7 @@
 //!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]); where each proxy
 //!    reads one key, the product evaluates that key's predictor itself and pass 1 does not run
 //!    ([`vk::GpuModel::fuses_predictors`]);
-//! 3. matrix-palette skinning over `[t (P); q (J)]` with K = 4 or 8 influences;
+//! 3. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences;
 //! 4. normals, gathered from incident triangles;
 //! 5. optionally tangent frames (models with rest tangents): each rest tangent through its
 //!    vertex's blended palette matrix, made orthogonal to the normal.
@@ -21,24 +21,33 @@
 //!
 //! ## Contract
 //!
-//! **Errors.** Every fallible call returns [`Result`]. Bad input — a malformed or corrupted model
-//! file, inconsistent model parts, bone arrays of the wrong length, NaN/Inf in per-frame input,
-//! indices out of range, work beyond a device limit — is an [`Error`] naming what is wrong, never
-//! a panic. A [`Model`] that exists is valid: every index the GPU reads is in range.
+//! This section is the contract of the Rust crate and of the C ABI alike: the C header's
+//! preamble is made from it (and from the C conventions atop `src/ffi.rs`) by
+//! `tests/c_abi.rs`, and tests check its lists against the code. Where the C names differ they
+//! are given beside the Rust ones.
+//!
+//! **Errors.** Every fallible call returns [`Result`] (C: an `rrskin_status`). Bad input — a
+//! malformed or corrupted model file, inconsistent model parts, bone arrays of the wrong
+//! length, NaN/Inf in per-frame input, indices out of range, work beyond a device limit — is an
+//! [`Error`] naming what is wrong, never a panic. A [`Model`] that exists is valid: every index
+//! the GPU reads is in range.
 //!
 //! **The caller's duties** (Vulkan makes them impossible to check cheaply):
-//! - With an engine's device ([`vk::Context::from_engine`]), the engine's objects must outlive
-//!   the context, and the queue must be externally synchronised as Vulkan requires. With the
-//!   runtime's own device ([`vk::Context::new`], which can enable surface and swapchain
-//!   extensions), submit and present inside [`vk::Context::with_queue`].
+//! - With an engine's device ([`vk::Context::from_engine`], `rrskin_context_create_from_engine`),
+//!   the engine's objects must outlive the context, and the queue must be externally
+//!   synchronised as Vulkan requires: the runtime submits to it only while loading a model,
+//!   running a batch headless and reading outputs back (`rrskin_model_load_*`,
+//!   `rrskin_crowds_run`, `rrskin_crowd_read_back`). With the runtime's own device
+//!   ([`vk::Context::new`], which can enable surface and swapchain extensions), submit and
+//!   present inside [`vk::Context::with_queue`].
 //! - Frames in flight: a crowd is made for F of them ([`vk::CrowdOptions::frames_in_flight`],
 //!   1 to 4, default 2) and keeps F slots of its per-frame inputs and host-read outputs (bone
-//!   transforms, bounds). Call `set_bones(f, ..)` and record frame slot f
-//!   ([`vk::Batch::record`]) only once the GPU finished the last submission that recorded slot
-//!   f; the other F − 1 slots may be executing meanwhile (the headless path,
-//!   [`vk::Batch::run`], waits itself).
-//! - Drop a crowd or a GPU model only after the GPU finished every command buffer it was recorded
-//!   into. Objects are freed in `Drop`; the context is freed after every object made from it.
+//!   transforms, bounds). Set slot f's bones and record frame slot f ([`vk::Batch::record`])
+//!   only once the GPU finished the last submission that recorded slot f; the other F − 1
+//!   slots may be executing meanwhile (the headless path, [`vk::Batch::run`], waits itself).
+//! - Drop (destroy) a crowd or a GPU model only after the GPU finished every command buffer it
+//!   was recorded into. A model keeps its context's device alive, a crowd its model's buffers:
+//!   they may be dropped in any order.
 //!
 //! **What a recording does** ([`vk::Batch::record`], `rrskin_crowds_record`), for an engine
 //! that tracks state. Every buffer is a plain `VkBuffer` (no images, no layouts). Before: no
@@ -47,17 +56,19 @@
 //! submissions to this recording's compute reads and writes, so last frame's draws of the
 //! outputs may still be in flight on the queue. After: a global barrier makes every compute
 //! write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
-//! vertex attribute reads. In between, per crowd and frame slot f:
+//! vertex attribute reads. In between, per crowd and frame slot f (pass n of the list above; the
+//! bounds are written with the normals, and a fused product reads the bones):
 //!
 //! | buffer | access | memory |
 //! |---|---|---|
-//! | bone transforms, slot f | compute read (passes 1, 3) | host-visible, written by `set_bones(f, ..)` |
+//! | bone transforms, slot f | compute read (passes 1, 2, 3, 5) | host-visible, written by setting the bones of slot f |
 //! | model buffers | compute read | device-local, written once at upload |
-//! | B = [d; q], proxy transforms | compute write then read | device-local, internal |
-//! | positions (this frame's buffer) | compute write (pass 3), then read (normals, bounds) | device-local, vertex + storage + transfer-src |
+//! | B = [d; q] | compute write (pass 1), then read (pass 2) | device-local, internal |
+//! | palette [t; q] | compute write (passes 1, 2), then read (passes 3, 5) | device-local, internal |
+//! | positions (this frame's buffer) | compute write (pass 3), then read (pass 4) | device-local, vertex + storage + transfer-src |
 //! | previous positions | not touched | the buffer the last recorded frame wrote |
-//! | normals | compute write (pass 4) | device-local, vertex + storage + transfer-src |
-//! | bounds, slot f | compute write | host-visible, storage |
+//! | normals | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
+//! | bounds, slot f | compute write (pass 4) | host-visible, storage |
 //! | tangents | compute write (pass 5) | device-local, vertex + storage + transfer-src |
 //!
 //! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at
@@ -67,24 +78,27 @@
 //!
 //! **Queue family ownership.** Every buffer is created `VK_SHARING_MODE_EXCLUSIVE` and used on
 //! the context's queue family only: outputs drawn on that family need nothing more. For an
-//! engine that reads outputs on another family,
-//! [`vk::CrowdOptions::release_to_queue_family`] ends each recording with the release barriers
-//! of the frame's outputs (its positions, the normals, its bounds, the tangents; whole buffers, compute
-//! writes); the engine records the matching acquires on its queue after a semaphore wait. The
-//! runtime never reads an output a previous recording wrote, so nothing needs to come back:
-//! the next recording overwrites it (undefined old contents are never read).
+//! engine that reads outputs on another family, [`vk::CrowdOptions::release_to_queue_family`]
+//! (C: `release_outputs` and `release_queue_family`) ends each recording with the release
+//! barriers of the frame's outputs (its positions, the normals, its bounds, the tangents: those
+//! the crowd has; whole buffers, compute writes); the engine records the matching acquires on
+//! its queue after a semaphore wait. The runtime never reads an output a previous recording
+//! wrote, so nothing needs to come back: the next recording overwrites it (undefined old
+//! contents are never read).
 //!
 //! **Memory and requirements before creation.** [`vk::model_bytes`] and [`vk::crowd_bytes`]
-//! give the bytes a model and a crowd of C characters will take, from their sizes alone
-//! ([`vk::ModelSizes::of`] a model, including the stored columns of a block-sparse C1/C2);
-//! creating a crowd beyond the largest device-local heap is a `DeviceLimit` error.
-//! [`vk::requirements`] gives the Vulkan version (1.1), extensions (none), features (none),
-//! queue flags and storage-buffer limit the runtime needs, before any device exists;
-//! [`vk::Context::from_engine`] checks them and checks that every Vulkan function the runtime
-//! calls is there (`MissingFunction` otherwise, never a call through a NULL pointer).
+//! (`rrskin_query_memory`) give the bytes a model and a crowd of C characters will take, from
+//! their sizes alone ([`vk::ModelSizes::of`] a model, including the stored columns of a
+//! block-sparse C1/C2); creating a crowd beyond the largest device-local heap is a
+//! `DeviceLimit` error. [`vk::requirements`] (`rrskin_get_requirements`) gives the Vulkan
+//! version (1.1), extensions (none), features (none), queue flags and storage-buffer limit the
+//! runtime needs, before any device exists; [`vk::Context::from_engine`] checks them and checks
+//! that every Vulkan function the runtime calls is there (`MissingFunction` otherwise, never a
+//! call through a NULL pointer).
 //!
 //! **Threads.** [`vk::Context`] is `Send + Sync`; recording and running take `&mut` on what they
-//! write, so Rust's borrow rules are the threading rules.
+//! write, so Rust's borrow rules are the threading rules (C: any function from any thread, the
+//! library serialises its calls).
 //!
 //! **Units and layouts.** Bone transforms are 3x4 row-major `f32` ([`predict::Affine`]), world
 //! space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs

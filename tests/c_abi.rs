@@ -14,8 +14,45 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// The `//!` lines atop `file` (relative to the crate root), without the marker.
+fn module_doc(file: &str) -> Vec<String> {
+    let text = std::fs::read_to_string(root().join(file)).expect("a source file");
+    let lines = text.lines().map_while(|l| l.strip_prefix("//!"));
+    lines
+        .map(|l| l.strip_prefix(' ').unwrap_or(l).to_string())
+        .collect()
+}
+
+/// The header's preamble: the C conventions atop src/ffi.rs, then the contract of src/lib.rs
+/// (its `## Contract` section), as one C comment with rustdoc's links and bold as plain text.
+fn preamble() -> String {
+    let contract = module_doc("src/lib.rs");
+    let contract = contract.iter().skip_while(|l| *l != "## Contract");
+    let ffi = module_doc("src/ffi.rs");
+    let blank = String::new();
+    let lines = ffi.iter().chain([&blank]).chain(contract);
+    let mut out = String::from("/*\n");
+    for line in lines {
+        let plain = (line.replace("[`", "`").replace("`]", "`")).replace("**", "");
+        assert!(
+            !plain.contains("*/"),
+            "the preamble would end early: {line}"
+        );
+        out.push_str(" *");
+        if !plain.is_empty() {
+            out.push(' ');
+            out.push_str(&plain);
+        }
+        out.push('\n');
+    }
+    out.push_str(" */");
+    out
+}
+
 fn generated_header() -> String {
-    let config = cbindgen::Config::from_file(root().join("cbindgen.toml")).expect("cbindgen.toml");
+    let mut config =
+        cbindgen::Config::from_file(root().join("cbindgen.toml")).expect("cbindgen.toml");
+    config.header = Some(preamble());
     let mut out = Vec::new();
     cbindgen::Builder::new()
         .with_crate(root())
@@ -348,7 +385,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         bones: model.bone_count() as u32,
         proxies: model.proxy_count() as u32,
         influences: model.influences() as u32,
-        blend_columns: rrskin::vk::ModelSizes::of(&model).blend_columns as u32,
+        blend_columns: rrskin::vk::ModelSizes::of(&model).product_columns as u32,
         tangents: 1,
     };
     let mut reported = RrskinModelInfo::default();

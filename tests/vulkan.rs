@@ -8,7 +8,7 @@ mod common;
 use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::ash::vk;
-use rrskin::vk::{Aabb, Batch, Context, Crowd, CrowdOptions, GpuModel};
+use rrskin::vk::{Aabb, Batch, Context, Crowd, CrowdDebugSettings, CrowdOptions, GpuModel};
 use rrskin::{Error, Model};
 use rrskin_render::synthetic::renumber_bones;
 
@@ -163,7 +163,9 @@ fn crowds_split_into_chunks_when_a_binding_would_be_too_large() {
     // 144 vertices x 12 bytes = 1728 bytes per character; 64 KiB bindings hold 37 characters,
     // rounded down to the offset alignment's granularity.
     let options = CrowdOptions {
-        max_binding_bytes: Some(64 * 1024),
+        debug_settings: CrowdDebugSettings {
+            max_binding_bytes: Some(64 * 1024),
+        },
         ..CrowdOptions::default()
     };
     let crowd = check(&ctx, &model, 300, options, 9);
@@ -294,7 +296,7 @@ fn several_crowds_of_different_models_in_one_command_buffer() {
     }
     let t = batch.timings(0).expect("timestamps on lavapipe");
     assert!(
-        t.skin_ms > 0.0 && t.normals_ms > 0.0 && t.predict_ms > 0.0 && t.blend_ms > 0.0,
+        t.skin_ms > 0.0 && t.normals_ms > 0.0 && t.predict_ms > 0.0 && t.product_ms > 0.0,
         "{t:?}"
     );
     assert_no_validation_messages(&ctx);
@@ -745,7 +747,9 @@ fn previous_positions_and_bounds_across_chunks_match_cpu() {
     let options = CrowdOptions {
         previous_positions: true,
         bounds: true,
-        max_binding_bytes: Some(64 * 1024),
+        debug_settings: CrowdDebugSettings {
+            max_binding_bytes: Some(64 * 1024),
+        },
         ..CrowdOptions::default()
     };
     overlapping_frames(&random_model(LBS, 35), 300, options);
@@ -770,7 +774,9 @@ fn tangents_of_overlapping_frames_match_cpu() {
     let chunked = CrowdOptions {
         frames_in_flight: 2,
         tangents: true,
-        max_binding_bytes: Some(64 * 1024),
+        debug_settings: CrowdDebugSettings {
+            max_binding_bytes: Some(64 * 1024),
+        },
         ..CrowdOptions::default()
     };
     let model = joint_blend_pattern(&random_model(k8, 52), 1);
@@ -865,7 +871,7 @@ fn memory_queries_are_the_bytes_created() {
         let sizes = ModelSizes::of(model);
         let gpu = GpuModel::new(&ctx, model).expect("upload");
         let spec = (sizes, gpu.is_block_sparse());
-        assert_eq!(sizes.blend_columns > 0, gpu.is_block_sparse());
+        assert_eq!(sizes.product_columns > 0, gpu.is_block_sparse());
         assert_eq!(gpu.is_block_sparse(), std::ptr::eq(model, &sparse));
         assert_eq!(model_bytes(&sizes), gpu.memory_bytes(), "{spec:?}");
         for options in [CrowdOptions::default(), with_everything] {

@@ -194,7 +194,7 @@ impl Show {
                     m.name,
                     m.samples.len(),
                     median.predict_ms,
-                    median.blend_ms,
+                    median.product_ms,
                     median.skin_ms,
                     median.normals_ms,
                     median.total_ms(),

@@ -1,7 +1,7 @@
 //! The window mode: a winit window (X11 or Wayland) presenting with the runtime's own device.
-//! Each frame is one command buffer: the crowd's four compute passes (`Batch::record`), the
-//! draw straight from the crowd's output buffers (`Renderer::record`), and a blit to the
-//! swapchain image (`swapchain.rs`), with two frames in flight (the crowd's frame slots). The
+//! Each frame is one command buffer: the crowd's compute passes (`Batch::record`; four, as it
+//! has no tangents), the draw straight from the crowd's output buffers (`Renderer::record`),
+//! and a blit to the swapchain image (`swapchain.rs`), with two frames in flight (the crowd's frame slots). The
 //! animation plays at 30 frames per second of wall time.
 
 use crate::swapchain::{Frame, Presenter, FRAMES_IN_FLIGHT};
@@ -222,7 +222,7 @@ impl App {
             m.model.vertex_count(),
             m.name,
             t.predict_ms,
-            t.blend_ms,
+            t.product_ms,
             t.skin_ms,
             t.normals_ms,
             t.total_ms()

@@ -28,9 +28,9 @@ use std::sync::Arc;
 
 /// The frame: phases in order, each a set of passes without dependencies among them (one
 /// timestamp per phase, reported by [`PassTimings`]).
-const SCHEDULE: [&[Pass]; 5] = [
+pub(super) const SCHEDULE: [&[Pass]; 5] = [
     &[Pass::Predict],
-    &[Pass::BlendGemm, Pass::SparseProduct, Pass::FusedProduct],
+    &[Pass::DenseProduct, Pass::SparseProduct, Pass::FusedProduct],
     &[Pass::SkinK4, Pass::SkinK8],
     &[Pass::Normals, Pass::Bounds],
     &[Pass::TangentsK4, Pass::TangentsK8],
@@ -62,7 +62,8 @@ const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimings {
     pub predict_ms: f64,
-    pub blend_ms: f64,
+    /// The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused).
+    pub product_ms: f64,
     pub skin_ms: f64,
     pub normals_ms: f64,
     /// 0 for crowds without tangents (the phase records no dispatch).
@@ -71,19 +72,15 @@ pub struct PassTimings {
 
 impl PassTimings {
     pub fn total_ms(&self) -> f64 {
-        self.predict_ms + self.blend_ms + self.skin_ms + self.normals_ms + self.tangents_ms
+        self.predict_ms + self.product_ms + self.skin_ms + self.normals_ms + self.tangents_ms
     }
 
     /// The median of each pass over `samples`, and the median frame total (None if empty).
     pub fn median(samples: &[PassTimings]) -> Option<(PassTimings, f64)> {
-        let median = |f: fn(&PassTimings) -> f64| {
-            let mut v: Vec<f64> = samples.iter().map(f).collect();
-            v.sort_by(f64::total_cmp);
-            v.get(v.len() / 2).copied()
-        };
+        let median = |f: fn(&PassTimings) -> f64| crate::cpu::median(samples.iter().map(f));
         let passes = PassTimings {
             predict_ms: median(|t| t.predict_ms)?,
-            blend_ms: median(|t| t.blend_ms)?,
+            product_ms: median(|t| t.product_ms)?,
             skin_ms: median(|t| t.skin_ms)?,
             normals_ms: median(|t| t.normals_ms)?,
             tangents_ms: median(|t| t.tangents_ms)?,
@@ -233,7 +230,7 @@ impl Batch {
             unsafe { device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
         recorded?;
         ended?;
-        shared.submit_wait(cmd, self.fence)
+        shared.submit_recorded(cmd, self.fence)
     }
 
     /// Per-pass GPU time of frame slot `frame` as last recorded. After `record`, call it only
@@ -270,10 +267,10 @@ impl Batch {
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
         let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);
         // One field per phase of the schedule (a new phase needs its field here).
-        let [predict_ms, blend_ms, skin_ms, normals_ms, tangents_ms] = phases;
+        let [predict_ms, product_ms, skin_ms, normals_ms, tangents_ms] = phases;
         Ok(PassTimings {
             predict_ms,
-            blend_ms,
+            product_ms,
             skin_ms,
             normals_ms,
             tangents_ms,

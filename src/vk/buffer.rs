@@ -100,12 +100,13 @@ impl Drop for Buffer {
     }
 }
 
-/// Uploads `data` into new device-local buffers (one staging copy, then waits).
-pub fn upload(
+/// Uploads `items` (debug name, bytes) into new device-local buffers, in order (one staging
+/// copy, then waits).
+pub fn upload<const N: usize>(
     shared: &Arc<Shared>,
-    items: &[(&'static str, &[u8])],
+    items: &[(&'static str, &[u8]); N],
     usage: vk::BufferUsageFlags,
-) -> Result<Vec<Buffer>> {
+) -> Result<[Buffer; N]> {
     let total: u64 = items.iter().map(|(_, d)| d.len() as u64).sum();
     let mut staging = Buffer::new(
         shared,
@@ -136,7 +137,10 @@ pub fn upload(
             )
         })
         .collect::<Result<Vec<_>>>()?;
-    shared.submit_and_wait(|cmd| {
+    let buffers = <[Buffer; N]>::try_from(buffers).map_err(|_| Error::Mismatch {
+        what: "uploaded buffer count",
+    })?;
+    shared.record_and_submit(|cmd| {
         for ((dst, (_, data)), &src_offset) in buffers.iter().zip(items).zip(&offsets) {
             if data.is_empty() {
                 continue;

@@ -303,8 +303,10 @@ impl Shared {
         lock(&self.allocator)
     }
 
-    /// Records with `record`, submits to the queue and waits for completion.
-    pub fn submit_and_wait(
+    /// Records a one-time command buffer with `record`, submits it to the queue and waits for
+    /// completion (uploads, read-backs); [`Shared::submit_recorded`] submits one already
+    /// recorded.
+    pub fn record_and_submit(
         &self,
         record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
     ) -> Result<()> {
@@ -316,13 +318,13 @@ impl Shared {
         // SAFETY: the pool is ours and externally synchronised by the mutex.
         let cmd = unsafe { self.device.allocate_command_buffers(&info) }
             .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
-        let result = self.record_submit_wait(cmd, record);
+        let result = self.record_one_time(cmd, record);
         // SAFETY: the command buffer finished (or was never submitted).
         unsafe { self.device.free_command_buffers(*pool, &[cmd]) };
         result
     }
 
-    fn record_submit_wait(
+    fn record_one_time(
         &self,
         cmd: vk::CommandBuffer,
         record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
@@ -337,14 +339,15 @@ impl Shared {
         // SAFETY: as above, and begun.
         unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"))?;
         let fence = self.create_fence()?;
-        let result = self.submit_wait(cmd, fence);
+        let result = self.submit_recorded(cmd, fence);
         // SAFETY: the fence is signalled or was never submitted.
         unsafe { self.device.destroy_fence(fence, None) };
         result
     }
 
-    /// Submits one recorded command buffer, waits on `fence` (unsignalled) and resets it.
-    pub fn submit_wait(&self, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
+    /// Submits one command buffer the caller recorded, waits on `fence` (unsignalled) and
+    /// resets it.
+    pub fn submit_recorded(&self, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         let queue = lock(&self.queue);

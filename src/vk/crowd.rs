@@ -12,7 +12,7 @@ use super::barrier::{global_barrier, Access};
 use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
-use super::memory::{crowd_buffer_copies, crowd_bytes, ModelSizes};
+use super::memory::{bytes_per_character, crowd_buffer_copies, crowd_bytes, XYZ_BYTES};
 use super::pass::{Binding, CrowdBuffer, Dims};
 use super::passes::Pass;
 use super::pipelines::PassPipeline;
@@ -24,8 +24,6 @@ use gpu_allocator::MemoryLocation;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Arc;
 
-const AFFINE_BYTES: u64 = 48;
-const XYZ_BYTES: u64 = 12;
 /// One vertex's tangent in the tangents buffer: x, y, z, handedness w (f32, glTF's TANGENT).
 pub const TANGENT_STRIDE: u64 = 16;
 /// One character's box in the bounds buffer: min xyz, pad, max xyz, pad (two std430 vec4).
@@ -47,16 +45,34 @@ pub struct CrowdOptions {
     /// Write a tangent frame per vertex every frame ([`CrowdOutput::tangents`]): for
     /// normal-mapped materials. Only for models with rest tangents (`NotInModel` otherwise).
     pub tangents: bool,
-    /// Release each frame's outputs (its positions, the normals, its bounds) to this queue
-    /// family at the end of the recording: a queue family ownership release barrier, which the
-    /// engine matches with an acquire on its queue (same buffers, whole range, families
-    /// reversed). Nothing comes back: a recording never reads an output an earlier one wrote.
-    /// Another family of the device, or `VK_QUEUE_FAMILY_EXTERNAL`.
+    /// Release each frame's outputs (its positions, the normals, its bounds, the tangents: those
+    /// the crowd has) to this queue family at the end of the recording: a queue family ownership release barrier, which the engine matches with
+    /// an acquire on its queue (same buffers, whole range, families reversed); see the crate's
+    /// contract, "Queue family ownership". Another family of the device, or
+    /// `VK_QUEUE_FAMILY_EXTERNAL`.
     pub release_to_queue_family: Option<u32>,
+    /// Knobs for testing the runtime, not for engines (default: none).
+    pub debug_settings: CrowdDebugSettings,
+}
+
+/// Settings that exercise the runtime's edge cases on small inputs (as gpu-allocator keeps its
+/// `AllocatorDebugSettings` apart from the allocator's options).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct CrowdDebugSettings {
     /// Largest descriptor range to use, below the device's maxStorageBufferRange: forces smaller
-    /// chunks (tests use it to exercise chunking without gigabytes of output).
+    /// chunks (tests exercise chunking without gigabytes of output).
     pub max_binding_bytes: Option<u64>,
 }
+
+/// The outputs a recording releases with [`CrowdOptions::release_to_queue_family`], those the
+/// crowd has, in barrier order: the positions the frame wrote, the normals, the frame slot's
+/// bounds, the tangents (the crate's contract lists them; a test checks it does).
+pub(crate) const RELEASED_OUTPUTS: [CrowdBuffer; 4] = [
+    CrowdBuffer::Positions,
+    CrowdBuffer::Normals,
+    CrowdBuffer::Bounds,
+    CrowdBuffer::Tangents,
+];
 
 impl Default for CrowdOptions {
     fn default() -> Self {
@@ -66,7 +82,7 @@ impl Default for CrowdOptions {
             bounds: false,
             tangents: false,
             release_to_queue_family: None,
-            max_binding_bytes: None,
+            debug_settings: CrowdDebugSettings::default(),
         }
     }
 }
@@ -124,22 +140,10 @@ pub struct Crowd {
     /// The model's sizes and this crowd's optional outputs.
     pub(crate) dims: Dims,
     characters: u32,
-    /// F slots of C x J x 3x4 f32, host-visible: slot f written by `set_bones(f, ..)`, read by
-    /// passes 1–3 of frame f.
-    bones: Vec<Buffer>,
-    /// B = [d; q] of pass 2's product, (3P + 4J) x 3C f32 per chunk (pass 1 → pass 2)
-    rhs: Buffer,
-    /// C x P x 3x4 f32 (pass 2 → pass 3)
-    proxies: Buffer,
-    /// C x V x 3 f32 (pass 3 → pass 4, and the engine's vertex buffer); two with previous
-    /// positions, written in turn.
-    positions: Vec<Buffer>,
-    /// C x V x 3 f32
-    normals: Buffer,
-    /// C x V x 4 f32 (with tangents; else none)
-    tangents: Option<Buffer>,
-    /// F slots of C x 2 vec4, host-visible (with bounds; else empty).
-    bounds: Vec<Buffer>,
+    /// Indexed by [`CrowdBuffer`]: its copies, as many as `crowd_buffer_copies` says (the bones
+    /// and bounds one per frame slot, the positions two with previous positions, the bounds
+    /// and tangents none without them), each C x `bytes_per_character`.
+    buffers: [Vec<Buffer>; CrowdBuffer::COUNT],
     /// Which positions buffer the last recording of each frame slot wrote, and of any frame.
     /// Atomics: recording takes `&Crowd` (many crowds in one batch), and the crowd stays `Sync`.
     written: [AtomicU8; MAX_FRAMES_IN_FLIGHT],
@@ -191,7 +195,7 @@ impl Crowd {
                 });
             }
         }
-        if options.tangents && !m.has_tangents {
+        if options.tangents && !m.sizes.tangents {
             return Err(Error::NotInModel {
                 what: "rest tangents (train from a glTF rig with TANGENT or TEXCOORD_0) for a crowd with tangents",
             });
@@ -201,7 +205,7 @@ impl Crowd {
             tangents: options.tangents,
             ..m.dims
         };
-        let bytes = crowd_bytes(&ModelSizes::of_gpu(model), characters, &options)?;
+        let bytes = crowd_bytes(&m.sizes, characters, &options)?;
         let heap = shared.limits.device_local_bytes;
         if bytes > heap {
             return Err(Error::DeviceLimit {
@@ -216,37 +220,18 @@ impl Crowd {
         let size = |b: CrowdBuffer| c * per_character[b as usize];
         let chunk_characters = chunk_size(&shared, &dims, &per_character, c, options)?;
 
-        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let output =
-            storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
-        let gpu = MemoryLocation::GpuOnly;
-        // Host-visible and coherent: the host writes bones and reads bounds without flushes.
-        let host = MemoryLocation::CpuToGpu;
-        let new = |name, b: CrowdBuffer, usage, location| {
-            Buffer::new(&shared, name, size(b), usage, location)
-        };
-        let copies = |name, b: CrowdBuffer, usage, location| {
-            (0..crowd_buffer_copies(b, &options))
-                .map(|_| new(name, b, usage, location))
-                .collect::<Result<Vec<_>>>()
-        };
-        let bones = copies("crowd bones", CrowdBuffer::Bones, storage, host)?;
-        let positions = copies("crowd positions", CrowdBuffer::Positions, output, gpu)?;
-        let bounds = copies("crowd bounds", CrowdBuffer::Bounds, storage, host)?;
+        let mut buffers: [Vec<Buffer>; CrowdBuffer::COUNT] = Default::default();
+        for b in CrowdBuffer::ALL {
+            let (name, usage, location) = kind(b);
+            buffers[b as usize] = (0..crowd_buffer_copies(b, &options))
+                .map(|_| Buffer::new(&shared, name, size(b), usage, location))
+                .collect::<Result<_>>()?;
+        }
         let mut crowd = Crowd {
             model: model.clone(),
             dims,
             characters: characters as u32,
-            bones,
-            rhs: new("crowd rhs", CrowdBuffer::Rhs, storage, gpu)?,
-            proxies: new("crowd proxies", CrowdBuffer::Proxies, storage, gpu)?,
-            positions,
-            normals: new("crowd normals", CrowdBuffer::Normals, output, gpu)?,
-            tangents: match options.tangents {
-                true => Some(new("crowd tangents", CrowdBuffer::Tangents, output, gpu)?),
-                false => None,
-            },
-            bounds,
+            buffers,
             written: Default::default(),
             last: AtomicU8::new(0),
             last_frame: AtomicU8::new(0),
@@ -254,7 +239,7 @@ impl Crowd {
             pool: vk::DescriptorPool::null(),
             chunks: Vec::new(),
         };
-        for slot in &mut crowd.bones {
+        for slot in &mut crowd.buffers[CrowdBuffer::Bones as usize] {
             write_rest_pose(slot.mapped()?);
         }
 
@@ -306,27 +291,38 @@ impl Crowd {
         Ok(sets)
     }
 
-    /// Descriptor variants: one per (frame slot, positions buffer written).
-    fn variant_count(&self) -> usize {
-        self.bones.len() * self.positions.len()
+    /// The copies of buffer `b` (empty for the bounds or tangents of a crowd without them).
+    fn copies(&self, b: CrowdBuffer) -> &[Buffer] {
+        &self.buffers[b as usize]
     }
 
-    /// The buffer `b` of descriptor variant `variant` (see [`Crowd::variant`]); `None` for the
-    /// bounds or tangents of a crowd without them.
-    fn buffer(&self, b: CrowdBuffer, variant: usize) -> Option<&Buffer> {
-        let (frame, written) = (
-            variant / self.positions.len(),
-            variant % self.positions.len(),
-        );
+    fn positions(&self) -> &[Buffer] {
+        self.copies(CrowdBuffer::Positions)
+    }
+
+    /// Descriptor variants: one per (frame slot, positions buffer written).
+    fn variant_count(&self) -> usize {
+        self.frames_in_flight() * self.positions().len()
+    }
+
+    /// The buffer `b` of frame slot `frame` that writes positions buffer `written`: the copy of
+    /// the slot for the per-frame buffers, of `written` for the positions, else the one buffer.
+    fn buffer_of(&self, b: CrowdBuffer, frame: usize, written: usize) -> Option<&Buffer> {
+        let copies = self.copies(b);
         match b {
-            CrowdBuffer::Bones => self.bones.get(frame),
-            CrowdBuffer::Rhs => Some(&self.rhs),
-            CrowdBuffer::Proxies => Some(&self.proxies),
-            CrowdBuffer::Positions => self.positions.get(written),
-            CrowdBuffer::Normals => Some(&self.normals),
-            CrowdBuffer::Bounds => self.bounds.get(frame),
-            CrowdBuffer::Tangents => self.tangents.as_ref(),
+            CrowdBuffer::Bones | CrowdBuffer::Bounds => copies.get(frame),
+            CrowdBuffer::Positions => copies.get(written),
+            CrowdBuffer::Rhs
+            | CrowdBuffer::Palette
+            | CrowdBuffer::Normals
+            | CrowdBuffer::Tangents => copies.first(),
         }
+    }
+
+    /// The buffer `b` of descriptor variant `variant` (see [`Crowd::variant`]).
+    fn buffer(&self, b: CrowdBuffer, variant: usize) -> Option<&Buffer> {
+        let n = self.positions().len();
+        self.buffer_of(b, variant / n, variant % n)
     }
 
     pub fn character_count(&self) -> usize {
@@ -339,22 +335,17 @@ impl Crowd {
 
     /// Bytes of the crowd's buffers: what [`super::crowd_bytes`] said before creating it.
     pub fn memory_bytes(&self) -> u64 {
-        let buffers = (self.bones.iter())
-            .chain(&self.positions)
-            .chain(&self.bounds)
-            .chain(&self.tangents)
-            .chain([&self.rhs, &self.proxies, &self.normals]);
-        buffers.map(|b| b.size).sum()
+        self.buffers.iter().flatten().map(|b| b.size).sum()
     }
 
     /// Whether the crowd writes tangents ([`CrowdOptions::tangents`]).
     pub fn has_tangents(&self) -> bool {
-        self.tangents.is_some()
+        !self.copies(CrowdBuffer::Tangents).is_empty()
     }
 
     /// F, the frames in flight the crowd was made for.
     pub fn frames_in_flight(&self) -> usize {
-        self.bones.len()
+        self.copies(CrowdBuffer::Bones).len()
     }
 
     /// Number of dispatch chunks (1 unless the outputs exceed one descriptor's range).
@@ -364,11 +355,11 @@ impl Crowd {
 
     /// `OutOfRange` unless `frame` is one of the crowd's frame slots.
     pub(crate) fn check_frame(&self, frame: usize) -> Result<()> {
-        if frame >= self.bones.len() {
+        if frame >= self.frames_in_flight() {
             return Err(Error::OutOfRange {
                 what: "frame in flight",
                 index: frame,
-                count: self.bones.len(),
+                count: self.frames_in_flight(),
             });
         }
         Ok(())
@@ -377,7 +368,7 @@ impl Crowd {
     /// Starts recording frame slot `frame` (checked): picks the positions buffer it writes, the
     /// one the last recorded frame did not.
     pub(crate) fn begin_frame(&self, frame: usize) {
-        let written = if self.positions.len() == 2 {
+        let written = if self.positions().len() == 2 {
             1 - self.last.load(Ordering::Relaxed)
         } else {
             0
@@ -389,7 +380,7 @@ impl Crowd {
 
     /// The descriptor variant of frame slot `frame` as last begun.
     pub(crate) fn variant(&self, frame: usize) -> usize {
-        frame * self.positions.len() + self.written[frame].load(Ordering::Relaxed) as usize
+        frame * self.positions().len() + self.written[frame].load(Ordering::Relaxed) as usize
     }
 
     /// Sets frame slot `frame`'s bone transforms of every character: C x J, character-major.
@@ -405,7 +396,7 @@ impl Crowd {
             });
         }
         check_finite(bones)?;
-        self.bones[frame].mapped()?[..expected * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        self.bones_mut(frame)?[..expected * 48].copy_from_slice(bytemuck::cast_slice(bones));
         Ok(())
     }
 
@@ -434,8 +425,13 @@ impl Crowd {
         }
         check_finite(bones)?;
         let at = character * j * 48;
-        self.bones[frame].mapped()?[at..at + j * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        self.bones_mut(frame)?[at..at + j * 48].copy_from_slice(bytemuck::cast_slice(bones));
         Ok(())
+    }
+
+    /// The host-visible bytes of frame slot `frame`'s bone transforms (checked slot).
+    fn bones_mut(&mut self, frame: usize) -> Result<&mut [u8]> {
+        self.buffers[CrowdBuffer::Bones as usize][frame].mapped()
     }
 
     /// The buffers frame slot `frame` was last recorded with (the positions it writes, the
@@ -454,14 +450,15 @@ impl Crowd {
 
     fn output_of(&self, frame: usize, written: u8) -> CrowdOutput {
         let written = written as usize;
+        let handle = |b| self.buffer_of(b, frame, written).map(|b| b.handle);
+        let positions = self.positions();
         CrowdOutput {
-            positions: self.positions[written].handle,
-            previous_positions: (self.positions.len() == 2)
-                .then(|| self.positions[1 - written].handle),
-            normals: self.normals.handle,
-            tangents: self.tangents.as_ref().map(|b| b.handle),
+            positions: positions[written].handle,
+            previous_positions: (positions.len() == 2).then(|| positions[1 - written].handle),
+            normals: self.copies(CrowdBuffer::Normals)[0].handle,
+            tangents: handle(CrowdBuffer::Tangents),
             tangent_character_stride: self.model.vertex_count() as u64 * TANGENT_STRIDE,
-            bounds: self.bounds.get(frame).map(|b| b.handle),
+            bounds: handle(CrowdBuffer::Bounds),
             offset: 0,
             vertex_stride: XYZ_BYTES,
             character_stride: self.model.vertex_count() as u64 * XYZ_BYTES,
@@ -487,16 +484,14 @@ impl Crowd {
                 .offset(0)
                 .size(vk::WHOLE_SIZE)
         };
-        // A fixed array, no allocation: then the bounds and the tangents the crowd has.
-        let normals = release(&self.normals);
-        let mut barriers = [release(&self.positions[written]), normals, normals, normals];
-        let mut count = 2;
-        for optional in [self.bounds.get(frame), self.tangents.as_ref()]
-            .into_iter()
-            .flatten()
-        {
-            barriers[count] = release(optional);
-            count += 1;
+        // A fixed array, no allocation: the outputs the crowd has.
+        let mut barriers = [vk::BufferMemoryBarrier::default(); RELEASED_OUTPUTS.len()];
+        let mut count = 0;
+        for b in RELEASED_OUTPUTS {
+            if let Some(buffer) = self.buffer_of(b, frame, written) {
+                barriers[count] = release(buffer);
+                count += 1;
+            }
         }
         let used = &barriers[..count];
         // SAFETY: see the function's contract; the buffers are the crowd's, alive.
@@ -525,9 +520,11 @@ impl Crowd {
                 actual: out.len(),
             });
         }
-        let slot = self.bounds.get_mut(frame).ok_or(Error::NotEnabled {
-            what: "bounds (create the crowd with CrowdOptions::bounds)",
-        })?;
+        let slot = (self.buffers[CrowdBuffer::Bounds as usize].get_mut(frame)).ok_or(
+            Error::NotEnabled {
+                what: "bounds (create the crowd with CrowdOptions::bounds)",
+            },
+        )?;
         let floats: &[f32] = bytemuck::cast_slice(&slot.mapped()?[..c * BOUNDS_STRIDE as usize]);
         for (b, f) in out.iter_mut().zip(floats.chunks_exact(8)) {
             *b = Aabb {
@@ -542,9 +539,11 @@ impl Crowd {
     /// tools and tests, not the per-frame path.
     pub fn read_back(&self) -> Result<HostOutput> {
         let shared = &self.model.inner.context.shared;
-        let positions = &self.positions[self.last.load(Ordering::Relaxed) as usize];
+        let positions = &self.positions()[self.last.load(Ordering::Relaxed) as usize];
+        let normals = &self.copies(CrowdBuffer::Normals)[0];
+        let tangents = self.copies(CrowdBuffer::Tangents).first();
         let size = positions.size;
-        let tangent_bytes = self.tangents.as_ref().map_or(0, |t| t.size);
+        let tangent_bytes = tangents.map_or(0, |t| t.size);
         let mut staging = Buffer::new(
             shared,
             "read-back",
@@ -552,7 +551,7 @@ impl Crowd {
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
-        shared.submit_and_wait(|cmd| {
+        shared.record_and_submit(|cmd| {
             let device = &shared.device;
             // SAFETY: cmd is recording; the buffers are alive.
             unsafe {
@@ -562,9 +561,9 @@ impl Crowd {
                     &[Access::ComputeShaderWrite],
                     &[Access::TransferRead],
                 );
-                let copies = [(positions, 0), (&self.normals, size)]
+                let copies = [(positions, 0), (normals, size)]
                     .into_iter()
-                    .chain(self.tangents.as_ref().map(|t| (t, 2 * size)));
+                    .chain(tangents.map(|t| (t, 2 * size)));
                 for (src, at) in copies {
                     let region = [vk::BufferCopy {
                         src_offset: 0,
@@ -578,7 +577,7 @@ impl Crowd {
             Ok(())
         })?;
         let n = self.characters as usize * self.model.vertex_count() * 3;
-        let t = self.tangents.as_ref().map_or(0, |_| n / 3 * 4);
+        let t = tangents.map_or(0, |_| n / 3 * 4);
         let mapped = staging.mapped()?;
         let floats: Vec<f32> = mapped[..(2 * n + t) * 4]
             .chunks_exact(4)
@@ -628,7 +627,7 @@ fn chunk_size(
 ) -> Result<u64> {
     let limits = &shared.limits;
     let mut range = limits.max_storage_buffer_range;
-    if let Some(cap) = options.max_binding_bytes {
+    if let Some(cap) = options.debug_settings.max_binding_bytes {
         range = range.min(cap);
     }
     let largest = per_character.iter().copied().max().unwrap_or(0).max(1);
@@ -681,22 +680,21 @@ fn write_rest_pose(bytes: &mut [u8]) {
     }
 }
 
-/// Bytes of one character in each crowd buffer; 0 where the model does not use it.
-pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
-    let (v, p, j) = (d.vertices as u64, d.proxies as u64, d.bones as u64);
+/// The debug name, usage and memory of crowd buffer `b`.
+pub(super) fn kind(b: CrowdBuffer) -> (&'static str, vk::BufferUsageFlags, MemoryLocation) {
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let output = storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
+    let gpu = MemoryLocation::GpuOnly;
+    // Host-visible and coherent: the host writes bones and reads bounds without flushes.
+    let host = MemoryLocation::CpuToGpu;
     match b {
-        CrowdBuffer::Bones => j * AFFINE_BYTES,
-        // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
-        CrowdBuffer::Rhs if p > 0 => (3 * p + 4 * j) * XYZ_BYTES,
-        CrowdBuffer::Rhs => 0,
-        // The skinning palette [t (P); q (J)], only when P > 0.
-        CrowdBuffer::Proxies if p > 0 => (p + j) * AFFINE_BYTES,
-        CrowdBuffer::Proxies => 0,
-        CrowdBuffer::Positions | CrowdBuffer::Normals => v * XYZ_BYTES,
-        CrowdBuffer::Bounds if d.bounds => BOUNDS_STRIDE,
-        CrowdBuffer::Bounds => 0,
-        CrowdBuffer::Tangents if d.tangents => v * TANGENT_STRIDE,
-        CrowdBuffer::Tangents => 0,
+        CrowdBuffer::Bones => ("crowd bones", storage, host),
+        CrowdBuffer::Rhs => ("crowd rhs", storage, gpu),
+        CrowdBuffer::Palette => ("crowd palette", storage, gpu),
+        CrowdBuffer::Positions => ("crowd positions", output, gpu),
+        CrowdBuffer::Normals => ("crowd normals", output, gpu),
+        CrowdBuffer::Bounds => ("crowd bounds", storage, host),
+        CrowdBuffer::Tangents => ("crowd tangents", output, gpu),
     }
 }
 

@@ -3,6 +3,7 @@
 
 use super::buffer::{upload, Buffer};
 use super::context::Context;
+use super::memory::{model_buffer_bytes, ModelSizes};
 use super::pass::{Dims, ModelBuffer};
 use super::passes::Pass;
 use crate::error::Result;
@@ -19,78 +20,65 @@ pub struct GpuModel {
 pub(crate) struct Inner {
     pub context: Context,
     pub dims: Dims,
-    pub triangle_count: u32,
-    /// V x 3 f32
-    pub rest: Buffer,
-    /// V x K u32
-    pub skin_index: Buffer,
-    /// V x K f32
-    pub skin_weight: Buffer,
-    /// J i32
-    pub parents: Buffer,
-    /// P x 85 words (the PRED record layout)
-    pub predictors: Buffer,
-    /// [C1 | C2]: 4P x (3P + 4J) f32, row-major (empty where the model is block-sparse)
-    pub blend_matrix: Buffer,
-    /// The block-sparse [C1 | C2] ([`BlockSparse`]; empty where the model is dense)
-    pub blend_offsets: Buffer,
-    pub blend_column_indices: Buffer,
-    pub blend_values: Buffer,
-    /// Stored columns of the block-sparse layout, 0 where dense.
-    pub blend_columns: usize,
-    /// V + 1 u32 (CSR offsets)
-    pub incident_offsets: Buffer,
-    /// 3T u32 (triangle ids)
-    pub incident_triangles: Buffer,
-    /// T x 3 u32
-    pub triangles: Buffer,
-    /// V x 4 f32 rest tangents (empty for a model without them)
-    pub rest_tangents: Buffer,
-    pub has_tangents: bool,
+    /// What `memory.rs` sized the buffers by.
+    pub sizes: ModelSizes,
+    /// Indexed by [`ModelBuffer`].
+    buffers: [Buffer; ModelBuffer::COUNT],
+}
+
+/// What `GpuModel::new` uploads, borrowed from or computed from the model once.
+struct UploadData<'m> {
+    model: &'m Model,
+    predictors: Vec<u32>,
+    /// [C1 | C2] row-major where the model stays dense, else empty.
+    dense: Vec<f32>,
+    blocks: BlockSparse,
+}
+
+impl UploadData<'_> {
+    /// The debug name and the bytes of buffer `b`.
+    fn of(&self, b: ModelBuffer) -> (&'static str, &[u8]) {
+        let parts = self.model.parts();
+        let floats = bytemuck::cast_slice::<f32, u8>;
+        let (offsets, incident) = self.model.incidence();
+        match b {
+            ModelBuffer::Rest => (
+                "rest positions",
+                floats(parts.rest_positions.as_flattened()),
+            ),
+            ModelBuffer::SkinIndex => ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
+            ModelBuffer::SkinWeight => ("skin weights", floats(&parts.skin_weights)),
+            ModelBuffer::Parents => ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
+            ModelBuffer::Predictors => ("predictors", bytemuck::cast_slice(&self.predictors)),
+            ModelBuffer::ProductMatrix => ("C1|C2", floats(&self.dense)),
+            ModelBuffer::ProductOffsets => {
+                ("C1|C2 offsets", bytemuck::cast_slice(&self.blocks.offsets))
+            }
+            ModelBuffer::ProductColumns => {
+                ("C1|C2 columns", bytemuck::cast_slice(&self.blocks.columns))
+            }
+            ModelBuffer::ProductValues => {
+                ("C1|C2 values", floats(self.blocks.values.as_flattened()))
+            }
+            ModelBuffer::IncidentOffsets => ("incident offsets", bytemuck::cast_slice(offsets)),
+            ModelBuffer::IncidentTriangles => {
+                ("incident triangles", bytemuck::cast_slice(incident))
+            }
+            ModelBuffer::Triangles => (
+                "triangles",
+                bytemuck::cast_slice(parts.triangles.as_flattened()),
+            ),
+            ModelBuffer::RestTangents => {
+                ("rest tangents", floats(parts.rest_tangents.as_flattened()))
+            }
+        }
+    }
 }
 
 impl GpuModel {
     /// Uploads `model` (submits a copy on the context's queue and waits).
     pub fn new(context: &Context, model: &Model) -> Result<GpuModel> {
-        let parts = model.parts();
-        let predictors: Vec<u32> = parts.predictors.iter().flat_map(predictor_words).collect();
         let sparse = BlockSparse::of(model);
-        let dense = match sparse {
-            Some(_) => Vec::new(),
-            None => model.c1_c2(),
-        };
-        let empty = BlockSparse::default();
-        let blocks = sparse.as_ref().unwrap_or(&empty);
-        let (offsets, incident) = model.incidence();
-        let bytes = bytemuck::cast_slice::<f32, u8>;
-        let items: [(&'static str, &[u8]); 13] = [
-            ("rest positions", bytes(parts.rest_positions.as_flattened())),
-            ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
-            ("skin weights", bytes(&parts.skin_weights)),
-            ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
-            ("predictors", bytemuck::cast_slice(&predictors)),
-            ("C1|C2", bytes(&dense)),
-            ("C1|C2 offsets", bytemuck::cast_slice(&blocks.offsets)),
-            ("C1|C2 columns", bytemuck::cast_slice(&blocks.columns)),
-            ("C1|C2 values", bytes(blocks.values.as_flattened())),
-            ("incident offsets", bytemuck::cast_slice(offsets)),
-            ("incident triangles", bytemuck::cast_slice(incident)),
-            (
-                "triangles",
-                bytemuck::cast_slice(parts.triangles.as_flattened()),
-            ),
-            ("rest tangents", bytes(parts.rest_tangents.as_flattened())),
-        ];
-        let limit = context.limits().max_storage_buffer_range;
-        for (what, data) in &items {
-            if data.len() as u64 > limit {
-                return Err(crate::Error::DeviceLimit {
-                    what,
-                    needed: data.len() as u64,
-                    limit,
-                });
-            }
-        }
         let dims = Dims {
             vertices: model.vertex_count() as u32,
             proxies: model.proxy_count() as u32,
@@ -101,6 +89,35 @@ impl GpuModel {
             sparse: sparse.is_some(),
             fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
         };
+        let data = UploadData {
+            model,
+            predictors: (model.parts().predictors.iter())
+                .flat_map(predictor_words)
+                .collect(),
+            dense: match sparse {
+                Some(_) => Vec::new(),
+                None => model.c1_c2(),
+            },
+            blocks: sparse.unwrap_or_default(),
+        };
+        let sizes = ModelSizes::with_product_columns(model, data.blocks.columns.len());
+        let items = ModelBuffer::ALL.map(|b| data.of(b));
+        let limit = context.limits().max_storage_buffer_range;
+        for (b, (what, bytes)) in ModelBuffer::ALL.into_iter().zip(&items) {
+            // The sizes the memory query gives are the sizes uploaded.
+            if bytes.len() as u64 != model_buffer_bytes(&sizes, b) {
+                return Err(crate::Error::Mismatch {
+                    what: "a model buffer's bytes and memory.rs's size of it",
+                });
+            }
+            if bytes.len() as u64 > limit {
+                return Err(crate::Error::DeviceLimit {
+                    what,
+                    needed: bytes.len() as u64,
+                    limit,
+                });
+            }
+        }
         // The dispatch sizes that do not depend on the crowd (over vertices, predictors, rows).
         for pass in Pass::of_model(&dims) {
             pass.desc()
@@ -112,30 +129,12 @@ impl GpuModel {
             // The triangles double as an index buffer ([`GpuModel::triangle_buffer`]).
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDEX_BUFFER,
         )?;
-        let [rest, skin_index, skin_weight, parents, predictors, blend_matrix, blend_offsets, blend_column_indices, blend_values, incident_offsets, incident_triangles, triangles, rest_tangents] =
-            <[Buffer; 13]>::try_from(buffers).map_err(|_| crate::Error::Mismatch {
-                what: "uploaded buffer count",
-            })?;
         Ok(GpuModel {
             inner: Arc::new(Inner {
                 context: context.clone(),
                 dims,
-                triangle_count: model.triangle_count() as u32,
-                rest,
-                skin_index,
-                skin_weight,
-                parents,
-                predictors,
-                blend_matrix,
-                blend_offsets,
-                blend_column_indices,
-                blend_values,
-                blend_columns: blocks.columns.len(),
-                incident_offsets,
-                incident_triangles,
-                triangles,
-                rest_tangents,
-                has_tangents: model.has_tangents(),
+                sizes,
+                buffers,
             }),
         })
     }
@@ -154,7 +153,7 @@ impl GpuModel {
 
     /// Whether the model carries rest tangents (crowds of it may output tangent frames).
     pub fn has_tangents(&self) -> bool {
-        self.inner.has_tangents
+        self.inner.sizes.tangents
     }
 
     /// Whether [C1 | C2] was stored block-sparse (the sparse product runs) rather than dense
@@ -181,27 +180,13 @@ impl GpuModel {
 
 impl Inner {
     pub fn buffer(&self, b: ModelBuffer) -> &Buffer {
-        match b {
-            ModelBuffer::Rest => &self.rest,
-            ModelBuffer::SkinIndex => &self.skin_index,
-            ModelBuffer::SkinWeight => &self.skin_weight,
-            ModelBuffer::Parents => &self.parents,
-            ModelBuffer::Predictors => &self.predictors,
-            ModelBuffer::BlendMatrix => &self.blend_matrix,
-            ModelBuffer::BlendOffsets => &self.blend_offsets,
-            ModelBuffer::BlendColumns => &self.blend_column_indices,
-            ModelBuffer::BlendValues => &self.blend_values,
-            ModelBuffer::IncidentOffsets => &self.incident_offsets,
-            ModelBuffer::IncidentTriangles => &self.incident_triangles,
-            ModelBuffer::Triangles => &self.triangles,
-            ModelBuffer::RestTangents => &self.rest_tangents,
-        }
+        &self.buffers[b as usize]
     }
 }
 
 impl GpuModel {
     pub fn triangle_count(&self) -> usize {
-        self.inner.triangle_count as usize
+        self.inner.sizes.triangles
     }
 
     /// The context the model was uploaded to.
@@ -214,7 +199,7 @@ impl GpuModel {
     /// [`super::CrowdOutput`]'s `offset + c * character_stride`). Read-only, alive as long as
     /// the model.
     pub fn triangle_buffer(&self) -> vk::Buffer {
-        self.inner.triangles.handle
+        self.inner.buffer(ModelBuffer::Triangles).handle
     }
 }
 

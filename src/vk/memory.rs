@@ -1,18 +1,23 @@
 //! The GPU memory a model and a crowd will take, from their sizes alone: the query an engine
 //! makes before creating either, with no device (and no model upload) needed. A model's sizes
-//! include the stored columns of its block-sparse C1|C2 ([`ModelSizes::blend_columns`]: 0 for a
-//! dense one), which [`ModelSizes::of`] counts as `GpuModel::new` will lay them out. `GpuModel::new`
-//! and `Crowd::with_options` size their buffers with the same functions, so the figures are the
+//! include the stored columns of its block-sparse C1|C2 ([`ModelSizes::product_columns`]: 0 for
+//! a dense one), which [`ModelSizes::of`] counts as `GpuModel::new` will lay them out.
+//! `GpuModel::new` and `Crowd::with_options` size their buffers with the same functions (the
+//! model's upload fails if its data and [`model_buffer_bytes`] disagree), so the figures are the
 //! bytes of the buffers they create (allocator rounding and the transient staging buffer of an
 //! upload aside).
 
-use super::crowd::{bytes_per_character, CrowdOptions};
+use super::crowd::{CrowdOptions, BOUNDS_STRIDE, TANGENT_STRIDE};
 use super::pass::{CrowdBuffer, Dims, ModelBuffer};
 use crate::error::{Error, Result};
 use crate::model::{Model, PREDICTOR_WORDS};
 
 /// Vulkan forbids zero-sized buffers; empty arrays (P = 0, T = 0) get this many bytes, unread.
 pub(crate) const MIN_BUFFER_BYTES: u64 = 16;
+/// One 3x4 f32 transform (a bone's or a palette entry).
+pub(crate) const AFFINE_BYTES: u64 = 48;
+/// One f32 xyz (a position, a normal, a column of B).
+pub(crate) const XYZ_BYTES: u64 = 12;
 
 /// The sizes of a model that decide its memory (those of `rrskin_model_info` in the C ABI).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -25,33 +30,26 @@ pub struct ModelSizes {
     /// Stored columns of the block-sparse [C1 | C2] (summed over proxies: the columns where
     /// any of a proxy's 4 rows is non-zero), 0 where the model keeps the dense matrix. What
     /// [`ModelSizes::of`] finds (the layout `GpuModel::new` chooses, [`super::GpuModel::is_block_sparse`]).
-    pub blend_columns: usize,
+    pub product_columns: usize,
     /// Whether the model carries rest tangents (uploaded, and crowds may output tangents).
     pub tangents: bool,
 }
 
 impl ModelSizes {
     pub fn of(model: &Model) -> ModelSizes {
+        let columns = super::gpu_model::BlockSparse::of(model).map_or(0, |b| b.columns.len());
+        ModelSizes::with_product_columns(model, columns)
+    }
+
+    /// The sizes of `model` once its block-sparse C1|C2 (if any) stores `columns` columns.
+    pub(crate) fn with_product_columns(model: &Model, columns: usize) -> ModelSizes {
         ModelSizes {
             vertices: model.vertex_count(),
             triangles: model.triangle_count(),
             bones: model.bone_count(),
             proxies: model.proxy_count(),
             influences: model.influences(),
-            blend_columns: super::gpu_model::BlockSparse::of(model).map_or(0, |b| b.columns.len()),
-            tangents: model.has_tangents(),
-        }
-    }
-
-    pub(crate) fn of_gpu(model: &super::GpuModel) -> ModelSizes {
-        let d = &model.inner.dims;
-        ModelSizes {
-            vertices: d.vertices as usize,
-            triangles: model.triangle_count(),
-            bones: d.bones as usize,
-            proxies: d.proxies as usize,
-            influences: d.influences,
-            blend_columns: model.inner.blend_columns,
+            product_columns: columns,
             tangents: model.has_tangents(),
         }
     }
@@ -71,7 +69,7 @@ impl ModelSizes {
             influences: self.influences,
             bounds: options.bounds,
             tangents: options.tangents,
-            sparse: self.blend_columns > 0,
+            sparse: self.product_columns > 0,
             // No crowd buffer's size depends on it (B stays allocated, unused, for a fused
             // model: the sizes do not tell the two apart).
             fused: false,
@@ -87,7 +85,7 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         s.bones as u64,
         s.proxies as u64,
         s.influences as u64,
-        s.blend_columns as u64,
+        s.product_columns as u64,
     );
     let sparse = n > 0;
     4 * match b {
@@ -95,12 +93,12 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::SkinIndex | ModelBuffer::SkinWeight => k * v,
         ModelBuffer::Parents => j,
         ModelBuffer::Predictors => PREDICTOR_WORDS as u64 * p,
-        ModelBuffer::BlendMatrix if sparse => 0,
-        ModelBuffer::BlendMatrix => 4 * p * (3 * p + 4 * j),
-        ModelBuffer::BlendOffsets if sparse => p + 1,
-        ModelBuffer::BlendOffsets => 0,
-        ModelBuffer::BlendColumns => n,
-        ModelBuffer::BlendValues => 4 * n,
+        ModelBuffer::ProductMatrix if sparse => 0,
+        ModelBuffer::ProductMatrix => 4 * p * (3 * p + 4 * j),
+        ModelBuffer::ProductOffsets if sparse => p + 1,
+        ModelBuffer::ProductOffsets => 0,
+        ModelBuffer::ProductColumns => n,
+        ModelBuffer::ProductValues => 4 * n,
         ModelBuffer::IncidentOffsets => v + 1,
         ModelBuffer::IncidentTriangles | ModelBuffer::Triangles => 3 * t,
         ModelBuffer::RestTangents if s.tangents => 4 * v,
@@ -116,6 +114,25 @@ pub fn model_bytes(s: &ModelSizes) -> u64 {
         .sum()
 }
 
+/// Bytes of one character in each crowd buffer; 0 where the model does not use it.
+pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
+    let (v, p, j) = (d.vertices as u64, d.proxies as u64, d.bones as u64);
+    match b {
+        CrowdBuffer::Bones => j * AFFINE_BYTES,
+        // B = [d; q]: (3P + 4J) x 3 floats per character, only when P > 0.
+        CrowdBuffer::Rhs if p > 0 => (3 * p + 4 * j) * XYZ_BYTES,
+        CrowdBuffer::Rhs => 0,
+        // The skinning palette [t (P); q (J)], only when P > 0.
+        CrowdBuffer::Palette if p > 0 => (p + j) * AFFINE_BYTES,
+        CrowdBuffer::Palette => 0,
+        CrowdBuffer::Positions | CrowdBuffer::Normals => v * XYZ_BYTES,
+        CrowdBuffer::Bounds if d.bounds => BOUNDS_STRIDE,
+        CrowdBuffer::Bounds => 0,
+        CrowdBuffer::Tangents if d.tangents => v * TANGENT_STRIDE,
+        CrowdBuffer::Tangents => 0,
+    }
+}
+
 /// How many buffers of kind `b` a crowd made with `options` has.
 pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usize {
     match b {
@@ -124,7 +141,7 @@ pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usi
         CrowdBuffer::Bounds if options.bounds => options.frames_in_flight,
         CrowdBuffer::Bounds => 0,
         CrowdBuffer::Tangents => usize::from(options.tangents),
-        CrowdBuffer::Rhs | CrowdBuffer::Proxies | CrowdBuffer::Normals => 1,
+        CrowdBuffer::Rhs | CrowdBuffer::Palette | CrowdBuffer::Normals => 1,
     }
 }
 

@@ -31,70 +31,65 @@ pub struct Dims {
     pub fused: bool,
 }
 
-/// A buffer of the GPU model, uploaded once and only ever read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ModelBuffer {
-    Rest,
-    SkinIndex,
-    SkinWeight,
-    Parents,
-    Predictors,
-    BlendMatrix,
-    /// P + 1 u32: proxy e's stored columns are entries offsets[e] .. offsets[e + 1]
-    BlendOffsets,
-    /// one u32 per stored column: its index k in [C1 | C2]
-    BlendColumns,
-    /// one vec4 per stored column: rows 4e .. 4e + 3 of [C1 | C2] at that column
-    BlendValues,
-    IncidentOffsets,
-    IncidentTriangles,
-    Triangles,
-    /// V x vec4 rest tangents (xyz, handedness w); empty for a model without them
-    RestTangents,
+/// An enum whose variants index arrays: `ALL` lists them in declaration order
+/// (`ALL[v as usize] == v`) and `COUNT` counts them, both derived from the one declaration.
+macro_rules! indexed_enum {
+    ($(#[$meta:meta])* pub enum $name:ident { $($(#[$vmeta:meta])* $variant:ident,)* }) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        pub enum $name { $($(#[$vmeta])* $variant,)* }
+
+        impl $name {
+            pub const ALL: [$name; [$($name::$variant),*].len()] = [$($name::$variant),*];
+            pub const COUNT: usize = Self::ALL.len();
+        }
+    };
+}
+pub(crate) use indexed_enum;
+
+indexed_enum! {
+    /// A buffer of the GPU model, uploaded once and only ever read; sized by
+    /// `memory::model_buffer_bytes`, filled by `gpu_model::upload_bytes`.
+    pub enum ModelBuffer {
+        Rest,
+        SkinIndex,
+        SkinWeight,
+        Parents,
+        Predictors,
+        /// [C1 | C2] dense: 4P x (3P + 4J) f32, row-major (empty where block-sparse)
+        ProductMatrix,
+        /// P + 1 u32: proxy e's stored columns are entries offsets[e] .. offsets[e + 1]
+        ProductOffsets,
+        /// one u32 per stored column: its index k in [C1 | C2]
+        ProductColumns,
+        /// one vec4 per stored column: rows 4e .. 4e + 3 of [C1 | C2] at that column
+        ProductValues,
+        IncidentOffsets,
+        IncidentTriangles,
+        Triangles,
+        /// V x vec4 rest tangents (xyz, handedness w); empty for a model without them
+        RestTangents,
+    }
 }
 
-impl ModelBuffer {
-    pub const ALL: [ModelBuffer; 13] = [
-        ModelBuffer::Rest,
-        ModelBuffer::SkinIndex,
-        ModelBuffer::SkinWeight,
-        ModelBuffer::Parents,
-        ModelBuffer::Predictors,
-        ModelBuffer::BlendMatrix,
-        ModelBuffer::BlendOffsets,
-        ModelBuffer::BlendColumns,
-        ModelBuffer::BlendValues,
-        ModelBuffer::IncidentOffsets,
-        ModelBuffer::IncidentTriangles,
-        ModelBuffer::Triangles,
-        ModelBuffer::RestTangents,
-    ];
-}
-
-/// A per-character buffer of a crowd, bound per chunk of characters.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CrowdBuffer {
-    Bones,
-    Rhs,
-    Proxies,
-    Positions,
-    Normals,
-    Bounds,
-    Tangents,
+indexed_enum! {
+    /// A per-character buffer of a crowd, bound per chunk of characters; sized by
+    /// `memory::bytes_per_character`, its copies counted by `memory::crowd_buffer_copies`.
+    pub enum CrowdBuffer {
+        /// J x 3x4 f32, one copy per frame slot (host-visible)
+        Bones,
+        /// B = [d; q], the right-hand side of the C1/C2 product: (3P + 4J) x 3 f32
+        Rhs,
+        /// The skinning palette [t (P proxy transforms); q (J bones)]: (P + J) x 3x4 f32
+        Palette,
+        Positions,
+        Normals,
+        Bounds,
+        Tangents,
+    }
 }
 
 impl CrowdBuffer {
-    pub const COUNT: usize = 7;
-    pub const ALL: [CrowdBuffer; Self::COUNT] = [
-        CrowdBuffer::Bones,
-        CrowdBuffer::Rhs,
-        CrowdBuffer::Proxies,
-        CrowdBuffer::Positions,
-        CrowdBuffer::Normals,
-        CrowdBuffer::Bounds,
-        CrowdBuffer::Tangents,
-    ];
-
     /// This buffer's bit in a [`CrowdBuffer`] set.
     pub const fn bit(self) -> u32 {
         1 << self as u32
@@ -214,13 +209,18 @@ impl Axis {
     }
 }
 
-/// A compute pass, described once.
-pub struct PassDesc {
-    /// The shader in `glsl/` (the table's test checks the bindings and push block against it).
+/// A line of `glsl/shaders.txt`: build.rs compiles it and writes one of these per line.
+pub struct Shader {
+    /// The source in `glsl/` (the table's test checks the bindings and push block against it).
     #[cfg(test)]
     pub glsl: &'static str,
-    /// Built by build.rs from `glsl`, with this variant's defines.
+    /// Built by build.rs from `glsl`, with the line's defines.
     pub spirv: &'static [u8],
+}
+
+/// A compute pass, described once.
+pub struct PassDesc {
+    pub shader: Shader,
     /// In shader order: binding i is `bindings[i]`.
     pub bindings: &'static [Binding],
     /// The push-constant block, in shader order.
@@ -306,8 +306,11 @@ mod tests {
 
     fn desc(groups: [Axis; 3]) -> PassDesc {
         PassDesc {
-            glsl: "",
-            spirv: &[],
+            shader: Shader {
+                #[cfg(test)]
+                glsl: "",
+                spirv: &[],
+            },
             bindings: &[],
             push: &[],
             groups,

@@ -7,50 +7,40 @@ use super::pass::Extent::{
     CharacterColumns, Characters, PredictorsAndBones, Proxies, ProxyRows, Vertices,
 };
 use super::pass::ModelBuffer as M;
-use super::pass::{over, Axis, Dims, PassDesc, PushWord as W, ONE};
+use super::pass::{indexed_enum, over, Axis, Dims, PassDesc, PushWord as W, ONE};
 
-macro_rules! spirv {
-    ($name:literal) => {
-        include_bytes!(concat!(env!("OUT_DIR"), "/", $name, ".spv"))
-    };
+/// The SPIR-V of `glsl/shaders.txt`, one [`Shader`] constant a line (build.rs writes them).
+mod shaders {
+    use super::super::pass::Shader;
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 }
 
-/// A pipeline of the table; adding one means a variant here, in `ALL` and in `desc`, its
-/// entry below and its place in `batch.rs`'s schedule.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Pass {
-    Predict,
-    BlendGemm,
-    SparseProduct,
-    FusedProduct,
-    SkinK4,
-    SkinK8,
-    Normals,
-    Bounds,
-    TangentsK4,
-    TangentsK8,
+indexed_enum! {
+    /// A pipeline of the table. Adding one means: its shader and its line in
+    /// `glsl/shaders.txt`, a variant here with its [`PassDesc`] below (the compiler asks for
+    /// the arm of `desc`), and its place in `batch.rs`'s schedule (a test checks that every
+    /// pass has one). A new buffer is a variant of `ModelBuffer` or `CrowdBuffer`: the
+    /// compiler asks for its size (`memory.rs`) and its data (`gpu_model.rs`) or its usage
+    /// (`crowd.rs`; the contract's table row, `contract.rs`).
+    pub enum Pass {
+        Predict,
+        DenseProduct,
+        SparseProduct,
+        FusedProduct,
+        SkinK4,
+        SkinK8,
+        Normals,
+        Bounds,
+        TangentsK4,
+        TangentsK8,
+    }
 }
 
 impl Pass {
-    pub const COUNT: usize = 10;
-    /// In declaration order: `ALL[p as usize] == p` (pipelines and sets are indexed so).
-    pub const ALL: [Pass; Self::COUNT] = [
-        Pass::Predict,
-        Pass::BlendGemm,
-        Pass::SparseProduct,
-        Pass::FusedProduct,
-        Pass::SkinK4,
-        Pass::SkinK8,
-        Pass::Normals,
-        Pass::Bounds,
-        Pass::TangentsK4,
-        Pass::TangentsK8,
-    ];
-
     pub fn desc(self) -> &'static PassDesc {
         match self {
             Pass::Predict => &PREDICT,
-            Pass::BlendGemm => &BLEND_GEMM,
+            Pass::DenseProduct => &DENSE_PRODUCT,
             Pass::SparseProduct => &SPARSE_PRODUCT,
             Pass::FusedProduct => &FUSED_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
@@ -113,15 +103,13 @@ pub fn model_kinds() -> impl Iterator<Item = Dims> {
 /// B = [d; q], the right-hand side of the GEMM, and the bones into the skinning palette
 /// [t; q]. Reduced models (P > 0) whose product does not evaluate them itself.
 const PREDICT: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "predict.comp",
-    spirv: spirv!("predict"),
+    shader: shaders::PREDICT,
     bindings: &[
         Reads(Crowd::Bones),
         Model(M::Parents),
         Model(M::Predictors),
         Writes(Crowd::Rhs),
-        Writes(Crowd::Proxies),
+        Writes(Crowd::Palette),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over predictors then bones, one row of groups per character.
@@ -131,14 +119,12 @@ const PREDICT: PassDesc = PassDesc {
 
 /// Proxy transforms T (4P x 3C) = [C1 | C2] (4P x (3P + 4J)) · B ((3P + 4J) x 3C) for all
 /// characters of a chunk as one tiled matrix product.
-const BLEND_GEMM: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "blend_gemm.comp",
-    spirv: spirv!("blend_gemm"),
+const DENSE_PRODUCT: PassDesc = PassDesc {
+    shader: shaders::DENSE_PRODUCT,
     bindings: &[
-        Model(M::BlendMatrix),
+        Model(M::ProductMatrix),
         Reads(Crowd::Rhs),
-        Writes(Crowd::Proxies),
+        Writes(Crowd::Palette),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // Output tile of one workgroup: 256 columns x 16 rows (4 proxies), see the shader.
@@ -149,15 +135,13 @@ const BLEND_GEMM: PassDesc = PassDesc {
 /// The same T for a model whose [C1 | C2] is stored block-sparse per proxy (`GpuModel::new`
 /// chooses): each (character, proxy) sums only the columns the proxy's rows touch.
 const SPARSE_PRODUCT: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "sparse_product.comp",
-    spirv: spirv!("sparse_product"),
+    shader: shaders::SPARSE_PRODUCT,
     bindings: &[
-        Model(M::BlendOffsets),
-        Model(M::BlendColumns),
-        Model(M::BlendValues),
+        Model(M::ProductOffsets),
+        Model(M::ProductColumns),
+        Model(M::ProductValues),
         Reads(Crowd::Rhs),
-        Writes(Crowd::Proxies),
+        Writes(Crowd::Palette),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over characters, one row of groups per proxy.
@@ -169,17 +153,15 @@ const SPARSE_PRODUCT: PassDesc = PassDesc {
 /// (character, proxy) evaluates its key's predictor from the bones and multiplies B's entries
 /// as it makes them, so neither the predictor pass nor B's round trip through memory remain.
 const FUSED_PRODUCT: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "fused_product.comp",
-    spirv: spirv!("fused_product"),
+    shader: shaders::FUSED_PRODUCT,
     bindings: &[
-        Model(M::BlendOffsets),
-        Model(M::BlendColumns),
-        Model(M::BlendValues),
+        Model(M::ProductOffsets),
+        Model(M::ProductColumns),
+        Model(M::ProductValues),
         Reads(Crowd::Bones),
         Model(M::Parents),
         Model(M::Predictors),
-        Writes(Crowd::Proxies),
+        Writes(Crowd::Palette),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // As the sparse product's, and a row per bone (copied into the palette).
@@ -188,16 +170,14 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
 };
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
-/// of it in the Proxies buffer, of a plain LBS model the bones in place; one pipeline per K.
+/// of it in the Palette buffer, of a plain LBS model the bones in place; one pipeline per K.
 const SKIN_K4: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "skin.comp",
-    spirv: spirv!("skin_k4"),
+    shader: shaders::SKIN_K4,
     bindings: &[
         Model(M::Rest),
         Model(M::SkinIndex),
         Model(M::SkinWeight),
-        Reads(Crowd::Proxies),
+        Reads(Crowd::Palette),
         Reads(Crowd::Bones),
         Writes(Crowd::Positions),
     ],
@@ -207,16 +187,14 @@ const SKIN_K4: PassDesc = PassDesc {
 };
 
 const SKIN_K8: PassDesc = PassDesc {
-    spirv: spirv!("skin_k8"),
+    shader: shaders::SKIN_K8,
     runs: |d| d.influences == 8,
     ..SKIN_K4
 };
 
 /// Normals gathered from each vertex's incident triangles (no atomics).
 const NORMALS: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "normals.comp",
-    spirv: spirv!("normals"),
+    shader: shaders::NORMALS,
     bindings: &[
         Reads(Crowd::Positions),
         Model(M::IncidentOffsets),
@@ -232,9 +210,7 @@ const NORMALS: PassDesc = PassDesc {
 /// Per-character axis-aligned boxes of the positions: one workgroup per character reduces its
 /// vertices in shared memory (no atomics). Crowds created with bounds only.
 const BOUNDS: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "bounds.comp",
-    spirv: spirv!("bounds"),
+    shader: shaders::BOUNDS,
     bindings: &[Reads(Crowd::Positions), Writes(Crowd::Bounds)],
     push: &[W::Vertices, W::Characters],
     groups: [over(Characters, 1), ONE, ONE],
@@ -244,14 +220,12 @@ const BOUNDS: PassDesc = PassDesc {
 /// Tangent frames: each vertex's rest tangent through its blended palette matrix, made
 /// orthogonal to its normal; one pipeline per K. Crowds created with tangents only.
 const TANGENTS_K4: PassDesc = PassDesc {
-    #[cfg(test)]
-    glsl: "tangents.comp",
-    spirv: spirv!("tangents_k4"),
+    shader: shaders::TANGENTS_K4,
     bindings: &[
         Model(M::SkinIndex),
         Model(M::SkinWeight),
         Model(M::RestTangents),
-        Reads(Crowd::Proxies),
+        Reads(Crowd::Palette),
         Reads(Crowd::Bones),
         Reads(Crowd::Normals),
         Writes(Crowd::Tangents),
@@ -262,7 +236,7 @@ const TANGENTS_K4: PassDesc = PassDesc {
 };
 
 const TANGENTS_K8: PassDesc = PassDesc {
-    spirv: spirv!("tangents_k8"),
+    shader: shaders::TANGENTS_K8,
     runs: |d| d.tangents && d.influences == 8,
     ..TANGENTS_K4
 };
@@ -314,10 +288,10 @@ mod tests {
                 M::SkinWeight => "SkinWeight",
                 M::Parents => "Parents",
                 M::Predictors => "Predictors",
-                M::BlendMatrix => "Matrix",
-                M::BlendOffsets => "BlendOffsets",
-                M::BlendColumns => "BlendColumns",
-                M::BlendValues => "BlendValues",
+                M::ProductMatrix => "ProductMatrix",
+                M::ProductOffsets => "ProductOffsets",
+                M::ProductColumns => "ProductColumns",
+                M::ProductValues => "ProductValues",
                 M::IncidentOffsets => "Offsets",
                 M::IncidentTriangles => "Incident",
                 M::Triangles => "Triangles",
@@ -326,7 +300,7 @@ mod tests {
             Binding::Reads(c) | Binding::Writes(c) => match c {
                 CrowdBuffer::Bones => "Bones",
                 CrowdBuffer::Rhs => "Rhs",
-                CrowdBuffer::Proxies => "Proxies",
+                CrowdBuffer::Palette => "Palette",
                 CrowdBuffer::Positions => "Positions",
                 CrowdBuffer::Normals => "Normals",
                 CrowdBuffer::Bounds => "Bounds",
@@ -350,7 +324,7 @@ mod tests {
             let d = pass.desc();
             let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
                 .join("glsl")
-                .join(d.glsl);
+                .join(d.shader.glsl);
             let source = std::fs::read_to_string(&path).expect("the pass's shader");
             let (buffers, push) = interface(&source);
             let expected: Vec<(usize, bool, String)> = (d.bindings.iter().enumerate())
@@ -365,10 +339,10 @@ mod tests {
             assert_eq!(
                 buffers, expected,
                 "{pass:?}: (binding, readonly, block) in {}",
-                d.glsl
+                d.shader.glsl
             );
             let words: Vec<&str> = d.push.iter().map(|&w| glsl_name(w)).collect();
-            assert_eq!(push, words, "{pass:?}: push block of {}", d.glsl);
+            assert_eq!(push, words, "{pass:?}: push block of {}", d.shader.glsl);
             assert!(d.push.len() <= super::super::pass::MAX_PUSH_WORDS);
         }
     }
@@ -402,9 +376,9 @@ mod tests {
             for p in Pass::of_model(&d) {
                 for b in CrowdBuffer::ALL {
                     let input =
-                        b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Proxies);
+                        b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Palette);
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
-                        let palette = b == CrowdBuffer::Proxies && !d.fused;
+                        let palette = b == CrowdBuffer::Palette && !d.fused;
                         let expected = if palette { 2 } else { 1 };
                         assert_eq!(writers(b), expected, "{p:?} reads {b:?} of {d:?}");
                     }

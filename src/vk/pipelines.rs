@@ -82,6 +82,7 @@ impl PassPipeline {
             pass.layout = unsafe { device.create_pipeline_layout(&info, None) }
                 .map_err(Error::vk("vkCreatePipelineLayout"))?;
             let words: Vec<u32> = desc
+                .shader
                 .spirv
                 .chunks_exact(4)
                 .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))

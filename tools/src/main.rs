@@ -29,28 +29,7 @@ struct Cli {
 enum Command {
     /// Write MODEL as a skinned glTF 2.0 binary (.glb) that any viewer or engine plays with its
     /// own skinning: the palette as joints, every clip baked through the model.
-    Export {
-        model: PathBuf,
-        /// The .glb to write.
-        #[arg(short, long)]
-        output: PathBuf,
-        /// The glTF rig the model was trained from: its mesh, materials, joint names and clips.
-        #[arg(long)]
-        rig: Option<PathBuf>,
-        /// A clip of the rig to bake (repeatable; default: every clip).
-        #[arg(long = "clip")]
-        clips: Vec<String>,
-        /// Frames a second of the model's own animation (without --rig).
-        #[arg(long, default_value_t = 30.0)]
-        fps: f64,
-        /// Largest vertex distance allowed between the played file and the model, as a fraction
-        /// of the rest mesh's bounding-box diagonal.
-        #[arg(long, default_value_t = rrskin_tools::export::TOLERANCE)]
-        tolerance: f64,
-        /// One JSON object on stdout.
-        #[arg(long)]
-        json: bool,
-    },
+    Export(ExportArgs),
     /// The main job on the bundled example: train, print the error table, write the model and
     /// render a comparison image and a crowd image.
     Demo {
@@ -93,27 +72,7 @@ enum Command {
         json: bool,
     },
     /// Write a synthetic model (random, valid, untrained) of chosen size, for profiling.
-    Synth {
-        /// Vertices = grid x grid.
-        #[arg(long, default_value_t = 48)]
-        grid: usize,
-        #[arg(long, default_value_t = 19)]
-        bones: usize,
-        /// Proxy bones / key predictors (0: plain linear blend skinning).
-        #[arg(long, default_value_t = 60)]
-        proxies: usize,
-        /// Influences per vertex: 4 or 8.
-        #[arg(long, default_value_t = 4)]
-        influences: u32,
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// List every bone after its children (bones renumbered J−1, …, 0), as many glTF skins
-        /// order their joints.
-        #[arg(long)]
-        children_first: bool,
-        #[arg(short, long)]
-        output: PathBuf,
-    },
+    Synth(SynthArgs),
     /// Rotational regression against plain SSD skinning of the same mesh: GPU time per frame.
     Bench(RunArgs),
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
@@ -226,6 +185,30 @@ impl TrainArgs {
             ..defaults
         }
     }
+}
+
+/// The sizes and seed of `rrskin synth`'s model.
+#[derive(clap::Args)]
+struct SynthArgs {
+    /// Vertices = grid x grid.
+    #[arg(long, default_value_t = 48)]
+    grid: usize,
+    #[arg(long, default_value_t = 19)]
+    bones: usize,
+    /// Proxy bones / key predictors (0: plain linear blend skinning).
+    #[arg(long, default_value_t = 60)]
+    proxies: usize,
+    /// Influences per vertex: 4 or 8.
+    #[arg(long, default_value_t = 4)]
+    influences: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// List every bone after its children (bones renumbered J−1, …, 0), as many glTF skins
+    /// order their joints.
+    #[arg(long)]
+    children_first: bool,
+    #[arg(short, long)]
+    output: PathBuf,
 }
 
 /// A crowd of a model's characters run for some frames on one Vulkan device.
@@ -441,7 +424,9 @@ fn print_report(report: &Report, set: &SetArgs, json: bool) {
     }
 }
 
-fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
+type Outcome = Result<(), Box<dyn std::error::Error>>;
+
+fn run(cli: Cli) -> Outcome {
     match cli.command {
         Command::Eval {
             set,
@@ -452,239 +437,320 @@ fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         } => {
             let (report, _) = evaluate(&set, &train, train.options(), model, loocv, diagnose)?;
             print_report(&report, &set, train.json);
+            Ok(())
         }
-        Command::Train { set, train, output } => {
-            if train.proxies == 0 {
-                return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
-            }
-            check_writable(output.parent().unwrap_or(Path::new("")))?;
-            // The runtime model only: joint-blend proxies need no full model.
-            let options = TrainOptions {
-                full_model: false,
-                ..train.options()
-            };
-            let (report, imported) = evaluate(&set, &train, options, None, false, false)?;
-            let model = report.model.as_ref().ok_or("training produced no model")?;
-            // A glTF rig's model is written over the file's own vertices (order and count).
-            let model = match &imported {
-                Some(imported) => imported.expand(model)?,
-                None => model.clone(),
-            };
-            model.save(&output)?;
-            print_report(&report, &set, train.json);
-            if !train.json {
-                let tangents = match imported.as_ref().and_then(|i| i.tangents.as_ref()) {
-                    Some((_, Source::File)) => "rest tangents from the file's TANGENT",
-                    Some((_, Source::MikkTSpace)) => "rest tangents by MikkTSpace from TEXCOORD_0",
-                    None => "no rest tangents (no UVs)",
-                };
-                note(format_args!(
-                    "wrote {} ({} bytes; {tangents})",
-                    output.display(),
-                    model.to_bytes().len()
-                ));
-            }
-        }
-        Command::Bench(args) => {
-            let (m, choice) = args.load()?;
-            let (characters, frames, json) = (args.characters, args.frames, args.json);
-            let b = rrskin_tools::run::profile::Bench::run(&m, characters, frames, choice, json)?;
-            if json {
-                out!("{}", b.to_json(args.bandwidth));
-            } else {
-                out!(
-                    "{}: {} x {} vertices, median of {}\n  rotational regression {:.3} ms ({:.1} M vertices/s)\n  SSD                   {:.3} ms ({:.1} M vertices/s)\n  ratio                 {:.2} (median of the {} pairs' ratios {:.2})\n  RR + previous positions {:.3} ms ({:.2} x RR)\n  RR + bounds             {:.3} ms ({:.2} x RR)",
-                    b.rr.device, count(b.rr.characters, "character"), b.rr.vertices, count(b.rr.frames, "frame"),
-                    b.rr.total_ms, b.rr.pipeline_mverts_per_s(), b.ssd.total_ms, b.ssd.pipeline_mverts_per_s(),
-                    b.rr.total_ms / b.ssd.total_ms, b.pair_ratios.len(), b.paired_ratio(),
-                    b.previous_positions.profile.total_ms, b.previous_positions.ratio(),
-                    b.bounds.profile.total_ms, b.bounds.ratio()
-                );
-                match &b.tangents {
-                    Some(t) => out!(
-                        "  RR + tangents           {:.3} ms ({:.2} x RR)",
-                        t.profile.total_ms,
-                        t.ratio()
-                    ),
-                    None => out!("  RR + tangents           - (the model has no rest tangents)"),
-                }
-                for (name, p) in [("RR", &b.rr), ("SSD", &b.ssd)] {
-                    let bound = match args.bandwidth {
-                        Some(peak) => format!(
-                            ", {:.0} % of the bandwidth bound",
-                            100.0 * p.effective_gbps() / peak
-                        ),
-                        None => String::new(),
-                    };
-                    out!(
-                        "  {name}: {:.1} MB a frame at least, {:.1} GB/s{bound}",
-                        p.bytes as f64 / 1e6,
-                        p.effective_gbps()
-                    );
-                }
-            }
-        }
-        Command::Demo { out, set } => {
-            let set = set.unwrap_or_else(|| {
-                Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .parent()
-                    .unwrap_or(Path::new(".."))
-                    .join("data/cesiumman")
-            });
-            let start = std::time::Instant::now();
-            let o = rrskin_tools::run::demo::run(&set, &out, false)?;
-            out!("{}", o.report.table(&shown(&set)));
-            out!(
-                "training (all methods, including the cross-validation): {:.1} s",
-                o.report.stages.iter().map(|s| s.1).sum::<f64>()
-            );
-            out!(
-                "held-out pose {}: RMS vertex error SSD {:.4}, rotational regression {:.4} (mesh units)",
-                o.pose, o.rms.0, o.rms.1
-            );
-            out!("rendered with the Vulkan runtime on {}", o.device);
-            out!("wrote\n  {}  (the runtime model)\n  {}  (ground truth | SSD | rotational regression; blue = 0, red >= {:.0} % of the height)\n  {}  (SSD | rotational regression where it gains most)\n  {}  ({} characters on the runtime)\n  {}  (EE against P: {})\n  {}  (the tables, the curve and the images)", shown(&o.model), shown(&o.comparison), 100.0 * rrskin_tools::run::demo::ERROR_SCALE, shown(&o.closeup), shown(&o.crowd), rrskin_tools::run::demo::CROWD, shown(&o.tradeoff_plot), o.tradeoff.iter().map(|x| format!("P = {} {:.1} %", x.proxies, x.test.unwrap_or(x.train))).collect::<Vec<_>>().join(", "), shown(&o.model.with_file_name("report.html")));
-            out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
-        }
+        Command::Train { set, train, output } => train_model(&set, &train, &output),
+        Command::Bench(args) => bench(&args),
+        Command::Demo { out, set } => demo(&out, set),
+        Command::Export(args) => export(&args),
         Command::Reference {
             model,
             frames,
             characters,
             out,
-        } => {
-            let m = Model::load(&model)?;
-            let written = rrskin_tools::run::reference::write(&m, frames, characters, &out)?;
-            let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
-            note(format_args!(
-                "wrote {} ({} x {} of {}: J = {}, V = {})",
-                names.join(", "),
-                count(frames, "frame"),
-                count(characters, "character"),
-                model.display(),
-                m.bone_count(),
-                m.vertex_count()
-            ));
-        }
-        Command::Export {
-            model,
-            output,
-            rig,
-            clips,
-            fps,
-            tolerance,
-            json,
-        } => {
-            if let Some(dir) = output.parent() {
-                check_writable(dir)?;
-            }
-            let options = rrskin_tools::export::Options {
-                model,
-                output,
-                rig,
-                clips,
-                fps,
-                tolerance,
-            };
-            print_export(&rrskin_tools::export::run(&options)?, json);
-        }
-        Command::Info { model, json } => {
-            let m = Model::load(&model)?;
-            let dims = serde_json::json!({
-                "vertices": m.vertex_count(), "triangles": m.triangle_count(),
-                "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
-                "tangents": m.has_tangents(),
-            });
-            if json {
-                out!("{dims}");
-            } else {
-                out!(
-                    "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}",
-                    model.display(),
-                    m.vertex_count(),
-                    m.triangle_count(),
-                    m.bone_count(),
-                    m.proxy_count(),
-                    m.influences(),
-                    if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
-                    if m.has_tangents() { "rest tangents" } else { "no rest tangents" }
-                );
-            }
-        }
-        Command::Synth {
-            grid,
-            bones,
-            proxies,
-            influences,
-            seed,
-            children_first,
-            output,
-        } => {
-            let mut m = random_model(
-                Spec {
-                    grid,
-                    bones,
-                    proxies,
-                    influences,
-                },
-                seed,
-            )?;
-            if children_first {
-                let reversed: Vec<usize> = (0..m.bone_count()).rev().collect();
-                m = renumber_bones(&m, &reversed)?;
-            }
-            m.save(&output)?;
-            note(format_args!(
-                "wrote {} ({} vertices)",
-                output.display(),
-                m.vertex_count()
-            ));
-        }
-        Command::Profile(args) => {
-            let (m, choice) = args.load()?;
-            let (characters, frames, json) = (args.characters, args.frames, args.json);
-            let p = rrskin_tools::run::profile::run(&m, characters, frames, choice, json)?;
-            if json {
-                out!("{}", p.to_json());
-            } else {
-                let t = &p.median;
-                out!(
-                    "{}: {} x {} vertices (J = {}, P = {}, K = {}), median of {}",
-                    p.device,
-                    count(p.characters, "character"),
-                    p.vertices,
-                    p.bones,
-                    p.proxies,
-                    p.influences,
-                    count(p.frames, "frame")
-                );
-                for (name, ms) in [
-                    ("predictors", t.predict_ms),
-                    ("C1/C2 prod.", t.blend_ms),
-                    ("skinning", t.skin_ms),
-                    ("normals", t.normals_ms),
-                ] {
-                    out!(
-                        "  {name:<11} {ms:>9.3} ms  {:>5.1} %",
-                        100.0 * ms / t.total_ms()
-                    );
-                }
-                out!("  {:<11} {:>9.3} ms", "frame", p.total_ms);
-                out!(
-                    "  skinning alone {:.1} M vertices/s, whole pipeline {:.1} M vertices/s",
-                    p.skin_mverts_per_s(),
-                    p.pipeline_mverts_per_s()
-                );
-            }
-        }
+        } => reference(&model, frames, characters, &out),
+        Command::Info { model, json } => info(&model, json),
+        Command::Synth(args) => synth(&args),
+        Command::Profile(args) => profile(&args),
+    }
+}
+
+/// `rrskin train`: the runtime model of SET, written to `output`.
+fn train_model(set: &SetArgs, train: &TrainArgs, output: &Path) -> Outcome {
+    if train.proxies == 0 {
+        return Err("--proxies must be at least 1 (a model of P = 0 is plain SSD)".into());
+    }
+    check_writable(output.parent().unwrap_or(Path::new("")))?;
+    // The runtime model only: joint-blend proxies need no full model.
+    let options = TrainOptions {
+        full_model: false,
+        ..train.options()
+    };
+    let (report, imported) = evaluate(set, train, options, None, false, false)?;
+    let model = report.model.as_ref().ok_or("training produced no model")?;
+    // A glTF rig's model is written over the file's own vertices (order and count).
+    let model = match &imported {
+        Some(imported) => imported.expand(model)?,
+        None => model.clone(),
+    };
+    model.save(output)?;
+    print_report(&report, set, train.json);
+    if !train.json {
+        let tangents = match imported.as_ref().and_then(|i| i.tangents.as_ref()) {
+            Some((_, Source::File)) => "rest tangents from the file's TANGENT",
+            Some((_, Source::MikkTSpace)) => "rest tangents by MikkTSpace from TEXCOORD_0",
+            None => "no rest tangents (no UVs)",
+        };
+        note(format_args!(
+            "wrote {} ({} bytes; {tangents})",
+            output.display(),
+            model.to_bytes().len()
+        ));
     }
     Ok(())
 }
 
-fn print_export(e: &rrskin_tools::export::Exported, json: bool) {
+/// `rrskin bench`: RR against SSD and the optional outputs' costs.
+fn bench(args: &RunArgs) -> Outcome {
+    let (m, choice) = args.load()?;
+    let (characters, frames, json) = (args.characters, args.frames, args.json);
+    let b = rrskin_tools::run::bench::Bench::run(&m, characters, frames, choice, json)?;
+    if json {
+        out!("{}", b.to_json(args.bandwidth));
+        return Ok(());
+    }
+    let (rr, ssd) = (&b.rr, &b.ssd);
+    out!(
+        "{}: {} x {} vertices, median of {}",
+        rr.device,
+        count(rr.characters, "character"),
+        rr.vertices,
+        count(rr.frames, "frame")
+    );
+    for (name, p) in [("rotational regression", rr), ("SSD", ssd)] {
+        let (ms, mverts) = (p.total_ms, p.pipeline_mverts_per_s());
+        out!("  {name:<21} {ms:.3} ms ({mverts:.1} M vertices/s)");
+    }
+    out!(
+        "  ratio                 {:.2} (median of the {} pairs' ratios {:.2})",
+        rr.total_ms / ssd.total_ms,
+        b.pair_ratios.len(),
+        b.paired_ratio()
+    );
+    let options = [
+        ("previous positions", Some(&b.previous_positions)),
+        ("bounds", Some(&b.bounds)),
+        ("tangents", b.tangents.as_ref()),
+    ];
+    for (name, cost) in options {
+        match cost {
+            Some(c) => out!(
+                "  RR + {name:<18} {:.3} ms ({:.2} x RR)",
+                c.profile.total_ms,
+                c.ratio()
+            ),
+            None => out!("  RR + {name:<18} - (the model has no rest tangents)"),
+        }
+    }
+    for (name, p) in [("RR", rr), ("SSD", ssd)] {
+        let bound = match args.bandwidth {
+            Some(peak) => format!(
+                ", {:.0} % of the bandwidth bound",
+                100.0 * p.effective_gbps() / peak
+            ),
+            None => String::new(),
+        };
+        out!(
+            "  {name}: {:.1} MB a frame at least, {:.1} GB/s{bound}",
+            p.bytes as f64 / 1e6,
+            p.effective_gbps()
+        );
+    }
+    Ok(())
+}
+
+/// `rrskin demo`: train on the bundled example (or `set`), render and write the report.
+fn demo(out: &Path, set: Option<PathBuf>) -> Outcome {
+    let set = set.unwrap_or_else(|| {
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .unwrap_or(Path::new(".."))
+            .join("data/cesiumman")
+    });
+    let start = std::time::Instant::now();
+    let o = rrskin_tools::run::demo::run(&set, out, false)?;
+    out!("{}", o.report.table(&shown(&set)));
+    out!(
+        "training (all methods, including the cross-validation): {:.1} s",
+        o.report.stages.iter().map(|s| s.1).sum::<f64>()
+    );
+    out!(
+        "held-out pose {}: RMS vertex error SSD {:.4}, rotational regression {:.4} (mesh units)",
+        o.pose,
+        o.rms.0,
+        o.rms.1
+    );
+    out!("rendered with the Vulkan runtime on {}", o.device);
+    out!("wrote");
+    for (path, what) in demo_files(&o) {
+        out!("  {}  ({what})", shown(&path));
+    }
+    out!("demo finished in {:.1} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The files `rrskin demo` wrote, each with what it shows.
+fn demo_files(o: &rrskin_tools::run::demo::Outputs) -> [(PathBuf, String); 6] {
+    let scale = 100.0 * rrskin_tools::run::demo::ERROR_SCALE;
+    let curve = (o.tradeoff.iter())
+        .map(|x| format!("P = {} {:.1} %", x.proxies, x.test.unwrap_or(x.train)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let crowd = rrskin_tools::run::demo::CROWD;
+    [
+        (o.model.clone(), "the runtime model".to_string()),
+        (
+            o.comparison.clone(),
+            format!("ground truth | SSD | rotational regression; blue = 0, red >= {scale:.0} % of the height"),
+        ),
+        (
+            o.closeup.clone(),
+            "SSD | rotational regression where it gains most".to_string(),
+        ),
+        (o.crowd.clone(), format!("{crowd} characters on the runtime")),
+        (o.tradeoff_plot.clone(), format!("EE against P: {curve}")),
+        (
+            o.model.with_file_name("report.html"),
+            "the tables, the curve and the images".to_string(),
+        ),
+    ]
+}
+
+/// `rrskin reference`: the inputs and expected outputs of examples/c/crowd.c.
+fn reference(model: &Path, frames: usize, characters: usize, out: &Path) -> Outcome {
+    let m = Model::load(model)?;
+    let written = rrskin_tools::run::reference::write(&m, frames, characters, out)?;
+    let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+    note(format_args!(
+        "wrote {} ({} x {} of {}: J = {}, V = {})",
+        names.join(", "),
+        count(frames, "frame"),
+        count(characters, "character"),
+        model.display(),
+        m.bone_count(),
+        m.vertex_count()
+    ));
+    Ok(())
+}
+
+/// `rrskin info`: a model file's dimensions.
+fn info(model: &Path, json: bool) -> Outcome {
+    let m = Model::load(model)?;
+    if json {
+        let dims = serde_json::json!({
+            "vertices": m.vertex_count(), "triangles": m.triangle_count(),
+            "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
+            "tangents": m.has_tangents(),
+        });
+        out!("{dims}");
+    } else {
+        out!(
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}",
+            model.display(),
+            m.vertex_count(),
+            m.triangle_count(),
+            m.bone_count(),
+            m.proxy_count(),
+            m.influences(),
+            if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
+            if m.has_tangents() { "rest tangents" } else { "no rest tangents" }
+        );
+    }
+    Ok(())
+}
+
+/// `rrskin synth`: a random valid model of the chosen sizes.
+fn synth(args: &SynthArgs) -> Outcome {
+    let spec = Spec {
+        grid: args.grid,
+        bones: args.bones,
+        proxies: args.proxies,
+        influences: args.influences,
+    };
+    let mut m = random_model(spec, args.seed)?;
+    if args.children_first {
+        let reversed: Vec<usize> = (0..m.bone_count()).rev().collect();
+        m = renumber_bones(&m, &reversed)?;
+    }
+    m.save(&args.output)?;
+    note(format_args!(
+        "wrote {} ({} vertices)",
+        args.output.display(),
+        m.vertex_count()
+    ));
+    Ok(())
+}
+
+/// `rrskin profile`: per-pass GPU time of a crowd.
+fn profile(args: &RunArgs) -> Outcome {
+    let (m, choice) = args.load()?;
+    let (characters, frames, json) = (args.characters, args.frames, args.json);
+    let p = rrskin_tools::run::profile::run(&m, characters, frames, choice, json)?;
+    if json {
+        out!("{}", p.to_json());
+        return Ok(());
+    }
+    let t = &p.median;
+    out!(
+        "{}: {} x {} vertices (J = {}, P = {}, K = {}), median of {}",
+        p.device,
+        count(p.characters, "character"),
+        p.vertices,
+        p.bones,
+        p.proxies,
+        p.influences,
+        count(p.frames, "frame")
+    );
+    for (name, ms) in [
+        ("predictors", t.predict_ms),
+        ("C1/C2 prod.", t.product_ms),
+        ("skinning", t.skin_ms),
+        ("normals", t.normals_ms),
+        ("tangents", t.tangents_ms),
+    ] {
+        out!(
+            "  {name:<11} {ms:>9.3} ms  {:>5.1} %",
+            100.0 * ms / t.total_ms()
+        );
+    }
+    out!("  {:<11} {:>9.3} ms", "frame", p.total_ms);
+    out!(
+        "  skinning alone {:.1} M vertices/s, whole pipeline {:.1} M vertices/s",
+        p.skin_mverts_per_s(),
+        p.pipeline_mverts_per_s()
+    );
+    Ok(())
+}
+
+#[derive(clap::Args)]
+struct ExportArgs {
+    model: PathBuf,
+    /// The .glb to write.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// The glTF rig the model was trained from: its mesh, materials, joint names and clips.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// A clip of the rig to bake (repeatable; default: every named clip).
+    #[arg(long = "clip")]
+    clips: Vec<String>,
+    /// Frames a second of the model's own animation (without --rig).
+    #[arg(long, default_value_t = 30.0)]
+    fps: f64,
+    /// Largest vertex distance allowed between the played file and the model, as a fraction
+    /// of the rest mesh's bounding-box diagonal.
+    #[arg(long, default_value_t = rrskin_tools::export::TOLERANCE)]
+    tolerance: f64,
+    /// One JSON object on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// `rrskin export`: the model as a skinned glTF.
+fn export(args: &ExportArgs) -> Outcome {
+    check_writable(args.output.parent().unwrap_or(Path::new("")))?;
+    let e = rrskin_tools::export::run(&rrskin_tools::export::Options {
+        model: args.model.clone(),
+        output: args.output.clone(),
+        rig: args.rig.clone(),
+        clips: args.clips.clone(),
+        fps: args.fps,
+        tolerance: args.tolerance,
+    })?;
     for line in &e.notes {
         note(format_args!("note: {}: {line}", shown(&e.output)));
     }
-    if json {
+    if args.json {
         let clips: Vec<_> = e
             .clips
             .iter()
@@ -698,7 +764,7 @@ fn print_export(e: &rrskin_tools::export::Exported, json: bool) {
             serde_json::json!({"output": shown(&e.output), "vertices": e.vertices,
                 "joints": e.joints, "clips": clips})
         );
-        return;
+        return Ok(());
     }
     out!(
         "{}: {} vertices skinned by {} palette joints",
@@ -716,4 +782,5 @@ fn print_export(e: &rrskin_tools::export::Exported, json: bool) {
             c.worst_between
         );
     }
+    Ok(())
 }

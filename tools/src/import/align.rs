@@ -287,10 +287,7 @@ fn score(
 
 /// Why no offset puts the samples on the clip's keys, with the likely cause.
 fn off_the_keys(rig_path: &Path, cache: &PointCache, keys: &[f64], clip: &str, fps: f64) -> String {
-    let mut gaps: Vec<f64> = keys.windows(2).map(|w| w[1] - w[0]).collect();
-    gaps.sort_by(f64::total_cmp);
-    let key_fps = gaps
-        .get(gaps.len() / 2)
+    let key_fps = rrskin::cpu::median(keys.windows(2).map(|w| w[1] - w[0]))
         .map(|d| 1.0 / d)
         .filter(|r| (r - r.round()).abs() < 1e-3)
         .map(f64::round);

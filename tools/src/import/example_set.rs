@@ -153,6 +153,198 @@ fn read_floats(path: &Path) -> Result<Array<f64>, InputError> {
     Ok(array)
 }
 
+/// `rest_vertices.npy`: V > 0 points.
+fn read_rest(path: &Path) -> Result<Vec<DVec3>, InputError> {
+    let rest = read_floats(path)?;
+    expect_shape(path, &rest.shape, &[None, Some(3)], "(V, 3)")?;
+    if rest.shape[0] == 0 {
+        return Err(bad(path, "no vertices"));
+    }
+    Ok(rest
+        .data
+        .chunks_exact(3)
+        .map(|p| DVec3::new(p[0], p[1], p[2]))
+        .collect())
+}
+
+/// `faces.npy`: triangles of the `v` vertices.
+fn read_faces(path: &Path, v: usize) -> Result<Vec<[usize; 3]>, InputError> {
+    let faces = read_ints(path)?;
+    expect_shape(path, &faces.shape, &[None, Some(3)], "(T, 3)")?;
+    if let Some(i) = faces.data.iter().position(|&x| x < 0 || x >= v as i64) {
+        return Err(bad(
+            path,
+            format!(
+                "face {} has vertex index {} outside 0..{v}",
+                i / 3,
+                faces.data[i]
+            ),
+        ));
+    }
+    Ok(faces
+        .data
+        .chunks_exact(3)
+        .map(|t| [t[0] as usize, t[1] as usize, t[2] as usize])
+        .collect())
+}
+
+/// `bone_parents.npy`: J > 0 parents (-1 for a root), without cycles.
+fn read_parents(path: &Path) -> Result<Vec<Option<usize>>, InputError> {
+    let parents = read_ints(path)?;
+    expect_shape(path, &parents.shape, &[None], "(J,)")?;
+    let j = parents.shape[0] as usize;
+    if j == 0 {
+        return Err(bad(path, "no bones"));
+    }
+    if let Some(b) = parents.data.iter().position(|&p| p < -1 || p >= j as i64) {
+        return Err(bad(
+            path,
+            format!("bone {b} has parent {} outside -1..{j}", parents.data[b]),
+        ));
+    }
+    let parents: Vec<Option<usize>> = parents
+        .data
+        .iter()
+        .map(|&p| usize::try_from(p).ok())
+        .collect();
+    if let Some(b) = cycle(&parents) {
+        return Err(bad(path, format!("the parents of bone {b} form a cycle")));
+    }
+    Ok(parents)
+}
+
+/// `pose_transforms.npy` (N > 0 poses of `j` bones) and `pose_vertices.npy` (N poses of `v`
+/// vertices), their shapes checked.
+fn read_pose_arrays(
+    transforms_path: &Path,
+    vertices_path: &Path,
+    j: usize,
+    v: usize,
+) -> Result<(Array<f64>, Array<f64>), InputError> {
+    let transforms = read_floats(transforms_path)?;
+    expect_shape(
+        transforms_path,
+        &transforms.shape,
+        &[None, Some(j as u64), Some(3), Some(4)],
+        &format!("(N, J = {j}, 3, 4)"),
+    )?;
+    let n = transforms.shape[0] as usize;
+    if n == 0 {
+        return Err(bad(transforms_path, "no poses"));
+    }
+    let vertices = read_floats(vertices_path)?;
+    expect_shape(
+        vertices_path,
+        &vertices.shape,
+        &[Some(n as u64), Some(v as u64), Some(3)],
+        &format!("(N = {n}, V = {v}, 3)"),
+    )?;
+    Ok((transforms, vertices))
+}
+
+/// `split.npy` if present (0 = train, 1 = test per pose; all train without it); some pose
+/// must be a training pose.
+fn read_split(path: &Path, n: usize) -> Result<Vec<bool>, InputError> {
+    let is_test = if path.exists() {
+        let split = read_ints(path)?;
+        expect_shape(
+            path,
+            &split.shape,
+            &[Some(n as u64)],
+            &format!("(N = {n},)"),
+        )?;
+        if let Some(i) = split.data.iter().position(|&s| s != 0 && s != 1) {
+            return Err(bad(
+                path,
+                format!(
+                    "pose {i} has split {} (must be 0 = train or 1 = test)",
+                    split.data[i]
+                ),
+            ));
+        }
+        split.data.iter().map(|&s| s == 1).collect()
+    } else {
+        vec![false; n]
+    };
+    if is_test.iter().all(|&t| t) {
+        return Err(bad(path, "every pose is a test pose: nothing to train on"));
+    }
+    Ok(is_test)
+}
+
+/// `bone_names.json` if present: `j` names.
+fn read_bone_names(path: &Path, j: usize) -> Result<Option<Vec<String>>, InputError> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| bad(path, e.to_string()))?;
+    let names: Vec<String> = serde_json::from_str(&text)
+        .map_err(|e| bad(path, format!("not a JSON list of strings: {e}")))?;
+    if names.len() != j {
+        return Err(bad(path, format!("{} names for {j} bones", names.len())));
+    }
+    Ok(Some(names))
+}
+
+/// The poses of the arrays of [`read_pose_arrays`], each bone's 3x3 part checked to be a
+/// rotation.
+fn poses(
+    transforms_path: &Path,
+    transforms: &Array<f64>,
+    vertices: &Array<f64>,
+    j: usize,
+    v: usize,
+) -> Result<Vec<Pose>, InputError> {
+    let n = transforms.shape[0] as usize;
+    let mut poses = Vec::with_capacity(n);
+    for i in 0..n {
+        let mut bones = Vec::with_capacity(j);
+        for b in 0..j {
+            let t = &transforms.data[(i * j + b) * 12..(i * j + b + 1) * 12];
+            let q = DMat3::from_cols(
+                DVec3::new(t[0], t[4], t[8]),
+                DVec3::new(t[1], t[5], t[9]),
+                DVec3::new(t[2], t[6], t[10]),
+            );
+            let error = rotation_error(q);
+            if error > ROTATION_TOLERANCE {
+                return Err(bad(
+                    transforms_path,
+                    format!(
+                        "pose {i}, bone {b}: the 3x3 part is not a rotation (error {error:.2e} > {ROTATION_TOLERANCE:e}); transforms must be rigid"
+                    ),
+                ));
+            }
+            bones.push(Bone {
+                q,
+                d: DVec3::new(t[3], t[7], t[11]),
+            });
+        }
+        let y = &vertices.data[i * v * 3..(i + 1) * v * 3];
+        poses.push(Pose {
+            bones,
+            vertices: y
+                .chunks_exact(3)
+                .map(|p| DVec3::new(p[0], p[1], p[2]))
+                .collect(),
+        });
+    }
+    Ok(poses)
+}
+
+/// Refuses a set whose rig weights skin the poses no better than rigid bones: its vertices
+/// are not those of its transforms (the error names `weights_path`).
+fn check_rig_skin(set: &ExampleSet, weights_path: &Path) -> Result<(), InputError> {
+    let limit = crate::import::preflight::RIG_SKIN_LIMIT;
+    match crate::import::preflight::rig_skin_error(set).filter(|&e| e >= limit) {
+        Some(e) => Err(bad(
+            weights_path,
+            format!("linear blend skinning with these weights follows pose_vertices.npy no better than rigid bones ({e:.1} % of the rigid error on the training poses; a rig's own weights are far below {limit} %): pose_vertices.npy is not in the space, vertex order or poses of pose_transforms.npy and rest_vertices.npy"),
+        )),
+        None => Ok(()),
+    }
+}
+
 fn read_ints(path: &Path) -> Result<Array<i64>, InputError> {
     read_array::<i64, i32, i64>(path, "an int32/int64")
 }
@@ -187,180 +379,35 @@ fn expect_shape(
 }
 
 impl ExampleSet {
-    /// Reads and validates a NumPy example-set folder.
+    /// Reads and validates a NumPy example-set folder: the rest mesh, the skeleton, the poses,
+    /// the optional split, bone names and rig weights, then the mesh and the rig's skin.
     pub fn load(dir: impl AsRef<Path>) -> Result<ExampleSet, InputError> {
         let dir = dir.as_ref();
         if !dir.is_dir() {
             return Err(bad(dir, "not a folder (expected a NumPy example set)"));
         }
         let f = |name: &str| dir.join(name);
-
-        let rest_path = f("rest_vertices.npy");
-        let rest = read_floats(&rest_path)?;
-        expect_shape(&rest_path, &rest.shape, &[None, Some(3)], "(V, 3)")?;
-        let v = rest.shape[0] as usize;
-        if v == 0 {
-            return Err(bad(&rest_path, "no vertices"));
-        }
-
+        let rest = read_rest(&f("rest_vertices.npy"))?;
+        let v = rest.len();
         let faces_path = f("faces.npy");
-        let faces = read_ints(&faces_path)?;
-        expect_shape(&faces_path, &faces.shape, &[None, Some(3)], "(T, 3)")?;
-        if let Some(i) = faces.data.iter().position(|&x| x < 0 || x >= v as i64) {
-            return Err(bad(
-                &faces_path,
-                format!(
-                    "face {} has vertex index {} outside 0..{v}",
-                    i / 3,
-                    faces.data[i]
-                ),
-            ));
-        }
-
-        let parents_path = f("bone_parents.npy");
-        let parents = read_ints(&parents_path)?;
-        expect_shape(&parents_path, &parents.shape, &[None], "(J,)")?;
-        let j = parents.shape[0] as usize;
-        if j == 0 {
-            return Err(bad(&parents_path, "no bones"));
-        }
-        if let Some(b) = parents.data.iter().position(|&p| p < -1 || p >= j as i64) {
-            return Err(bad(
-                &parents_path,
-                format!("bone {b} has parent {} outside -1..{j}", parents.data[b]),
-            ));
-        }
-        let parents: Vec<Option<usize>> = parents
-            .data
-            .iter()
-            .map(|&p| usize::try_from(p).ok())
-            .collect();
-        if let Some(b) = cycle(&parents) {
-            return Err(bad(
-                &parents_path,
-                format!("the parents of bone {b} form a cycle"),
-            ));
-        }
-
+        let faces = read_faces(&faces_path, v)?;
+        let parents = read_parents(&f("bone_parents.npy"))?;
+        let j = parents.len();
         let transforms_path = f("pose_transforms.npy");
-        let transforms = read_floats(&transforms_path)?;
-        expect_shape(
-            &transforms_path,
-            &transforms.shape,
-            &[None, Some(j as u64), Some(3), Some(4)],
-            &format!("(N, J = {j}, 3, 4)"),
-        )?;
+        let (transforms, vertices) =
+            read_pose_arrays(&transforms_path, &f("pose_vertices.npy"), j, v)?;
         let n = transforms.shape[0] as usize;
-        if n == 0 {
-            return Err(bad(&transforms_path, "no poses"));
-        }
-
-        let vertices_path = f("pose_vertices.npy");
-        let vertices = read_floats(&vertices_path)?;
-        expect_shape(
-            &vertices_path,
-            &vertices.shape,
-            &[Some(n as u64), Some(v as u64), Some(3)],
-            &format!("(N = {n}, V = {v}, 3)"),
-        )?;
-
-        let split_path = f("split.npy");
-        let is_test = if split_path.exists() {
-            let split = read_ints(&split_path)?;
-            expect_shape(
-                &split_path,
-                &split.shape,
-                &[Some(n as u64)],
-                &format!("(N = {n},)"),
-            )?;
-            if let Some(i) = split.data.iter().position(|&s| s != 0 && s != 1) {
-                return Err(bad(
-                    &split_path,
-                    format!(
-                        "pose {i} has split {} (must be 0 = train or 1 = test)",
-                        split.data[i]
-                    ),
-                ));
-            }
-            split.data.iter().map(|&s| s == 1).collect()
-        } else {
-            vec![false; n]
-        };
-        if is_test.iter().all(|&t| t) {
-            return Err(bad(
-                &split_path,
-                "every pose is a test pose: nothing to train on",
-            ));
-        }
-
-        let names_path = f("bone_names.json");
-        let bone_names = if names_path.exists() {
-            let text = std::fs::read_to_string(&names_path)
-                .map_err(|e| bad(&names_path, e.to_string()))?;
-            let names: Vec<String> = serde_json::from_str(&text)
-                .map_err(|e| bad(&names_path, format!("not a JSON list of strings: {e}")))?;
-            if names.len() != j {
-                return Err(bad(
-                    &names_path,
-                    format!("{} names for {j} bones", names.len()),
-                ));
-            }
-            Some(names)
-        } else {
-            None
-        };
-
+        let is_test = read_split(&f("split.npy"), n)?;
+        let bone_names = read_bone_names(&f("bone_names.json"), j)?;
         let weights_path = f("skin_weights.npy");
         let rig_weights = match weights_path.exists() {
             true => Some(read_rig_weights(&weights_path, v, j)?),
             false => None,
         };
-
-        let mut poses = Vec::with_capacity(n);
-        for i in 0..n {
-            let mut bones = Vec::with_capacity(j);
-            for b in 0..j {
-                let t = &transforms.data[(i * j + b) * 12..(i * j + b + 1) * 12];
-                let q = DMat3::from_cols(
-                    DVec3::new(t[0], t[4], t[8]),
-                    DVec3::new(t[1], t[5], t[9]),
-                    DVec3::new(t[2], t[6], t[10]),
-                );
-                let error = rotation_error(q);
-                if error > ROTATION_TOLERANCE {
-                    return Err(bad(
-                        &transforms_path,
-                        format!(
-                            "pose {i}, bone {b}: the 3x3 part is not a rotation (error {error:.2e} > {ROTATION_TOLERANCE:e}); transforms must be rigid"
-                        ),
-                    ));
-                }
-                bones.push(Bone {
-                    q,
-                    d: DVec3::new(t[3], t[7], t[11]),
-                });
-            }
-            let y = &vertices.data[i * v * 3..(i + 1) * v * 3];
-            poses.push(Pose {
-                bones,
-                vertices: y
-                    .chunks_exact(3)
-                    .map(|p| DVec3::new(p[0], p[1], p[2]))
-                    .collect(),
-            });
-        }
-
+        let poses = poses(&transforms_path, &transforms, &vertices, j, v)?;
         let mut set = ExampleSet {
-            rest: rest
-                .data
-                .chunks_exact(3)
-                .map(|p| DVec3::new(p[0], p[1], p[2]))
-                .collect(),
-            faces: faces
-                .data
-                .chunks_exact(3)
-                .map(|t| [t[0] as usize, t[1] as usize, t[2] as usize])
-                .collect(),
+            rest,
+            faces,
             parents,
             poses,
             is_test,
@@ -369,13 +416,7 @@ impl ExampleSet {
             warnings: Vec::new(),
         };
         set.warnings = set.mesh_warnings(&faces_path);
-        let limit = crate::import::preflight::RIG_SKIN_LIMIT;
-        if let Some(e) = crate::import::preflight::rig_skin_error(&set).filter(|&e| e >= limit) {
-            return Err(bad(
-                &weights_path,
-                format!("linear blend skinning with these weights follows pose_vertices.npy no better than rigid bones ({e:.1} % of the rigid error on the training poses; a rig's own weights are far below {limit} %): pose_vertices.npy is not in the space, vertex order or poses of pose_transforms.npy and rest_vertices.npy"),
-            ));
-        }
+        check_rig_skin(&set, &weights_path)?;
         Ok(set)
     }
 

@@ -91,371 +91,37 @@ pub struct Rig {
 }
 
 impl Rig {
-    /// Loads the rig and the animation named `clip`.
+    /// Loads the rig and the animation named `clip`: the file, its node tree, the skin (one
+    /// for every skinned mesh), the skeleton, the rest mesh with its tangents, the clip's
+    /// channels.
     pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
-        let bytes = std::fs::read(path).map_err(|e| bad(path, format!("cannot read: {e}")))?;
-        let gltf = gltf::Gltf::from_slice(&bytes)
-            .map_err(|e| bad(path, format!("not a valid glTF file: {e}")))?;
-        let buffers = load_buffers(path, &gltf)?;
+        let (gltf, buffers) = read_file(path)?;
         let doc = &gltf.document;
-        let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| d.as_slice());
-
         let nodes: Vec<gltf::Node> = doc.nodes().collect();
-        let mut node_parents = vec![None; nodes.len()];
-        for n in &nodes {
-            for c in n.children() {
-                node_parents[c.index()] = Some(n.index());
-            }
-        }
-        let defaults: Vec<Trs> = nodes
-            .iter()
-            .map(|n| {
-                let (t, r, s) = n.transform().decomposed();
-                Trs {
-                    t: DVec3::from(t.map(f64::from)),
-                    r: DQuat::from_array(r.map(f64::from)).normalize(),
-                    s: DVec3::from(s.map(f64::from)),
-                }
-            })
-            .collect();
-
-        let skinned: Vec<&gltf::Node> = nodes
-            .iter()
-            .filter(|n| n.mesh().is_some() && n.skin().is_some())
-            .collect();
-        let Some(first) = skinned.first() else {
-            return Err(bad(
-                path,
-                "no skinned mesh (a node with both a mesh and a skin)",
-            ));
-        };
-        let skin = first.skin().ok_or_else(|| bad(path, "no skin"))?;
-        if let Some(other) = skinned
-            .iter()
-            .find(|n| n.skin().map(|s| s.index()) != Some(skin.index()))
-        {
-            return Err(bad(
-                path,
-                format!(
-                    "skinned meshes use different skins (node {} uses skin {}, node {} skin {:?}): one skin per rig",
-                    first.index(),
-                    skin.index(),
-                    other.index(),
-                    other.skin().map(|s| s.index())
-                ),
-            ));
-        }
-        let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
-        let mut bone_of_node = vec![None; nodes.len()];
-        joints
-            .iter()
-            .enumerate()
-            .for_each(|(b, &n)| bone_of_node[n] = Some(b));
-        let parents: Vec<Option<usize>> = joints
-            .iter()
-            .map(|&n| {
-                let mut p = node_parents[n];
-                while let Some(x) = p {
-                    if bone_of_node[x].is_some() {
-                        return bone_of_node[x];
-                    }
-                    p = node_parents[x];
-                }
-                None
-            })
-            .collect();
-        let names = joints
-            .iter()
-            .enumerate()
-            .map(|(b, &n)| {
-                nodes[n]
-                    .name()
-                    .map_or_else(|| format!("joint {b}"), str::to_string)
-            })
-            .collect();
-        let inverse_bind: Vec<DMat4> = match skin.reader(get).read_inverse_bind_matrices() {
-            Some(ibm) => ibm
-                .map(|m| DMat4::from_cols_array_2d(&m.map(|c| c.map(f64::from))))
-                .collect(),
-            None => vec![DMat4::IDENTITY; joints.len()],
-        };
-        if inverse_bind.len() != joints.len() {
-            return Err(bad(
-                path,
-                format!(
-                    "{} inverse bind matrices for {} joints",
-                    inverse_bind.len(),
-                    joints.len()
-                ),
-            ));
-        }
-
-        let world_default = world_matrices(
-            &node_parents,
-            &defaults.iter().map(Trs::matrix).collect::<Vec<_>>(),
-        );
-        let mut default_inverse = Vec::with_capacity(joints.len());
-        for (b, &n) in joints.iter().enumerate() {
-            let w = world_default[n];
-            let det = w.determinant();
-            if !det.is_finite() || det.abs() <= 1e-12 {
-                return Err(bad(
-                    path,
-                    format!("joint {b} (node {n}) has a non-invertible world matrix"),
-                ));
-            }
-            default_inverse.push(w.inverse());
-        }
-        // Rest mesh: skinned at the default pose with joint matrices W_j · IBM_j.
-        let joint_matrices: Vec<DMat4> = joints
-            .iter()
-            .zip(&inverse_bind)
-            .map(|(&n, ibm)| world_default[n] * *ibm)
-            .collect();
-        let (mut rest, mut triangles, mut weights) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut uvs, mut tangents) = (Some(Vec::new()), Some(Vec::new()));
-        let mut notes = Vec::new();
-        let mut primitives = Vec::new();
-        for node in &skinned {
-            let mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
-            for prim in mesh.primitives() {
-                if prim.mode() != gltf::mesh::Mode::Triangles {
-                    return Err(bad(
-                        path,
-                        format!(
-                            "mesh {} has a primitive that is not triangles",
-                            mesh.index()
-                        ),
-                    ));
-                }
-                let reader = prim.reader(get);
-                let positions: Vec<[f32; 3]> = reader
-                    .read_positions()
-                    .ok_or_else(|| {
-                        bad(
-                            path,
-                            format!("mesh {}: a primitive without POSITION", mesh.index()),
-                        )
-                    })?
-                    .collect();
-                let joints0: Vec<[u16; 4]> = reader
-                    .read_joints(0)
-                    .ok_or_else(|| {
-                        bad(
-                            path,
-                            format!("mesh {}: a primitive without JOINTS_0", mesh.index()),
-                        )
-                    })?
-                    .into_u16()
-                    .collect();
-                let weights0: Vec<[f32; 4]> = reader
-                    .read_weights(0)
-                    .ok_or_else(|| {
-                        bad(
-                            path,
-                            format!("mesh {}: a primitive without WEIGHTS_0", mesh.index()),
-                        )
-                    })?
-                    .into_f32()
-                    .collect();
-                let positions = at_default_morph_weights(path, node, &mesh, &reader, positions)?;
-                if mesh.primitives().next().map(|p| p.index()) == Some(prim.index())
-                    && prim.morph_targets().len() > 0
-                {
-                    notes.push(format!(
-                        "mesh {}: {} morph target(s), the rest mesh at their default weights {:?}",
-                        mesh.name()
-                            .map_or_else(|| mesh.index().to_string(), str::to_string),
-                        prim.morph_targets().len(),
-                        morph_weights(node, &mesh)
-                    ));
-                }
-                let uv: Option<Vec<[f32; 2]>> =
-                    reader.read_tex_coords(0).map(|t| t.into_f32().collect());
-                let tangent: Option<Vec<[f32; 4]>> = reader.read_tangents().map(Iterator::collect);
-                let counts = [joints0.len(), weights0.len()]
-                    .into_iter()
-                    .chain(uv.as_ref().map(Vec::len))
-                    .chain(tangent.as_ref().map(Vec::len));
-                if counts.into_iter().any(|n| n != positions.len()) {
-                    return Err(bad(
-                        path,
-                        format!("mesh {}: attribute counts differ", mesh.index()),
-                    ));
-                }
-                match (uvs.as_mut(), uv) {
-                    (Some(all), Some(this)) => all.extend(this),
-                    _ => uvs = None,
-                }
-                let base = rest.len();
-                for (i, ((p, js), ws)) in positions.iter().zip(&joints0).zip(&weights0).enumerate()
-                {
-                    let p = DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
-                    let mut blend = DMat4::ZERO;
-                    let total: f64 = ws.iter().map(|&w| w.max(0.0) as f64).sum();
-                    weights.push(
-                        js.iter()
-                            .zip(ws)
-                            .filter(|(_, &w)| w > 0.0 && total > 0.0)
-                            .map(|(&j, &w)| (j as usize, w as f64 / total))
-                            .collect::<Vec<_>>(),
-                    );
-                    for (j, w) in js.iter().zip(ws) {
-                        let m = joint_matrices.get(*j as usize).ok_or_else(|| {
-                            bad(
-                                path,
-                                format!(
-                                    "JOINTS_0 index {j} outside the skin's {} joints",
-                                    joint_matrices.len()
-                                ),
-                            )
-                        })?;
-                        blend += *m * *w as f64;
-                    }
-                    rest.push((blend * p).truncate());
-                    match (tangents.as_mut(), &tangent) {
-                        (Some(all), Some(t)) => {
-                            let xyz = blend.transform_vector3(DVec3::new(
-                                t[i][0] as f64,
-                                t[i][1] as f64,
-                                t[i][2] as f64,
-                            ));
-                            let w = t[i][3];
-                            if !(xyz.length() > 1e-12 && xyz.is_finite() && w.abs() == 1.0) {
-                                return Err(bad(
-                                    path,
-                                    format!(
-                                        "mesh {}: TANGENT {:?} of vertex {i} is not a direction with w = +-1",
-                                        mesh.index(),
-                                        t[i]
-                                    ),
-                                ));
-                            }
-                            let xyz = xyz.normalize().as_vec3();
-                            all.push([xyz.x, xyz.y, xyz.z, w]);
-                        }
-                        _ => tangents = None,
-                    }
-                }
-                let count = positions.len();
-                primitives.push(base..base + count);
-                let indices: Vec<usize> = match reader.read_indices() {
-                    Some(i) => i.into_u32().map(|x| x as usize).collect(),
-                    None => (0..count).collect(),
-                };
-                if let Some(&i) = indices.iter().find(|&&i| i >= count) {
-                    return Err(bad(
-                        path,
-                        format!(
-                            "mesh {}: index {i} outside its {count} vertices",
-                            mesh.index()
-                        ),
-                    ));
-                }
-                triangles.extend(
-                    indices
-                        .chunks_exact(3)
-                        .map(|t| [base + t[0], base + t[1], base + t[2]]),
-                );
-            }
-        }
-
-        let names_of_clips: Vec<String> = doc
-            .animations()
-            .filter_map(|a| a.name().map(str::to_string))
-            .collect();
-        let animation = doc
-            .animations()
-            .find(|a| a.name() == Some(clip))
-            .ok_or_else(|| {
-                bad(
-                    path,
-                    format!("no animation named '{clip}' (the file has {names_of_clips:?})"),
-                )
-            })?;
-        let mut channels = Vec::new();
-        for ch in animation.channels() {
-            let reader = ch.reader(get);
-            let times: Vec<f64> = reader
-                .read_inputs()
-                .ok_or_else(|| bad(path, "an animation channel without key times"))?
-                .map(f64::from)
-                .collect();
-            let values = match reader
-                .read_outputs()
-                .ok_or_else(|| bad(path, "an animation channel without values"))?
-            {
-                gltf::animation::util::ReadOutputs::Translations(t) => {
-                    Values::Vec3(t.map(|v| DVec3::from(v.map(f64::from))).collect())
-                }
-                gltf::animation::util::ReadOutputs::Scales(s) => {
-                    Values::Vec3(s.map(|v| DVec3::from(v.map(f64::from))).collect())
-                }
-                gltf::animation::util::ReadOutputs::Rotations(r) => Values::Quat(
-                    r.into_f32()
-                        .map(|q| DQuat::from_array(q.map(f64::from)))
-                        .collect(),
-                ),
-                gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => {
-                    let node = ch.target().node();
-                    notes.push(format!(
-                        "animation '{clip}' animates the morph weights of node {}: not played (the cache carries their effect)",
-                        node.name().map_or_else(|| node.index().to_string(), str::to_string)
-                    ));
-                    continue;
-                }
-            };
-            let interpolation = ch.sampler().interpolation();
-            let per_key = if interpolation == Interpolation::CubicSpline {
-                3
-            } else {
-                1
-            };
-            let n = match &values {
-                Values::Vec3(v) => v.len(),
-                Values::Quat(q) => q.len(),
-            };
-            if times.is_empty() || n != per_key * times.len() {
-                return Err(bad(
-                    path,
-                    format!(
-                        "animation '{clip}': {n} values for {} key times",
-                        times.len()
-                    ),
-                ));
-            }
-            if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] <= w[0]) {
-                return Err(bad(
-                    path,
-                    format!("animation '{clip}': key times must be finite and increasing"),
-                ));
-            }
-            channels.push(Channel {
-                node: ch.target().node().index(),
-                property: ch.target().property(),
-                interpolation,
-                times,
-                values,
-            });
-        }
+        let tree = NodeTree::of(&nodes);
+        let (skinned, skin) = one_skin(path, &nodes)?;
+        let skeleton = Skeleton::of(path, &nodes, &tree, &skin, &buffers)?;
+        let mesh = RestMesh::of(path, &skinned, &skeleton.joint_matrices, &buffers)?;
+        let mut notes = mesh.notes;
+        let channels = channels(path, doc, clip, &buffers, &mut notes)?;
         notes.dedup();
         Ok(Rig {
-            bind: common_bind(&joint_matrices),
-            mesh_world: Some(world_default[first.index()])
+            bind: common_bind(&skeleton.joint_matrices),
+            mesh_world: Some(tree.world_default[skinned[0].index()])
                 .filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
-            primitives,
+            primitives: mesh.primitives,
             notes,
-            rest,
-            weights,
-            uvs,
-            tangents,
-            triangles,
-            names,
-            parents,
-            joints,
-            node_parents,
-            defaults,
-            default_inverse,
+            rest: mesh.rest,
+            weights: mesh.weights,
+            uvs: mesh.uvs,
+            tangents: mesh.tangents,
+            triangles: mesh.triangles,
+            names: skeleton.names,
+            parents: skeleton.parents,
+            joints: skeleton.joints,
+            node_parents: tree.parents,
+            defaults: tree.defaults,
+            default_inverse: skeleton.default_inverse,
             channels,
         })
     }
@@ -521,6 +187,474 @@ impl Rig {
             })
             .collect()
     }
+}
+
+/// The file and its binary buffers.
+fn read_file(path: &Path) -> Result<(gltf::Gltf, Buffers), InputError> {
+    let bytes = std::fs::read(path).map_err(|e| bad(path, format!("cannot read: {e}")))?;
+    let gltf = gltf::Gltf::from_slice(&bytes)
+        .map_err(|e| bad(path, format!("not a valid glTF file: {e}")))?;
+    let buffers = Buffers(load_buffers(path, &gltf)?);
+    Ok((gltf, buffers))
+}
+
+/// The binary buffers of a file, by index.
+struct Buffers(Vec<Vec<u8>>);
+
+impl Buffers {
+    /// What the gltf crate's readers take to find a buffer's bytes.
+    fn get<'s>(&'s self) -> impl Clone + Fn(gltf::Buffer<'_>) -> Option<&'s [u8]> + 's {
+        move |b: gltf::Buffer<'_>| self.0.get(b.index()).map(Vec::as_slice)
+    }
+}
+
+/// The node tree: each node's parent, its default local transform and its world matrix at
+/// the default pose.
+struct NodeTree {
+    parents: Vec<Option<usize>>,
+    defaults: Vec<Trs>,
+    world_default: Vec<DMat4>,
+}
+
+impl NodeTree {
+    fn of(nodes: &[gltf::Node]) -> NodeTree {
+        let mut parents = vec![None; nodes.len()];
+        for n in nodes {
+            for c in n.children() {
+                parents[c.index()] = Some(n.index());
+            }
+        }
+        let defaults: Vec<Trs> = nodes
+            .iter()
+            .map(|n| {
+                let (t, r, s) = n.transform().decomposed();
+                Trs {
+                    t: DVec3::from(t.map(f64::from)),
+                    r: DQuat::from_array(r.map(f64::from)).normalize(),
+                    s: DVec3::from(s.map(f64::from)),
+                }
+            })
+            .collect();
+        let world_default = world_matrices(
+            &parents,
+            &defaults.iter().map(Trs::matrix).collect::<Vec<_>>(),
+        );
+        NodeTree {
+            parents,
+            defaults,
+            world_default,
+        }
+    }
+}
+
+/// The skinned mesh nodes (at least one) and their skin, which must be one for all.
+fn one_skin<'a, 'n>(
+    path: &Path,
+    nodes: &'n [gltf::Node<'a>],
+) -> Result<(Vec<&'n gltf::Node<'a>>, gltf::Skin<'a>), InputError> {
+    let skinned: Vec<&gltf::Node> = nodes
+        .iter()
+        .filter(|n| n.mesh().is_some() && n.skin().is_some())
+        .collect();
+    let Some(first) = skinned.first() else {
+        return Err(bad(
+            path,
+            "no skinned mesh (a node with both a mesh and a skin)",
+        ));
+    };
+    let skin = first.skin().ok_or_else(|| bad(path, "no skin"))?;
+    if let Some(other) = skinned
+        .iter()
+        .find(|n| n.skin().map(|s| s.index()) != Some(skin.index()))
+    {
+        return Err(bad(
+            path,
+            format!(
+                "skinned meshes use different skins (node {} uses skin {}, node {} skin {:?}): one skin per rig",
+                first.index(),
+                skin.index(),
+                other.index(),
+                other.skin().map(|s| s.index())
+            ),
+        ));
+    }
+    Ok((skinned, skin))
+}
+
+/// The skin's joints as bones.
+struct Skeleton {
+    /// Node of each bone.
+    joints: Vec<usize>,
+    /// Parent bone: the nearest ancestor node that is a joint.
+    parents: Vec<Option<usize>>,
+    names: Vec<String>,
+    /// World matrices of the bones at the default pose, inverted.
+    default_inverse: Vec<DMat4>,
+    /// `W_j(default) · IBM_j`: what skins the mesh at the default pose.
+    joint_matrices: Vec<DMat4>,
+}
+
+impl Skeleton {
+    fn of(
+        path: &Path,
+        nodes: &[gltf::Node],
+        tree: &NodeTree,
+        skin: &gltf::Skin,
+        buffers: &Buffers,
+    ) -> Result<Skeleton, InputError> {
+        let joints: Vec<usize> = skin.joints().map(|j| j.index()).collect();
+        let mut bone_of_node = vec![None; nodes.len()];
+        joints
+            .iter()
+            .enumerate()
+            .for_each(|(b, &n)| bone_of_node[n] = Some(b));
+        let parents: Vec<Option<usize>> = joints
+            .iter()
+            .map(|&n| {
+                let mut p = tree.parents[n];
+                while let Some(x) = p {
+                    if bone_of_node[x].is_some() {
+                        return bone_of_node[x];
+                    }
+                    p = tree.parents[x];
+                }
+                None
+            })
+            .collect();
+        let names = joints
+            .iter()
+            .enumerate()
+            .map(|(b, &n)| {
+                nodes[n]
+                    .name()
+                    .map_or_else(|| format!("joint {b}"), str::to_string)
+            })
+            .collect();
+        let inverse_bind = inverse_binds(path, skin, joints.len(), buffers)?;
+        let mut default_inverse = Vec::with_capacity(joints.len());
+        for (b, &n) in joints.iter().enumerate() {
+            let w = tree.world_default[n];
+            let det = w.determinant();
+            if !det.is_finite() || det.abs() <= 1e-12 {
+                return Err(bad(
+                    path,
+                    format!("joint {b} (node {n}) has a non-invertible world matrix"),
+                ));
+            }
+            default_inverse.push(w.inverse());
+        }
+        let joint_matrices = joints
+            .iter()
+            .zip(&inverse_bind)
+            .map(|(&n, ibm)| tree.world_default[n] * *ibm)
+            .collect();
+        Ok(Skeleton {
+            joints,
+            parents,
+            names,
+            default_inverse,
+            joint_matrices,
+        })
+    }
+}
+
+/// The skin's inverse bind matrices (identities where the file has none), one per joint.
+fn inverse_binds(
+    path: &Path,
+    skin: &gltf::Skin,
+    joints: usize,
+    buffers: &Buffers,
+) -> Result<Vec<DMat4>, InputError> {
+    let inverse_bind: Vec<DMat4> = match skin.reader(buffers.get()).read_inverse_bind_matrices() {
+        Some(ibm) => ibm
+            .map(|m| DMat4::from_cols_array_2d(&m.map(|c| c.map(f64::from))))
+            .collect(),
+        None => vec![DMat4::IDENTITY; joints],
+    };
+    if inverse_bind.len() != joints {
+        return Err(bad(
+            path,
+            format!(
+                "{} inverse bind matrices for {joints} joints",
+                inverse_bind.len()
+            ),
+        ));
+    }
+    Ok(inverse_bind)
+}
+
+/// The rest mesh: every primitive of the skinned meshes, skinned at the default pose and
+/// default morph weights, with the skin's weights, UVs and tangents (each where every
+/// primitive has them).
+struct RestMesh {
+    rest: Vec<DVec3>,
+    triangles: Vec<[usize; 3]>,
+    primitives: Vec<std::ops::Range<usize>>,
+    weights: Vec<Vec<(usize, f64)>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    tangents: Option<Vec<[f32; 4]>>,
+    notes: Vec<String>,
+}
+
+impl RestMesh {
+    fn of(
+        path: &Path,
+        skinned: &[&gltf::Node],
+        joint_matrices: &[DMat4],
+        buffers: &Buffers,
+    ) -> Result<RestMesh, InputError> {
+        let mut mesh = RestMesh {
+            rest: Vec::new(),
+            triangles: Vec::new(),
+            primitives: Vec::new(),
+            weights: Vec::new(),
+            uvs: Some(Vec::new()),
+            tangents: Some(Vec::new()),
+            notes: Vec::new(),
+        };
+        for node in skinned {
+            let gltf_mesh = node.mesh().ok_or_else(|| bad(path, "no mesh"))?;
+            for prim in gltf_mesh.primitives() {
+                mesh.add_primitive(path, node, &gltf_mesh, &prim, joint_matrices, buffers)?;
+            }
+        }
+        Ok(mesh)
+    }
+
+    /// Appends primitive `prim` of `mesh` (of skinned node `node`).
+    fn add_primitive(
+        &mut self,
+        path: &Path,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+        joint_matrices: &[DMat4],
+        buffers: &Buffers,
+    ) -> Result<(), InputError> {
+        if prim.mode() != gltf::mesh::Mode::Triangles {
+            return Err(bad(
+                path,
+                format!(
+                    "mesh {} has a primitive that is not triangles",
+                    mesh.index()
+                ),
+            ));
+        }
+        let reader = prim.reader(buffers.get());
+        let missing = |what: &str| {
+            bad(
+                path,
+                format!("mesh {}: a primitive without {what}", mesh.index()),
+            )
+        };
+        let positions: Vec<[f32; 3]> = reader
+            .read_positions()
+            .ok_or_else(|| missing("POSITION"))?
+            .collect();
+        let joints0: Vec<[u16; 4]> = reader
+            .read_joints(0)
+            .ok_or_else(|| missing("JOINTS_0"))?
+            .into_u16()
+            .collect();
+        let weights0: Vec<[f32; 4]> = reader
+            .read_weights(0)
+            .ok_or_else(|| missing("WEIGHTS_0"))?
+            .into_f32()
+            .collect();
+        let positions = at_default_morph_weights(path, node, mesh, &reader, positions)?;
+        if mesh.primitives().next().map(|p| p.index()) == Some(prim.index())
+            && prim.morph_targets().len() > 0
+        {
+            self.notes.push(format!(
+                "mesh {}: {} morph target(s), the rest mesh at their default weights {:?}",
+                mesh.name()
+                    .map_or_else(|| mesh.index().to_string(), str::to_string),
+                prim.morph_targets().len(),
+                morph_weights(node, mesh)
+            ));
+        }
+        let uv: Option<Vec<[f32; 2]>> = reader.read_tex_coords(0).map(|t| t.into_f32().collect());
+        let tangent: Option<Vec<[f32; 4]>> = reader.read_tangents().map(Iterator::collect);
+        let counts = [joints0.len(), weights0.len()]
+            .into_iter()
+            .chain(uv.as_ref().map(Vec::len))
+            .chain(tangent.as_ref().map(Vec::len));
+        if counts.into_iter().any(|n| n != positions.len()) {
+            return Err(bad(
+                path,
+                format!("mesh {}: attribute counts differ", mesh.index()),
+            ));
+        }
+        match (self.uvs.as_mut(), uv) {
+            (Some(all), Some(this)) => all.extend(this),
+            _ => self.uvs = None,
+        }
+        let base = self.rest.len();
+        for (i, ((p, js), ws)) in positions.iter().zip(&joints0).zip(&weights0).enumerate() {
+            let p = DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
+            let mut blend = DMat4::ZERO;
+            let total: f64 = ws.iter().map(|&w| w.max(0.0) as f64).sum();
+            self.weights.push(
+                js.iter()
+                    .zip(ws)
+                    .filter(|(_, &w)| w > 0.0 && total > 0.0)
+                    .map(|(&j, &w)| (j as usize, w as f64 / total))
+                    .collect::<Vec<_>>(),
+            );
+            for (j, w) in js.iter().zip(ws) {
+                let m = joint_matrices.get(*j as usize).ok_or_else(|| {
+                    bad(
+                        path,
+                        format!(
+                            "JOINTS_0 index {j} outside the skin's {} joints",
+                            joint_matrices.len()
+                        ),
+                    )
+                })?;
+                blend += *m * *w as f64;
+            }
+            self.rest.push((blend * p).truncate());
+            match (self.tangents.as_mut(), &tangent) {
+                (Some(all), Some(t)) => all.push(rest_tangent(path, mesh, i, t[i], &blend)?),
+                _ => self.tangents = None,
+            }
+        }
+        let count = positions.len();
+        self.primitives.push(base..base + count);
+        let indices: Vec<usize> = match reader.read_indices() {
+            Some(i) => i.into_u32().map(|x| x as usize).collect(),
+            None => (0..count).collect(),
+        };
+        if let Some(&i) = indices.iter().find(|&&i| i >= count) {
+            return Err(bad(
+                path,
+                format!(
+                    "mesh {}: index {i} outside its {count} vertices",
+                    mesh.index()
+                ),
+            ));
+        }
+        self.triangles.extend(
+            indices
+                .chunks_exact(3)
+                .map(|t| [base + t[0], base + t[1], base + t[2]]),
+        );
+        Ok(())
+    }
+}
+
+/// Vertex `i`'s TANGENT `t` taken to the rest mesh like its position: xyz through the blended
+/// joint matrix, renormalised; w as stored (it must be +-1).
+fn rest_tangent(
+    path: &Path,
+    mesh: &gltf::Mesh,
+    i: usize,
+    t: [f32; 4],
+    blend: &DMat4,
+) -> Result<[f32; 4], InputError> {
+    let xyz = blend.transform_vector3(DVec3::new(t[0] as f64, t[1] as f64, t[2] as f64));
+    let w = t[3];
+    if !(xyz.length() > 1e-12 && xyz.is_finite() && w.abs() == 1.0) {
+        return Err(bad(
+            path,
+            format!(
+                "mesh {}: TANGENT {t:?} of vertex {i} is not a direction with w = +-1",
+                mesh.index()
+            ),
+        ));
+    }
+    let xyz = xyz.normalize().as_vec3();
+    Ok([xyz.x, xyz.y, xyz.z, w])
+}
+
+/// The channels of the animation named `clip` (its morph weight channels are noted in `notes`,
+/// not played).
+fn channels(
+    path: &Path,
+    doc: &gltf::Document,
+    clip: &str,
+    buffers: &Buffers,
+    notes: &mut Vec<String>,
+) -> Result<Vec<Channel>, InputError> {
+    let names_of_clips: Vec<String> = doc
+        .animations()
+        .filter_map(|a| a.name().map(str::to_string))
+        .collect();
+    let animation = doc
+        .animations()
+        .find(|a| a.name() == Some(clip))
+        .ok_or_else(|| {
+            bad(
+                path,
+                format!("no animation named '{clip}' (the file has {names_of_clips:?})"),
+            )
+        })?;
+    let mut channels = Vec::new();
+    for ch in animation.channels() {
+        let reader = ch.reader(buffers.get());
+        let times: Vec<f64> = reader
+            .read_inputs()
+            .ok_or_else(|| bad(path, "an animation channel without key times"))?
+            .map(f64::from)
+            .collect();
+        let values = match reader
+            .read_outputs()
+            .ok_or_else(|| bad(path, "an animation channel without values"))?
+        {
+            gltf::animation::util::ReadOutputs::Translations(t) => {
+                Values::Vec3(t.map(|v| DVec3::from(v.map(f64::from))).collect())
+            }
+            gltf::animation::util::ReadOutputs::Scales(s) => {
+                Values::Vec3(s.map(|v| DVec3::from(v.map(f64::from))).collect())
+            }
+            gltf::animation::util::ReadOutputs::Rotations(r) => Values::Quat(
+                r.into_f32()
+                    .map(|q| DQuat::from_array(q.map(f64::from)))
+                    .collect(),
+            ),
+            gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => {
+                let node = ch.target().node();
+                notes.push(format!(
+                    "animation '{clip}' animates the morph weights of node {}: not played (the cache carries their effect)",
+                    node.name().map_or_else(|| node.index().to_string(), str::to_string)
+                ));
+                continue;
+            }
+        };
+        let interpolation = ch.sampler().interpolation();
+        let per_key = if interpolation == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        };
+        let n = match &values {
+            Values::Vec3(v) => v.len(),
+            Values::Quat(q) => q.len(),
+        };
+        if times.is_empty() || n != per_key * times.len() {
+            return Err(bad(
+                path,
+                format!(
+                    "animation '{clip}': {n} values for {} key times",
+                    times.len()
+                ),
+            ));
+        }
+        if times.iter().any(|t| !t.is_finite()) || times.windows(2).any(|w| w[1] <= w[0]) {
+            return Err(bad(
+                path,
+                format!("animation '{clip}': key times must be finite and increasing"),
+            ));
+        }
+        channels.push(Channel {
+            node: ch.target().node().index(),
+            property: ch.target().property(),
+            interpolation,
+            times,
+            values,
+        });
+    }
+    Ok(channels)
 }
 
 /// Joint matrices this close (largest element difference, relative to the largest element) are

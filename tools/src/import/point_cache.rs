@@ -89,10 +89,9 @@ impl PointCache {
 
     /// Samples per second, from the median spacing of the samples' times (None for one sample).
     pub fn sample_rate(&self) -> Option<f64> {
-        let mut gaps: Vec<f64> = self.times.windows(2).map(|w| w[1] - w[0]).collect();
-        gaps.sort_by(f64::total_cmp);
-        gaps.get(gaps.len() / 2)
-            .filter(|&&g| g > 0.0)
+        let gaps = self.times.windows(2).map(|w| w[1] - w[0]);
+        rrskin::cpu::median(gaps)
+            .filter(|&g| g > 0.0)
             .map(|g| 1.0 / g)
     }
 

@@ -32,7 +32,8 @@ pub fn rest_tangents(
     if let Some(file) = file {
         return Some((file.to_vec(), Source::File));
     }
-    let normals = group_normals(rest, triangles, groups);
+    // The runtime's normals at rest, over each welded group.
+    let normals = rrskin::cpu::area_weighted_normals(rest, triangles, |v| groups[v]);
     let mut mesh = Mesh {
         rest,
         triangles,
@@ -51,23 +52,6 @@ pub fn rest_tangents(
         })
         .collect();
     Some((tangents, Source::MikkTSpace))
-}
-
-/// Unit normals per vertex: the area-weighted sum over the triangles around its group, as the
-/// runtime's normals pass computes them at rest.
-fn group_normals(rest: &[DVec3], triangles: &[[usize; 3]], groups: &[usize]) -> Vec<DVec3> {
-    let mut sums = vec![DVec3::ZERO; rest.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| rest[i]);
-        let area_normal = (b - a).cross(c - a);
-        for &v in t {
-            sums[groups[v]] += area_normal;
-        }
-    }
-    groups
-        .iter()
-        .map(|&g| sums[g].normalize_or_zero())
-        .collect()
 }
 
 /// `t` without its component along the unit `n`, normalised; where nothing is left, the axis

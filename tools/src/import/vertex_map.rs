@@ -547,13 +547,12 @@ pub fn tree(points: &[DVec3]) -> KdTree<f64, usize, [f64; 3]> {
 
 /// The median over samples of |cache[s][p] − skin[s][v]|.
 fn trajectory_distance(skin: &[Vec<DVec3>], cache: &[Vec<DVec3>], v: usize, p: usize) -> f64 {
-    let mut d: Vec<f64> = skin
+    let d = skin
         .iter()
         .zip(cache)
-        .map(|(a, b)| (b[p] - a[v]).length_squared())
-        .collect();
-    d.sort_by(f64::total_cmp);
-    d[d.len() / 2].sqrt()
+        .map(|(a, b)| (b[p] - a[v]).length_squared());
+    // A cache has at least one sample: never infinite.
+    rrskin::cpu::median(d).map_or(f64::INFINITY, f64::sqrt)
 }
 
 /// The sample in which the skinned mesh is nearest its rest pose (where a neighbour in space is

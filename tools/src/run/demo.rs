@@ -41,115 +41,23 @@ pub struct Outputs {
     pub set: String,
 }
 
+/// Trains, renders the three figures, sweeps P and writes the report page.
 pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn std::error::Error>> {
     let set = ExampleSet::load(set_dir)?;
     crate::output::check_writable(out)?;
-    let options = eval::Options {
-        train: crate::train::TrainOptions {
-            quiet,
-            ..Default::default()
-        },
-        model: None,
-        loocv: false,
-        diagnose: false,
-    };
-    let report = eval::run(&set, &options)?;
-    let model = report.model.clone().ok_or("training produced no model")?;
+    let (report, model) = train(&set, quiet)?;
     let model_path = out.join("model.rrs");
     model.save(&model_path)?;
 
     let ctx = Context::new(&ContextDesc::default())?;
-    let baseline = model
-        .baseline()
-        .ok_or("the trained model has no SSD baseline")?;
-    let pose = worst_pose_for_ssd(&set, &baseline)?;
-    let bones: Vec<rrskin::predict::Affine> = set.poses[pose]
-        .bones
-        .iter()
-        .map(|b| b.to_affine())
-        .collect();
-    let (rr, ssd) = (
-        deform(&ctx, &model, &bones)?,
-        deform(&ctx, &baseline, &bones)?,
-    );
-    let truth: Vec<[f32; 3]> = set.poses[pose]
-        .vertices
-        .iter()
-        .map(|p| p.as_vec3().to_array())
-        .collect();
-    let triangles: Vec<[u32; 3]> = set.faces.iter().map(|t| t.map(|a| a as u32)).collect();
-    let height = set.rest.iter().map(|p| p.y).fold(f64::MIN, f64::max)
-        - set.rest.iter().map(|p| p.y).fold(f64::MAX, f64::min);
-    let errors = |p: &[[f32; 3]]| -> Vec<f32> {
-        p.iter().zip(&truth).map(|(a, b)| distance(a, b)).collect()
-    };
-    let (e_ssd, e_rr) = (errors(&ssd.0), errors(&rr.0));
-    let rms =
-        |e: &[f32]| (e.iter().map(|x| (*x as f64).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
-    let scale = ERROR_SCALE * height as f32;
-    let gray = vec![[0.8f32, 0.8, 0.8]; truth.len()];
-    let (c_ssd, c_rr) = (heat(&e_ssd, scale), heat(&e_rr, scale));
-    let truth_normals = vertex_normals(&truth, &triangles);
-    let proxies = model.proxy_count();
-    let panels = [
-        (&truth, &truth_normals, &gray, "GROUND TRUTH".to_string()),
-        (&ssd.0, &ssd.1, &c_ssd, "SSD (LBS)".to_string()),
-        (&rr.0, &rr.1, &c_rr, format!("RUNTIME MODEL, P = {proxies}")),
-    ];
-    let h = height as f32;
-
-    // One camera for every panel, on the pose's own centre: the three copies are seen alike.
-    let (lo, hi) = truth.iter().fold(
-        (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
-        |(lo, hi), p| (lo.min((*p).into()), hi.max((*p).into())),
-    );
-    let center = 0.5 * (lo + hi);
-    let (pw, ph) = (400, 600);
-    let eye = center + glam::Vec3::new(0.0, 0.1 * h, 1.35 * h);
-    let camera = Camera::looking_at(eye, center, 0.9, pw as f32 / ph as f32, 0.01, 100.0);
-    let mut renderer = Renderer::new(&ctx, pw, ph)?;
-    let mut images = Vec::new();
-    for (positions, normals, colors, label) in &panels {
-        let mut image = panel(
-            &mut renderer,
-            &camera,
-            positions,
-            normals,
-            colors,
-            &triangles,
-        )?;
-        tag(&mut image, label);
-        images.push(image);
-    }
-    let mut figure = Image::side_by_side(&images);
-    legend(&mut figure, pw as i64, scale);
+    let held_out = HeldOut::of(&ctx, &set, &model)?;
     let comparison = out.join("comparison.png");
-    write_png(&comparison, figure.width, figure.height, &figure.rgba)?;
-
-    // A close-up of SSD and the runtime model where the runtime model gains most on SSD, seen
-    // along the surface normal there.
-    let gain = (0..truth.len())
-        .max_by(|&a, &b| (e_ssd[a] - e_rr[a]).total_cmp(&(e_ssd[b] - e_rr[b])))
-        .unwrap_or(0);
-    let at = glam::Vec3::from(truth[gain]);
-    let normal = glam::Vec3::from(truth_normals[gain])
-        .try_normalize()
-        .unwrap_or(glam::Vec3::Z);
-    let near_eye = at + normal * 0.35 * h + glam::Vec3::Y * 0.05 * h;
-    let near = Camera::looking_at(near_eye, at, 0.9, 1.0, 0.001, 100.0);
-    let mut renderer = Renderer::new(&ctx, 400, 400)?;
-    let mut images = Vec::new();
-    for (positions, normals, colors, label) in &panels[1..] {
-        let mut image = panel(&mut renderer, &near, positions, normals, colors, &triangles)?;
-        tag(&mut image, &format!("{label}, CLOSE-UP"));
-        images.push(image);
-    }
-    let close = Image::side_by_side(&images);
+    held_out.write_comparison(&ctx, &comparison)?;
     let closeup = out.join("closeup.png");
-    write_png(&closeup, close.width, close.height, &close.rgba)?;
-
+    held_out.write_closeup(&ctx, &closeup)?;
     let crowd_path = out.join("crowd.png");
     render_crowd(&ctx, &model, &crowd_path)?;
+
     let tradeoff = crate::run::tradeoff::sweep(&set, &report, quiet)?;
     let tradeoff_plot = out.join("tradeoff.svg");
     crate::run::tradeoff::plot(&tradeoff_plot, &tradeoff, &report)?;
@@ -162,14 +70,194 @@ pub fn run(set_dir: &Path, out: &Path, quiet: bool) -> Result<Outputs, Box<dyn s
         tradeoff,
         tradeoff_plot,
         device: ctx.device_name().to_string(),
-        pose,
-        rms: (rms(&e_ssd), rms(&e_rr)),
-        scale,
+        pose: held_out.pose,
+        rms: (rms(&held_out.e_ssd), rms(&held_out.e_rr)),
+        scale: held_out.scale,
         set: crate::output::shown(set_dir),
     };
     crate::run::report::write(&out.join("report.html"), &outputs)?;
     Ok(outputs)
 }
+
+/// Every method trained on `set` (the report) and the runtime model.
+fn train(set: &ExampleSet, quiet: bool) -> Result<(Report, Model), Box<dyn std::error::Error>> {
+    let options = eval::Options {
+        train: crate::train::TrainOptions {
+            quiet,
+            ..Default::default()
+        },
+        model: None,
+        loocv: false,
+        diagnose: false,
+    };
+    let report = eval::run(set, &options)?;
+    let model = report.model.clone().ok_or("training produced no model")?;
+    Ok((report, model))
+}
+
+/// The held-out pose where SSD errs most: ground truth, SSD and the runtime model there (as
+/// the runtime deforms them), their per-vertex errors and colours.
+struct HeldOut {
+    pose: usize,
+    truth: Vec<[f32; 3]>,
+    /// The ground truth's normals, which no crowd computed.
+    truth_normals: Vec<[f32; 3]>,
+    /// Positions and normals.
+    ssd: (Vec<[f32; 3]>, Vec<[f32; 3]>),
+    rr: (Vec<[f32; 3]>, Vec<[f32; 3]>),
+    e_ssd: Vec<f32>,
+    e_rr: Vec<f32>,
+    triangles: Vec<[u32; 3]>,
+    /// The rest mesh's height, and the error shown as full red.
+    height: f32,
+    scale: f32,
+    proxies: usize,
+}
+
+/// The RMS of per-vertex errors.
+fn rms(e: &[f32]) -> f64 {
+    (e.iter().map(|x| (*x as f64).powi(2)).sum::<f64>() / e.len() as f64).sqrt()
+}
+
+impl HeldOut {
+    fn of(
+        ctx: &Context,
+        set: &ExampleSet,
+        model: &Model,
+    ) -> Result<HeldOut, Box<dyn std::error::Error>> {
+        let baseline = model
+            .baseline()
+            .ok_or("the trained model has no SSD baseline")?;
+        let pose = worst_pose_for_ssd(set, &baseline)?;
+        let bones: Vec<rrskin::predict::Affine> = set.poses[pose]
+            .bones
+            .iter()
+            .map(|b| b.to_affine())
+            .collect();
+        let (rr, ssd) = (deform(ctx, model, &bones)?, deform(ctx, &baseline, &bones)?);
+        let truth: Vec<[f32; 3]> = set.poses[pose]
+            .vertices
+            .iter()
+            .map(|p| p.as_vec3().to_array())
+            .collect();
+        let height = set.rest.iter().map(|p| p.y).fold(f64::MIN, f64::max)
+            - set.rest.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+        let errors = |p: &[[f32; 3]]| -> Vec<f32> {
+            p.iter().zip(&truth).map(|(a, b)| distance(a, b)).collect()
+        };
+        let (e_ssd, e_rr) = (errors(&ssd.0), errors(&rr.0));
+        let truth_normals =
+            rrskin::cpu::area_weighted_normals(&set.poses[pose].vertices, &set.faces, |v| v)
+                .iter()
+                .map(|n| n.as_vec3().to_array())
+                .collect();
+        Ok(HeldOut {
+            pose,
+            truth,
+            truth_normals,
+            ssd,
+            rr,
+            e_ssd,
+            e_rr,
+            triangles: set.faces.iter().map(|t| t.map(|a| a as u32)).collect(),
+            height: height as f32,
+            scale: ERROR_SCALE * height as f32,
+            proxies: model.proxy_count(),
+        })
+    }
+
+    /// Renders `panels` (positions, normals, colours, label) side by side from `camera`.
+    fn render(
+        &self,
+        renderer: &mut Renderer,
+        camera: &Camera,
+        panels: &[Panel],
+    ) -> rrskin::Result<Image> {
+        let mut images = Vec::new();
+        for (positions, normals, colors, label) in panels {
+            let mut image = panel(
+                renderer,
+                camera,
+                positions,
+                normals,
+                colors,
+                &self.triangles,
+            )?;
+            tag(&mut image, label);
+            images.push(image);
+        }
+        Ok(Image::side_by_side(&images))
+    }
+
+    /// Ground truth (grey), SSD and the runtime model (coloured by error).
+    fn panels(&self) -> [Panel<'_>; 3] {
+        let gray = vec![[0.8f32, 0.8, 0.8]; self.truth.len()];
+        let (c_ssd, c_rr) = (heat(&self.e_ssd, self.scale), heat(&self.e_rr, self.scale));
+        [
+            (
+                &self.truth,
+                &self.truth_normals,
+                gray,
+                "GROUND TRUTH".to_string(),
+            ),
+            (&self.ssd.0, &self.ssd.1, c_ssd, "SSD (LBS)".to_string()),
+            (
+                &self.rr.0,
+                &self.rr.1,
+                c_rr,
+                format!("RUNTIME MODEL, P = {}", self.proxies),
+            ),
+        ]
+    }
+
+    /// The three panels from one camera on the pose's own centre (the three copies are seen
+    /// alike), with the colour scale.
+    fn write_comparison(
+        &self,
+        ctx: &Context,
+        path: &Path,
+    ) -> Result<(), Box<dyn std::error::Error>> {
+        let h = self.height;
+        let (lo, hi) = self.truth.iter().fold(
+            (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+            |(lo, hi), p| (lo.min((*p).into()), hi.max((*p).into())),
+        );
+        let center = 0.5 * (lo + hi);
+        let (pw, ph) = (400, 600);
+        let eye = center + glam::Vec3::new(0.0, 0.1 * h, 1.35 * h);
+        let camera = Camera::looking_at(eye, center, 0.9, pw as f32 / ph as f32, 0.01, 100.0);
+        let mut renderer = Renderer::new(ctx, pw, ph)?;
+        let mut figure = self.render(&mut renderer, &camera, &self.panels())?;
+        legend(&mut figure, pw as i64, self.scale);
+        write_png(path, figure.width, figure.height, &figure.rgba)?;
+        Ok(())
+    }
+
+    /// SSD and the runtime model where the runtime model gains most on SSD, seen along the
+    /// surface normal there.
+    fn write_closeup(&self, ctx: &Context, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
+        let h = self.height;
+        let (e_ssd, e_rr) = (&self.e_ssd, &self.e_rr);
+        let gain = (0..self.truth.len())
+            .max_by(|&a, &b| (e_ssd[a] - e_rr[a]).total_cmp(&(e_ssd[b] - e_rr[b])))
+            .unwrap_or(0);
+        let at = glam::Vec3::from(self.truth[gain]);
+        let normal = glam::Vec3::from(self.truth_normals[gain])
+            .try_normalize()
+            .unwrap_or(glam::Vec3::Z);
+        let near_eye = at + normal * 0.35 * h + glam::Vec3::Y * 0.05 * h;
+        let near = Camera::looking_at(near_eye, at, 0.9, 1.0, 0.001, 100.0);
+        let mut renderer = Renderer::new(ctx, 400, 400)?;
+        let [_, ssd, rr] = self.panels();
+        let close_ups = [ssd, rr].map(|(p, n, c, label)| (p, n, c, format!("{label}, CLOSE-UP")));
+        let close = self.render(&mut renderer, &near, &close_ups)?;
+        write_png(path, close.width, close.height, &close.rgba)?;
+        Ok(())
+    }
+}
+
+/// A panel of a figure: positions, normals, colours, label.
+type Panel<'a> = (&'a Vec<[f32; 3]>, &'a Vec<[f32; 3]>, Vec<[f32; 3]>, String);
 
 /// Dark grey of the labels.
 const INK: [u8; 3] = [40, 40, 40];
@@ -292,18 +380,5 @@ fn heat(errors: &[f32], scale: f32) -> Vec<[f32; 3]> {
                 t => [0.95, 0.8 - 0.65 * (t - 2.0), 0.1],
             }
         })
-        .collect()
-}
-
-/// Area-weighted vertex normals of a host mesh (for the ground truth, which no crowd computed).
-fn vertex_normals(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut sum = vec![glam::Vec3::ZERO; positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| glam::Vec3::from(positions[i as usize]));
-        let n = (b - a).cross(c - a);
-        t.iter().for_each(|&i| sum[i as usize] += n);
-    }
-    sum.iter()
-        .map(|n| n.normalize_or_zero().to_array())
         .collect()
 }

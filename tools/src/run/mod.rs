@@ -1,6 +1,7 @@
 //! Running trained models on the Vulkan runtime: `rrskin bench`, `rrskin profile`, `rrskin demo`;
 //! and the CPU reference frames of `rrskin reference`.
 
+pub mod bench;
 pub mod capacity;
 pub mod demo;
 pub mod figure;

@@ -17,7 +17,7 @@
 
 use crate::import::example_set::{Bone, ExampleSet, Pose};
 use crate::linalg::DenseCholesky;
-use crate::train::reduce::predictor::{KeyPredictor, KeySequences};
+use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::Skinning;
@@ -31,7 +31,7 @@ pub struct Reduced {
     pub c1: Vec<f64>,
     /// 4P x 4J, row-major.
     pub c2: Vec<f64>,
-    pub predictors: Vec<KeyPredictor>,
+    pub predictors: Vec<TrainedPredictor>,
     /// Per vertex: (palette entry, weight); entries < P are proxies, P + b bone b.
     pub skin: Vec<Vec<(usize, f64)>>,
     /// Per vertex: SSD's (bone, weight), the baseline the runtime model carries.
@@ -49,7 +49,7 @@ pub fn assemble(
     blend: &[f64],
     proxies: &Proxies,
     keys: &KeySequences,
-    predictors: Vec<KeyPredictor>,
+    predictors: Vec<TrainedPredictor>,
 ) -> Reduced {
     let (p, j) = (proxies.count(), set.bone_count());
     let (n4p, n3p, n4j) = (4 * p, 3 * p, 4 * j);

@@ -17,7 +17,7 @@
 use crate::import::example_set::{Bone, ExampleSet};
 use crate::train::pivots::pivots;
 use crate::train::reduce::c1c2::Reduced;
-use crate::train::reduce::predictor::KeyPredictor;
+use crate::train::reduce::predictor::TrainedPredictor;
 use crate::train::rotreg::{BoneTerm, PoseFeatures, RotationPredictor};
 use crate::train::scale_shear;
 use crate::train::ssd::{self, Skinning};
@@ -221,7 +221,7 @@ fn assemble(
     }
     let predictors = proxies
         .iter()
-        .map(|e| KeyPredictor {
+        .map(|e| TrainedPredictor {
             rotation: Some(RotationPredictor {
                 first: BoneTerm {
                     bone: e.bone,

@@ -170,14 +170,15 @@ pub fn reduce(
     KeySequences { beta, d }
 }
 
-/// A trained key predictor: rotation (None when no nearby bone moves: then R = I) and H.
+/// A key predictor as trained, in f64 (its stored form is [`rrskin::KeyPredictor`]): rotation
+/// (None when no nearby bone moves: then R = I) and H.
 #[derive(Debug, Clone)]
-pub struct KeyPredictor {
+pub struct TrainedPredictor {
     pub rotation: Option<RotationPredictor>,
     pub stretch: ScaleShear,
 }
 
-impl KeyPredictor {
+impl TrainedPredictor {
     pub fn predict(&self, f: &PoseFeatures, parents: &[Option<usize>]) -> DMat3 {
         match &self.rotation {
             Some(r) => {
@@ -198,7 +199,7 @@ pub fn train_predictors(
     keys: &KeySequences,
     key_bones: &[Vec<usize>],
     ridge: f64,
-) -> Vec<KeyPredictor> {
+) -> Vec<TrainedPredictor> {
     let feats: Vec<&PoseFeatures> = train.iter().map(|&i| &prep.feats[i]).collect();
     (0..key_bones.len())
         .into_par_iter()
@@ -215,7 +216,7 @@ pub fn train_predictors(
                 }
                 None => scale_shear::identity(),
             };
-            KeyPredictor { rotation, stretch }
+            TrainedPredictor { rotation, stretch }
         })
         .collect()
 }

@@ -19,9 +19,9 @@ const uint ROWS = 16u;     // rows of T per workgroup (4 proxies)
 const uint KT = 128u;      // depth of one staged tile of A
 const uint WG = 64u;
 
-layout(std430, set = 0, binding = 0) readonly buffer Matrix { float a[]; };      // 4P x (3P+4J)
+layout(std430, set = 0, binding = 0) readonly buffer ProductMatrix { float a[]; };      // 4P x (3P+4J)
 layout(std430, set = 0, binding = 1) readonly buffer Rhs { float bmat[]; };      // (3P+4J) x 3 chars
-layout(std430, set = 0, binding = 2) buffer Proxies { vec4 proxies[]; };   // chars x (P + J) x 3 rows
+layout(std430, set = 0, binding = 2) buffer Palette { vec4 proxies[]; };   // chars x (P + J) x 3 rows
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
