@@ -41,12 +41,21 @@ pub struct Params {
     pub alpha: f64,
 }
 
-/// The precomputed Ω: per vertex (V) and bone (J), the upper triangle of the symmetric 4x4
-/// Ω_ij, row by row: (0,0) (0,1) (0,2) (0,3) (1,1) (1,2) (1,3) (2,2) (2,3) (3,3).
+/// The precomputed Ω: per vertex, for the bones j whose smoothed weight at it is above
+/// [`NEGLIGIBLE`], the upper triangle of the symmetric 4x4 Ω_ij, row by row: (0,0) (0,1) (0,2)
+/// (0,3) (1,1) (1,2) (1,3) (2,2) (2,3) (3,3).
 pub struct Ddm {
-    bones: usize,
-    omega: Vec<[f64; 10]>,
+    /// V + 1 offsets: vertex i's entries are `omega[starts[i]..starts[i + 1]]`.
+    starts: Vec<usize>,
+    /// (j, Ω_ij).
+    omega: Vec<(usize, [f64; 10])>,
 }
+
+/// Smoothing spreads every weight over the whole mesh, mostly by tiny amounts: a bone whose
+/// smoothed weights at a vertex (both of them) are below this is left out of its Ω. C and B
+/// are entrywise non-negative (inverses of M-matrices), so Ψ_ij's other entries are below it
+/// times |u|² too.
+const NEGLIGIBLE: f64 = 1e-9;
 
 /// Index into the 10 stored entries of a symmetric 4x4, by row and column.
 const UPPER: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 4, 5, 6], [2, 5, 7, 8], [3, 6, 8, 9]];
@@ -84,18 +93,19 @@ impl Ddm {
         rest.par_iter()
             .enumerate()
             .map(|(i, &x)| {
-                let omega = &self.omega[i * self.bones..(i + 1) * self.bones];
+                let omega = &self.omega[self.starts[i]..self.starts[i + 1]];
                 moved(omega, bones).map_or(x, |(r, t)| r * x + t)
             })
             .collect()
     }
 }
 
-/// The rigid motion (R_i, t_i) of a vertex of Ω `omega` (J) under `bones`; None without weight.
-fn moved(omega: &[[f64; 10]], bones: &[Bone]) -> Option<(DMat3, DVec3)> {
+/// The rigid motion (R_i, t_i) of a vertex of Ω `omega` under `bones`; None without weight.
+fn moved(omega: &[(usize, [f64; 10])], bones: &[Bone]) -> Option<(DMat3, DVec3)> {
     // Q's top three rows Σ_j [q_j | d_j] Ω_ij, and its last row Σ_j Ω_ij's.
     let (mut top, mut last) = ([[0.0; 4]; 3], [0.0; 4]);
-    for (o, bone) in omega.iter().zip(bones) {
+    for (j, o) in omega {
+        let bone = &bones[*j];
         for c in 0..4 {
             last[c] += o[UPPER[3][c]];
         }
@@ -148,12 +158,19 @@ pub fn choose(
             smoothing.step();
             params.iterations += 1;
         }
+        let mut improved = false;
         for alpha in ALPHAS {
             let ddm = smoothing.omega(alpha);
             let e = error(&ddm);
             if best.as_ref().is_none_or(|b| e < b.0) {
                 best = Some((e, Params { alpha, ..params }, ddm));
+                improved = true;
             }
+        }
+        // More smoothing past the first p that helps no α does not help either (the error is
+        // taken as unimodal in p): the remaining, costlier candidates are skipped.
+        if !improved {
+            break;
         }
     }
     let (_, params, ddm) = best.expect("ITERATIONS and ALPHAS are not empty");
@@ -213,10 +230,10 @@ impl Smoothed {
     /// Ω_ij = (1 − α) Ψ_ij + α w'_ij P_i.
     fn omega(&self, alpha: f64) -> Ddm {
         let (j_count, v) = (self.bones, self.psi.nrows());
-        let omega = (0..v)
+        let per_vertex: Vec<Vec<(usize, [f64; 10])>> = (0..v)
             .into_par_iter()
-            .flat_map_iter(|i| {
-                let psi = move |j: usize, e: usize| self.psi[(i, 10 * j + e)];
+            .map(|i| {
+                let psi = |j: usize, e: usize| self.psi[(i, 10 * j + e)];
                 let total = |e: usize| (0..j_count).map(|j| psi(j, e)).sum::<f64>();
                 let mass = total(9);
                 let centre = match mass != 0.0 {
@@ -224,15 +241,25 @@ impl Smoothed {
                     false => DVec3::ZERO,
                 };
                 let p = outer(centre);
-                (0..j_count).map(move |j| {
-                    let w = self.weights[(i, j)];
-                    std::array::from_fn(|e| (1.0 - alpha) * psi(j, e) + alpha * w * p[e])
-                })
+                (0..j_count)
+                    .filter(|&j| psi(j, 9).abs().max(self.weights[(i, j)].abs()) > NEGLIGIBLE)
+                    .map(|j| {
+                        let w = self.weights[(i, j)];
+                        let o =
+                            std::array::from_fn(|e| (1.0 - alpha) * psi(j, e) + alpha * w * p[e]);
+                        (j, o)
+                    })
+                    .collect()
             })
             .collect();
+        let mut starts = Vec::with_capacity(v + 1);
+        starts.push(0);
+        for o in &per_vertex {
+            starts.push(starts[starts.len() - 1] + o.len());
+        }
         Ddm {
-            bones: j_count,
-            omega,
+            starts,
+            omega: per_vertex.into_iter().flatten().collect(),
         }
     }
 }
@@ -330,6 +357,15 @@ fn cotangent_weights(rest: &[DVec3], faces: &[[usize; 3]]) -> HashMap<(usize, us
     }
     edges.retain(|_, w| *w > 0.0);
     edges
+}
+
+#[cfg(test)]
+impl Ddm {
+    /// Ω_ij's entries (zero where left out).
+    fn omega_of(&self, i: usize, j: usize) -> [f64; 10] {
+        let entries = &self.omega[self.starts[i]..self.starts[i + 1]];
+        entries.iter().find(|o| o.0 == j).map_or([0.0; 10], |o| o.1)
+    }
 }
 
 #[cfg(test)]
@@ -501,7 +537,7 @@ mod tests {
                 for bone in 0..j {
                     for r in 0..4 {
                         for s in r..4 {
-                            let got = ddm.omega[i * j + bone][UPPER[r][s]];
+                            let got = ddm.omega_of(i, bone)[UPPER[r][s]];
                             let want = omega(bone, r, s);
                             assert!(
                                 (got - want).abs() < 1e-9 * (1.0 + want.abs()),
