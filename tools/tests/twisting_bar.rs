@@ -222,7 +222,10 @@ fn eval_reports_centres_of_rotation_and_direct_delta_mush() {
         ..Default::default()
     };
     let report = eval::run(&set, &options).expect("training");
-    let (ssd, cor) = (report.ssd.test.unwrap(), report.cor.test.unwrap());
+    let (ssd, cor) = (
+        report.ssd.test.expect("a test pose"),
+        report.cor.test.expect("a test pose"),
+    );
     assert!(cor < 0.5 * ssd, "CoR test EE {cor} vs SSD {ssd}");
     assert!(report.ddm.test.is_some_and(f64::is_finite));
     let stages: Vec<&str> = report.stages.iter().map(|s| s.0).collect();

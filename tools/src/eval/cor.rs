@@ -213,6 +213,9 @@ fn subdivide(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rest positions, triangles and (bone, weight) lists.
+    type Mesh = (Vec<DVec3>, Vec<[usize; 3]>, Vec<Vec<(usize, f64)>>);
     use glam::DMat3;
 
     /// The similarity written out over ordered pairs j ≠ k, as in the paper.
@@ -230,10 +233,7 @@ mod tests {
     }
 
     /// A strip of 2 x n squares along x, weights from bone 0 to bone 1 by `blend(x)`.
-    fn strip(
-        n: usize,
-        blend: impl Fn(f64) -> f64,
-    ) -> (Vec<DVec3>, Vec<[usize; 3]>, Vec<Vec<(usize, f64)>>) {
+    fn strip(n: usize, blend: impl Fn(f64) -> f64) -> Mesh {
         let rest: Vec<DVec3> = (0..=n)
             .flat_map(|i| (0..3).map(move |y| DVec3::new(i as f64, y as f64, 0.0)))
             .collect();

@@ -371,41 +371,37 @@ impl Ddm {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rest positions, triangles and (bone, weight) lists.
+    type Mesh = (Vec<DVec3>, Vec<[usize; 3]>, Vec<Vec<(usize, f64)>>);
+    use crate::cylinder_chain::Chain;
     use crate::train::ssd::Skinning;
     use glam::DQuat;
 
-    /// A closed, bumpy tube of `rings` x 6 vertices along x (acute and obtuse angles both),
-    /// weights blending bone 0 into bone 1 along it.
-    fn tube(rings: usize) -> (Vec<DVec3>, Vec<[usize; 3]>, Vec<Vec<(usize, f64)>>) {
-        let n = 6;
-        let mut rest = Vec::new();
-        for r in 0..rings {
-            for s in 0..n {
-                let a = std::f64::consts::TAU * (s as f64 + 0.3 * (r % 2) as f64) / n as f64;
-                let radius = 0.5 + 0.1 * ((r * 7 + s * 3) % 5) as f64;
-                rest.push(DVec3::new(
-                    r as f64 * 0.4,
-                    radius * a.cos(),
-                    radius * a.sin(),
-                ));
-            }
-        }
-        let mut faces = Vec::new();
-        for r in 0..rings - 1 {
-            for s in 0..n {
-                let (a, b) = (r * n + s, r * n + (s + 1) % n);
-                faces.push([a, b, b + n]);
-                faces.push([a, b + n, a + n]);
-            }
-        }
-        let weights = rest
-            .iter()
-            .map(|p| {
-                let t = (p.x / ((rings - 1) as f64 * 0.4)).clamp(0.0, 1.0);
-                vec![(0, 1.0 - t), (1, t)]
+    /// The synthetic chain's tube of `rings` x 6 vertices along x ∈ [0, 1], made bumpy (radii
+    /// and turns varying by vertex, so that some cotangent weights are negative), weights
+    /// blending bone 0 into bone 1 along it.
+    fn tube(rings: usize) -> Mesh {
+        let chain = Chain {
+            rings,
+            segments: 6,
+            bones: 1,
+            poses: 2,
+        };
+        let set = chain.build().expect("a valid size");
+        let rest: Vec<DVec3> = (set.rest.iter().enumerate())
+            .map(|(v, p)| {
+                let (r, s) = (v / 6, v % 6);
+                let turn = DMat3::from_rotation_x(0.3 * (r % 2) as f64);
+                let radius = 1.0 + 0.2 * ((r * 7 + s * 3) % 5) as f64;
+                turn * DVec3::new(p.x, radius * p.y, radius * p.z)
             })
             .collect();
-        (rest, faces, weights)
+        let weights = rest
+            .iter()
+            .map(|p| vec![(0, 1.0 - p.x), (1, p.x)])
+            .collect();
+        (rest, set.faces, weights)
     }
 
     fn bones() -> Vec<Bone> {
@@ -459,7 +455,7 @@ mod tests {
             alpha: 0.8,
         };
         let moved = Ddm::new(&rest, &faces, &weights, 2, &smooth)
-            .unwrap()
+            .expect("precomputation")
             .deform(&rest, &bones());
         let gap = moved
             .iter()
