@@ -21,6 +21,11 @@ pub enum Error {
     },
     /// An output that cannot be written.
     Output { path: PathBuf, problem: String },
+    /// A baseline's precomputation failed (a linear system it cannot solve).
+    Baseline {
+        method: &'static str,
+        problem: String,
+    },
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
@@ -45,6 +50,7 @@ impl fmt::Display for Error {
                 set_size.1
             ),
             Error::Output { path, problem } => write!(f, "{}: {problem}", path.display()),
+            Error::Baseline { method, problem } => write!(f, "{method}: {problem}"),
         }
     }
 }

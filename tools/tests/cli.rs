@@ -299,16 +299,27 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "dqs",
         "rig_lbs",
         "rig_dqs",
+        "cor",
+        "ddm",
+        "ddm_params",
+        "rig_cor",
         "diagnose",
         "stages",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 16, "{e}");
+    assert_eq!(keys.len(), 20, "{e}");
     assert!(
-        e["rig_lbs"].is_null() && e["rig_dqs"].is_null(),
+        e["rig_lbs"].is_null() && e["rig_dqs"].is_null() && e["rig_cor"].is_null(),
         "no skin_weights.npy here"
     );
+    for baseline in ["cor", "ddm"] {
+        assert!(e[baseline]["test"].is_number(), "{baseline}: {e}");
+        assert!(
+            e["stages"][baseline].is_number(),
+            "{baseline}'s precomputation: {e}"
+        );
+    }
     let n = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
     assert_eq!(
         (n(&e["vertices"]), n(&e["triangles"]), n(&e["bones"])),

@@ -160,3 +160,85 @@ fn the_runtime_model_twists_where_skinning_collapses() {
         "runtime model test EE {reduced} vs SSD {ssd}"
     );
 }
+
+/// Centres of rotation keep the twisted bar round (Le & Hodgins 2016): with the bar's own smooth
+/// weights, LBS pulls the middle of a 170° twist onto the axis (the candy wrapper); the centres
+/// lie on the axis, so every vertex keeps the bar's radius.
+#[test]
+fn centres_of_rotation_twist_without_the_candy_wrapper() {
+    let set = bar_set(&[0.0], &[]);
+    let weights: Vec<Vec<(usize, f64)>> = set
+        .rest
+        .iter()
+        .map(|p| vec![(0, 1.0 - share(p.x)), (1, share(p.x))])
+        .collect();
+    let bones = [
+        Bone {
+            q: DMat3::IDENTITY,
+            d: DVec3::ZERO,
+        },
+        Bone {
+            q: twist(170f64.to_radians()),
+            d: DVec3::ZERO,
+        },
+    ];
+    let radius = |p: &DVec3| p.y.hypot(p.z);
+    let lbs = rrskin_tools::train::ssd::Skinning {
+        influences: weights.clone(),
+    }
+    .deform(&set.rest, &bones);
+    let thinnest = lbs.iter().map(radius).fold(f64::INFINITY, f64::min);
+    assert!(thinnest < 0.05, "LBS should collapse: radius {thinnest}");
+    let centres = eval::cor::centres(&set.rest, &set.faces, &weights);
+    let cor = eval::cor::deform(&set.rest, &weights, &centres, &bones);
+    for (a, p) in cor.iter().enumerate() {
+        assert!(
+            (radius(p) - 0.2).abs() < 1e-9,
+            "vertex {a}: radius {} (centre {:?})",
+            radius(p),
+            centres[a]
+        );
+    }
+    // And it twists: the middle ring (equal weights) turns by half the joint's angle.
+    let middle = (RINGS / 2) * SEGMENTS;
+    let angle = cor[middle].z.atan2(cor[middle].y).to_degrees();
+    assert!(
+        (angle - 85.0).abs() < 1e-6,
+        "middle ring turned by {angle}°"
+    );
+}
+
+/// In `eval`, CoR and DDM are measured with SSD's weights: on the twist CoR beats SSD's LBS.
+#[test]
+fn eval_reports_centres_of_rotation_and_direct_delta_mush() {
+    let set = bar_set(&[0.0, 90.0, 180.0], &[135.0]);
+    let options = eval::Options {
+        train: TrainOptions {
+            proxies: 0,
+            full_model: false,
+            quiet: true,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let report = eval::run(&set, &options).expect("training");
+    let (ssd, cor) = (
+        report.ssd.test.expect("a test pose"),
+        report.cor.test.expect("a test pose"),
+    );
+    assert!(cor < 0.5 * ssd, "CoR test EE {cor} vs SSD {ssd}");
+    assert!(report.ddm.test.is_some_and(f64::is_finite));
+    let stages: Vec<&str> = report.stages.iter().map(|s| s.0).collect();
+    assert!(
+        stages.contains(&"cor") && stages.contains(&"ddm"),
+        "{stages:?}"
+    );
+    let json = report.to_json();
+    for key in ["cor", "ddm"] {
+        assert!(
+            json[key]["train"].is_number() && json[key]["test"].is_number(),
+            "{json}"
+        );
+    }
+    assert!(json["rig_cor"].is_null());
+}

@@ -8,13 +8,13 @@ use glam::{DQuat, DVec3};
 
 /// A rigid transform as a unit dual quaternion: real part r (rotation), dual part ½ (0, t) r.
 #[derive(Debug, Clone, Copy)]
-struct DualQuat {
-    real: DQuat,
+pub(super) struct DualQuat {
+    pub(super) real: DQuat,
     dual: DQuat,
 }
 
 impl DualQuat {
-    fn of(bone: &Bone) -> DualQuat {
+    pub(super) fn of(bone: &Bone) -> DualQuat {
         let real = DQuat::from_mat3(&bone.q).normalize();
         let t = DQuat::from_xyzw(bone.d.x, bone.d.y, bone.d.z, 0.0);
         DualQuat {
@@ -33,12 +33,21 @@ pub fn deform(rest: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Bone]) 
         .collect()
 }
 
-/// `p` moved by the normalised weighted sum of `dq`, each flipped into the hemisphere of the
-/// heaviest one's real part (q and −q are one rotation).
+/// `p` moved by the normalised weighted sum of `dq` (see [`blended`]).
 fn blend(dq: &[DualQuat], inf: &[(usize, f64)], p: DVec3) -> DVec3 {
-    let Some(&(pivot, _)) = inf.iter().max_by(|x, y| x.1.total_cmp(&y.1)) else {
+    let Some(DualQuat { real, dual }) = blended(dq, inf) else {
         return p;
     };
+    // The translation t = 2 dual real*; the rotation is real's.
+    let t = dual * real.conjugate() * 2.0;
+    real * p + DVec3::new(t.x, t.y, t.z)
+}
+
+/// The weighted sum of `dq`, each flipped into the hemisphere of the heaviest one's real part
+/// (q and −q are one rotation), normalised; None without weight (or when it cancels).
+/// Its real part is also the rotation of centres-of-rotation skinning ([`super::cor`]).
+pub(super) fn blended(dq: &[DualQuat], inf: &[(usize, f64)]) -> Option<DualQuat> {
+    let &(pivot, _) = inf.iter().max_by(|x, y| x.1.total_cmp(&y.1))?;
     let zero = DQuat::from_xyzw(0.0, 0.0, 0.0, 0.0);
     let (mut real, mut dual) = (zero, zero);
     for &(b, w) in inf {
@@ -51,13 +60,10 @@ fn blend(dq: &[DualQuat], inf: &[(usize, f64)], p: DVec3) -> DVec3 {
         dual += dq[b].dual * s;
     }
     let norm = real.length();
-    if norm <= 0.0 {
-        return p;
-    }
-    let (real, dual) = (real / norm, dual / norm);
-    // The translation t = 2 dual real*; the rotation is real's.
-    let t = dual * real.conjugate() * 2.0;
-    real * p + DVec3::new(t.x, t.y, t.z)
+    (norm > 0.0).then(|| DualQuat {
+        real: real / norm,
+        dual: dual / norm,
+    })
 }
 
 #[cfg(test)]

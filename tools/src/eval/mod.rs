@@ -6,6 +6,8 @@
 //! `EE = sqrt(Σ_i Σ_a |y_a(q_i) − y_a^i|² / Σ_i Σ_a |r_a(q_i) − y_a^i|²)` in percent, r the best
 //! rigid predictor (one bone per vertex, chosen on the training poses).
 
+pub mod cor;
+pub mod ddm;
 pub mod diagnose;
 pub mod dqs;
 
@@ -42,10 +44,16 @@ pub struct Report {
     pub ssd: Errors,
     /// Dual quaternion skinning with SSD's weights.
     pub dqs: Errors,
-    /// Linear blend and dual quaternion skinning with the rig's own weights, when the set has
-    /// them.
+    /// Skinning with optimized centres of rotation ([`cor`]) and direct delta mush ([`ddm`],
+    /// with `ddm_params`, chosen on the training poses), both with SSD's weights.
+    pub cor: Errors,
+    pub ddm: Errors,
+    pub ddm_params: ddm::Params,
+    /// Linear blend, dual quaternion and centres-of-rotation skinning with the rig's own
+    /// weights, when the set has them.
     pub rig_lbs: Option<Errors>,
     pub rig_dqs: Option<Errors>,
+    pub rig_cor: Option<Errors>,
     /// The paper's full model (None when not trained: `rrskin train` of joint-blend proxies).
     pub rr_full: Option<Errors>,
     /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
@@ -86,7 +94,13 @@ impl Report {
             "vertices": self.vertices, "triangles": self.triangles, "bones": self.bones,
             "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": self.reduced_proxies,
             "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "dqs": errors(&self.dqs),
+            "cor": errors(&self.cor), "ddm": errors(&self.ddm),
+            "ddm_params": {
+                "iterations": self.ddm_params.iterations, "lambda": self.ddm_params.lambda,
+                "kappa": self.ddm_params.kappa, "alpha": self.ddm_params.alpha,
+            },
             "rig_lbs": self.rig_lbs.as_ref().map(errors), "rig_dqs": self.rig_dqs.as_ref().map(errors),
+            "rig_cor": self.rig_cor.as_ref().map(errors),
             "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
@@ -132,9 +146,12 @@ impl Report {
         row(&mut s, "rigid", &self.rigid);
         row(&mut s, "SSD (LBS, fitted weights)", &self.ssd);
         row(&mut s, "DQS (SSD's weights)", &self.dqs);
-        if let (Some(lbs), Some(dqs)) = (&self.rig_lbs, &self.rig_dqs) {
+        row(&mut s, "CoR (SSD's weights)", &self.cor);
+        row(&mut s, "DDM (SSD's weights)", &self.ddm);
+        if let (Some(lbs), Some(dqs), Some(cor)) = (&self.rig_lbs, &self.rig_dqs, &self.rig_cor) {
             row(&mut s, "LBS (the rig's weights)", lbs);
             row(&mut s, "DQS (the rig's weights)", dqs);
+            row(&mut s, "CoR (the rig's weights)", cor);
         }
         if let Some(e) = &self.rr_full {
             row(&mut s, "rotational regression (full)", e);
@@ -166,6 +183,11 @@ impl Report {
                 choice.percentile, choice.ridge, choice.blend
             );
         }
+        let d = &self.ddm_params;
+        s += &format!(
+            "direct delta mush: p = {}, λ = {}, κ = {}, α = {} (p and α chosen on the training poses)\n",
+            d.iterations, d.lambda, d.kappa, d.alpha
+        );
         s += "stages:";
         for (stage, t) in &self.stages {
             s += &format!(" {stage} {t:.2} s;");
@@ -186,6 +208,68 @@ fn dqs_all(set: &ExampleSet, influences: &[Vec<(usize, f64)>], poses: &[usize]) 
         .iter()
         .map(|&i| dqs::deform(&set.rest, influences, &set.poses[i].bones))
         .collect()
+}
+
+fn cor_all(
+    set: &ExampleSet,
+    influences: &[Vec<(usize, f64)>],
+    centres: &[DVec3],
+    poses: &[usize],
+) -> Vec<Vec<DVec3>> {
+    poses
+        .iter()
+        .map(|&i| cor::deform(&set.rest, influences, centres, &set.poses[i].bones))
+        .collect()
+}
+
+fn ddm_all(set: &ExampleSet, ddm: &ddm::Ddm, poses: &[usize]) -> Vec<Vec<DVec3>> {
+    poses
+        .iter()
+        .map(|&i| ddm.deform(&set.rest, &set.poses[i].bones))
+        .collect()
+}
+
+/// The baselines' precomputations: centres of rotation for SSD's weights (and the rig's), and
+/// direct delta mush's Ω for SSD's weights with its parameters chosen on the training poses.
+struct Baselines {
+    cor: Vec<DVec3>,
+    rig_cor: Option<Vec<DVec3>>,
+    ddm: ddm::Ddm,
+    ddm_params: ddm::Params,
+}
+
+impl Baselines {
+    /// Each precomputation's wall time is added to `stages`.
+    fn precompute(
+        set: &ExampleSet,
+        trained: &Trained,
+        stages: &mut Vec<(&'static str, f64)>,
+    ) -> Result<Baselines> {
+        let mut clock = std::time::Instant::now();
+        let mut lap = |stage: &'static str| {
+            stages.push((stage, clock.elapsed().as_secs_f64()));
+            clock = std::time::Instant::now();
+        };
+        let ssd_weights = &trained.ssd.influences;
+        let cor = cor::centres(&set.rest, &set.faces, ssd_weights);
+        lap("cor");
+        let train = set.train();
+        let error = |d: &ddm::Ddm| squared_error(set, &train, &ddm_all(set, d, &train));
+        let (ddm_params, ddm) =
+            ddm::choose(&set.rest, &set.faces, ssd_weights, set.bone_count(), &error)?;
+        lap("ddm");
+        let rig_cor = set.rig_weights.as_ref().map(|w| {
+            let centres = cor::centres(&set.rest, &set.faces, w);
+            lap("rig cor");
+            centres
+        });
+        Ok(Baselines {
+            cor,
+            rig_cor,
+            ddm,
+            ddm_params,
+        })
+    }
 }
 
 /// EE in percent of `predicted` against the rigid predictor on the same poses.
@@ -227,6 +311,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let trained = crate::train::run(set, &train_options)?;
     let (train, test) = (set.train(), set.test());
     let mut stages = trained.seconds.clone();
+    let baselines = Baselines::precompute(set, &trained, &mut stages)?;
     let start = std::time::Instant::now();
     let rigid = &trained.rigid;
     let errors = |predict: &dyn Fn(&[usize]) -> Vec<Vec<DVec3>>| Errors {
@@ -245,6 +330,13 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let rig_dqs = rig_skin
         .as_ref()
         .map(|s| errors(&|p| dqs_all(set, &s.influences, p)));
+    let ssd_weights = &trained.ssd.influences;
+    let mut cor_e = errors(&|p| cor_all(set, ssd_weights, &baselines.cor, p));
+    let mut ddm_e = errors(&|p| ddm_all(set, &baselines.ddm, p));
+    let rig_cor = rig_skin
+        .as_ref()
+        .zip(baselines.rig_cor.as_ref())
+        .map(|(s, c)| errors(&|p| cor_all(set, &s.influences, c, p)));
     let full = trained.full.as_ref();
     let mut rr_e = full.map(|f| errors(&|p| f.model.predict(set, &f.prep, &trained.ssd, p)));
     let runtime = options
@@ -281,10 +373,13 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         if let Some(e) = rr_e.as_mut() {
             e.test = loo.rr_full;
         }
-        // Leave-one-out retrains the full model only: the reduced row has no such figure.
+        // Leave-one-out retrains SSD and the full model only: the reduced row and the
+        // baselines precomputed from SSD's weights have no such figure.
         if let Some(e) = rr_reduced.as_mut() {
             e.test = None;
         }
+        cor_e.test = None;
+        ddm_e.test = None;
         stages.push(("leave-one-out", start.elapsed().as_secs_f64()));
     }
     // The rig's weights are fitted on no pose: left out, a pose errs as it does in training.
@@ -301,8 +396,12 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         rigid: rigid_e,
         ssd: ssd_e,
         dqs: dqs_e,
+        cor: cor_e,
+        ddm: ddm_e,
+        ddm_params: baselines.ddm_params,
         rig_lbs: rig_lbs.map(fitted_nothing),
         rig_dqs: rig_dqs.map(fitted_nothing),
+        rig_cor: rig_cor.map(fitted_nothing),
         rr_full: rr_e,
         rr_reduced,
         reduced_proxies: runtime.map(|m| m.proxy_count()),
