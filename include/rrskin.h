@@ -162,22 +162,6 @@ typedef int32_t rrskin_status;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
-// One dispatch axis: ceil(extent / per_group) workgroups.
-typedef struct Axis Axis;
-
-// A per-character buffer of a crowd, bound per chunk of characters.
-typedef struct CrowdBuffer CrowdBuffer;
-
-// What one axis of a dispatch counts.
-typedef struct Extent Extent;
-
-// A buffer of the GPU model, uploaded once and only ever read.
-typedef struct ModelBuffer ModelBuffer;
-
-// A pipeline of the table; adding one means a variant here, in `ALL` and in `desc`, its
-// entry below and its place in `batch.rs`'s schedule.
-typedef struct Pass Pass;
-
 // A model loaded for CPU palette evaluation (opaque). Immutable: every call but
 // `rrskin_palette_model_destroy` may run on one from many threads at once.
 typedef struct rrskin_palette_model rrskin_palette_model;
