@@ -74,15 +74,7 @@ impl<'m> CpuEvaluator<'m> {
         mut tangents: Option<&mut [[f32; 4]]>,
     ) -> Result<()> {
         let (v, j) = (self.model.vertex_count(), self.model.bone_count());
-        if bones.len() % j != 0 {
-            return Err(Error::WrongLength {
-                what: "bone transforms (characters x bones)",
-                expected: bones.len().div_ceil(j) * j,
-                actual: bones.len(),
-            });
-        }
-        let c = bones.len() / j;
-        check_finite(bones)?;
+        let c = characters(bones, j)?;
         for (what, out) in [("positions", &*positions), ("normals", &*normals)] {
             if out.len() != c * v {
                 return Err(Error::WrongLength {
@@ -239,6 +231,19 @@ pub fn median(values: impl IntoIterator<Item = f64>) -> Option<f64> {
     let mut sorted: Vec<f64> = values.into_iter().collect();
     sorted.sort_by(f64::total_cmp);
     sorted.get(sorted.len() / 2).copied()
+}
+
+/// C of C x J bone transforms, checked: whole characters, every number finite.
+pub(crate) fn characters(bones: &[Affine], j: usize) -> Result<usize> {
+    if bones.len() % j != 0 {
+        return Err(Error::WrongLength {
+            what: "bone transforms (characters x bones)",
+            expected: bones.len().div_ceil(j) * j,
+            actual: bones.len(),
+        });
+    }
+    check_finite(bones)?;
+    Ok(bones.len() / j)
 }
 
 /// Per-frame input must be finite: one NaN would spread through C1/C2 to a whole character.

@@ -409,6 +409,20 @@ unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
     Ok(())
 }
 
+/// A caller's path argument as UTF-8.
+///
+/// # Safety
+/// `path` is NULL or a NUL-terminated string readable during `'a`.
+unsafe fn utf8_path<'a>(path: *const c_char) -> Result<&'a str, Failure> {
+    if path.is_null() {
+        return Err(Failure::null("path"));
+    }
+    // SAFETY: non-null NUL-terminated string, as the caller guarantees.
+    unsafe { CStr::from_ptr(path) }
+        .to_str()
+        .map_err(|_| Failure::new(RrskinStatus::ErrorInvalidArgument, "path is not UTF-8"))
+}
+
 /// A caller's (pointer, count) as a slice (count 0: empty, whatever the pointer).
 ///
 /// # Safety
@@ -677,14 +691,8 @@ pub unsafe extern "C" fn rrskin_model_load_file(
     out: *mut RrskinModel,
 ) -> RrskinStatus {
     guard(|| {
-        if path.is_null() {
-            return Err(Failure::null("path"));
-        }
-        // SAFETY: non-null NUL-terminated string, as the caller guarantees.
-        let path = unsafe { CStr::from_ptr(path) }
-            .to_str()
-            .map_err(|_| Failure::new(RrskinStatus::ErrorInvalidArgument, "path is not UTF-8"))?;
-        let model = Model::load(path)?;
+        // SAFETY: `path` as the function's contract requires.
+        let model = Model::load(unsafe { utf8_path(path) }?)?;
         // SAFETY: `out` as the function's contract requires.
         unsafe { add_model(context, model, out) }
     })

@@ -12,7 +12,7 @@
 //! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
 //! call for a model of that size), so a frame allocates nothing.
 
-use crate::cpu::{check_finite, CpuEvaluator};
+use crate::cpu::{characters, CpuEvaluator};
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
@@ -240,17 +240,9 @@ impl Palette {
         Ok(())
     }
 
-    /// C, after checking the lengths and that the bones are finite.
+    /// C, after checking the lengths and that the bones are finite (bones first).
     fn characters(&self, bones: &[Affine], out: &[Affine]) -> Result<usize> {
-        let j = self.model.bone_count();
-        if bones.len() % j != 0 {
-            return Err(Error::WrongLength {
-                what: "bone transforms (characters x bones)",
-                expected: bones.len().div_ceil(j) * j,
-                actual: bones.len(),
-            });
-        }
-        let c = bones.len() / j;
+        let c = characters(bones, self.model.bone_count())?;
         if out.len() != c * self.len() {
             return Err(Error::WrongLength {
                 what: "palette transforms (characters x (proxies + bones))",
@@ -258,7 +250,6 @@ impl Palette {
                 actual: out.len(),
             });
         }
-        check_finite(bones)?;
         Ok(c)
     }
 

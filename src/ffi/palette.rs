@@ -2,11 +2,11 @@
 //! own shaders. No Vulkan, no handle registry: a palette model is an opaque pointer, and no
 //! call on it takes a lock, so threads run palettes of one model (or many) in parallel.
 
-use super::{guard, put, slice, Failure, RrskinStatus};
+use super::{guard, put, slice, utf8_path, Failure, RrskinStatus};
 use crate::model::Model;
 use crate::palette::Palette;
 use crate::predict::Affine;
-use std::ffi::{c_char, CStr};
+use std::ffi::c_char;
 
 /// A model loaded for CPU palette evaluation (opaque). Immutable: every call but
 /// `rrskin_palette_model_destroy` may run on one from many threads at once.
@@ -57,15 +57,8 @@ pub unsafe extern "C" fn rrskin_palette_model_load_file(
     out: *mut *mut RrskinPaletteModel,
 ) -> RrskinStatus {
     guard(|| {
-        if path.is_null() {
-            return Err(Failure::null("path"));
-        }
-        // SAFETY: non-null NUL-terminated string, as the caller guarantees.
-        let path = unsafe { CStr::from_ptr(path) }
-            .to_str()
-            .map_err(|_| Failure::new(RrskinStatus::ErrorInvalidArgument, "path is not UTF-8"))?;
-        // SAFETY: `out` as the function's contract requires.
-        unsafe { give(Model::load(path)?, out) }
+        // SAFETY: `path` and `out` as the function's contract requires.
+        unsafe { give(Model::load(utf8_path(path)?)?, out) }
     })
 }
 

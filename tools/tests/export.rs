@@ -59,6 +59,30 @@ fn export(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).expect("export's JSON")
 }
 
+/// `rrskin train ARGS --proxies 20 --json` (ARGS with `-o MODEL`), the model written; its CPU
+/// palette, which an engine would skin with, agrees with the reference playing its animation
+/// (the proxies read keys and bones as training made them).
+fn train(args: &[&str]) -> Model {
+    let mut all = vec!["train"];
+    all.extend_from_slice(args);
+    all.extend(["--proxies", "20", "--json"]);
+    let out = rrskin(&all);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let at = args.iter().position(|a| *a == "-o").expect("-o MODEL") + 1;
+    let model = Model::load(args[at]).expect("the trained model");
+    let frames: Vec<Affine> = model.animation().flatten().copied().collect();
+    let worst = palette_error(&model, &frames).expect("palette");
+    assert!(
+        worst <= rrskin_render::synthetic::PALETTE_TOLERANCE,
+        "the CPU palette of the trained model is {worst} off"
+    );
+    model
+}
+
 /// A synthetic model carrying an animation of `frames` random poses.
 fn animated(spec: Spec, seed: u64, frames: usize) -> Model {
     let model = random_model(spec, seed).expect("a valid model");
@@ -165,8 +189,7 @@ fn blender_plays_an_exported_model_like_the_runtime() {
     let rig = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
     let cache = repo().join("data/cesiumman_gltf/CesiumMan_examples.pc2");
     let model_path = dir.join("cm.rrs");
-    let trained = rrskin(&[
-        "train",
+    let model = train(&[
         s(&rig),
         "--clip",
         "examples",
@@ -174,26 +197,9 @@ fn blender_plays_an_exported_model_like_the_runtime() {
         s(&cache),
         "--test-frames",
         "41..60",
-        "--proxies",
-        "20",
         "-o",
         s(&model_path),
-        "--json",
     ]);
-    assert!(
-        trained.status.success(),
-        "{}",
-        String::from_utf8_lossy(&trained.stderr)
-    );
-    let model = Model::load(&model_path).expect("the trained model");
-    // The CPU palette an engine would skin with agrees with the reference on this trained model
-    // (its proxies read keys and bones as training made them), playing its animation.
-    let frames: Vec<Affine> = model.animation().flatten().copied().collect();
-    let worst = palette_error(&model, &frames).expect("palette");
-    assert!(
-        worst <= rrskin_render::synthetic::PALETTE_TOLERANCE,
-        "the CPU palette of the trained model is {worst} off"
-    );
 
     let with_rig = dir.join("with_rig.glb");
     export(&[
@@ -259,8 +265,7 @@ fn a_rig_from_blenders_exporter_exports_back_with_its_materials() {
         ],
     );
     let (rig, model_path, glb) = (dir.join("rig.glb"), dir.join("m.rrs"), dir.join("m.glb"));
-    let trained = rrskin(&[
-        "train",
+    let model = train(&[
         s(&rig),
         "--clip",
         "rom",
@@ -270,17 +275,9 @@ fn a_rig_from_blenders_exporter_exports_back_with_its_materials() {
         "24",
         "--test-frames",
         "23..30",
-        "--proxies",
-        "20",
         "-o",
         s(&model_path),
-        "--json",
     ]);
-    assert!(
-        trained.status.success(),
-        "{}",
-        String::from_utf8_lossy(&trained.stderr)
-    );
     let exported = export(&[s(&model_path), "-o", s(&glb), "--rig", s(&rig)]);
     let report = assert_valid(&glb);
     assert_eq!(report["info"]["materialCount"], 2, "{}", report["info"]);
@@ -289,13 +286,6 @@ fn a_rig_from_blenders_exporter_exports_back_with_its_materials() {
     assert!(
         clip["worst_between"].as_f64() <= Some(1e-3),
         "the export's own check: {clip}"
-    );
-    let model = Model::load(&model_path).expect("the trained model");
-    let frames: Vec<Affine> = model.animation().flatten().copied().collect();
-    let worst = palette_error(&model, &frames).expect("palette");
-    assert!(
-        worst <= rrskin_render::synthetic::PALETTE_TOLERANCE,
-        "CPU palette {worst} off"
     );
     let rom = Rig::load(&rig, "rom").expect("the rig");
     let (at_keys, between) =

@@ -300,6 +300,37 @@ pub fn renumber_bones(model: &Model, new_index: &[usize]) -> Result<Model> {
     Model::new(parts)
 }
 
+/// What [`palette_error`] may be: `f32` round-off (measured about 2e-7 on the tests' synthetic
+/// models), with a tenfold margin. A 0.1 % error in the key gradients gives 2e-4.
+pub const PALETTE_TOLERANCE: f32 = 2e-6;
+
+/// The largest distance, relative to `max(1, |p|)`, between positions skinned from the CPU
+/// palette ([`rrskin::palette::Palette`], `f32`) and the CPU reference evaluator's (`f64`), over
+/// C characters of `bones` (C x J): what the palette tests compare with their tolerance.
+pub fn palette_error(model: &Model, bones: &[Affine]) -> Result<f32> {
+    let palette = rrskin::palette::Palette::new(model.clone())?;
+    let (v, j, n) = (model.vertex_count(), model.bone_count(), palette.len());
+    let characters = bones.len() / j;
+    let mut entries = vec![[0.0; 12]; characters * n];
+    palette.compute_batch(bones, &mut entries)?;
+    let (mut want, mut normals) = (
+        vec![[0.0; 3]; characters * v],
+        vec![[0.0; 3]; characters * v],
+    );
+    rrskin::cpu::CpuEvaluator::new(model).evaluate(bones, &mut want, &mut normals)?;
+    let mut got = vec![[0.0; 3]; v];
+    let mut worst = 0.0f32;
+    for (c, entries) in entries.chunks_exact(n).enumerate() {
+        palette.skin_positions(entries, &mut got)?;
+        for (g, w) in got.iter().zip(&want[c * v..(c + 1) * v]) {
+            let d = (0..3).map(|i| (g[i] - w[i]).powi(2)).sum::<f32>().sqrt();
+            let size = (0..3).map(|i| w[i] * w[i]).sum::<f32>().sqrt().max(1.0);
+            worst = worst.max(d / size);
+        }
+    }
+    Ok(worst)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -401,35 +432,4 @@ mod tests {
             Err(Error::WrongLength { .. })
         ));
     }
-}
-
-/// What [`palette_error`] may be: `f32` round-off (measured about 2e-7 on the tests' synthetic
-/// models), with a tenfold margin. A 0.1 % error in the key gradients gives 2e-4.
-pub const PALETTE_TOLERANCE: f32 = 2e-6;
-
-/// The largest distance, relative to `max(1, |p|)`, between positions skinned from the CPU
-/// palette ([`rrskin::palette::Palette`], `f32`) and the CPU reference evaluator's (`f64`), over
-/// C characters of `bones` (C x J): what the palette tests compare with their tolerance.
-pub fn palette_error(model: &Model, bones: &[Affine]) -> Result<f32> {
-    let palette = rrskin::palette::Palette::new(model.clone())?;
-    let (v, j, n) = (model.vertex_count(), model.bone_count(), palette.len());
-    let characters = bones.len() / j;
-    let mut entries = vec![[0.0; 12]; characters * n];
-    palette.compute_batch(bones, &mut entries)?;
-    let (mut want, mut normals) = (
-        vec![[0.0; 3]; characters * v],
-        vec![[0.0; 3]; characters * v],
-    );
-    rrskin::cpu::CpuEvaluator::new(model).evaluate(bones, &mut want, &mut normals)?;
-    let mut got = vec![[0.0; 3]; v];
-    let mut worst = 0.0f32;
-    for (c, entries) in entries.chunks_exact(n).enumerate() {
-        palette.skin_positions(entries, &mut got)?;
-        for (g, w) in got.iter().zip(&want[c * v..(c + 1) * v]) {
-            let d = (0..3).map(|i| (g[i] - w[i]).powi(2)).sum::<f32>().sqrt();
-            let size = (0..3).map(|i| w[i] * w[i]).sum::<f32>().sqrt().max(1.0);
-            worst = worst.max(d / size);
-        }
-    }
-    Ok(worst)
 }
