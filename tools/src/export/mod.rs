@@ -285,6 +285,16 @@ fn rig_source(
         .unwrap_or_else(|| "rrskin model".into());
     let buffers = load_buffers(path, &gltf)?;
     let (materials, extensions) = copy_materials(path, &gltf, &buffers, buffer)?;
+    if materials_of.len() != rig.primitives.len() {
+        return Err(input(
+            path,
+            format!(
+                "{} skinned primitives in the file, {} in the rig read from it",
+                materials_of.len(),
+                rig.primitives.len()
+            ),
+        ));
+    }
     let primitives = rig.primitives.iter().cloned().zip(materials_of).collect();
     let geometry = Geometry {
         primitives,
