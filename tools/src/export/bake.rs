@@ -8,10 +8,11 @@
 //! playback stays within the tolerance of the model evaluated at the clip's own pose, at a
 //! quarter, half and three quarters of the interval.
 
+use crate::import::example_set::Bone;
 use crate::linalg::{polar, svd3};
 use glam::{DMat3, DQuat, DVec3};
 use rrskin::palette::Palette;
-use rrskin::predict::Affine;
+use rrskin::predict::{rotation_of, Affine};
 
 /// Intervals between keys are halved at most this often (256 samples per key interval: a
 /// clip of random poses at 24 fps turns bones by up to 8° in 1/32 of an interval, which a
@@ -61,9 +62,7 @@ impl NodePair {
     /// previous V is kept as long as it diagonalises S to [`KEEP_V`] (Σ its diagonal). Else the
     /// signed SVD, of its 24 equivalent forms the one whose V is nearest the previous.
     pub fn of(a: &Affine, previous: Option<&NodePair>) -> NodePair {
-        let m =
-            glam::Mat3::from_cols_array(&[a[0], a[4], a[8], a[1], a[5], a[9], a[2], a[6], a[10]])
-                .as_dmat3();
+        let m = rotation_of(a);
         let previous_v = previous.map(|p| DMat3::from_quat(p.child_rotation).transpose());
         let kept = previous_v.and_then(|v| {
             let (r, s) = polar(m);
@@ -111,12 +110,11 @@ impl NodePair {
         let m = DMat3::from_quat(self.rotation)
             * DMat3::from_diagonal(self.scale)
             * DMat3::from_quat(self.child_rotation);
-        let t = self.translation;
-        [
-            m.x_axis.x, m.y_axis.x, m.z_axis.x, t.x, m.x_axis.y, m.y_axis.y, m.z_axis.y, t.y,
-            m.x_axis.z, m.y_axis.z, m.z_axis.z, t.z,
-        ]
-        .map(|x| x as f32)
+        Bone {
+            q: m,
+            d: self.translation,
+        }
+        .to_affine()
     }
 }
 

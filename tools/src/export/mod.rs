@@ -14,7 +14,7 @@
 pub mod bake;
 pub mod glb;
 
-use crate::import::example_set::InputError;
+use crate::import::example_set::{Bone, InputError};
 use crate::import::gltf_rig::{load_buffers, Rig};
 use crate::linalg::procrustes;
 use crate::{Error, Result};
@@ -22,7 +22,7 @@ use bake::{bake, Baked, NodePair};
 use glam::{DMat3, DQuat, DVec3};
 use glb::{Buffer, ARRAY_BUFFER};
 use rrskin::palette::Palette;
-use rrskin::predict::Affine;
+use rrskin::predict::{rotation_of, Affine};
 use rrskin::Model;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -184,14 +184,16 @@ fn model_clip(model: &Model, fps: f64) -> Vec<Clip> {
 /// The bones of the model's own animation at time `t` (seconds, `fps` frames a second), what
 /// an export without a rig plays: between two frames each bone moves as glTF moves a node.
 pub fn animation_pose(model: &Model, fps: f64, t: f64) -> Vec<Affine> {
-    let frames: Vec<&[Affine]> = model.animation().collect();
-    let last = frames.len().saturating_sub(1);
+    let last = model.animation().count().saturating_sub(1);
     let at = (t * fps).clamp(0.0, last as f64);
     let f = at.floor() as usize;
     let x = at - f as f64;
-    frames[f]
-        .iter()
-        .zip(frames[(f + 1).min(last)])
+    let mut frames = model.animation().skip(f);
+    let (Some(a), next) = (frames.next(), frames.next()) else {
+        return Vec::new();
+    };
+    a.iter()
+        .zip(next.unwrap_or(a))
         .map(|(a, b)| interpolate_bone(a, b, x))
         .collect()
 }
@@ -200,9 +202,7 @@ pub fn animation_pose(model: &Model, fps: f64, t: f64) -> Vec<Affine> {
 /// (scale, where there is any) and the translation lerped.
 fn interpolate_bone(a: &Affine, b: &Affine, x: f64) -> Affine {
     let split = |t: &Affine| {
-        let m =
-            glam::Mat3::from_cols_array(&[t[0], t[4], t[8], t[1], t[5], t[9], t[2], t[6], t[10]])
-                .as_dmat3();
+        let m = rotation_of(t);
         let r = procrustes(m);
         (
             DQuat::from_mat3(&r),
@@ -213,12 +213,11 @@ fn interpolate_bone(a: &Affine, b: &Affine, x: f64) -> Affine {
     let ((ra, sa, da), (rb, sb, db)) = (split(a), split(b));
     let rb = if ra.dot(rb) < 0.0 { -rb } else { rb };
     let m = DMat3::from_quat(ra.slerp(rb, x)) * (sa * (1.0 - x) + sb * x);
-    let d = da.lerp(db, x);
-    [
-        m.x_axis.x, m.y_axis.x, m.z_axis.x, d.x, m.x_axis.y, m.y_axis.y, m.z_axis.y, d.y,
-        m.x_axis.z, m.y_axis.z, m.z_axis.z, d.z,
-    ]
-    .map(|v| v as f32)
+    Bone {
+        q: m,
+        d: da.lerp(db, x),
+    }
+    .to_affine()
 }
 
 fn input(file: &Path, message: impl Into<String>) -> Error {
