@@ -1,6 +1,6 @@
 //! Criterion benches: per-frame runtime of rotational regression and of its SSD baseline at
-//! C = 1, 16, 256, 1024 characters, the CPU palette per character and batched over threads, and
-//! training (benches/README.md).
+//! C = 1, 16, 256, 1024 characters, the CPU palette per character and batched over threads, the
+//! C ABI's `set_bones` from several threads, and training (benches/README.md).
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use rrskin::palette::Palette;
@@ -142,5 +142,93 @@ fn palette(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, runtime, palette, training);
+/// `rrskin_crowd_set_bones` on 8 crowds from 1, 2, 4 and 8 threads (thread t sets crowds t,
+/// t + N, ...): calls on different crowds take only their own crowd's lock. `serialised` puts
+/// one lock around every call, as a single registry lock did before, for the comparison.
+fn set_bones(c: &mut Criterion) {
+    use rrskin::ffi::*;
+    use rrskin_render::synthetic::{random_model, random_poses, Spec};
+    let spec = Spec {
+        grid: 8,
+        bones: 53,
+        proxies: 8,
+        influences: 4,
+    };
+    let model = random_model(spec, 1).expect("a model");
+    let bytes = model.to_bytes();
+    let characters = 1024;
+    let ok = RrskinStatus::Ok;
+    let mut ctx = RrskinContext { id: 0 };
+    // SAFETY: valid pointers and lengths in every call below.
+    unsafe {
+        assert_eq!(rrskin_context_create_headless(0, &mut ctx), ok);
+    }
+    let mut m = RrskinModel { id: 0 };
+    // SAFETY: as above.
+    let loaded = unsafe { rrskin_model_load_memory(ctx, bytes.as_ptr(), bytes.len(), &mut m) };
+    assert_eq!(loaded, ok);
+    let crowds: Vec<RrskinCrowd> = (0..8)
+        .map(|_| {
+            let mut crowd = RrskinCrowd { id: 0 };
+            // SAFETY: as above.
+            assert_eq!(
+                unsafe { rrskin_crowd_create(m, characters, &mut crowd) },
+                ok
+            );
+            crowd
+        })
+        .collect();
+    let bones = random_poses(&model, characters as usize, 2);
+    let floats = bones.as_flattened();
+    let one_lock = std::sync::Mutex::new(());
+    let mut group = c.benchmark_group("set_bones");
+    group
+        .sample_size(20)
+        .measurement_time(Duration::from_secs(3))
+        .warm_up_time(Duration::from_secs(1));
+    group.throughput(criterion::Throughput::Bytes(
+        (crowds.len() * std::mem::size_of_val(floats)) as u64,
+    ));
+    for serialised in [false, true] {
+        for threads in [1, 2, 4, 8] {
+            let name = if serialised {
+                "serialised"
+            } else {
+                "per_crowd"
+            };
+            group.bench_function(BenchmarkId::new(format!("{name}/threads"), threads), |b| {
+                b.iter(|| {
+                    std::thread::scope(|s| {
+                        for t in 0..threads {
+                            let (crowds, one_lock) = (&crowds, &one_lock);
+                            s.spawn(move || {
+                                for crowd in crowds.iter().skip(t).step_by(threads) {
+                                    let _serial = serialised.then(|| one_lock.lock());
+                                    // SAFETY: as above.
+                                    let set = unsafe {
+                                        rrskin_crowd_set_bones(
+                                            *crowd,
+                                            0,
+                                            floats.as_ptr(),
+                                            floats.len(),
+                                        )
+                                    };
+                                    assert_eq!(set, RrskinStatus::Ok);
+                                }
+                            });
+                        }
+                    })
+                })
+            });
+        }
+    }
+    group.finish();
+    for crowd in crowds {
+        assert_eq!(rrskin_crowd_destroy(crowd), ok);
+    }
+    assert_eq!(rrskin_model_destroy(m), ok);
+    assert_eq!(rrskin_context_destroy(ctx), ok);
+}
+
+criterion_group!(benches, runtime, palette, set_bones, training);
 criterion_main!(benches);

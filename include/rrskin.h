@@ -22,9 +22,24 @@
  *   pointer is `unsafe`: what a non-null pointer must be is what the library cannot check,
  *   and its `# Safety` section (copied into the header) says it. Pointers are used only
  *   during the call, never kept.
- * - Threads: it may be called from any thread; calls are serialised by one lock. The Vulkan
- *   rules are the contract's: no submitted work reading a crowd may be executing when its
- *   bones are set or it is destroyed.
+ * - Threads: any function may be called from any thread, and calls on different objects run
+ *   concurrently: a global lock covers only the lookup of a handle. Calls on one object are
+ *   serialised by that object's own lock: on a crowd, those that change it
+ *   (`rrskin_crowd_set_bones`, `rrskin_crowd_set_character_bones`, `rrskin_crowd_read_bounds`)
+ *   exclude every other call on it, while reads (`rrskin_crowd_get_output`,
+ *   `rrskin_crowd_read_back`) and recordings share it; on a context, recordings and runs
+ *   (`rrskin_crowds_record`, `rrskin_crowds_run`, `rrskin_context_get_timings`) take turns,
+ *   since they share its query pool. A model is immutable once loaded. Externally
+ *   synchronised, as Vulkan says it: the engine's command buffer in `rrskin_crowds_record`
+ *   (no other thread records into it during the call), and the engine's queue while the
+ *   runtime submits to it (the contract's first duty). The Vulkan rules are the contract's:
+ *   no submitted work reading a crowd may be executing when its bones are set or it is
+ *   destroyed.
+ * - Device loss: once any call sees `VK_ERROR_DEVICE_LOST`, it and every later call on that
+ *   context or on a model or crowd of it returns `RRSKIN_STATUS_ERROR_DEVICE_LOST` at once,
+ *   submitting nothing; the `rrskin_*_destroy` calls still work, and a new context can be
+ *   created. Out-of-memory results of any Vulkan call are `RRSKIN_STATUS_ERROR_ALLOCATION`. A
+ *   failed creation leaves no Vulkan object behind and the context usable.
  *
  * ## Contract
  *
@@ -104,8 +119,15 @@
  * call through a NULL pointer).
  *
  * Threads. `vk::Context` is `Send + Sync`; recording and running take `&mut` on what they
- * write, so Rust's borrow rules are the threading rules (C: any function from any thread, the
- * library serialises its calls).
+ * write, so Rust's borrow rules are the threading rules. C: any function from any thread; calls
+ * on different objects run concurrently (a global lock covers only the lookup of a handle), and
+ * calls on one object are serialised by its own lock (see the conventions).
+ *
+ * Faults. A failed creation (out of memory in any allocation or creation along a model or
+ * a crowd, or a failed submission) returns its error and leaves nothing behind: the context
+ * stays usable. `VK_ERROR_DEVICE_LOST` becomes `Error::DeviceLost`, and from then on every
+ * submission on the context fails with it at once (`vk::Context::check_lost`); objects can
+ * still be dropped.
  *
  * Units and layouts. Bone transforms are 3x4 row-major `f32` (`predict::Affine`), world
  * space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs
@@ -153,6 +175,9 @@ enum rrskin_status
   // The model has no data for what was asked (tangents of a model without rest tangents:
   // trained from a mesh without UVs; the engine computes its own or draws without).
   RRSKIN_STATUS_ERROR_NOT_IN_MODEL = 20,
+  // The Vulkan device was lost (`VK_ERROR_DEVICE_LOST`): every call on the context and its
+  // models and crowds returns this from then on; destroy them and create a new context.
+  RRSKIN_STATUS_ERROR_DEVICE_LOST = 21,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -390,6 +415,16 @@ rrskin_status rrskin_context_destroy(struct rrskin_context context);
 // # Safety
 // `out` is NULL or points to writable memory for one `uint32_t`.
 rrskin_status rrskin_context_validation_message_count(struct rrskin_context context, uint32_t *out);
+
+// Bytes of device memory the context holds for its models and crowds: `allocated` in live
+// allocations, `reserved` in the memory blocks taken from the driver (what counts against the
+// engine's budget). Either pointer may be NULL.
+//
+// # Safety
+// `allocated` and `reserved` are each NULL or point to writable memory for one `uint64_t`.
+rrskin_status rrskin_context_get_device_memory(struct rrskin_context context,
+                                               uint64_t *allocated,
+                                               uint64_t *reserved);
 
 // Loads and validates a `.rrs` file (UTF-8 path) and uploads it to `context`.
 //

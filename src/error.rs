@@ -66,6 +66,9 @@ pub enum Error {
     /// An output was asked for that the model has no data for (tangents of a model without
     /// rest tangents: one trained from a mesh without UVs).
     NotInModel { what: &'static str },
+    /// The device was lost (`VK_ERROR_DEVICE_LOST` from `call`). Every later call that uses the
+    /// context fails with this at once; its objects can still be dropped (destroyed).
+    DeviceLost { call: &'static str },
 }
 
 /// What is wrong with a model. Counts are in elements unless the name says bytes.
@@ -212,6 +215,11 @@ impl fmt::Display for Error {
             Mismatch { what } => write!(f, "mismatch: {what}"),
             Loader { message } => write!(f, "cannot load the Vulkan loader: {message}"),
             Vulkan { call, result } => write!(f, "{call} failed: {result}"),
+            DeviceLost { call } => write!(
+                f,
+                "the Vulkan device was lost ({call} returned VK_ERROR_DEVICE_LOST): destroy \
+                 everything made from this context and create a new one"
+            ),
             NoDevice { reason } => write!(f, "no usable Vulkan device: {reason}"),
             MissingLayer { name } => write!(f, "Vulkan layer {name} is not installed"),
             Allocation { what, message } => write!(f, "allocating {what}: {message}"),
@@ -240,7 +248,18 @@ impl std::error::Error for Error {}
 impl Error {
     /// Turns a failed Vulkan call's result into [`Error::Vulkan`] naming the call, for
     /// `map_err` (public for crates that record on a runtime context, such as rrskin-render).
+    /// Out-of-memory results become [`Error::Allocation`] and a lost device
+    /// [`Error::DeviceLost`], so that callers can tell the three apart.
     pub fn vk(call: &'static str) -> impl FnOnce(vk::Result) -> Error {
-        move |result| Error::Vulkan { call, result }
+        move |result| match result {
+            vk::Result::ERROR_DEVICE_LOST => Error::DeviceLost { call },
+            vk::Result::ERROR_OUT_OF_DEVICE_MEMORY | vk::Result::ERROR_OUT_OF_HOST_MEMORY => {
+                Error::Allocation {
+                    what: call,
+                    message: result.to_string(),
+                }
+            }
+            result => Error::Vulkan { call, result },
+        }
     }
 }

@@ -21,9 +21,24 @@
 //!   pointer is `unsafe`: what a non-null pointer must be is what the library cannot check,
 //!   and its `# Safety` section (copied into the header) says it. Pointers are used only
 //!   during the call, never kept.
-//! - Threads: it may be called from any thread; calls are serialised by one lock. The Vulkan
-//!   rules are the contract's: no submitted work reading a crowd may be executing when its
-//!   bones are set or it is destroyed.
+//! - Threads: any function may be called from any thread, and calls on different objects run
+//!   concurrently: a global lock covers only the lookup of a handle. Calls on one object are
+//!   serialised by that object's own lock: on a crowd, those that change it
+//!   (`rrskin_crowd_set_bones`, `rrskin_crowd_set_character_bones`, `rrskin_crowd_read_bounds`)
+//!   exclude every other call on it, while reads (`rrskin_crowd_get_output`,
+//!   `rrskin_crowd_read_back`) and recordings share it; on a context, recordings and runs
+//!   (`rrskin_crowds_record`, `rrskin_crowds_run`, `rrskin_context_get_timings`) take turns,
+//!   since they share its query pool. A model is immutable once loaded. Externally
+//!   synchronised, as Vulkan says it: the engine's command buffer in `rrskin_crowds_record`
+//!   (no other thread records into it during the call), and the engine's queue while the
+//!   runtime submits to it (the contract's first duty). The Vulkan rules are the contract's:
+//!   no submitted work reading a crowd may be executing when its bones are set or it is
+//!   destroyed.
+//! - Device loss: once any call sees `VK_ERROR_DEVICE_LOST`, it and every later call on that
+//!   context or on a model or crowd of it returns `RRSKIN_STATUS_ERROR_DEVICE_LOST` at once,
+//!   submitting nothing; the `rrskin_*_destroy` calls still work, and a new context can be
+//!   created. Out-of-memory results of any Vulkan call are `RRSKIN_STATUS_ERROR_ALLOCATION`. A
+//!   failed creation leaves no Vulkan object behind and the context usable.
 
 mod palette;
 
@@ -38,7 +53,7 @@ use crate::vk::{
 use std::cell::RefCell;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 /// Status codes (fixed width: `int32_t`).
 #[repr(i32)]
@@ -69,6 +84,9 @@ pub enum RrskinStatus {
     /// The model has no data for what was asked (tangents of a model without rest tangents:
     /// trained from a mesh without UVs; the engine computes its own or draws without).
     ErrorNotInModel = 20,
+    /// The Vulkan device was lost (`VK_ERROR_DEVICE_LOST`): every call on the context and its
+    /// models and crowds returns this from then on; destroy them and create a new context.
+    ErrorDeviceLost = 21,
 }
 
 /// A Vulkan context (headless, or wrapping an engine's device).
@@ -215,20 +233,46 @@ pub struct RrskinPassTimings {
     pub tangents_ms: f64,
 }
 
+/// The registry's entries are shared (`Arc`) so that a call holds the global lock only to find
+/// its objects, and each object's own lock (the batch's mutex, the crowd's read-write lock)
+/// for the work.
 struct ContextEntry {
     context: Context,
-    batch: Batch,
+    batch: Mutex<Batch>,
 }
 
+/// Immutable once loaded.
 struct ModelEntry {
     context: u64,
     model: Model,
     gpu: GpuModel,
 }
 
+impl ContextEntry {
+    fn batch(&self) -> MutexGuard<'_, Batch> {
+        self.batch
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
 struct CrowdEntry {
     context: u64,
-    crowd: Crowd,
+    crowd: RwLock<Crowd>,
+}
+
+impl CrowdEntry {
+    fn read(&self) -> RwLockReadGuard<'_, Crowd> {
+        self.crowd
+            .read()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    fn write(&self) -> RwLockWriteGuard<'_, Crowd> {
+        self.crowd
+            .write()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
 }
 
 /// A slot map. A handle is `kind << 60 | generation << 28 | (index + 1)`: 0 is never a handle,
@@ -285,11 +329,6 @@ impl<T> Slots<T> {
             .ok_or(Failure::invalid_handle())
     }
 
-    fn get_mut(&mut self, id: u64) -> Result<&mut T, Failure> {
-        let i = self.locate(id).ok_or(Failure::invalid_handle())?;
-        self.entries[i].1.as_mut().ok_or(Failure::invalid_handle())
-    }
-
     fn remove(&mut self, id: u64) -> Result<T, Failure> {
         let i = self.locate(id).ok_or(Failure::invalid_handle())?;
         self.entries[i].1.take().ok_or(Failure::invalid_handle())
@@ -297,14 +336,10 @@ impl<T> Slots<T> {
 }
 
 struct Registry {
-    contexts: Slots<ContextEntry>,
-    models: Slots<ModelEntry>,
-    crowds: Slots<CrowdEntry>,
+    contexts: Slots<Arc<ContextEntry>>,
+    models: Slots<Arc<ModelEntry>>,
+    crowds: Slots<Arc<CrowdEntry>>,
 }
-
-// SAFETY: the registry is only reached through the mutex; its Vulkan objects are Send (ash
-// handles are plain values) and every use is serialised.
-unsafe impl Send for Registry {}
 
 static REGISTRY: Mutex<Registry> = Mutex::new(Registry {
     contexts: Slots::new(1),
@@ -316,6 +351,26 @@ fn registry() -> MutexGuard<'static, Registry> {
     REGISTRY
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// The objects behind handles, found under the global lock and used after it is released; each
+/// fails at once on a lost device.
+fn context_entry(context: RrskinContext) -> Result<Arc<ContextEntry>, Failure> {
+    let entry = registry().contexts.get(context.id)?.clone();
+    entry.context.check_lost()?;
+    Ok(entry)
+}
+
+fn model_entry(model: RrskinModel) -> Result<Arc<ModelEntry>, Failure> {
+    let entry = registry().models.get(model.id)?.clone();
+    entry.gpu.context().check_lost()?;
+    Ok(entry)
+}
+
+fn crowd_entry(crowd: RrskinCrowd) -> Result<Arc<CrowdEntry>, Failure> {
+    let entry = registry().crowds.get(crowd.id)?.clone();
+    entry.read().model().context().check_lost()?;
+    Ok(entry)
 }
 
 thread_local! {
@@ -370,6 +425,7 @@ impl From<Error> for Failure {
             Error::NotEnabled { .. } => S::ErrorNotEnabled,
             Error::MissingFunction { .. } => S::ErrorMissingFunction,
             Error::NotInModel { .. } => S::ErrorNotInModel,
+            Error::DeviceLost { .. } => S::ErrorDeviceLost,
         };
         Failure::new(status, e.to_string())
     }
@@ -407,6 +463,17 @@ unsafe fn put<T>(out: *mut T, value: T, what: &str) -> Result<(), Failure> {
     // SAFETY: non-null, and valid for the write by the function's contract.
     unsafe { out.write(value) };
     Ok(())
+}
+
+/// Writes through an optional out-pointer (NULL: not asked for).
+///
+/// # Safety
+/// `out` is NULL or valid for writing one aligned `T`.
+unsafe fn put_if_asked<T>(out: *mut T, value: T) {
+    if !out.is_null() {
+        // SAFETY: non-null, and valid for the write by the function's contract.
+        unsafe { out.write(value) };
+    }
 }
 
 /// A caller's path argument as UTF-8.
@@ -520,14 +587,10 @@ pub unsafe extern "C" fn rrskin_query_memory(
             crowd_options(unsafe { &*options })
         };
         let crowd = crate::vk::crowd_bytes(&sizes, characters as usize, &options)?;
-        for (out, bytes) in [
-            (model_bytes, crate::vk::model_bytes(&sizes)),
-            (crowd_bytes, crowd),
-        ] {
-            if !out.is_null() {
-                // SAFETY: non-null and writable (the function's contract).
-                unsafe { out.write(bytes) };
-            }
+        // SAFETY: as the function's contract requires.
+        unsafe {
+            put_if_asked(model_bytes, crate::vk::model_bytes(&sizes));
+            put_if_asked(crowd_bytes, crowd);
         }
         Ok(())
     })
@@ -560,8 +623,10 @@ pub unsafe extern "C" fn rrskin_context_create_headless(
             validation: validation != 0,
             ..Default::default()
         })?;
-        let batch = Batch::new(&context)?;
-        let id = registry().contexts.insert(ContextEntry { context, batch });
+        let batch = Mutex::new(Batch::new(&context)?);
+        let id = registry()
+            .contexts
+            .insert(Arc::new(ContextEntry { context, batch }));
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, RrskinContext { id }, "out") }
     })
@@ -620,8 +685,10 @@ pub unsafe extern "C" fn rrskin_context_create_from_engine(
         };
         // SAFETY: the caller guarantees the handles are valid and outlive the context.
         let context = unsafe { Context::from_engine(engine) }?;
-        let batch = Batch::new(&context)?;
-        let id = registry().contexts.insert(ContextEntry { context, batch });
+        let batch = Mutex::new(Batch::new(&context)?);
+        let id = registry()
+            .contexts
+            .insert(Arc::new(ContextEntry { context, batch }));
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, RrskinContext { id }, "out") }
     })
@@ -645,14 +712,32 @@ pub unsafe extern "C" fn rrskin_context_validation_message_count(
     out: *mut u32,
 ) -> RrskinStatus {
     guard(|| {
-        let count = registry()
-            .contexts
-            .get(context.id)?
-            .context
-            .validation_messages()
-            .len();
+        let count = context_entry(context)?.context.validation_messages().len();
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, count as u32, "out") }
+    })
+}
+
+/// Bytes of device memory the context holds for its models and crowds: `allocated` in live
+/// allocations, `reserved` in the memory blocks taken from the driver (what counts against the
+/// engine's budget). Either pointer may be NULL.
+///
+/// # Safety
+/// `allocated` and `reserved` are each NULL or point to writable memory for one `uint64_t`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_context_get_device_memory(
+    context: RrskinContext,
+    allocated: *mut u64,
+    reserved: *mut u64,
+) -> RrskinStatus {
+    guard(|| {
+        let (in_use, blocks) = context_entry(context)?.context.device_memory_bytes();
+        // SAFETY: as the function's contract requires.
+        unsafe {
+            put_if_asked(allocated, in_use);
+            put_if_asked(reserved, blocks);
+        }
+        Ok(())
     })
 }
 
@@ -668,13 +753,12 @@ unsafe fn add_model(
     if out.is_null() {
         return Err(Failure::null("out"));
     }
-    let mut reg = registry();
-    let gpu = GpuModel::new(&reg.contexts.get(context.id)?.context, &model)?;
-    let id = reg.models.insert(ModelEntry {
+    let gpu = GpuModel::new(&context_entry(context)?.context, &model)?;
+    let id = registry().models.insert(Arc::new(ModelEntry {
         context: context.id,
         model,
         gpu,
-    });
+    }));
     // SAFETY: `out` as the function's contract requires.
     unsafe { put(out, RrskinModel { id }, "out") }
 }
@@ -726,8 +810,8 @@ pub unsafe extern "C" fn rrskin_model_get_info(
     out: *mut RrskinModelInfo,
 ) -> RrskinStatus {
     guard(|| {
-        let reg = registry();
-        let m = &reg.models.get(model.id)?.model;
+        let entry = model_entry(model)?;
+        let m = &entry.model;
         let info = RrskinModelInfo {
             vertices: m.vertex_count() as u32,
             triangles: m.triangle_count() as u32,
@@ -813,11 +897,16 @@ unsafe fn add_crowd(
     if out.is_null() {
         return Err(Failure::null("out"));
     }
-    let mut reg = registry();
-    let entry = reg.models.get(model.id)?;
-    let crowd = Crowd::with_options(&entry.gpu, characters as usize, options)?;
+    let entry = model_entry(model)?;
+    let crowd = RwLock::new(Crowd::with_options(
+        &entry.gpu,
+        characters as usize,
+        options,
+    )?);
     let context = entry.context;
-    let id = reg.crowds.insert(CrowdEntry { context, crowd });
+    let id = registry()
+        .crowds
+        .insert(Arc::new(CrowdEntry { context, crowd }));
     // SAFETY: `out` as the function's contract requires.
     unsafe { put(out, RrskinCrowd { id }, "out") }
 }
@@ -855,10 +944,8 @@ pub unsafe extern "C" fn rrskin_crowd_set_bones(
     guard(|| {
         // SAFETY: `transforms` as the function's contract requires.
         let bones = unsafe { affines(transforms, float_count)? };
-        Ok(registry()
-            .crowds
-            .get_mut(crowd.id)?
-            .crowd
+        Ok(crowd_entry(crowd)?
+            .write()
             .set_bones(frame as usize, bones)?)
     })
 }
@@ -879,11 +966,11 @@ pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
     guard(|| {
         // SAFETY: `transforms` as the function's contract requires.
         let bones = unsafe { affines(transforms, float_count)? };
-        Ok(registry()
-            .crowds
-            .get_mut(crowd.id)?
-            .crowd
-            .set_character_bones(frame as usize, character as usize, bones)?)
+        Ok(crowd_entry(crowd)?.write().set_character_bones(
+            frame as usize,
+            character as usize,
+            bones,
+        )?)
     })
 }
 
@@ -900,11 +987,7 @@ pub unsafe extern "C" fn rrskin_crowd_get_output(
 ) -> RrskinStatus {
     guard(|| {
         use vk::Handle;
-        let o = registry()
-            .crowds
-            .get(crowd.id)?
-            .crowd
-            .output(frame as usize)?;
+        let o = crowd_entry(crowd)?.read().output(frame as usize)?;
         let raw = |b: Option<vk::Buffer>| b.map_or(0, |b| b.as_raw());
         let output = RrskinCrowdOutput {
             positions: o.positions.as_raw(),
@@ -939,8 +1022,8 @@ pub unsafe extern "C" fn rrskin_crowd_read_back(
     float_count: usize,
 ) -> RrskinStatus {
     guard(|| {
-        let reg = registry();
-        let c = &reg.crowds.get(crowd.id)?.crowd;
+        let entry = crowd_entry(crowd)?;
+        let c = entry.read();
         let expected = c.character_count() * c.model().vertex_count() * 3;
         if float_count != expected {
             return Err(Failure::from(Error::WrongLength {
@@ -974,8 +1057,8 @@ pub unsafe extern "C" fn rrskin_crowd_read_back_tangents(
     float_count: usize,
 ) -> RrskinStatus {
     guard(|| {
-        let reg = registry();
-        let c = &reg.crowds.get(crowd.id)?.crowd;
+        let entry = crowd_entry(crowd)?;
+        let c = entry.read();
         if !c.has_tangents() {
             return Err(Failure::from(Error::NotEnabled {
                 what: "tangents (create the crowd with rrskin_crowd_options.tangents)",
@@ -1014,8 +1097,8 @@ pub unsafe extern "C" fn rrskin_crowd_read_bounds(
     float_count: usize,
 ) -> RrskinStatus {
     guard(|| {
-        let mut reg = registry();
-        let c = &mut reg.crowds.get_mut(crowd.id)?.crowd;
+        let entry = crowd_entry(crowd)?;
+        let mut c = entry.write();
         let expected = c.character_count() * 6;
         if float_count != expected {
             return Err(Failure::from(Error::WrongLength {
@@ -1040,24 +1123,43 @@ pub extern "C" fn rrskin_crowd_destroy(crowd: RrskinCrowd) -> RrskinStatus {
     guard(|| registry().crowds.remove(crowd.id).map(drop))
 }
 
-/// Collects the crowds of one context for a batch.
-fn crowds_of<'r>(
-    slots: &'r Slots<CrowdEntry>,
-    context: u64,
+/// The crowds of one context for a batch, each listed once (a crowd listed twice would take
+/// its lock twice).
+fn crowds_of(
+    context: RrskinContext,
+    handles: &[RrskinCrowd],
+) -> Result<Vec<Arc<CrowdEntry>>, Failure> {
+    let reg = registry();
+    let mut entries: Vec<Arc<CrowdEntry>> = Vec::with_capacity(handles.len());
+    for handle in handles {
+        let entry = reg.crowds.get(handle.id)?;
+        let what = if entry.context != context.id {
+            "a crowd of another context"
+        } else if entries.iter().any(|e| Arc::ptr_eq(e, entry)) {
+            "a crowd listed twice in one frame"
+        } else {
+            entries.push(entry.clone());
+            continue;
+        };
+        return Err(Failure::from(Error::Mismatch { what }));
+    }
+    Ok(entries)
+}
+
+/// Runs `f` on the context's batch with `crowds` read-locked, in the order given (the batch's
+/// lock first: the only place that holds several crowd locks, so no two threads wait on each
+/// other).
+fn with_batch<R>(
+    context: RrskinContext,
     crowds: &[RrskinCrowd],
-) -> Result<Vec<&'r Crowd>, Failure> {
-    crowds
-        .iter()
-        .map(|c| {
-            let entry = slots.get(c.id)?;
-            if entry.context != context {
-                return Err(Failure::from(Error::Mismatch {
-                    what: "a crowd of another context",
-                }));
-            }
-            Ok(&entry.crowd)
-        })
-        .collect()
+    f: impl FnOnce(&mut Batch, &[&Crowd]) -> crate::Result<R>,
+) -> Result<R, Failure> {
+    let entry = context_entry(context)?;
+    let entries = crowds_of(context, crowds)?;
+    let mut batch = entry.batch();
+    let guards: Vec<_> = entries.iter().map(|e| e.read()).collect();
+    let list: Vec<&Crowd> = guards.iter().map(|g| &**g).collect();
+    Ok(f(&mut batch, &list)?)
 }
 
 /// Records frame slot `frame` (0 to F - 1 of every crowd) of all passes of `count` crowds into
@@ -1084,16 +1186,11 @@ pub unsafe extern "C" fn rrskin_crowds_record(
         }
         // SAFETY: `crowds` as the function's contract requires.
         let handles = unsafe { slice(crowds, count as usize, "crowds")? };
-        let mut reg = registry();
-        let reg = &mut *reg;
-        let list = crowds_of(&reg.crowds, context.id, handles)?;
-        let entry = reg.contexts.get_mut(context.id)?;
         use vk::Handle;
-        Ok(entry.batch.record(
-            vk::CommandBuffer::from_raw(command_buffer as u64),
-            frame as usize,
-            &list,
-        )?)
+        let cmd = vk::CommandBuffer::from_raw(command_buffer as u64);
+        with_batch(context, handles, |batch, list| {
+            batch.record(cmd, frame as usize, list)
+        })
     })
 }
 
@@ -1112,11 +1209,9 @@ pub unsafe extern "C" fn rrskin_crowds_run(
     guard(|| {
         // SAFETY: `crowds` as the function's contract requires.
         let handles = unsafe { slice(crowds, count as usize, "crowds")? };
-        let mut reg = registry();
-        let reg = &mut *reg;
-        let list = crowds_of(&reg.crowds, context.id, handles)?;
-        let batch = &mut reg.contexts.get_mut(context.id)?.batch;
-        Ok(batch.run(frame as usize, &list)?)
+        with_batch(context, handles, |batch, list| {
+            batch.run(frame as usize, list)
+        })
     })
 }
 
@@ -1133,11 +1228,7 @@ pub unsafe extern "C" fn rrskin_context_get_timings(
     out: *mut RrskinPassTimings,
 ) -> RrskinStatus {
     guard(|| {
-        let t = registry()
-            .contexts
-            .get(context.id)?
-            .batch
-            .timings(frame as usize)?;
+        let t = context_entry(context)?.batch().timings(frame as usize)?;
         let timings = RrskinPassTimings {
             predict_ms: t.predict_ms,
             blend_ms: t.product_ms,

@@ -97,8 +97,15 @@
 //! call through a NULL pointer).
 //!
 //! **Threads.** [`vk::Context`] is `Send + Sync`; recording and running take `&mut` on what they
-//! write, so Rust's borrow rules are the threading rules (C: any function from any thread, the
-//! library serialises its calls).
+//! write, so Rust's borrow rules are the threading rules. C: any function from any thread; calls
+//! on different objects run concurrently (a global lock covers only the lookup of a handle), and
+//! calls on one object are serialised by its own lock (see the conventions).
+//!
+//! **Faults.** A failed creation (out of memory in any allocation or creation along a model or
+//! a crowd, or a failed submission) returns its error and leaves nothing behind: the context
+//! stays usable. `VK_ERROR_DEVICE_LOST` becomes [`Error::DeviceLost`], and from then on every
+//! submission on the context fails with it at once ([`vk::Context::check_lost`]); objects can
+//! still be dropped.
 //!
 //! **Units and layouts.** Bone transforms are 3x4 row-major `f32` ([`predict::Affine`]), world
 //! space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs

@@ -259,10 +259,7 @@ impl Batch {
         }
         .map_err(|result| match result {
             vk::Result::NOT_READY => Error::NotReady { what: "timestamps" },
-            result => Error::Vulkan {
-                call: "vkGetQueryPoolResults",
-                result,
-            },
+            result => self.shared.note(Error::vk("vkGetQueryPoolResults")(result)),
         })?;
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
         let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);

@@ -11,7 +11,7 @@ use crate::error::{Error, Result};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use std::ffi::{c_char, c_void, CStr};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -90,6 +90,8 @@ pub(crate) struct Shared {
     owned: Option<Owned>,
     /// One-shot command pool for uploads and read-backs.
     pub transient_pool: Mutex<vk::CommandPool>,
+    /// The call that returned `VK_ERROR_DEVICE_LOST`, once one did: nothing is submitted after.
+    lost: OnceLock<&'static str>,
 }
 
 struct Owned {
@@ -238,6 +240,7 @@ impl Context {
             pipelines: Pipelines::default(),
             owned,
             transient_pool: Mutex::new(vk::CommandPool::null()),
+            lost: OnceLock::new(),
         };
         let allocator = allocator.map_err(|e| Error::Allocation {
             what: "the GPU allocator",
@@ -288,6 +291,24 @@ impl Context {
         f(*lock(&self.shared.queue))
     }
 
+    /// `Err(DeviceLost)` once any call on the context's device returned
+    /// `VK_ERROR_DEVICE_LOST`: the context and everything made from it can then only be dropped.
+    pub fn check_lost(&self) -> Result<()> {
+        self.shared.check_lost()
+    }
+
+    /// Bytes of device memory the context's allocator holds: (in allocations, in memory
+    /// blocks reserved from the driver).
+    pub fn device_memory_bytes(&self) -> (u64, u64) {
+        match &*self.shared.allocator() {
+            Some(a) => {
+                let report = a.generate_report();
+                (report.total_allocated_bytes, report.total_capacity_bytes)
+            }
+            None => (0, 0),
+        }
+    }
+
     /// Warnings and errors the validation layer reported so far (headless contexts created with
     /// `validation: true`; empty otherwise).
     pub fn validation_messages(&self) -> Vec<String> {
@@ -301,6 +322,21 @@ impl Context {
 impl Shared {
     pub fn allocator(&self) -> MutexGuard<'_, Option<Allocator>> {
         lock(&self.allocator)
+    }
+
+    pub fn check_lost(&self) -> Result<()> {
+        match self.lost.get() {
+            Some(&call) => Err(Error::DeviceLost { call }),
+            None => Ok(()),
+        }
+    }
+
+    /// Passes `e` on, remembering a lost device.
+    pub fn note(&self, e: Error) -> Error {
+        if let Error::DeviceLost { call } = e {
+            let _ = self.lost.set(call);
+        }
+        e
     }
 
     /// Records a one-time command buffer with `record`, submits it to the queue and waits for
@@ -347,23 +383,30 @@ impl Shared {
 
     /// Submits one command buffer the caller recorded, waits on `fence` (unsignalled) and
     /// resets it.
+    /// Fails at once on a lost device.
     pub fn submit_recorded(&self, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
+        self.check_lost()?;
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         let queue = lock(&self.queue);
         // SAFETY: the queue is externally synchronised by the mutex; cmd is executable; the
         // fence belongs to this device and is unsignalled.
-        unsafe {
-            self.device
-                .queue_submit(*queue, &submit, fence)
-                .map_err(Error::vk("vkQueueSubmit"))?;
-            self.device
-                .wait_for_fences(&[fence], true, u64::MAX)
-                .map_err(Error::vk("vkWaitForFences"))?;
-            self.device
-                .reset_fences(&[fence])
-                .map_err(Error::vk("vkResetFences"))
-        }
+        let result = unsafe {
+            (self.device.queue_submit(*queue, &submit, fence))
+                .map_err(Error::vk("vkQueueSubmit"))
+                .and_then(|()| {
+                    let waited = (self.device.wait_for_fences(&[fence], true, u64::MAX))
+                        .map_err(Error::vk("vkWaitForFences"));
+                    if waited.is_err() {
+                        // The work may still execute: let it end before the caller frees or
+                        // reuses what it reads (on a lost device this returns at once).
+                        let _ = self.device.queue_wait_idle(*queue);
+                    }
+                    let reset = self.device.reset_fences(&[fence]);
+                    waited.and(reset.map_err(Error::vk("vkResetFences")))
+                })
+        };
+        result.map_err(|e| self.note(e))
     }
 }
 
@@ -477,10 +520,7 @@ fn create_instance(
         Err(result) => {
             // SAFETY: nothing else was created from the instance.
             unsafe { instance.destroy_instance(None) };
-            Err(Error::Vulkan {
-                call: "vkCreateDebugUtilsMessengerEXT",
-                result,
-            })
+            Err(Error::vk("vkCreateDebugUtilsMessengerEXT")(result))
         }
     }
 }

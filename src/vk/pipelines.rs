@@ -104,10 +104,8 @@ impl PassPipeline {
                 device.destroy_shader_module(module, None);
                 r
             };
-            pass.pipeline = pipelines.map_err(|(_, result)| Error::Vulkan {
-                call: "vkCreateComputePipelines",
-                result,
-            })?[0];
+            pass.pipeline =
+                pipelines.map_err(|(_, result)| Error::vk("vkCreateComputePipelines")(result))?[0];
             Ok(())
         })();
         match made {

@@ -1,6 +1,8 @@
 //! Test support: a validated Vulkan context and the comparison of GPU outputs with the CPU reference evaluator.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod engine;
+
 use glam::DVec3;
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
@@ -79,6 +81,29 @@ pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]]
         "{skipped} of {} normals ill-conditioned",
         cpu.1.len()
     );
+}
+
+/// `count` sets of random poses of `characters` characters whose CPU normals `compare` can
+/// check (at most 1 % ill-conditioned: tiny random meshes fold in some poses), with the CPU
+/// reference's positions and normals of each.
+pub fn checkable_poses(
+    model: &Model,
+    characters: usize,
+    count: usize,
+) -> Vec<(Vec<rrskin::predict::Affine>, Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+    let n = characters * model.vertex_count();
+    let mut cpu = rrskin::cpu::CpuEvaluator::new(model);
+    (0..)
+        .map(|seed| {
+            let poses = random_poses(model, characters, seed);
+            let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+            cpu.evaluate(&poses, &mut p, &mut nrm)
+                .expect("CPU reference");
+            (poses, p, nrm)
+        })
+        .filter(|(_, p, _)| (0..n).filter(|&i| !well_conditioned(model, p, i)).count() * 100 <= n)
+        .take(count)
+        .collect()
 }
 
 /// Whether vertex `i` (of C x V `positions`) has a normal f32 can compute like f64: its

@@ -302,10 +302,7 @@ impl Renderer {
             device.destroy_shader_module(frag, None);
             r
         };
-        Ok(result.map_err(|(_, result)| Error::Vulkan {
-            call: "vkCreateGraphicsPipelines",
-            result,
-        })?[0])
+        Ok(result.map_err(|(_, result)| Error::vk("vkCreateGraphicsPipelines")(result))?[0])
     }
 
     pub fn width(&self) -> u32 {

@@ -47,20 +47,14 @@ pub fn crowd(
     characters: usize,
     options: CrowdOptions,
 ) -> Result<Crowd, Box<dyn std::error::Error>> {
-    use vk::Result as R;
     match Crowd::with_options(gpu_model, characters, options) {
-        Err(
-            e @ (rrskin::Error::Allocation { .. }
-            | rrskin::Error::DeviceLimit { .. }
-            | rrskin::Error::Vulkan {
-                result: R::ERROR_OUT_OF_DEVICE_MEMORY | R::ERROR_OUT_OF_HOST_MEMORY,
-                ..
-            }),
-        ) => Err(format!(
-            "--characters {characters}: {e}: {}; lower --characters",
-            limits(ctx, m, &options)
-        )
-        .into()),
+        Err(e @ (rrskin::Error::Allocation { .. } | rrskin::Error::DeviceLimit { .. })) => {
+            Err(format!(
+                "--characters {characters}: {e}: {}; lower --characters",
+                limits(ctx, m, &options)
+            )
+            .into())
+        }
         other => Ok(other?),
     }
 }
