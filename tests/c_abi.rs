@@ -172,16 +172,62 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
     model.save(dir.join("model.rrs")).expect("save model");
     write_reference(&dir, &model, frames, characters);
     let exe = compile_example(&dir, "crowd", &["-lvulkan"]);
+    let args = |frames: usize| -> [std::ffi::OsString; 6] {
+        [
+            dir.join("model.rrs").into(),
+            dir.join("poses.bin").into(),
+            dir.join("expected.bin").into(),
+            frames.to_string().into(),
+            characters.to_string().into(),
+            dir.join("tangents.bin").into(),
+        ]
+    };
+    // Under memcheck for one frame (every call of the engine's frame, at a fortieth of the
+    // speed), suppressing only the Vulkan stack's own (tests/valgrind/vulkan.supp).
+    memcheck(&exe, &args(1), true);
     let run = Command::new(&exe)
-        .arg(dir.join("model.rrs"))
-        .arg(dir.join("poses.bin"))
-        .arg(dir.join("expected.bin"))
-        .arg(frames.to_string())
-        .arg(characters.to_string())
-        .arg(dir.join("tangents.bin"))
+        .args(args(frames))
         .output()
         .expect("run the C example");
     assert_passes(run, &dir);
+}
+
+/// Runs `exe` under valgrind's memcheck: it must pass, with no error and nothing definitely
+/// lost; `vulkan`: with the suppressions of the Vulkan loader, layer and driver.
+fn memcheck(exe: &Path, args: &[impl AsRef<std::ffi::OsStr>], vulkan: bool) {
+    let mut valgrind = Command::new("valgrind");
+    valgrind.args([
+        "--error-exitcode=9",
+        "--leak-check=full",
+        "--errors-for-leak-kinds=definite",
+        // The layer and driver are unloaded before the leak check: keep their symbols so the
+        // suppressions can name them.
+        "--keep-debuginfo=yes",
+    ]);
+    if vulkan {
+        valgrind.arg(format!(
+            "--suppressions={}",
+            root().join("tests/valgrind/vulkan.supp").display()
+        ));
+    }
+    let checked = valgrind
+        .arg(exe)
+        .args(args)
+        .output()
+        .expect("valgrind on PATH: run .ci/install-deps");
+    let report = String::from_utf8_lossy(&checked.stderr);
+    assert!(
+        checked.status.success()
+            && report.contains("ERROR SUMMARY: 0 errors")
+            && report.contains("definitely lost: 0 bytes"),
+        "memcheck of {}:\n{report}",
+        exe.display()
+    );
+    let stdout = String::from_utf8_lossy(&checked.stdout);
+    assert!(
+        stdout.contains("passed, 0 failed"),
+        "under memcheck:\n{stdout}"
+    );
 }
 
 /// The CPU palette from C, linked without the Vulkan loader (an engine that skins with its own
@@ -212,26 +258,10 @@ fn the_c_palette_example_skins_without_vulkan() {
         frames.to_string().into(),
         characters.to_string().into(),
     ];
-    // Under valgrind's memcheck first (no suppressions: there is no driver on this path): no
-    // error, nothing definitely lost. What it may call "possibly lost" is the 48-byte handle
-    // Rust's std keeps of the calling thread once threads were started.
-    let checked = Command::new("valgrind")
-        .args([
-            "--error-exitcode=9",
-            "--leak-check=full",
-            "--errors-for-leak-kinds=definite",
-        ])
-        .arg(&exe)
-        .args(&args)
-        .output()
-        .expect("valgrind on PATH: run .ci/install-deps");
-    let report = String::from_utf8_lossy(&checked.stderr);
-    assert!(
-        checked.status.success()
-            && report.contains("ERROR SUMMARY: 0 errors")
-            && report.contains("definitely lost: 0 bytes"),
-        "memcheck of the C palette example:\n{report}"
-    );
+    // Under valgrind's memcheck first, with no suppressions (there is no driver on this path).
+    // What it may call "possibly lost" is the 48-byte handle Rust's std keeps of the calling
+    // thread once threads were started.
+    memcheck(&exe, &args, false);
     let run = Command::new(&exe)
         .args(&args)
         .output()
