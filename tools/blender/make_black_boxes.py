@@ -24,8 +24,8 @@ data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`
 
 Every set: pose 0 the rest pose, --poses random range-of-motion poses (swing <= 40 deg, twist
 <= +-60 deg, numpy seeded by --seed; the same poses in every set), then the glb's own walk
-(Anim_0, 48 frames) as held-out test poses. Deterministic: the same command writes the same
-bytes. --save-blend also writes DIR/<set>.blend (the rig, for a look in Blender).
+(Anim_0, 48 frames) as held-out test poses. Deterministic up to float rounding (Blender's threaded
+evaluation: runs differ by at most 2e-7 m). --save-blend also writes DIR/<set>.blend (the rig, for a look in Blender).
 """
 
 import math
@@ -297,9 +297,11 @@ def build_soft(arm, body):
 
 def soften(folder, bone_names):
     """Replaces the exported LBS positions by the soft skin's equilibria, pose by pose: the
-    minimum over x of sum_edges |x_i - x_j| - L_ij)^2 + sum_i k_i |x_i - g_i|^2 - 2 G . x
-    (L the rest lengths, g the LBS mesh, k the goal stiffness, G gravity along -Y), by
-    projective dynamics (a fixed matrix, inverted once; converged to about 1e-6 m)."""
+    minimum over x of sum_edges (|x_i - x_j| - L_ij)^2 + sum_i k_i |x_i - g_i|^2 - 2 G . x
+    (L the rest lengths, g the LBS mesh, k the goal stiffness, G gravity along -Y). Vertices
+    with no weight on a soft bone are pinned to LBS (bone-hard skin); the others are solved
+    by ITERATIONS steps of projective dynamics from the LBS mesh (a fixed matrix, inverted
+    once), so each pose's shape is a fixed function of that pose."""
     rest = np.load(os.path.join(folder, "rest_vertices.npy")).astype(np.float64)
     faces = np.load(os.path.join(folder, "faces.npy"))
     poses = np.load(os.path.join(folder, "pose_vertices.npy")).astype(np.float64)
@@ -308,46 +310,54 @@ def soften(folder, bone_names):
     edges = np.unique(np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]],
                                               faces[:, [2, 0]]]), axis=1), axis=0)
     length = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
-    # Normalised so that a vertex's goal stiffness compares with its springs' (the springs
-    # around a vertex sum to about its valence over the mean edge length squared).
+    # Strains, not lengths, in the energy: a mesh's density does not change its stiffness.
     scale = 1.0 / np.mean(length) ** 2
     column = {n: j for j, n in enumerate(bone_names)}
     k = np.full(v, HARD_GOAL)
+    flesh = np.zeros(v)
     for name, soft in SOFT_GOAL.items():
         w = weights[:, column[name]]
         k = k * (1.0 - w) + np.minimum(k, soft) * w
+        flesh += w
     k *= scale
+    free = np.nonzero(flesh > 0.05)[0]
+    pinned = np.nonzero(flesh <= 0.05)[0]
     a = np.zeros((v, v))
-    np.add.at(a, (edges[:, 0], edges[:, 0]), 1.0 * scale)
-    np.add.at(a, (edges[:, 1], edges[:, 1]), 1.0 * scale)
-    np.add.at(a, (edges[:, 0], edges[:, 1]), -1.0 * scale)
-    np.add.at(a, (edges[:, 1], edges[:, 0]), -1.0 * scale)
+    for i, j in ((0, 0), (1, 1), (0, 1), (1, 0)):
+        np.add.at(a, (edges[:, i], edges[:, j]), scale if i == j else -scale)
     a[np.arange(v), np.arange(v)] += k
-    a_inv = np.linalg.inv(a)
+    a_inv = np.linalg.inv(a[np.ix_(free, free)])
+    a_fp = a[np.ix_(free, pinned)]
     # Gravity, the same on every vertex: the softest flesh alone would sink SAG metres.
     g = np.zeros((v, 3))
     g[:, 1] = -SAG * min(SOFT_GOAL.values()) * scale
+
+    def spread(d):  # sum over each vertex's edges of +-d
+        return np.stack([np.bincount(edges[:, 0], d[:, c], v) - np.bincount(edges[:, 1], d[:, c], v)
+                         for c in range(3)], axis=1)
+
     out = np.empty_like(poses)
     worst = 0.0
     for i, goal in enumerate(poses):
         x = goal.copy()
+        fixed = k[:, None] * goal + g
+        boundary = a_fp @ goal[pinned]
         for it in range(ITERATIONS):
             e = x[edges[:, 0]] - x[edges[:, 1]]
             d = e * (length / np.maximum(np.linalg.norm(e, axis=1), 1e-12))[:, None] * scale
-            b = k[:, None] * goal + g
-            np.add.at(b, edges[:, 0], d)
-            np.add.at(b, edges[:, 1], -d)
+            b = (fixed + spread(d))[free] - boundary
             new = a_inv @ b
-            step = np.abs(new - x).max()
-            x = new
+            step = np.abs(new - x[free]).max()
+            x[free] = new
         worst = max(worst, step)
         out[i] = x
     np.save(os.path.join(folder, "pose_vertices.npy"), out.astype("<f4"))
     np.save(os.path.join(folder, "rest_vertices.npy"), out[0].astype("<f4"))
     moved = np.linalg.norm(out - poses, axis=2)
-    return (f"soft skin: {len(edges)} edge springs, {ITERATIONS} iterations (last step "
-            f"{worst:.1e} m), moved from LBS by up to {moved.max() * 100:.1f} cm (mean "
-            f"{moved.mean() * 100:.2f} cm; rest pose sags {moved[0].max() * 100:.1f} cm)")
+    return (f"soft skin: {len(free)} free vertices, {len(edges)} edge springs, {ITERATIONS} "
+            f"iterations (last step {worst:.1e} m), moved from LBS by up to "
+            f"{moved.max() * 100:.1f} cm (mean {moved.mean() * 100:.2f} cm; the rest pose sags "
+            f"{moved[0].max() * 100:.1f} cm)")
 
 
 # ---------------------------------------------------------------------------------------------
