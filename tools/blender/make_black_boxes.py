@@ -24,8 +24,9 @@ data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`
 
 Every set: pose 0 the rest pose, --poses random range-of-motion poses (swing <= 40 deg, twist
 <= +-60 deg, numpy seeded by --seed; the same poses in every set), then the glb's own walk
-(Anim_0, 48 frames) as held-out test poses. Deterministic up to float rounding (Blender's threaded
-evaluation: runs differ by at most 2e-7 m). --save-blend also writes DIR/<set>.blend (the rig, for a look in Blender).
+(Anim_0, 48 frames) as held-out test poses. Deterministic up to float rounding (Blender's
+threaded evaluation: runs differ by at most 2e-7 m). --save-blend also writes DIR/<set>.blend
+(the rig, for a look in Blender).
 """
 
 import math
@@ -371,6 +372,7 @@ def make_set(name, out_dir, glb, poses, seed, save_blend):
     arm, body = import_character(glb)
     what = BUILDERS[name](arm, body)
     folder = os.path.join(out_dir, f"cesium_{name}")
+    os.makedirs(out_dir, exist_ok=True)
     if save_blend:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(folder + ".blend"))
     summary = ex.export_examples(bpy.context, folder, poses=poses, seed=seed,
