@@ -78,12 +78,19 @@ def say(log, text):
 
 
 def deformed_meshes(scene_objects, arm):
-    """Meshes with an (enabled) Armature modifier on `arm`."""
-    found = []
+    """Meshes with an Armature modifier on `arm`, then meshes deformed through a cage: a Mesh
+    Deform, Surface Deform or Lattice modifier whose object has an Armature modifier on `arm`."""
+    def direct(obj):
+        return obj is not None and any(m.type == 'ARMATURE' and m.object == arm
+                                       for m in obj.modifiers)
+
+    def cage(m):
+        return {'MESH_DEFORM': 'object', 'SURFACE_DEFORM': 'target', 'LATTICE': 'object'}.get(m.type)
+
+    found = [o for o in scene_objects if o.type == 'MESH' and direct(o)]
     for obj in scene_objects:
-        if obj.type != 'MESH':
-            continue
-        if any(m.type == 'ARMATURE' and m.object == arm for m in obj.modifiers):
+        if obj.type == 'MESH' and obj not in found and any(
+                cage(m) and direct(getattr(m, cage(m))) for m in obj.modifiers):
             found.append(obj)
     return found
 
@@ -123,7 +130,8 @@ def choose_rig(context, armature_name=None, mesh_name=None):
             raise UserError(f"no mesh object named {mesh_name!r} "
                             f"(meshes deformed by {arm.name}: {[m.name for m in meshes] or 'none'})")
         if mesh not in meshes:
-            raise UserError(f"mesh {mesh_name!r} has no Armature modifier on {arm.name!r}")
+            raise UserError(f"mesh {mesh_name!r} has no Armature modifier on {arm.name!r} "
+                            "(nor a cage or lattice deformed by it)")
     elif not meshes:
         raise UserError(f"no mesh has an Armature modifier on armature {arm.name!r}")
     elif len(meshes) > 1:
