@@ -258,6 +258,8 @@ impl ContextEntry {
 
 struct CrowdEntry {
     context: u64,
+    /// Its context's device, to check for a lost device without taking the crowd's lock.
+    device: Context,
     crowd: RwLock<Crowd>,
 }
 
@@ -369,7 +371,7 @@ fn model_entry(model: RrskinModel) -> Result<Arc<ModelEntry>, Failure> {
 
 fn crowd_entry(crowd: RrskinCrowd) -> Result<Arc<CrowdEntry>, Failure> {
     let entry = registry().crowds.get(crowd.id)?.clone();
-    entry.read().model().context().check_lost()?;
+    entry.device.check_lost()?;
     Ok(entry)
 }
 
@@ -903,10 +905,11 @@ unsafe fn add_crowd(
         characters as usize,
         options,
     )?);
-    let context = entry.context;
-    let id = registry()
-        .crowds
-        .insert(Arc::new(CrowdEntry { context, crowd }));
+    let id = registry().crowds.insert(Arc::new(CrowdEntry {
+        context: entry.context,
+        device: entry.gpu.context().clone(),
+        crowd,
+    }));
     // SAFETY: `out` as the function's contract requires.
     unsafe { put(out, RrskinCrowd { id }, "out") }
 }

@@ -71,8 +71,6 @@ fn check(model: &Model, c: RrskinCrowd, p: &[[f32; 3]], n: &[[f32; 3]]) {
     // SAFETY: room for the floats.
     let s = unsafe { rrskin_crowd_read_back(c, gp.as_mut_ptr(), gn.as_mut_ptr(), gp.len()) };
     assert_eq!(s, OK);
-    let triples =
-        |f: &[f32]| -> Vec<[f32; 3]> { f.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() };
     compare(model, (p, n), (&triples(&gp), &triples(&gn)));
 }
 

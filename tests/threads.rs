@@ -50,9 +50,6 @@ fn drive(ctx: RrskinContext, model: &Model, handle: RrskinModel, seed: usize) {
                 OK
             );
         }
-        let triples = |f: &[f32]| -> Vec<[f32; 3]> {
-            f.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-        };
         compare(model, (p, n), (&triples(&gp), &triples(&gn)));
     }
     assert_eq!(rrskin_crowd_destroy(crowd), OK);

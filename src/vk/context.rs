@@ -88,10 +88,19 @@ pub(crate) struct Shared {
     pub pipelines: Pipelines,
     /// Own instance/device (destroyed in Drop) or borrowed (left alone).
     owned: Option<Owned>,
-    /// One-shot command pool for uploads and read-backs.
-    pub transient_pool: Mutex<vk::CommandPool>,
+    /// The command buffer (with its pool and fence) of uploads and read-backs, kept and reset
+    /// each time: allocating one per call cost a driver or layer allocation every time (the
+    /// validation layer never frees its per-command-buffer state: the long soak grew by it).
+    pub one_time: Mutex<OneTime>,
     /// The call that returned `VK_ERROR_DEVICE_LOST`, once one did: nothing is submitted after.
     lost: OnceLock<&'static str>,
+}
+
+#[derive(Default)]
+pub(crate) struct OneTime {
+    pool: vk::CommandPool,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
 }
 
 struct Owned {
@@ -239,7 +248,7 @@ impl Context {
             device_name,
             pipelines: Pipelines::default(),
             owned,
-            transient_pool: Mutex::new(vk::CommandPool::null()),
+            one_time: Mutex::default(),
             lost: OnceLock::new(),
         };
         let allocator = allocator.map_err(|e| Error::Allocation {
@@ -247,8 +256,7 @@ impl Context {
             message: e.to_string(),
         })?;
         *lock(&shared.allocator) = Some(allocator);
-        *lock(&shared.transient_pool) =
-            shared.create_command_pool(vk::CommandPoolCreateFlags::TRANSIENT)?;
+        shared.create_one_time()?;
         shared.pipelines = Pipelines::new(&shared.device)?;
         Ok(Context {
             shared: Arc::new(shared),
@@ -339,46 +347,49 @@ impl Shared {
         e
     }
 
-    /// Records a one-time command buffer with `record`, submits it to the queue and waits for
+    /// Makes the one-time command buffer, its pool and fence (each owned by `one_time` as soon
+    /// as it exists, so that Drop destroys what was made if a later step fails).
+    fn create_one_time(&self) -> Result<()> {
+        let mut one = lock(&self.one_time);
+        one.pool = self.create_command_pool(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER)?;
+        let info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(one.pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: the pool was just made, and is externally synchronised by the mutex.
+        one.cmd = unsafe { self.device.allocate_command_buffers(&info) }
+            .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
+        one.fence = self.create_fence()?;
+        Ok(())
+    }
+
+    /// Records the one-time command buffer with `record`, submits it to the queue and waits for
     /// completion (uploads, read-backs); [`Shared::submit_recorded`] submits one already
     /// recorded.
     pub fn record_and_submit(
         &self,
         record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
     ) -> Result<()> {
-        let pool = lock(&self.transient_pool);
-        let info = vk::CommandBufferAllocateInfo::default()
-            .command_pool(*pool)
-            .level(vk::CommandBufferLevel::PRIMARY)
-            .command_buffer_count(1);
-        // SAFETY: the pool is ours and externally synchronised by the mutex.
-        let cmd = unsafe { self.device.allocate_command_buffers(&info) }
-            .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
-        let result = self.record_one_time(cmd, record);
-        // SAFETY: the command buffer finished (or was never submitted).
-        unsafe { self.device.free_command_buffers(*pool, &[cmd]) };
-        result
-    }
-
-    fn record_one_time(
-        &self,
-        cmd: vk::CommandBuffer,
-        record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
-    ) -> Result<()> {
+        let one = lock(&self.one_time);
+        let cmd = one.cmd;
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: `cmd` was just allocated from the transient pool, whose lock the caller holds:
-        // in the initial state, recorded by no one else.
-        unsafe { self.device.begin_command_buffer(cmd, &begin) }
-            .map_err(Error::vk("vkBeginCommandBuffer"))?;
-        record(cmd)?;
+        // SAFETY: the command buffer is not pending (every use waits for completion, or for the
+        // queue to idle after a failed wait) and its lock is held: no one else records it.
+        unsafe {
+            (self.device)
+                .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                .map_err(Error::vk("vkResetCommandBuffer"))?;
+            (self.device.begin_command_buffer(cmd, &begin))
+                .map_err(Error::vk("vkBeginCommandBuffer"))?;
+        }
+        let recorded = record(cmd);
         // SAFETY: as above, and begun.
-        unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"))?;
-        let fence = self.create_fence()?;
-        let result = self.submit_recorded(cmd, fence);
-        // SAFETY: the fence is signalled or was never submitted.
-        unsafe { self.device.destroy_fence(fence, None) };
-        result
+        let ended =
+            unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
+        recorded?;
+        ended?;
+        self.submit_recorded(cmd, one.fence)
     }
 
     /// Submits one command buffer the caller recorded, waits on `fence` (unsignalled) and
@@ -417,10 +428,9 @@ impl Drop for Shared {
         unsafe {
             let _ = self.device.device_wait_idle();
             self.pipelines.destroy(&self.device);
-            let pool = *lock(&self.transient_pool);
-            if pool != vk::CommandPool::null() {
-                self.device.destroy_command_pool(pool, None);
-            }
+            let one = lock(&self.one_time);
+            self.device.destroy_fence(one.fence, None);
+            self.device.destroy_command_pool(one.pool, None);
         }
         // The allocator frees its memory blocks through the device: before the device goes.
         drop(lock(&self.allocator).take());

@@ -83,6 +83,11 @@ pub fn compare(model: &Model, cpu: (&[[f32; 3]], &[[f32; 3]]), gpu: (&[[f32; 3]]
     );
 }
 
+/// Flat xyz floats (as the C ABI reads them back) as points.
+pub fn triples(floats: &[f32]) -> Vec<[f32; 3]> {
+    floats.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+}
+
 /// `count` sets of random poses of `characters` characters whose CPU normals `compare` can
 /// check (at most 1 % ill-conditioned: tiny random meshes fold in some poses), with the CPU
 /// reference's positions and normals of each.
