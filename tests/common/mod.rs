@@ -88,14 +88,13 @@ pub fn triples(floats: &[f32]) -> Vec<[f32; 3]> {
     floats.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
 }
 
+/// Bones (C x J), and the CPU reference's positions and normals (C x V) of them.
+pub type CheckablePose = (Vec<rrskin::predict::Affine>, Vec<[f32; 3]>, Vec<[f32; 3]>);
+
 /// `count` sets of random poses of `characters` characters whose CPU normals `compare` can
 /// check (at most 1 % ill-conditioned: tiny random meshes fold in some poses), with the CPU
 /// reference's positions and normals of each.
-pub fn checkable_poses(
-    model: &Model,
-    characters: usize,
-    count: usize,
-) -> Vec<(Vec<rrskin::predict::Affine>, Vec<[f32; 3]>, Vec<[f32; 3]>)> {
+pub fn checkable_poses(model: &Model, characters: usize, count: usize) -> Vec<CheckablePose> {
     let n = characters * model.vertex_count();
     let mut cpu = rrskin::cpu::CpuEvaluator::new(model);
     (0..)
