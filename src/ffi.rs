@@ -243,7 +243,6 @@ struct ContextEntry {
 
 /// Immutable once loaded.
 struct ModelEntry {
-    context: u64,
     model: Model,
     gpu: GpuModel,
 }
@@ -257,7 +256,6 @@ impl ContextEntry {
 }
 
 struct CrowdEntry {
-    context: u64,
     /// Its context's device, to check for a lost device without taking the crowd's lock.
     device: Context,
     crowd: RwLock<Crowd>,
@@ -756,11 +754,9 @@ unsafe fn add_model(
         return Err(Failure::null("out"));
     }
     let gpu = GpuModel::new(&context_entry(context)?.context, &model)?;
-    let id = registry().models.insert(Arc::new(ModelEntry {
-        context: context.id,
-        model,
-        gpu,
-    }));
+    let id = registry()
+        .models
+        .insert(Arc::new(ModelEntry { model, gpu }));
     // SAFETY: `out` as the function's contract requires.
     unsafe { put(out, RrskinModel { id }, "out") }
 }
@@ -906,7 +902,6 @@ unsafe fn add_crowd(
         options,
     )?);
     let id = registry().crowds.insert(Arc::new(CrowdEntry {
-        context: entry.context,
         device: entry.gpu.context().clone(),
         crowd,
     }));
@@ -1126,25 +1121,19 @@ pub extern "C" fn rrskin_crowd_destroy(crowd: RrskinCrowd) -> RrskinStatus {
     guard(|| registry().crowds.remove(crowd.id).map(drop))
 }
 
-/// The crowds of one context for a batch, each listed once (a crowd listed twice would take
-/// its lock twice).
-fn crowds_of(
-    context: RrskinContext,
-    handles: &[RrskinCrowd],
-) -> Result<Vec<Arc<CrowdEntry>>, Failure> {
+/// The crowds of a batch, each listed once: a crowd listed twice would take its lock twice
+/// (the batch refuses crowds of another context itself).
+fn crowds_of(handles: &[RrskinCrowd]) -> Result<Vec<Arc<CrowdEntry>>, Failure> {
     let reg = registry();
     let mut entries: Vec<Arc<CrowdEntry>> = Vec::with_capacity(handles.len());
     for handle in handles {
         let entry = reg.crowds.get(handle.id)?;
-        let what = if entry.context != context.id {
-            "a crowd of another context"
-        } else if entries.iter().any(|e| Arc::ptr_eq(e, entry)) {
-            "a crowd listed twice in one frame"
-        } else {
-            entries.push(entry.clone());
-            continue;
-        };
-        return Err(Failure::from(Error::Mismatch { what }));
+        if entries.iter().any(|e| Arc::ptr_eq(e, entry)) {
+            return Err(Failure::from(Error::Mismatch {
+                what: "a crowd listed twice in one frame",
+            }));
+        }
+        entries.push(entry.clone());
     }
     Ok(entries)
 }
@@ -1158,7 +1147,7 @@ fn with_batch<R>(
     f: impl FnOnce(&mut Batch, &[&Crowd]) -> crate::Result<R>,
 ) -> Result<R, Failure> {
     let entry = context_entry(context)?;
-    let entries = crowds_of(context, crowds)?;
+    let entries = crowds_of(crowds)?;
     let mut batch = entry.batch();
     let guards: Vec<_> = entries.iter().map(|e| e.read()).collect();
     let list: Vec<&Crowd> = guards.iter().map(|g| &**g).collect();

@@ -518,6 +518,21 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         ok
     );
     assert_eq!(count, 0, "validation messages");
+    // A crowd of another context, and a crowd listed twice, are refused.
+    let mut other = RrskinContext { id: 0 };
+    // SAFETY: `out` points to a live value; valid pointers and counts.
+    unsafe {
+        assert_eq!(rrskin_context_create_headless(0, &mut other), ok);
+        assert_eq!(
+            rrskin_crowds_run(other, 0, &crowd, 1),
+            RrskinStatus::ErrorMismatch
+        );
+        assert_eq!(
+            rrskin_crowds_run(ctx, 0, [crowd, crowd].as_ptr(), 2),
+            RrskinStatus::ErrorMismatch
+        );
+    }
+    assert_eq!(rrskin_context_destroy(other), ok);
     assert_eq!(rrskin_crowd_destroy(crowd), ok);
     assert_eq!(rrskin_model_destroy(m), ok);
     assert_eq!(rrskin_context_destroy(ctx), ok);

@@ -11,6 +11,7 @@
 mod common;
 
 use ash::vk;
+use common::abi::{load, status};
 use common::engine::Engine;
 use common::*;
 use rrskin::ffi::*;
@@ -442,14 +443,6 @@ fn disarm() {
     LOST.store(false, SeqCst);
 }
 
-fn status(s: RrskinStatus) -> Result<(), RrskinStatus> {
-    if s == OK {
-        Ok(())
-    } else {
-        Err(s)
-    }
-}
-
 fn last_error() -> String {
     // SAFETY: never NULL, valid until the next call on this thread.
     unsafe { CStr::from_ptr(rrskin_last_error()) }
@@ -467,13 +460,6 @@ fn model() -> rrskin::Model {
         },
         5,
     )
-}
-
-fn load(ctx: RrskinContext, bytes: &[u8]) -> Result<RrskinModel, RrskinStatus> {
-    let mut m = RrskinModel { id: 0 };
-    // SAFETY: valid pointers and lengths.
-    status(unsafe { rrskin_model_load_memory(ctx, bytes.as_ptr(), bytes.len(), &mut m) })
-        .map(|()| m)
 }
 
 const CHARACTERS: u32 = 3;

@@ -11,6 +11,7 @@
 
 mod common;
 
+use common::abi::load;
 use common::*;
 use rrskin::ffi::*;
 use rrskin::Model;
@@ -34,14 +35,6 @@ fn device_memory(ctx: RrskinContext) -> (u64, u64) {
     let s = unsafe { rrskin_context_get_device_memory(ctx, &mut allocated, &mut reserved) };
     assert_eq!(s, OK);
     (allocated, reserved)
-}
-
-fn load(ctx: RrskinContext, bytes: &[u8]) -> RrskinModel {
-    let mut m = RrskinModel { id: 0 };
-    // SAFETY: valid pointers and lengths.
-    let s = unsafe { rrskin_model_load_memory(ctx, bytes.as_ptr(), bytes.len(), &mut m) };
-    assert_eq!(s, OK);
-    m
 }
 
 fn crowd(model: RrskinModel, characters: u32, options: RrskinCrowdOptions) -> RrskinCrowd {
@@ -112,7 +105,7 @@ fn soak(frames: usize, cycles: usize) {
     let mut ctx = RrskinContext { id: 0 };
     // SAFETY: valid pointer.
     assert_eq!(unsafe { rrskin_context_create_headless(1, &mut ctx) }, OK);
-    let handles: Vec<RrskinModel> = bytes.iter().map(|b| load(ctx, b)).collect();
+    let handles: Vec<RrskinModel> = bytes.iter().map(|b| load(ctx, b).expect("model")).collect();
     let crowds: Vec<RrskinCrowd> = (0..3)
         .map(|i| {
             let options = if i == 1 { plain } else { everything };
@@ -144,7 +137,7 @@ fn soak(frames: usize, cycles: usize) {
         }
         if frame % every == every - 1 && cycles_done < cycles {
             let i = cycles_done % models.len();
-            let m = load(ctx, &bytes[i]);
+            let m = load(ctx, &bytes[i]).expect("model");
             let c = crowd(m, characters[i], everything);
             set_bones(c, 0, &pose_sets[i][0].0);
             run(ctx, 0, &[c]);

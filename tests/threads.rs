@@ -5,6 +5,7 @@
 
 mod common;
 
+use common::abi::load;
 use common::*;
 use rrskin::ffi::*;
 use rrskin::Model;
@@ -15,15 +16,6 @@ const FRAMES: usize = 1000;
 const CHARACTERS: usize = 2;
 
 const OK: RrskinStatus = RrskinStatus::Ok;
-
-fn load(ctx: RrskinContext, model: &Model) -> RrskinModel {
-    let bytes = model.to_bytes();
-    let mut m = RrskinModel { id: 0 };
-    // SAFETY: valid pointers and lengths.
-    let status = unsafe { rrskin_model_load_memory(ctx, bytes.as_ptr(), bytes.len(), &mut m) };
-    assert_eq!(status, OK);
-    m
-}
 
 /// One thread's crowd of `model`, for two frames in flight, checked every frame.
 fn drive(ctx: RrskinContext, model: &Model, handle: RrskinModel, seed: usize) {
@@ -80,7 +72,8 @@ fn crowds_driven_from_many_threads_match_the_cpu_reference_every_frame() {
     let mut ctx = RrskinContext { id: 0 };
     // SAFETY: `out` points to a live value.
     assert_eq!(unsafe { rrskin_context_create_headless(1, &mut ctx) }, OK);
-    let handles = models.each_ref().map(|m| load(ctx, m));
+    let bytes = models.each_ref().map(|m| m.to_bytes());
+    let handles = bytes.each_ref().map(|b| load(ctx, b).expect("model"));
     let done = std::sync::atomic::AtomicBool::new(false);
     let churned = std::thread::scope(|s| {
         let drivers: Vec<_> = (0..THREADS)
@@ -93,7 +86,10 @@ fn crowds_driven_from_many_threads_match_the_cpu_reference_every_frame() {
         let churn = s.spawn(|| {
             let mut cycles = 0;
             while !done.load(std::sync::atomic::Ordering::Relaxed) {
-                assert_eq!(rrskin_model_destroy(load(ctx, &models[cycles % 2])), OK);
+                assert_eq!(
+                    rrskin_model_destroy(load(ctx, &bytes[cycles % 2]).expect("model")),
+                    OK
+                );
                 cycles += 1;
             }
             cycles

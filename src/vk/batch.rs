@@ -211,26 +211,9 @@ impl Batch {
     /// waits (headless path).
     pub fn run(&mut self, frame: usize, crowds: &[&Crowd]) -> Result<()> {
         let shared = self.shared.clone();
-        let device = &shared.device;
-        let cmd = self.cmd;
-        // SAFETY: our command buffer is not pending (every run waits for completion).
-        unsafe {
-            device
-                .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
-                .map_err(Error::vk("vkResetCommandBuffer"))?;
-            let begin = vk::CommandBufferBeginInfo::default()
-                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            device
-                .begin_command_buffer(cmd, &begin)
-                .map_err(Error::vk("vkBeginCommandBuffer"))?;
-        }
-        let recorded = self.record(cmd, frame, crowds);
-        // SAFETY: cmd is recording.
-        let ended =
-            unsafe { device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
-        recorded?;
-        ended?;
-        shared.submit_recorded(cmd, self.fence)
+        let (cmd, fence) = (self.cmd, self.fence);
+        // Our command buffer is not pending: every run waits for completion.
+        shared.rerecord_and_submit(cmd, fence, |cmd| self.record(cmd, frame, crowds))
     }
 
     /// Per-pass GPU time of frame slot `frame` as last recorded. After `record`, call it only

@@ -364,18 +364,27 @@ impl Shared {
     }
 
     /// Records the one-time command buffer with `record`, submits it to the queue and waits for
-    /// completion (uploads, read-backs); [`Shared::submit_recorded`] submits one already
-    /// recorded.
+    /// completion (uploads, read-backs).
     pub fn record_and_submit(
         &self,
         record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
     ) -> Result<()> {
         let one = lock(&self.one_time);
-        let cmd = one.cmd;
+        self.rerecord_and_submit(one.cmd, one.fence, record)
+    }
+
+    /// Resets `cmd`, records it with `record` for one submission, submits it and waits on
+    /// `fence` (unsignalled). `cmd` must not be pending (every use waits for completion, or for
+    /// the queue to idle after a failed wait) nor be recorded by anyone else meanwhile.
+    pub fn rerecord_and_submit(
+        &self,
+        cmd: vk::CommandBuffer,
+        fence: vk::Fence,
+        record: impl FnOnce(vk::CommandBuffer) -> Result<()>,
+    ) -> Result<()> {
         let begin = vk::CommandBufferBeginInfo::default()
             .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-        // SAFETY: the command buffer is not pending (every use waits for completion, or for the
-        // queue to idle after a failed wait) and its lock is held: no one else records it.
+        // SAFETY: `cmd` is not pending and recorded by no one else (the function's contract).
         unsafe {
             (self.device)
                 .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
@@ -389,13 +398,12 @@ impl Shared {
             unsafe { self.device.end_command_buffer(cmd) }.map_err(Error::vk("vkEndCommandBuffer"));
         recorded?;
         ended?;
-        self.submit_recorded(cmd, one.fence)
+        self.submit_recorded(cmd, fence)
     }
 
-    /// Submits one command buffer the caller recorded, waits on `fence` (unsignalled) and
-    /// resets it.
-    /// Fails at once on a lost device.
-    pub fn submit_recorded(&self, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
+    /// Submits one recorded command buffer, waits on `fence` (unsignalled) and resets it; fails
+    /// at once on a lost device.
+    fn submit_recorded(&self, cmd: vk::CommandBuffer, fence: vk::Fence) -> Result<()> {
         self.check_lost()?;
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];

@@ -1,6 +1,7 @@
 //! Test support: a validated Vulkan context and the comparison of GPU outputs with the CPU reference evaluator.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod abi;
 pub mod engine;
 
 use glam::DVec3;
