@@ -84,10 +84,16 @@ fn the_runtime_reproduces_the_training_tools_reduced_prediction() {
     assert_runtime_reproduces(&t, &reduced, 30, false);
 }
 
-/// The shipped form: joint-blend proxies, their local refit, the weights refitted to them.
+/// The shipped form: joint-blend proxies, their keys' stretch, their local refit, the weights
+/// refitted to them.
 fn joint_blend(t: &Trained, proxies: usize) -> Reduced {
     let feats = &t.prep.feats;
     let mut reduced = reduce::joint_blend::fit(&t.set, feats, &t.train, &t.ssd, proxies, 4);
+    let stretch = reduce::stretch::fit(&t.set, feats, &t.train, 4, &mut reduced);
+    assert!(
+        stretch.ridge.is_some(),
+        "the keys stayed rigid: {stretch:?}"
+    );
     let refit = reduce::refit::refit(&t.set, feats, &t.train, 4, &mut reduced);
     assert!(refit.ridge.is_some(), "the refit kept C0: {refit:?}");
     reduce::joint_blend::reweight(&t.set, feats, &t.train, &t.ssd, 4, &mut reduced);
@@ -357,4 +363,66 @@ fn a_smaller_epsilon_stops_merging_earlier() {
     .1
     .len();
     assert_eq!(capped, counts[0].max(40), "P and ε: whichever stops first");
+}
+
+/// Vertex error Σ|Δ|² of `reduced` over `poses`.
+fn squared_error(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> f64 {
+    let feats = PoseFeatures::all(set);
+    poses
+        .iter()
+        .map(|&i| {
+            let y = reduced.predict(set, &feats[i], &set.poses[i].bones);
+            y.iter()
+                .zip(&set.poses[i].vertices)
+                .map(|(a, b)| (*a - *b).length_squared())
+                .sum::<f64>()
+        })
+        .sum()
+}
+
+/// The stretch fit recovers what the runtime form can represent: examples made by joint-blend
+/// keys with a known pose-driven stretch are reproduced on held-out poses from rigid keys.
+#[test]
+fn the_stretch_fit_recovers_a_known_stretch() {
+    let mut set = rrskin_tools::cylinder_chain::Chain {
+        rings: 31,
+        segments: 12,
+        bones: 3,
+        poses: 60,
+    }
+    .build()
+    .expect("a valid chain");
+    let feats = PoseFeatures::all(&set);
+    let train = set.train();
+    let test: Vec<usize> = (0..set.poses.len()).filter(|&i| set.is_test[i]).collect();
+    let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
+    let rigid = reduce::joint_blend::fit(&set, &feats, &train, &ssd, 60, 4);
+    let mut truth = rigid.clone();
+    for (e, key) in truth.predictors.iter_mut().enumerate() {
+        // A root's rotation is the heading: the fit leaves it out (reduce::stretch).
+        let bone = key.rotation.expect("a joint-blend key").first.bone;
+        let joints = match set.parents[bone].and_then(|p| set.parents[p]) {
+            Some(_) => 6,
+            None => 3,
+        };
+        for o in 0..9 {
+            for k in 0..joints {
+                key.stretch[7 * o + k] = 0.2 * ((7 * o + 3 * k + e) as f64).sin();
+            }
+        }
+    }
+    let made: Vec<Vec<DVec3>> = (set.poses.iter().zip(&feats))
+        .map(|(pose, f)| truth.predict(&set, f, &pose.bones))
+        .collect();
+    for (pose, vertices) in set.poses.iter_mut().zip(made) {
+        pose.vertices = vertices;
+    }
+    let mut fitted = rigid.clone();
+    let chosen = reduce::stretch::fit(&set, &feats, &train, 4, &mut fitted);
+    let (before, after) = (
+        squared_error(&set, &rigid, &test),
+        squared_error(&set, &fitted, &test),
+    );
+    eprintln!("held-out Σ|Δ|²: rigid keys {before:.3e}, fitted {after:.3e} ({chosen:?})");
+    assert!(after < 1e-4 * before, "rigid keys {before}, fitted {after}");
 }

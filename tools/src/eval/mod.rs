@@ -65,6 +65,9 @@ pub struct Report {
     /// The full model's F percentile, ridge and fallback chosen by cross-validation, and the
     /// mean weight of the regression in the triangles' blended gradients (1: the paper).
     pub choice: Option<(Choice, f64)>,
+    /// The joint-blend model's key-stretch ridge and C refit ridge, chosen by cross-validation
+    /// (None inside: the keys kept rigid, C0 kept; None: not a joint-blend model trained here).
+    pub joint_blend: Option<(Option<f64>, Option<f64>)>,
     /// Folds of the cross-validation that made `choice` (below 2: none, fixed choices).
     pub folds: usize,
     /// Wall time per stage, in order.
@@ -181,6 +184,15 @@ impl Report {
             s += &format!(
                 "rotational regression: F = vertices below the {:.0}th percentile of SSD error, scale/shear ridge {:e}, gradients: {:?} (mean regression weight {alpha:.2}) ({chosen})\n",
                 choice.percentile, choice.ridge, choice.blend
+            );
+        }
+        if let Some((stretch, refit)) = self.joint_blend {
+            let ridge =
+                |r: Option<f64>, none: &str| r.map_or(none.to_string(), |r| format!("ridge {r:e}"));
+            s += &format!(
+                "joint-blend proxies: key stretch {}, C refit {} ({chosen})\n",
+                ridge(stretch, "none (rigid keys)"),
+                ridge(refit, "none (C0)")
             );
         }
         let d = &self.ddm_params;
@@ -414,6 +426,11 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
                 alpha.iter().sum::<f64>() / alpha.len().max(1) as f64,
             )
         }),
+        joint_blend: trained
+            .stretch
+            .as_ref()
+            .zip(trained.refit.as_ref())
+            .map(|(s, r)| (s.ridge, r.ridge)),
         folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,

@@ -15,6 +15,7 @@
 //! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
 //! | C1/C2 and the runtime model | [`reduce::c1c2`] | §4.3 |
 //! | or: joint-blend proxies, the default runtime model | [`reduce::joint_blend`] | beyond the paper |
+//! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
@@ -155,6 +156,8 @@ pub struct Trained {
     pub full: Option<Full>,
     /// The reduced model in f64 and the runtime model (None when P = 0).
     pub reduced: Option<Reduced>,
+    /// What the joint-blend keys' stretch fit chose (None for the paper's reduction).
+    pub stretch: Option<reduce::stretch::Stretch>,
     /// What the joint-blend model's local refit chose (None for the paper's reduction).
     pub refit: Option<reduce::refit::Refit>,
     pub model: Option<rrskin::Model>,
@@ -229,7 +232,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         }
     };
 
-    let mut refit = None;
+    let (mut stretch, mut refit) = (None, None);
     let (reduced, model) = match options.proxies {
         0 => (None, None),
         proxies => {
@@ -260,6 +263,13 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                 // Joint-blend proxies (the paper's reduction never lacks its full model).
                 _ => {
                     let mut r = reduce::joint_blend::fit(set, &feats, &train, &ssd, proxies, k);
+                    stretch = Some(reduce::stretch::fit(
+                        set,
+                        &feats,
+                        &train,
+                        options.folds,
+                        &mut r,
+                    ));
                     refit = Some(reduce::refit::refit(
                         set,
                         &feats,
@@ -284,6 +294,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         ssd,
         full,
         reduced,
+        stretch,
         refit,
         model,
         seconds: clock.seconds,

@@ -24,6 +24,7 @@ use crate::train::ssd::Skinning;
 use glam::{DMat3, DVec3, DVec4};
 
 /// The reduced model in f64, as trained: what the runtime model stores in f32.
+#[derive(Clone)]
 pub struct Reduced {
     pub proxies: usize,
     pub bones: usize,

@@ -5,6 +5,7 @@ pub mod c1c2;
 pub mod joint_blend;
 pub mod predictor;
 pub mod refit;
+pub mod stretch;
 pub mod vertex;
 
 use crate::import::example_set::ExampleSet;

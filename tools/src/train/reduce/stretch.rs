@@ -1,0 +1,279 @@
+//! Pose-driven stretch of the joint-blend keys (beyond the paper; docs/method.md §19): a
+//! muscle that bulges as its joint bends, or skin that sags or thins, is a scale/shear of
+//! the proxies around that joint, and the runtime form already carries one per key (§3.3's
+//! `S(q) = H x(q)`, `x = [θ~_b; θ~_p(b); 1]`). Joint-blend keys start rigid (S = I); this fits
+//! their H to the vertices.
+//!
+//! With the weights α and C1/C2 fixed, proxy e moves a vertex by `D_e z_e + (its bones)`, z_e
+//! the vertex in the key's frame (its own C1 block applied to the rest point) and
+//! `D_e = R_e (I + ΔS_e)`, `vec(ΔS_e) = H'_e φ_e(q)`, φ = [θ~_b; θ~_p] ∈ R⁶ (θ~_p left out
+//! where p is a root: its "joint rotation" is the character's heading). The vertices are
+//! linear in H' (54 unknowns per key, the bias pinned: with every joint at rest the key is
+//! rigid, so the rest pose and any global motion are untouched):
+//!
+//! ```text
+//! min_H'  Σ_i Σ_a |r_a^i − Σ_e α_ae R_e^i mat(H'_e φ_e^i) z_ae|² + λ Σ_e tr(G_e)/18 |H'_e|²
+//! ```
+//!
+//! (r: the vertices less the model). Since R_e is a rotation, proxy e's own block of the
+//! normal equations is 3 copies of one 18 x 18 Gram matrix G_e = Σ α² (z ⊗ φ)(z ⊗ φ)ᵀ; the keys
+//! are coupled only through shared vertices, so block Gauss–Seidel over the keys solves it
+//! with one small Cholesky factor per key. λ is chosen by k-fold cross-validation over the
+//! training poses (None: the keys stay rigid).
+
+use crate::import::example_set::ExampleSet;
+use crate::linalg::DenseCholesky;
+use crate::train::reduce::c1c2::Reduced;
+use crate::train::rotreg::PoseFeatures;
+use crate::train::scale_shear;
+use glam::{DMat3, DVec3, DVec4};
+use rayon::prelude::*;
+
+/// Ridge strengths tried, relative to each key's mean Gram diagonal; `None` keeps S = I.
+pub const RIDGES: [Option<f64>; 7] = [
+    Some(1e-4),
+    Some(1e-3),
+    Some(1e-2),
+    Some(1e-1),
+    Some(1.0),
+    Some(10.0),
+    None,
+];
+/// Gauss–Seidel sweeps over the keys.
+const SWEEPS: usize = 4;
+
+/// What the fit chose: the relative ridge (None: rigid keys kept) and every candidate's
+/// held-out error (Σ squared distances over the folds), in `RIDGES` order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stretch {
+    pub ridge: Option<f64>,
+    pub held_out: Vec<f64>,
+}
+
+/// H' of one key: `[r * 18 + c * 6 + k]` multiplies φ_k z_c into row r of ΔS z.
+type Coefficients = [f64; 54];
+
+struct Problem {
+    /// Per key: its vertices (vertex, α, z).
+    members: Vec<Vec<(usize, f64, DVec3)>>,
+    /// [training pose][key]: R_e and φ_e.
+    rotation: Vec<Vec<DMat3>>,
+    phi: Vec<Vec<[f64; 6]>>,
+    /// [training pose][vertex]: the example less the model.
+    residual: Vec<Vec<DVec3>>,
+}
+
+/// ΔS z for coefficients h, features φ and key-frame point z.
+fn stretch(h: &Coefficients, phi: &[f64; 6], z: DVec3) -> DVec3 {
+    let z = z.to_array();
+    let row = |r: usize| -> f64 {
+        (0..3)
+            .map(|c| z[c] * (0..6).map(|k| h[r * 18 + c * 6 + k] * phi[k]).sum::<f64>())
+            .sum()
+    };
+    DVec3::new(row(0), row(1), row(2))
+}
+
+impl Problem {
+    fn new(
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        train: &[usize],
+        reduced: &Reduced,
+    ) -> Problem {
+        let p = reduced.proxies;
+        let mut members = vec![Vec::new(); p];
+        for (a, inf) in reduced.skin.iter().enumerate() {
+            let x = DVec4::from((set.rest[a], 1.0)).to_array();
+            for &(e, alpha) in inf.iter().filter(|&&(e, _)| e < p) {
+                let z = (0..4).fold(DVec3::ZERO, |z, r| {
+                    let row = &reduced.c1[(4 * e + r) * 3 * p + 3 * e..][..3];
+                    z + DVec3::from_slice(row) * x[r]
+                });
+                members[e].push((a, alpha, z));
+            }
+        }
+        let (rotation, phi) = train
+            .iter()
+            .map(|&i| {
+                reduced
+                    .predictors
+                    .iter()
+                    .map(|k| match k.rotation {
+                        Some(r) => {
+                            let x = scale_shear::features(&feats[i], &set.parents, r.first.bone);
+                            // A root's rotation is the character's heading, not a joint: it
+                            // must not stretch anything.
+                            let joints = match set.parents[r.first.bone].map(|p| set.parents[p]) {
+                                Some(Some(_)) => 6,
+                                _ => 3,
+                            };
+                            let mut phi = [0.0; 6];
+                            phi[..joints].copy_from_slice(&x[..joints]);
+                            (r.predict(&feats[i], &set.parents), phi)
+                        }
+                        None => (DMat3::IDENTITY, [0.0; 6]),
+                    })
+                    .unzip()
+            })
+            .unzip();
+        let residual = train
+            .par_iter()
+            .map(|&i| {
+                let model = reduced.predict(set, &feats[i], &set.poses[i].bones);
+                set.poses[i]
+                    .vertices
+                    .iter()
+                    .zip(model)
+                    .map(|(&y, m)| y - m)
+                    .collect()
+            })
+            .collect();
+        Problem {
+            members,
+            rotation,
+            phi,
+            residual,
+        }
+    }
+
+    /// One key's contribution to vertex member m in training pose n.
+    fn moved(&self, h: &Coefficients, e: usize, n: usize, m: usize) -> DVec3 {
+        let (_, alpha, z) = self.members[e][m];
+        self.rotation[n][e] * stretch(h, &self.phi[n][e], z) * alpha
+    }
+
+    /// H' for every key, fitted on training poses `inner` (indices into `train`).
+    fn solve(&self, inner: &[usize], ridge: f64) -> Vec<Coefficients> {
+        let p = self.members.len();
+        let mut residual: Vec<Vec<DVec3>> =
+            inner.iter().map(|&n| self.residual[n].clone()).collect();
+        let factors: Vec<Option<DenseCholesky>> = (0..p)
+            .map(|e| {
+                let mut g = vec![0.0; 18 * 18];
+                for &n in inner {
+                    let phi = &self.phi[n][e];
+                    for &(_, alpha, z) in &self.members[e] {
+                        let z = z.to_array();
+                        let v: Vec<f64> = (0..18).map(|u| alpha * z[u / 6] * phi[u % 6]).collect();
+                        for r in 0..18 {
+                            for c in 0..18 {
+                                g[r * 18 + c] += v[r] * v[c];
+                            }
+                        }
+                    }
+                }
+                let mean = (0..18).map(|u| g[u * 19]).sum::<f64>() / 18.0;
+                (mean > 0.0).then(|| {
+                    (0..18).for_each(|u| g[u * 19] += ridge * mean + 1e-12);
+                    DenseCholesky::new(&g, 18)
+                })
+            })
+            .collect();
+        let mut h = vec![[0.0; 54]; p];
+        for _ in 0..SWEEPS {
+            for e in 0..p {
+                let Some(factor) = &factors[e] else { continue };
+                let mut b = [0.0; 54];
+                for (slot, &n) in inner.iter().enumerate() {
+                    let (rot, phi) = (self.rotation[n][e], &self.phi[n][e]);
+                    for (m, &(a, alpha, z)) in self.members[e].iter().enumerate() {
+                        let own = residual[slot][a] + self.moved(&h[e], e, n, m);
+                        let rho = (rot.transpose() * own).to_array();
+                        let z = z.to_array();
+                        for r in 0..3 {
+                            for u in 0..18 {
+                                b[r * 18 + u] += alpha * rho[r] * z[u / 6] * phi[u % 6];
+                            }
+                        }
+                    }
+                }
+                let mut next = [0.0; 54];
+                for r in 0..3 {
+                    let mut rhs = b[r * 18..][..18].to_vec();
+                    factor.solve(&mut rhs);
+                    next[r * 18..][..18].copy_from_slice(&rhs);
+                }
+                for (slot, &n) in inner.iter().enumerate() {
+                    for m in 0..self.members[e].len() {
+                        let a = self.members[e][m].0;
+                        residual[slot][a] +=
+                            self.moved(&h[e], e, n, m) - self.moved(&next, e, n, m);
+                    }
+                }
+                h[e] = next;
+            }
+        }
+        h
+    }
+
+    /// Σ squared distances on training pose n with coefficients h.
+    fn error(&self, h: &[Coefficients], n: usize) -> f64 {
+        let mut r = self.residual[n].clone();
+        for (e, he) in h.iter().enumerate() {
+            for m in 0..self.members[e].len() {
+                r[self.members[e][m].0] -= self.moved(he, e, n, m);
+            }
+        }
+        r.iter().map(|d| d.length_squared()).sum()
+    }
+}
+
+/// Fits the stretch of `reduced`'s keys (each proxy must see only its own key, as joint-blend
+/// proxies and their refit do), choosing the ridge by `folds`-fold cross-validation.
+pub fn fit(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    train: &[usize],
+    folds: usize,
+    reduced: &mut Reduced,
+) -> Stretch {
+    let folds = folds.min(train.len());
+    if folds < 2 || reduced.proxies == 0 {
+        return Stretch {
+            ridge: None,
+            held_out: vec![0.0; RIDGES.len()],
+        };
+    }
+    let problem = Problem::new(set, feats, train, reduced);
+    let all: Vec<usize> = (0..train.len()).collect();
+    let cases: Vec<(usize, usize)> = (0..folds)
+        .flat_map(|fold| (0..RIDGES.len()).map(move |c| (fold, c)))
+        .collect();
+    let scores: Vec<f64> = cases
+        .par_iter()
+        .map(|&(fold, c)| {
+            let held = all.iter().copied().filter(|n| n % folds == fold);
+            match RIDGES[c] {
+                None => held.map(|n| problem.error(&[], n)).sum(),
+                Some(ridge) => {
+                    let inner: Vec<usize> =
+                        all.iter().copied().filter(|n| n % folds != fold).collect();
+                    let h = problem.solve(&inner, ridge);
+                    held.map(|n| problem.error(&h, n)).sum()
+                }
+            }
+        })
+        .collect();
+    let mut held_out = vec![0.0; RIDGES.len()];
+    for (&(_, c), s) in cases.iter().zip(&scores) {
+        held_out[c] += s;
+    }
+    let best = (0..RIDGES.len())
+        .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
+        .unwrap_or(RIDGES.len() - 1);
+    let ridge = RIDGES[best];
+    if let Some(r) = ridge {
+        let h = problem.solve(&all, r);
+        for (k, he) in reduced.predictors.iter_mut().zip(&h) {
+            for r in 0..3 {
+                for c in 0..3 {
+                    for f in 0..6 {
+                        k.stretch[7 * (3 * r + c) + f] += he[r * 18 + c * 6 + f];
+                    }
+                }
+            }
+        }
+    }
+    Stretch { ridge, held_out }
+}
