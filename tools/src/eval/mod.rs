@@ -14,7 +14,8 @@ pub mod dqs;
 use crate::import::example_set::ExampleSet;
 use crate::train::selection::{squared_error, Choice};
 use crate::train::ssd::{self, Skinning};
-use crate::train::{full_model, TrainOptions, Trained};
+use crate::train::structure::{Chosen, Structure};
+use crate::train::{full_model, Method, TrainOptions, Trained};
 use crate::{Error, Result};
 use glam::DVec3;
 use std::path::PathBuf;
@@ -59,6 +60,8 @@ pub struct Report {
     /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
+    /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
+    pub structure: Option<Chosen>,
     pub budget: Option<Budget>,
     /// The runtime model trained here (None with `Options::model` or P = 0).
     pub model: Option<rrskin::Model>,
@@ -103,6 +106,7 @@ impl Report {
             "rig_cor": self.rig_cor.as_ref().map(errors),
             "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
+            "structure": self.structure.as_ref().map(structure_json),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
                 "full_exact_gradients": errors(&b.full_exact),
                 "reduced_oracle_proxies": errors(&b.reduced_oracle),
@@ -163,6 +167,9 @@ impl Report {
             };
             row(&mut s, &label, e);
         }
+        if let Some(c) = &self.structure {
+            s += &structure_line(c);
+        }
         if let Some(b) = &self.budget {
             s += "error budget (oracle ceilings):\n";
             row(&mut s, "  full model, exact gradients", &b.full_exact);
@@ -194,6 +201,59 @@ impl Report {
         }
         s
     }
+}
+
+fn method_name(s: &Structure) -> &'static str {
+    match s.method {
+        Method::JointBlend => "joint_blend",
+        Method::Paper => "paper",
+        Method::Auto => "auto",
+    }
+}
+
+/// The runtime model's structure and every candidate's cross-validated score.
+fn structure_json(c: &Chosen) -> serde_json::Value {
+    let one = |s: &Structure| {
+        serde_json::json!({"reduction": method_name(s), "proxies": s.proxies, "influences": s.influences})
+    };
+    serde_json::json!({
+        "chosen": one(&c.structure),
+        "folds": c.folds,
+        "candidates": c.candidates.iter().map(|x| serde_json::json!({
+            "structure": one(&x.structure), "score": x.score, "standard_error": x.standard_error,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// One line: the structure, and how it was chosen.
+fn structure_line(c: &Chosen) -> String {
+    let name = |s: &Structure| {
+        format!(
+            "{}, P ≤ {}, K = {}",
+            method_name(s).replace('_', "-"),
+            s.proxies,
+            s.influences
+        )
+    };
+    let mut line = format!("runtime model: {}", name(&c.structure));
+    if c.candidates.is_empty() {
+        line += " (as asked)\n";
+        return line;
+    }
+    line += &format!(
+        " (chosen by {}-fold cross-validation on the training poses, one-standard-error rule; mean held-out pose EE %:",
+        c.folds
+    );
+    for x in &c.candidates {
+        line += &format!(
+            " {} {:.1} ± {:.1};",
+            name(&x.structure),
+            100.0 * x.score.sqrt(),
+            100.0 * (x.score + x.standard_error).sqrt() - 100.0 * x.score.sqrt()
+        );
+    }
+    line.pop();
+    line + ")\n"
 }
 
 fn deform_all(set: &ExampleSet, skin: &Skinning, poses: &[usize]) -> Vec<Vec<DVec3>> {
@@ -405,6 +465,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         rr_full: rr_e,
         rr_reduced,
         reduced_proxies: runtime.map(|m| m.proxy_count()),
+        structure: trained.structure.clone(),
         budget,
         model: trained.model.clone(),
         choice: full.map(|f| {
