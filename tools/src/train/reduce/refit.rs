@@ -90,15 +90,17 @@ struct Problem {
 }
 
 /// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
-/// uses and the bone its key turns.
+/// uses and the bone its key turns; training pose n weighs `pose_weight[n]` in the fit and in
+/// the cross-validation's held-out error.
 pub fn refit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
     train: &[usize],
+    pose_weight: &[f64],
     folds: usize,
     reduced: &mut Reduced,
 ) -> Refit {
-    let problem = Problem::new(set, feats, train, reduced);
+    let problem = Problem::new(set, feats, train, pose_weight, reduced);
     let folds = folds.min(train.len());
     if folds < 2 || problem.free.is_empty() {
         return Refit {
@@ -148,6 +150,7 @@ impl Problem {
         set: &ExampleSet,
         feats: &[PoseFeatures],
         train: &[usize],
+        pose_weight: &[f64],
         reduced: &Reduced,
     ) -> Problem {
         let (p, j) = (reduced.proxies, reduced.bones);
@@ -213,9 +216,12 @@ impl Problem {
                 cols
             })
             .collect();
+        // A pose's error is linear in x and r, so scaling both by √w weighs it by w.
         let terms = train
             .iter()
-            .map(|&i| {
+            .zip(pose_weight)
+            .map(|(&i, &w)| {
+                let root = w.sqrt();
                 let pose = &set.poses[i];
                 let mut x = vec![[0.0; 3]; f];
                 for (l, key) in reduced.predictors.iter().enumerate() {
@@ -235,7 +241,12 @@ impl Problem {
                     }
                 }
                 let (bm, s) = reduced.proxy_targets(set, pose);
-                PoseTerms { x, b: bm, s }
+                x.iter_mut().flatten().for_each(|v| *v *= root);
+                PoseTerms {
+                    x,
+                    b: bm.iter().map(|r| r.map(|v| v * root)).collect(),
+                    s: s * w,
+                }
             })
             .collect();
         Problem {

@@ -1,0 +1,90 @@
+//! Per-pose weights for the runtime model's fits and scores (beyond the paper; docs/method.md
+//! §18). Random range-of-motion training poses are far wider than animation, and a plain
+//! least-squares fit over them is carried by the widest, where every error is largest. Each
+//! training pose is weighted instead by the inverse of the rigid predictor's squared error in
+//! it, the denominator of the pose's EE², so that every pose counts by its relative error, as
+//! a gentle animation pose does in the held-out EE. The rigid error is floored at a tenth of
+//! its mean over the poses: a pose at or near the rest pose, where it vanishes, would
+//! otherwise carry everything.
+
+use crate::import::example_set::ExampleSet;
+use crate::train::ssd::Skinning;
+
+/// The floor of a pose's rigid error, relative to the mean over the poses.
+pub const FLOOR: f64 = 0.1;
+
+/// Per pose of `poses`, the rigid predictor's squared error Σ_a |r_a − y_a|², floored at
+/// [`FLOOR`] of the mean.
+pub fn rigid_pose_errors(set: &ExampleSet, poses: &[usize], rigid: &Skinning) -> Vec<f64> {
+    let errors: Vec<f64> = poses
+        .iter()
+        .map(|&i| {
+            let pose = &set.poses[i];
+            rigid
+                .deform(&set.rest, &pose.bones)
+                .iter()
+                .zip(&pose.vertices)
+                .map(|(r, y)| (*r - *y).length_squared())
+                .sum()
+        })
+        .collect();
+    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+    let floor = (FLOOR * mean).max(f64::MIN_POSITIVE);
+    errors.iter().map(|&e| e.max(floor)).collect()
+}
+
+/// Per pose of `poses`, its weight: the inverse floored rigid error, scaled to mean 1.
+pub fn pose_weights(set: &ExampleSet, poses: &[usize], rigid: &Skinning) -> Vec<f64> {
+    let inverse: Vec<f64> = rigid_pose_errors(set, poses, rigid)
+        .iter()
+        .map(|e| 1.0 / e)
+        .collect();
+    let mean = inverse.iter().sum::<f64>() / inverse.len().max(1) as f64;
+    inverse.iter().map(|w| w / mean).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::import::example_set::{Bone, Pose};
+    use glam::{DMat3, DVec3};
+
+    /// One vertex on one bone that stays put: its pose errors are its displacements squared.
+    fn set_with_offsets(offsets: &[f64]) -> ExampleSet {
+        let bone = Bone {
+            q: DMat3::IDENTITY,
+            d: DVec3::ZERO,
+        };
+        ExampleSet {
+            rest: vec![DVec3::ZERO],
+            faces: Vec::new(),
+            parents: vec![None],
+            bone_names: None,
+            poses: offsets
+                .iter()
+                .map(|&x| Pose {
+                    bones: vec![bone],
+                    vertices: vec![DVec3::new(x, 0.0, 0.0)],
+                })
+                .collect(),
+            is_test: vec![false; offsets.len()],
+            rig_weights: None,
+            warnings: Vec::new(),
+        }
+    }
+
+    /// A pose twice as far off weighs a quarter as much; the rest pose weighs as one at the
+    /// floor, not infinitely.
+    #[test]
+    fn weights_are_inverse_rigid_errors_with_a_floor() {
+        let set = set_with_offsets(&[1.0, 2.0, 0.0]);
+        let rigid = Skinning::rigid(&[0]);
+        let e = rigid_pose_errors(&set, &[0, 1, 2], &rigid);
+        let mean = 5.0 / 3.0;
+        assert_eq!(e, vec![1.0, 4.0, FLOOR * mean]);
+        let w = pose_weights(&set, &[0, 1, 2], &rigid);
+        assert!((w.iter().sum::<f64>() - 3.0).abs() < 1e-12);
+        assert!((w[0] / w[1] - 4.0).abs() < 1e-12);
+        assert!((w[2] / w[0] - 1.0 / (FLOOR * mean)).abs() < 1e-9);
+    }
+}
