@@ -25,7 +25,7 @@ pub mod full_model;
 pub mod gradients;
 pub mod pivots;
 pub mod poisson;
-pub mod pose_weights;
+pub mod pose_scale;
 pub mod reduce;
 pub mod rotreg;
 pub mod scale_shear;

@@ -24,7 +24,7 @@ use crate::train::reduce::{self, joint_blend, vertex::Stop, Reduction};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::selection::Selection;
 use crate::train::ssd::{self, Skinning};
-use crate::train::{augment, pose_weights, Method, TrainError, TrainOptions};
+use crate::train::{augment, pose_scale, Method, TrainError, TrainOptions};
 
 /// One runtime model structure. `method` is never [`Method::Auto`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -124,14 +124,9 @@ pub fn build(
         }
         // Joint-blend proxies (the paper's reduction is never a candidate without its model).
         _ => {
-            let rigid = Skinning::rigid(&ssd::rigid_bones(&ssd::rigid_errors(set, &train)));
-            let w = match std::env::var("RRSKIN_UNWEIGHTED").is_ok() {
-                true => vec![1.0; train.len()],
-                false => pose_weights::pose_weights(set, &train, &rigid),
-            };
-            let mut r = joint_blend::fit(set, feats, &train, &w, ssd, structure.proxies, k);
-            let chosen = refit::refit(set, feats, &train, &w, options.folds, &mut r);
-            joint_blend::reweight(set, feats, &train, &w, ssd, k, &mut r);
+            let mut r = joint_blend::fit(set, feats, &train, ssd, structure.proxies, k);
+            let chosen = refit::refit(set, feats, &train, options.folds, &mut r);
+            joint_blend::reweight(set, feats, &train, ssd, k, &mut r);
             (r, Some(chosen))
         }
     }
@@ -167,7 +162,7 @@ pub fn choose(
             folds,
         });
     }
-    let normaliser = pose_weights::rigid_pose_errors(set, &train, rigid);
+    let normaliser = pose_scale::rigid_pose_errors(set, &train, rigid);
     // Per candidate, per training pose (in `train` order): held-out relative squared error.
     let mut relative = vec![vec![0.0; train.len()]; candidates.len()];
     for fold in 0..folds {

@@ -47,13 +47,11 @@ impl Proxy {
 }
 
 /// At most `proxies` joint-blend proxies, weights for every vertex (K = `influences`) over
-/// them and the bones, fitted on the `train` poses (pose n weighted by `pose_weight[n]`,
-/// [`crate::train::pose_weights`]); `ssd` is the baseline the model carries.
+/// them and the bones, fitted on the `train` poses; `ssd` is the baseline the model carries.
 pub fn fit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
     train: &[usize],
-    pose_weight: &[f64],
     ssd: &Skinning,
     proxies: usize,
     influences: usize,
@@ -71,7 +69,7 @@ pub fn fit(
         .collect();
     let weights_over = |proxies: &[Proxy]| {
         let palette = palettes(set, feats, train, proxies);
-        weights(set, train, pose_weight, &palette, &joints(proxies), ssd, influences)
+        weights(set, train, &palette, &joints(proxies), ssd, influences)
     };
     let first = weights_over(&all);
     // Keep the proxies carrying most weight, then refit the weights over those.
@@ -115,7 +113,6 @@ pub fn reweight(
     set: &ExampleSet,
     feats: &[PoseFeatures],
     train: &[usize],
-    pose_weight: &[f64],
     ssd: &Skinning,
     influences: usize,
     reduced: &mut Reduced,
@@ -142,7 +139,7 @@ pub fn reweight(
             (bone, set.parents[bone].unwrap_or(bone))
         })
         .collect();
-    reduced.skin = weights(set, train, pose_weight, &palette, &joints, ssd, influences);
+    reduced.skin = weights(set, train, &palette, &joints, ssd, influences);
 }
 
 /// Per training pose, the palette: the proxies' transforms, then the bones'.
@@ -173,20 +170,16 @@ fn joints(proxies: &[Proxy]) -> Vec<(usize, usize)> {
 /// Per vertex, NNLS weights (the best K-subset of the NNLS support,
 /// [`ssd::fit_weights_best_subset`]: CesiumMan test EE 28.97 → 28.40 %, human_heavy 19.27 →
 /// 18.41 % against the K largest weights) over the palette's proxies (entries 0..P, each blending the joint
-/// `joints[e]`) and bones (P + b); `palette[n]` is training pose n's, weighted by
-/// `pose_weight[n]`.
+/// `joints[e]`) and bones (P + b); `palette[n]` is training pose n's.
 fn weights(
     set: &ExampleSet,
     train: &[usize],
-    pose_weight: &[f64],
     palette: &[Vec<Bone>],
     joints: &[(usize, usize)],
     ssd: &Skinning,
     influences: usize,
 ) -> Vec<Vec<(usize, f64)>> {
     let p = joints.len();
-    // Weighted least squares: both sides of every sample scaled by the root of its weight.
-    let scale: Vec<f64> = pose_weight.iter().map(|w| w.sqrt()).collect();
     (0..set.vertex_count())
         .into_par_iter()
         .map(|a| {
@@ -196,8 +189,7 @@ fn weights(
                     .iter()
                     .enumerate()
                     .map(|(n, &i)| {
-                        let miss = palette[n][e].apply(rest) - set.poses[i].vertices[a];
-                        pose_weight[n] * miss.length_squared()
+                        (palette[n][e].apply(rest) - set.poses[i].vertices[a]).length_squared()
                     })
                     .sum()
             };
@@ -216,8 +208,8 @@ fn weights(
                 train.len(),
                 &order,
                 influences,
-                |n, e| palette[n][e].apply(rest) * scale[n],
-                |n| set.poses[train[n]].vertices[a] * scale[n],
+                |n, e| palette[n][e].apply(rest),
+                |n| set.poses[train[n]].vertices[a],
             )
         })
         .collect()

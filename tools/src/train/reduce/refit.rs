@@ -90,17 +90,15 @@ struct Problem {
 }
 
 /// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
-/// uses and the bone its key turns; training pose n weighs `pose_weight[n]` in the fit and in
-/// the cross-validation's held-out error.
+/// uses and the bone its key turns.
 pub fn refit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
     train: &[usize],
-    pose_weight: &[f64],
     folds: usize,
     reduced: &mut Reduced,
 ) -> Refit {
-    let problem = Problem::new(set, feats, train, pose_weight, reduced);
+    let problem = Problem::new(set, feats, train, reduced);
     let folds = folds.min(train.len());
     if folds < 2 || problem.free.is_empty() {
         return Refit {
@@ -150,7 +148,6 @@ impl Problem {
         set: &ExampleSet,
         feats: &[PoseFeatures],
         train: &[usize],
-        pose_weight: &[f64],
         reduced: &Reduced,
     ) -> Problem {
         let (p, j) = (reduced.proxies, reduced.bones);
@@ -216,12 +213,9 @@ impl Problem {
                 cols
             })
             .collect();
-        // A pose's error is linear in x and r, so scaling both by √w weighs it by w.
         let terms = train
             .iter()
-            .zip(pose_weight)
-            .map(|(&i, &w)| {
-                let root = w.sqrt();
+            .map(|&i| {
                 let pose = &set.poses[i];
                 let mut x = vec![[0.0; 3]; f];
                 for (l, key) in reduced.predictors.iter().enumerate() {
@@ -241,12 +235,7 @@ impl Problem {
                     }
                 }
                 let (bm, s) = reduced.proxy_targets(set, pose);
-                x.iter_mut().flatten().for_each(|v| *v *= root);
-                PoseTerms {
-                    x,
-                    b: bm.iter().map(|r| r.map(|v| v * root)).collect(),
-                    s: s * w,
-                }
+                PoseTerms { x, b: bm, s }
             })
             .collect();
         Problem {
