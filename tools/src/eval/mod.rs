@@ -241,16 +241,14 @@ fn structure_line(c: &Chosen) -> String {
         return line;
     }
     line += &format!(
-        " (chosen by {}-fold cross-validation on the training poses, one-standard-error rule; mean held-out pose EE %:",
+        " (chosen by {}-fold cross-validation on the training poses, one-standard-error rule; held-out pose EE %, RMS over the poses ± one standard error to the best:",
         c.folds
     );
     for x in &c.candidates {
-        line += &format!(
-            " {} {:.1} ± {:.1};",
-            name(&x.structure),
-            100.0 * x.score.sqrt(),
-            100.0 * (x.score + x.standard_error).sqrt() - 100.0 * x.score.sqrt()
-        );
+        // d(EE) = 100 d(score) / (2 √score).
+        let ee = 100.0 * x.score.sqrt();
+        let se = 50.0 * x.standard_error / x.score.sqrt().max(1e-300);
+        line += &format!(" {} {ee:.2} ± {se:.2};", name(&x.structure));
     }
     line.pop();
     line + ")\n"
