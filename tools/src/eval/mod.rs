@@ -213,9 +213,7 @@ fn method_name(s: &Structure) -> &'static str {
 
 /// The runtime model's structure and every candidate's cross-validated score.
 fn structure_json(c: &Chosen) -> serde_json::Value {
-    let one = |s: &Structure| {
-        serde_json::json!({"reduction": method_name(s), "proxies": s.proxies, "influences": s.influences})
-    };
+    let one = |s: &Structure| serde_json::json!({"reduction": method_name(s), "proxies": s.proxies, "influences": s.influences});
     serde_json::json!({
         "chosen": one(&c.structure),
         "folds": c.folds,

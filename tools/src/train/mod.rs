@@ -264,8 +264,14 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                         selection: &f.selection,
                     });
                     let candidates = structure::candidates(options, pool, full.is_some());
-                    let c =
-                        structure::choose(set, &feats, &rigid, parts.as_ref(), &candidates, options)?;
+                    let c = structure::choose(
+                        set,
+                        &feats,
+                        &rigid,
+                        parts.as_ref(),
+                        &candidates,
+                        options,
+                    )?;
                     clock.lap("structure");
                     progress.step();
                     c
@@ -281,20 +287,6 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             let (reduced, chosen_refit) =
                 structure::build(set, &feats, &ssd, full_parts, &chosen.structure, options);
             refit = chosen_refit;
-            if std::env::var("RRSKIN_DEBUG").is_ok() {
-                let mut num = 0.0;
-                let mut den = 0.0;
-                for &i in &train {
-                    let pose = &set.poses[i];
-                    let y = reduced.predict(set, &feats[i], &pose.bones);
-                    let r = rigid.deform(&set.rest, &pose.bones);
-                    for a in 0..y.len() {
-                        num += (y[a] - pose.vertices[a]).length_squared();
-                        den += (r[a] - pose.vertices[a]).length_squared();
-                    }
-                }
-                eprintln!("DEBUG f64 train EE {}", 100.0 * (num / den).sqrt());
-            }
             let model = reduced.to_runtime(set, chosen.structure.influences)?;
             structure = Some(chosen);
             clock.lap("reduction");

@@ -195,9 +195,6 @@ pub fn choose(
                 let pose = &set.poses[i];
                 let y = reduced.predict(set, &feats[i], &pose.bones);
                 relative[c][n] = squared(&y, &pose.vertices) / normaliser[n];
-                if std::env::var("RRSKIN_DEBUG").is_ok() {
-                    eprintln!("DEBUG fold {fold} cand {c} pose {i} rel {:.4}", relative[c][n]);
-                }
             }
         }
     }
@@ -211,7 +208,10 @@ pub fn choose(
 }
 
 fn squared(a: &[glam::DVec3], b: &[glam::DVec3]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| (*x - *y).length_squared()).sum::<f64>()
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum::<f64>()
 }
 
 /// Every candidate's mean per-pose score, and the standard error of its per-pose difference to
@@ -230,7 +230,8 @@ fn one_standard_error(candidates: &[Structure], relative: &[Vec<f64>]) -> Vec<Sc
             let diff: Vec<f64> = r.iter().zip(&relative[best]).map(|(x, y)| x - y).collect();
             let m = mean(&diff);
             let n = diff.len();
-            let variance = diff.iter().map(|d| (d - m).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
+            let variance =
+                diff.iter().map(|d| (d - m).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
             Scored {
                 structure,
                 score,
@@ -247,13 +248,75 @@ pub const TOLERANCE: f64 = 0.03;
 
 /// The first candidate within one standard error, or within [`TOLERANCE`] of EE, of the best.
 fn pick(scored: &[Scored]) -> usize {
-    let best = scored
-        .iter()
-        .map(|s| s.score)
-        .fold(f64::INFINITY, f64::min);
+    let best = scored.iter().map(|s| s.score).fold(f64::INFINITY, f64::min);
     let within = (1.0 + TOLERANCE).powi(2) * best;
     scored
         .iter()
         .position(|s| s.score <= (best + s.standard_error).max(within))
         .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn joint_blend(proxies: usize, influences: usize) -> Structure {
+        Structure {
+            method: Method::JointBlend,
+            proxies,
+            influences,
+        }
+    }
+
+    /// The paper's reduction is a candidate only where joint-blend proxies cannot fill P and
+    /// the full model is there; more proxies only where the pool has them; K = 8 from 4.
+    #[test]
+    fn candidates_follow_the_rig() {
+        let options = TrainOptions::default();
+        let (p, k) = (options.proxies, options.influences);
+        assert_eq!(
+            candidates(&options, 3 * p, true),
+            vec![
+                joint_blend(p, k),
+                joint_blend(p + p / 2, k),
+                joint_blend(p, 8)
+            ]
+        );
+        let few = candidates(&options, 9, true);
+        assert_eq!(few.len(), 3);
+        assert_eq!(few[2].method, Method::Paper);
+        assert_eq!(candidates(&options, 9, false).len(), 2);
+    }
+
+    /// Per-pose scores of three candidates over four poses: the rule keeps the first that is
+    /// not clearly beaten.
+    #[test]
+    fn the_first_candidate_not_clearly_beaten_is_kept() {
+        let structures = [joint_blend(60, 4), joint_blend(60, 8), joint_blend(90, 4)];
+        let clear = vec![
+            vec![1.0, 2.0, 1.0, 2.0],
+            vec![0.81, 1.62, 0.81, 1.62],
+            vec![1.0, 2.0, 1.0, 2.0],
+        ];
+        let scored = one_standard_error(&structures, &clear);
+        assert_eq!(scored[1].standard_error, 0.0);
+        assert_eq!(pick(&scored), 1);
+        // A gain of 3.4 % EE that one pose of four carries and another undoes: within one
+        // standard error.
+        let noisy = vec![
+            vec![1.0, 2.0, 1.0, 2.0],
+            vec![0.2, 2.0, 1.0, 2.4],
+            vec![1.0, 2.0, 1.0, 2.0],
+        ];
+        let scored = one_standard_error(&structures, &noisy);
+        assert!(scored[0].standard_error > 0.0);
+        assert_eq!(pick(&scored), 0);
+        // A consistent gain of 1 % EE: below the tolerance.
+        let base = [1.0, 2.0, 1.0, 2.0];
+        let small: Vec<Vec<f64>> = [1.0, 0.99f64.powi(2), 1.0]
+            .iter()
+            .map(|f| base.iter().map(|x| x * f).collect())
+            .collect();
+        assert_eq!(pick(&one_standard_error(&structures, &small)), 0);
+    }
 }
