@@ -337,8 +337,15 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         .iter()
         .map(|c| c["structure"]["reduction"].as_str().unwrap_or(""))
         .collect();
-    assert_eq!(reductions, ["joint_blend", "joint_blend", "paper"], "{structure}");
-    assert_eq!(structure["chosen"]["reduction"], "joint_blend", "{structure}");
+    assert_eq!(
+        reductions,
+        ["joint_blend", "joint_blend", "paper"],
+        "{structure}"
+    );
+    assert_eq!(
+        structure["chosen"]["reduction"], "joint_blend",
+        "{structure}"
+    );
     assert!(e["stages"]["structure"].is_number(), "{e}");
     assert!(
         (n(&e["rigid"]["train"]) - 100.0).abs() < 1e-9

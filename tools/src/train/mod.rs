@@ -14,7 +14,7 @@
 //! | vertex reduction to P proxy bones | [`reduce::vertex`] | §5.1 |
 //! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
 //! | C1/C2 and the runtime model | [`reduce::c1c2`] | §4.3 |
-//! | or: joint-blend proxies, the default runtime model | [`reduce::joint_blend`] | beyond the paper |
+//! | or: joint-blend proxies, the usual runtime model | [`reduce::joint_blend`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //! | which of these, P and K: chosen per set | [`structure`] | beyond the paper |
 //!
