@@ -147,9 +147,10 @@ struct TrainArgs {
     /// Influences per vertex (SSD and the runtime model): 4 or 8.
     #[arg(long, default_value_t = TrainOptions::default().influences)]
     influences: usize,
-    /// How the runtime model is made: joint-blend proxies (default), or the paper's reduction
-    /// of the full model.
-    #[arg(long, value_enum, default_value_t = Reduction::JointBlend)]
+    /// How the runtime model is made: joint-blend proxies, as many as cross-validation over the
+    /// training poses chooses (auto, the default: P or 1.5 P), joint-blend proxies with P, or the
+    /// paper's reduction of the full model.
+    #[arg(long, value_enum, default_value_t = Reduction::Auto)]
     reduction: Reduction,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
@@ -161,6 +162,7 @@ struct TrainArgs {
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum Reduction {
+    Auto,
     JointBlend,
     Paper,
 }
@@ -173,6 +175,7 @@ impl TrainArgs {
             proxies: self.proxies,
             epsilon: self.epsilon,
             method: match self.reduction {
+                Reduction::Auto => Method::Auto,
                 Reduction::JointBlend => Method::JointBlend,
                 Reduction::Paper => Method::Paper,
             },

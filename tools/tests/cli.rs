@@ -305,10 +305,11 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "rig_cor",
         "diagnose",
         "stages",
+        "structure",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 20, "{e}");
+    assert_eq!(keys.len(), 21, "{e}");
     assert!(
         e["rig_lbs"].is_null() && e["rig_dqs"].is_null() && e["rig_cor"].is_null(),
         "no skin_weights.npy here"
@@ -326,8 +327,20 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         (2338.0, 4672.0, 19.0)
     );
     assert_eq!((n(&e["train_poses"]), n(&e["test_poses"])), (41.0, 20.0));
-    // P ≤ the default 60: three joint-blend proxies per moving joint (18 here).
+    // P ≤ the default 60: three joint-blend proxies per moving joint (18 here). Having no more
+    // candidate proxies than P, the rig has nothing to choose.
     assert_eq!(n(&e["proxies"]), 54.0);
+    let structure = &e["structure"];
+    assert_eq!(
+        structure["candidates"],
+        serde_json::json!([]),
+        "{structure}"
+    );
+    assert_eq!(
+        structure["chosen"]["reduction"], "joint_blend",
+        "{structure}"
+    );
+    assert!(e["stages"]["structure"].is_number(), "{e}");
     assert!(
         (n(&e["rigid"]["train"]) - 100.0).abs() < 1e-9
             && (n(&e["rigid"]["test"]) - 100.0).abs() < 1e-9
@@ -399,6 +412,8 @@ fn a_trained_model_file_evaluates_as_trained() {
         m,
         "--proxies",
         "20",
+        "--reduction",
+        "joint-blend",
         "--json",
     ]));
     let info = json(&rrskin(&["info", m, "--json"]));
@@ -418,6 +433,7 @@ fn a_trained_model_file_evaluates_as_trained() {
     );
     let evaluated = json(&rrskin(&["eval", set, "--model", m, "--json"]));
     assert_eq!(evaluated["proxies"], 20);
+    assert_eq!(trained["structure"]["chosen"]["proxies"], 20);
     for split in ["train", "test"] {
         let (a, b) = (
             &trained["rr_reduced"][split],

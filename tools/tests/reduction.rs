@@ -426,3 +426,50 @@ fn the_stretch_fit_recovers_a_known_stretch() {
     eprintln!("held-out Σ|Δ|²: rigid keys {before:.3e}, fitted {after:.3e} ({chosen:?})");
     assert!(after < 1e-4 * before, "rigid keys {before}, fitted {after}");
 }
+
+/// `--reduction auto` on a rig with more joint-blend candidates than P: both P and 1.5 P are
+/// trained in the folds and scored, and the model has the structure chosen.
+#[test]
+fn auto_scores_both_proxy_counts_and_builds_the_chosen() {
+    use rrskin_tools::train::{self, Method, TrainOptions};
+    let set = rrskin_tools::cylinder_chain::Chain {
+        rings: 21,
+        segments: 8,
+        bones: 3,
+        poses: 40,
+    }
+    .build()
+    .expect("a valid chain");
+    let options = TrainOptions {
+        proxies: 4,
+        method: Method::Auto,
+        full_model: false,
+        quiet: true,
+        ..TrainOptions::default()
+    };
+    let trained = train::run(&set, &options).expect("trains");
+    let chosen = trained.structure.expect("a structure");
+    let scored: Vec<usize> = chosen
+        .candidates
+        .iter()
+        .map(|c| c.structure.proxies)
+        .collect();
+    assert_eq!(scored, [4, 6], "{chosen:?}");
+    assert!(
+        chosen
+            .candidates
+            .iter()
+            .all(|c| c.score > 0.0 && c.score.is_finite()),
+        "{chosen:?}"
+    );
+    let model = trained.model.expect("a runtime model");
+    assert_eq!(model.proxy_count(), chosen.structure.proxies, "{chosen:?}");
+    // The model built after the choice cross-validated its own ridges.
+    let grid = rrskin_tools::train::reduce::stretch::RIDGES.len();
+    assert!(
+        trained
+            .joint_blend
+            .is_some_and(|f| f.stretch.held_out.len() == grid),
+        "fixed ridges in the final model"
+    );
+}

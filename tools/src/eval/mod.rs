@@ -14,7 +14,8 @@ pub mod dqs;
 use crate::import::example_set::ExampleSet;
 use crate::train::selection::{squared_error, Choice};
 use crate::train::ssd::{self, Skinning};
-use crate::train::{full_model, TrainOptions, Trained};
+use crate::train::structure::{Chosen, Structure, Why};
+use crate::train::{full_model, Method, TrainOptions, Trained};
 use crate::{Error, Result};
 use glam::DVec3;
 use std::path::PathBuf;
@@ -59,6 +60,8 @@ pub struct Report {
     /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
+    /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
+    pub structure: Option<Chosen>,
     pub budget: Option<Budget>,
     /// The runtime model trained here (None with `Options::model` or P = 0).
     pub model: Option<rrskin::Model>,
@@ -106,6 +109,7 @@ impl Report {
             "rig_cor": self.rig_cor.as_ref().map(errors),
             "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
+            "structure": self.structure.as_ref().map(structure_json),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
                 "full_exact_gradients": errors(&b.full_exact),
                 "reduced_oracle_proxies": errors(&b.reduced_oracle),
@@ -166,6 +170,9 @@ impl Report {
             };
             row(&mut s, &label, e);
         }
+        if let Some(c) = &self.structure {
+            s += &structure_line(c);
+        }
         if let Some(b) = &self.budget {
             s += "error budget (oracle ceilings):\n";
             row(&mut s, "  full model, exact gradients", &b.full_exact);
@@ -206,6 +213,62 @@ impl Report {
         }
         s
     }
+}
+
+fn method_name(s: &Structure) -> &'static str {
+    match s.method {
+        Method::JointBlend => "joint_blend",
+        Method::Paper => "paper",
+        Method::Auto => "auto",
+    }
+}
+
+/// The runtime model's structure and every candidate's cross-validated score.
+fn structure_json(c: &Chosen) -> serde_json::Value {
+    let one = |s: &Structure| serde_json::json!({"reduction": method_name(s), "proxies": s.proxies, "influences": s.influences});
+    serde_json::json!({
+        "chosen": one(&c.structure),
+        "folds": c.folds,
+        "candidates": c.candidates.iter().map(|x| serde_json::json!({
+            "structure": one(&x.structure), "score": x.score, "standard_error": x.standard_error,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// One line: the structure, and how it was chosen.
+fn structure_line(c: &Chosen) -> String {
+    let name = |s: &Structure| {
+        format!(
+            "{}, P ≤ {}, K = {}",
+            method_name(s).replace('_', "-"),
+            s.proxies,
+            s.influences
+        )
+    };
+    let mut line = format!("runtime model: {}", name(&c.structure));
+    let why = match c.why {
+        Why::Asked => " (as asked)",
+        Why::OnlyCandidate => {
+            " (the only candidate: the rig has no more joint-blend proxies than P)"
+        }
+        Why::TooFewPoses => " (the first candidate: too few training poses to cross-validate)",
+        Why::CrossValidated => "",
+    };
+    if !why.is_empty() {
+        return line + why + "\n";
+    }
+    line += &format!(
+        " (chosen by {}-fold cross-validation on the training poses, one-standard-error rule; held-out pose EE %, RMS over the poses ± one standard error to the best:",
+        c.folds
+    );
+    for x in &c.candidates {
+        // d(EE) = 100 d(score) / (2 √score).
+        let ee = 100.0 * x.score.sqrt();
+        let se = 50.0 * x.standard_error / x.score.sqrt().max(1e-300);
+        line += &format!(" {} {ee:.2} ± {se:.2};", name(&x.structure));
+    }
+    line.pop();
+    line + ")\n"
 }
 
 fn deform_all(set: &ExampleSet, skin: &Skinning, poses: &[usize]) -> Vec<Vec<DVec3>> {
@@ -417,6 +480,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         rr_full: rr_e,
         rr_reduced,
         reduced_proxies: runtime.map(|m| m.proxy_count()),
+        structure: trained.structure.clone(),
         budget,
         model: trained.model.clone(),
         choice: full.map(|f| {
@@ -427,10 +491,9 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
             )
         }),
         joint_blend: trained
-            .stretch
+            .joint_blend
             .as_ref()
-            .zip(trained.refit.as_ref())
-            .map(|(s, r)| (s.ridge, r.ridge)),
+            .map(|f| (f.stretch.ridge, f.refit.ridge)),
         folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,

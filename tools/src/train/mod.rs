@@ -14,9 +14,10 @@
 //! | vertex reduction to P proxy bones | [`reduce::vertex`] | §5.1 |
 //! | predictor reduction to P key predictors | [`reduce::predictor`] | §5.2 |
 //! | C1/C2 and the runtime model | [`reduce::c1c2`] | §4.3 |
-//! | or: joint-blend proxies, the default runtime model | [`reduce::joint_blend`] | beyond the paper |
+//! | or: joint-blend proxies, the usual runtime model | [`reduce::joint_blend`] | beyond the paper |
 //! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
+//! | which of these, P and K: chosen per set | [`structure`] | beyond the paper |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
 
@@ -25,18 +26,18 @@ pub mod full_model;
 pub mod gradients;
 pub mod pivots;
 pub mod poisson;
+pub mod pose_scale;
 pub mod reduce;
 pub mod rotreg;
 pub mod scale_shear;
 pub mod selection;
 pub mod ssd;
+pub mod structure;
 
 use crate::import::example_set::ExampleSet;
 use crate::progress::Progress;
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
-use reduce::vertex::Stop;
-use reduce::Reduction;
 use rotreg::PoseFeatures;
 use selection::Selection;
 use ssd::Skinning;
@@ -52,14 +53,19 @@ pub enum Method {
     /// The paper's reduction of the full model (§5, §4.3), on the training poses and gentle
     /// poses meshed by the full model ([`augment`]).
     Paper,
+    /// One of the above, P and K chosen by cross-validation over the training poses
+    /// ([`structure`]).
+    Auto,
 }
 
 /// Every training default, in one place.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainOptions {
-    /// K: influences per vertex, of SSD and of the runtime model (4 or 8).
+    /// K: influences per vertex of SSD, and of the runtime model unless [`Method::Auto`]
+    /// chooses 8 (4 or 8).
     pub influences: usize,
-    /// P: proxy bones of the runtime model (0: train the full model only).
+    /// P: proxy bones of the runtime model (0: train the full model only); with
+    /// [`Method::Auto`], the P the candidates start from.
     pub proxies: usize,
     /// The paper's reduction: stop merging proxies earlier at this RMS fitting error (mesh
     /// units; the paper's ε).
@@ -84,7 +90,7 @@ impl Default for TrainOptions {
             proxies: 60,
             epsilon: None,
             folds: 4,
-            method: Method::JointBlend,
+            method: Method::Auto,
             gentle_scales: vec![augment::GENTLE_SCALE],
             full_model: true,
             quiet: false,
@@ -156,10 +162,11 @@ pub struct Trained {
     pub full: Option<Full>,
     /// The reduced model in f64 and the runtime model (None when P = 0).
     pub reduced: Option<Reduced>,
-    /// What the joint-blend keys' stretch fit chose (None for the paper's reduction).
-    pub stretch: Option<reduce::stretch::Stretch>,
-    /// What the joint-blend model's local refit chose (None for the paper's reduction).
-    pub refit: Option<reduce::refit::Refit>,
+    /// What the joint-blend model's stretch fit and refit chose (None for the paper's
+    /// reduction).
+    pub joint_blend: Option<structure::JointBlendFit>,
+    /// The runtime model's structure and, with [`Method::Auto`], every candidate's score.
+    pub structure: Option<structure::Chosen>,
     pub model: Option<rrskin::Model>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
@@ -195,15 +202,18 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             triangles: set.faces.len(),
         });
     }
-    let with_full = options.full_model || (options.proxies > 0 && options.method == Method::Paper);
+    let feats = PoseFeatures::all(set);
+    let pool = reduce::joint_blend::pool(set, &feats, &train);
+    let paper_wanted = options.method == Method::Paper;
+    let with_full = options.full_model || (options.proxies > 0 && paper_wanted);
     let steps = if with_full { options.folds + 3 } else { 2 };
+    let steps = steps + usize::from(options.method == Method::Auto);
     let progress = Progress::new("training", steps, options.quiet);
     let mut clock = Clock {
         last: Instant::now(),
         seconds: Vec::new(),
     };
 
-    let feats = PoseFeatures::all(set);
     progress.stage("SSD");
     let rigid_errors = ssd::rigid_errors(set, &train);
     let rigid = Skinning::rigid(&ssd::rigid_bones(&rigid_errors));
@@ -232,57 +242,57 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         }
     };
 
-    let (mut stretch, mut refit) = (None, None);
+    let mut joint_blend = None;
+    let mut structure = None;
     let (reduced, model) = match options.proxies {
         0 => (None, None),
         proxies => {
-            progress.stage("reduction");
-            let reduction = Reduction {
-                stop: Stop {
-                    proxies,
-                    epsilon: options.epsilon,
-                },
+            let fixed = |method| structure::Structure {
+                method,
+                proxies,
                 influences: k,
             };
-            let reduced = match (options.method, &full) {
-                (Method::Paper, Some(f)) if options.gentle_scales.is_empty() => {
-                    reduce::run(set, &f.prep, &train, &ssd, &f.model, &reduction)
-                }
-                (Method::Paper, Some(f)) => {
-                    let wider =
-                        augment::augment(set, &f.prep, &f.model, &ssd, &options.gentle_scales);
-                    reduce::run(
-                        &wider.set,
-                        &wider.prep,
-                        &wider.set.train(),
-                        &ssd,
-                        &f.model,
-                        &reduction,
-                    )
-                }
-                // Joint-blend proxies (the paper's reduction never lacks its full model).
-                _ => {
-                    let mut r = reduce::joint_blend::fit(set, &feats, &train, &ssd, proxies, k);
-                    stretch = Some(reduce::stretch::fit(
-                        set,
-                        &feats,
-                        &train,
-                        options.folds,
-                        &mut r,
-                    ));
-                    refit = Some(reduce::refit::refit(
-                        set,
-                        &feats,
-                        &train,
-                        options.folds,
-                        &mut r,
-                    ));
-                    reduce::joint_blend::reweight(set, &feats, &train, &ssd, k, &mut r);
-                    r
-                }
-            };
-            let model = reduced.to_runtime(set, k)?;
+            // Auto starts from its first candidate, which also fixes the ridges its folds use.
+            let first = fixed(match options.method {
+                Method::Auto => Method::JointBlend,
+                method => method,
+            });
+            progress.stage("reduction");
+            let full_parts = full.as_ref().map(|f| (&f.prep, &f.model));
+            let (mut reduced, mut fitted) =
+                structure::build(set, &feats, &ssd, full_parts, &first, options, None);
             clock.lap("reduction");
+            let chosen = match (options.method, &fitted) {
+                (Method::Auto, Some(f)) => {
+                    progress.stage("structure");
+                    let candidates = structure::candidates(options, pool);
+                    let c =
+                        structure::choose(set, &feats, &rigid, &candidates, f.ridges(), options);
+                    if c.structure != first {
+                        (reduced, fitted) = structure::build(
+                            set,
+                            &feats,
+                            &ssd,
+                            full_parts,
+                            &c.structure,
+                            options,
+                            None,
+                        );
+                    }
+                    clock.lap("structure");
+                    progress.step();
+                    c
+                }
+                _ => structure::Chosen {
+                    structure: first,
+                    candidates: Vec::new(),
+                    folds: 0,
+                    why: structure::Why::Asked,
+                },
+            };
+            joint_blend = fitted;
+            let model = reduced.to_runtime(set, chosen.structure.influences)?;
+            structure = Some(chosen);
             (Some(reduced), Some(model))
         }
     };
@@ -294,8 +304,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         ssd,
         full,
         reduced,
-        stretch,
-        refit,
+        joint_blend,
+        structure,
         model,
         seconds: clock.seconds,
     })

@@ -57,10 +57,7 @@ pub fn fit(
     influences: usize,
 ) -> Reduced {
     let pivot = pivots(set, train);
-    let moving = |b: usize| train.iter().any(|&i| feats[i].theta[b].length() > 1e-6);
-    let all: Vec<Proxy> = (0..set.bone_count())
-        .filter_map(|b| set.parents[b].map(|p| (b, p)))
-        .filter(|&(b, _)| moving(b))
+    let all: Vec<Proxy> = moving_joints(set, feats, train)
         .flat_map(|(bone, parent)| {
             FRACTIONS.map(|fraction| Proxy {
                 bone,
@@ -91,6 +88,23 @@ pub fn fit(
     let kept: Vec<Proxy> = order.iter().map(|&e| all[e]).collect();
     let skin = weights_over(&kept);
     assemble(set, &kept, skin, ssd)
+}
+
+/// The joints (bone, parent) that move in the `train` poses: each has a proxy per fraction.
+fn moving_joints<'a>(
+    set: &'a ExampleSet,
+    feats: &'a [PoseFeatures],
+    train: &'a [usize],
+) -> impl Iterator<Item = (usize, usize)> + 'a {
+    let moving = |b: usize| train.iter().any(|&i| feats[i].theta[b].length() > 1e-6);
+    (0..set.bone_count())
+        .filter_map(|b| set.parents[b].map(|p| (b, p)))
+        .filter(move |&(b, _)| moving(b))
+}
+
+/// How many candidate proxies [`fit`] chooses its P from: one per moving joint and fraction.
+pub fn pool(set: &ExampleSet, feats: &[PoseFeatures], train: &[usize]) -> usize {
+    moving_joints(set, feats, train).count() * FRACTIONS.len()
 }
 
 /// Refits `reduced`'s weights to its own proxy transforms (after [`super::refit`] moved them;

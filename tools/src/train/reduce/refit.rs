@@ -131,19 +131,42 @@ pub fn refit(
         .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
         .unwrap_or(RIDGES.len() - 1);
     let ridge = RIDGES[best];
-    if let Some(v) = ridge.and_then(|r| problem.solve(&all, &[Some(r)]).pop()) {
-        let (p, j) = (reduced.proxies, reduced.bones);
-        for (r, c, x) in problem.entries(&v) {
-            match c < 3 * p {
-                true => reduced.c1[r * 3 * p + c] += x,
-                false => reduced.c2[r * 4 * j + c - 3 * p] += x,
-            }
-        }
-    }
+    problem.apply(ridge, train.len(), reduced);
     Refit { ridge, held_out }
 }
 
+/// [`refit`] with the ridge given (None: C0 kept) instead of chosen; `held_out` is empty.
+pub fn refit_with(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    train: &[usize],
+    ridge: Option<f64>,
+    reduced: &mut Reduced,
+) -> Refit {
+    if ridge.is_some() {
+        Problem::new(set, feats, train, reduced).apply(ridge, train.len(), reduced);
+    }
+    Refit {
+        ridge,
+        held_out: Vec::new(),
+    }
+}
+
 impl Problem {
+    /// Solves on all `poses` training poses with `ridge` and adds Δ to `reduced`'s C.
+    fn apply(&self, ridge: Option<f64>, poses: usize, reduced: &mut Reduced) {
+        let all: Vec<usize> = (0..poses).collect();
+        if let Some(v) = ridge.and_then(|r| self.solve(&all, &[Some(r)]).pop()) {
+            let (p, j) = (reduced.proxies, reduced.bones);
+            for (r, c, x) in self.entries(&v) {
+                match c < 3 * p {
+                    true => reduced.c1[r * 3 * p + c] += x,
+                    false => reduced.c2[r * 4 * j + c - 3 * p] += x,
+                }
+            }
+        }
+    }
+
     fn new(
         set: &ExampleSet,
         feats: &[PoseFeatures],

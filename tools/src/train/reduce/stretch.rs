@@ -19,13 +19,17 @@
 //! normal equations is 3 copies of one 18 x 18 Gram matrix G_e = Σ α² (z ⊗ φ)(z ⊗ φ)ᵀ; the keys
 //! are coupled only through shared vertices, so block Gauss–Seidel over the keys solves it
 //! with one small Cholesky factor per key. λ is chosen by k-fold cross-validation over the
-//! training poses (None: the keys stay rigid).
+//! training poses, scored and ruled as the structure is ([`crate::train::structure`]: every
+//! held-out pose by its error relative to the rigid predictor's; the most regularised within
+//! one standard error of the best, None, the rigid keys, first).
 
 use crate::import::example_set::ExampleSet;
 use crate::linalg::DenseCholesky;
+use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::scale_shear;
+use crate::train::ssd::{self, Skinning};
 use glam::{DMat3, DVec3, DVec4};
 use rayon::prelude::*;
 
@@ -43,7 +47,8 @@ pub const RIDGES: [Option<f64>; 7] = [
 const SWEEPS: usize = 4;
 
 /// What the fit chose: the relative ridge (None: rigid keys kept) and every candidate's
-/// held-out error (Σ squared distances over the folds), in `RIDGES` order.
+/// held-out score (the mean over held-out training poses of the pose's squared error relative
+/// to the rigid predictor's, as [`crate::train::structure`] scores), in `RIDGES` order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stretch {
     pub ridge: Option<f64>,
@@ -236,35 +241,72 @@ pub fn fit(
         };
     }
     let problem = Problem::new(set, feats, train, reduced);
+    let rigid = Skinning::rigid(&ssd::rigid_bones(&ssd::rigid_errors(set, train)));
+    let normaliser = pose_scale::rigid_pose_errors(set, train, &rigid);
     let all: Vec<usize> = (0..train.len()).collect();
     let cases: Vec<(usize, usize)> = (0..folds)
         .flat_map(|fold| (0..RIDGES.len()).map(move |c| (fold, c)))
         .collect();
-    let scores: Vec<f64> = cases
+    // Per case, per held-out pose: (pose, its error relative to the rigid predictor's).
+    let scores: Vec<Vec<(usize, f64)>> = cases
         .par_iter()
         .map(|&(fold, c)| {
             let held = all.iter().copied().filter(|n| n % folds == fold);
-            match RIDGES[c] {
-                None => held.map(|n| problem.error(&[], n)).sum(),
+            let h = match RIDGES[c] {
+                None => Vec::new(),
                 Some(ridge) => {
                     let inner: Vec<usize> =
                         all.iter().copied().filter(|n| n % folds != fold).collect();
-                    let h = problem.solve(&inner, ridge);
-                    held.map(|n| problem.error(&h, n)).sum()
+                    problem.solve(&inner, ridge)
                 }
-            }
+            };
+            held.map(|n| (n, problem.error(&h, n) / normaliser[n]))
+                .collect()
         })
         .collect();
-    let mut held_out = vec![0.0; RIDGES.len()];
+    let mut relative = vec![vec![0.0; train.len()]; RIDGES.len()];
     for (&(_, c), s) in cases.iter().zip(&scores) {
-        held_out[c] += s;
+        for &(n, e) in s {
+            relative[c][n] = e;
+        }
     }
+    let scored = pose_scale::scores(&relative);
+    let best = scored.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+    // The one-standard-error rule, from the most regularised (rigid keys, then the strongest
+    // ridge) toward the weakest.
     let best = (0..RIDGES.len())
-        .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
+        .rev()
+        .find(|&c| scored[c].0 <= best + scored[c].1)
         .unwrap_or(RIDGES.len() - 1);
+    let held_out = scored.iter().map(|s| s.0).collect();
     let ridge = RIDGES[best];
-    if let Some(r) = ridge {
-        let h = problem.solve(&all, r);
+    problem.apply(ridge, reduced);
+    Stretch { ridge, held_out }
+}
+
+/// [`fit`] with the ridge given (None: rigid keys) instead of chosen; `held_out` is empty.
+pub fn fit_with(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    train: &[usize],
+    ridge: Option<f64>,
+    reduced: &mut Reduced,
+) -> Stretch {
+    if ridge.is_some() && reduced.proxies > 0 {
+        Problem::new(set, feats, train, reduced).apply(ridge, reduced);
+    }
+    Stretch {
+        ridge,
+        held_out: Vec::new(),
+    }
+}
+
+impl Problem {
+    /// Solves on every training pose with `ridge` and adds H' to `reduced`'s keys.
+    fn apply(&self, ridge: Option<f64>, reduced: &mut Reduced) {
+        let Some(r) = ridge else { return };
+        let all: Vec<usize> = (0..self.residual.len()).collect();
+        let h = self.solve(&all, r);
         for (k, he) in reduced.predictors.iter_mut().zip(&h) {
             for r in 0..3 {
                 for c in 0..3 {
@@ -275,5 +317,4 @@ pub fn fit(
             }
         }
     }
-    Stretch { ridge, held_out }
 }

@@ -1,0 +1,98 @@
+//! Per-pose normalisers for scoring the runtime model's structure on held-out training poses
+//! (beyond the paper; docs/method.md §18). Random range-of-motion training poses are far wider
+//! than animation, and a plain sum of squared errors over them is carried by the widest,
+//! where every error is largest. Each pose is weighted instead by the inverse of the rigid
+//! predictor's squared error in it, the denominator of the pose's EE², so that every pose
+//! counts by its relative error, as a gentle animation pose does in the held-out EE. The rigid
+//! error is floored at a tenth of its mean over the poses: at or near the rest pose, where it
+//! vanishes, any error would otherwise carry everything. (Weighting the joint-blend fits
+//! themselves the same way changed nothing measurable: docs/experiments.md.)
+
+use crate::import::example_set::ExampleSet;
+use crate::train::ssd::Skinning;
+
+/// The floor of a pose's rigid error, relative to the mean over the poses.
+pub const FLOOR: f64 = 0.1;
+
+/// Per pose of `poses`, the rigid predictor's squared error Σ_a |r_a − y_a|², floored at
+/// [`FLOOR`] of the mean.
+pub fn rigid_pose_errors(set: &ExampleSet, poses: &[usize], rigid: &Skinning) -> Vec<f64> {
+    let errors: Vec<f64> = poses
+        .iter()
+        .map(|&i| {
+            let pose = &set.poses[i];
+            rigid
+                .deform(&set.rest, &pose.bones)
+                .iter()
+                .zip(&pose.vertices)
+                .map(|(r, y)| (*r - *y).length_squared())
+                .sum()
+        })
+        .collect();
+    let mean = errors.iter().sum::<f64>() / errors.len().max(1) as f64;
+    let floor = (FLOOR * mean).max(f64::MIN_POSITIVE);
+    errors.iter().map(|&e| e.max(floor)).collect()
+}
+
+/// Per candidate (rows of `relative`: its per-pose scores), the mean score and the standard
+/// error of its per-pose difference to the best candidate's (zero for the best itself): what the
+/// one-standard-error rule compares.
+pub fn scores(relative: &[Vec<f64>]) -> Vec<(f64, f64)> {
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let means: Vec<f64> = relative.iter().map(|r| mean(r)).collect();
+    let best = (0..means.len())
+        .min_by(|&x, &y| means[x].total_cmp(&means[y]))
+        .unwrap_or(0);
+    relative
+        .iter()
+        .zip(&means)
+        .map(|(r, &score)| {
+            let diff: Vec<f64> = r.iter().zip(&relative[best]).map(|(x, y)| x - y).collect();
+            let m = mean(&diff);
+            let n = diff.len();
+            let variance =
+                diff.iter().map(|d| (d - m).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
+            (score, (variance / n.max(1) as f64).sqrt())
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::import::example_set::{Bone, Pose};
+    use glam::{DMat3, DVec3};
+
+    /// One vertex on one bone that stays put: its pose errors are its displacements squared.
+    fn set_with_offsets(offsets: &[f64]) -> ExampleSet {
+        let bone = Bone {
+            q: DMat3::IDENTITY,
+            d: DVec3::ZERO,
+        };
+        ExampleSet {
+            rest: vec![DVec3::ZERO],
+            faces: Vec::new(),
+            parents: vec![None],
+            bone_names: None,
+            poses: offsets
+                .iter()
+                .map(|&x| Pose {
+                    bones: vec![bone],
+                    vertices: vec![DVec3::new(x, 0.0, 0.0)],
+                })
+                .collect(),
+            is_test: vec![false; offsets.len()],
+            rig_weights: None,
+            warnings: Vec::new(),
+        }
+    }
+
+    /// A pose's error is its rigid squared error; the rest pose's (zero) is the floor.
+    #[test]
+    fn rigid_pose_errors_are_floored() {
+        let set = set_with_offsets(&[1.0, 2.0, 0.0]);
+        let e = rigid_pose_errors(&set, &[0, 1, 2], &Skinning::rigid(&[0]));
+        assert_eq!(&e[..2], &[1.0, 4.0]);
+        assert!((e[2] - FLOOR * 5.0 / 3.0).abs() < 1e-15, "{e:?}");
+    }
+}

@@ -1,0 +1,335 @@
+//! The runtime model's structure, chosen per set on the training poses (beyond the paper;
+//! docs/method.md §18): how many joint-blend proxies (P).
+//!
+//! Every candidate is trained end to end on k − 1 folds of the training poses (with the
+//! stretch and refit ridges chosen once on all of them) and scored on the held-out fold. Two things make this differ from plain cross-validation, both because the
+//! training poses are random range-of-motion poses, far wider than the animation a model is
+//! used for, and cross-validation over them prefers what fits wide poses (docs/experiments.md):
+//!
+//! - **The score weighs every held-out pose alike**: its squared vertex error relative to the
+//!   rigid predictor's in the same pose (the pose's EE²), averaged over the poses. The plain
+//!   sum of squared errors is carried by the widest poses, whose rigid error is largest.
+//! - **The one-standard-error rule** (Breiman et al. 1984): the candidates are listed in an
+//!   order fixed in advance, most robust and cheapest first (fewer proxies first), and the
+//!   first whose score is within one
+//!   standard error of the best (the paired per-pose difference's), or within
+//!   [`TOLERANCE`] of its EE, is kept. A more flexible structure has to win clearly on the
+//!   training poses, not by what a different held-out fold or the gentler animation undoes.
+
+use crate::import::example_set::ExampleSet;
+use crate::train::full_model::{self, Prepared};
+use crate::train::reduce::c1c2::Reduced;
+use crate::train::reduce::refit::{self, Refit};
+use crate::train::reduce::stretch::{self, Stretch};
+use crate::train::reduce::{self, joint_blend, vertex::Stop, Reduction};
+use crate::train::rotreg::PoseFeatures;
+use crate::train::ssd::{self, Skinning};
+use crate::train::{augment, pose_scale, Method, TrainOptions};
+
+/// One runtime model structure. `method` is never [`Method::Auto`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Structure {
+    pub method: Method,
+    pub proxies: usize,
+    pub influences: usize,
+}
+
+/// A candidate's cross-validated score: the mean over held-out poses of the pose's relative
+/// squared error (EE² / 100²), and the standard error of its per-pose difference to the best.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scored {
+    pub structure: Structure,
+    pub score: f64,
+    pub standard_error: f64,
+}
+
+/// What [`choose`] chose, with every candidate's score in the order they were considered.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chosen {
+    pub structure: Structure,
+    pub candidates: Vec<Scored>,
+    pub folds: usize,
+    pub why: Why,
+}
+
+/// How the structure came to be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Why {
+    /// The caller named it (`--reduction joint-blend` or `paper`).
+    Asked,
+    /// The rig has one candidate (no more joint-blend proxies than P).
+    OnlyCandidate,
+    /// Too few training poses to cross-validate: the first candidate.
+    TooFewPoses,
+    /// Chosen by cross-validation (`candidates` holds the scores).
+    CrossValidated,
+}
+
+/// The candidates, most robust first (see the module docs). P_max = `options.proxies`, K =
+/// `options.influences` (the engine's skinning budget, not chosen here):
+///
+/// - joint-blend proxies, P_max;
+/// - joint-blend with 1.5 P_max, when the set has more candidate proxies than P_max.
+///
+/// The paper's reduction and K = 8 were candidates too and are not (docs/experiments.md): the
+/// paper's reduction never won on seven sets and its folds cost 30–50 s per CesiumMan training;
+/// K = 8 is the engine's choice (`--influences 8`), past the runtime's 1.1x cost budget.
+pub fn candidates(options: &TrainOptions, pool: usize) -> Vec<Structure> {
+    let (p, k) = (options.proxies, options.influences);
+    let joint_blend = |proxies| Structure {
+        method: Method::JointBlend,
+        proxies,
+        influences: k,
+    };
+    let mut out = vec![joint_blend(p)];
+    if pool > p {
+        out.push(joint_blend(p + p / 2));
+    }
+    out
+}
+
+/// What a joint-blend model's two cross-validated fits chose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointBlendFit {
+    pub stretch: Stretch,
+    pub refit: Refit,
+}
+
+/// The ridges of a joint-blend model's stretch fit and refit, fixed instead of chosen by
+/// cross-validation (inside [`choose`]'s folds: chosen there they would nest one
+/// cross-validation in another).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ridges {
+    pub stretch: Option<f64>,
+    pub refit: Option<f64>,
+}
+
+impl JointBlendFit {
+    pub fn ridges(&self) -> Ridges {
+        Ridges {
+            stretch: self.stretch.ridge,
+            refit: self.refit.ridge,
+        }
+    }
+}
+
+/// Trains `structure` on `set`'s training poses (`ssd` fitted on them; `full` the full model
+/// fitted on them, needed by the paper's reduction). A joint-blend model's ridges are chosen
+/// by cross-validation unless `ridges` fixes them (then the returned fit holds no scores).
+pub fn build(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    ssd: &Skinning,
+    full: Option<(&Prepared, &full_model::FullModel)>,
+    structure: &Structure,
+    options: &TrainOptions,
+    ridges: Option<Ridges>,
+) -> (Reduced, Option<JointBlendFit>) {
+    let train = set.train();
+    let k = structure.influences;
+    match (structure.method, full) {
+        (Method::Paper, Some((prep, model))) => {
+            let reduction = Reduction {
+                stop: Stop {
+                    proxies: structure.proxies,
+                    epsilon: options.epsilon,
+                },
+                influences: k,
+            };
+            let reduced = match options.gentle_scales.is_empty() {
+                true => reduce::run(set, prep, &train, ssd, model, &reduction),
+                false => {
+                    let wider = augment::augment(set, prep, model, ssd, &options.gentle_scales);
+                    let wide_train = wider.set.train();
+                    reduce::run(&wider.set, &wider.prep, &wide_train, ssd, model, &reduction)
+                }
+            };
+            (reduced, None)
+        }
+        // Joint-blend proxies (the paper's reduction is never built without its model).
+        _ => {
+            let mut r = joint_blend::fit(set, feats, &train, ssd, structure.proxies, k);
+            let fitted = match ridges {
+                None => JointBlendFit {
+                    stretch: stretch::fit(set, feats, &train, options.folds, &mut r),
+                    refit: refit::refit(set, feats, &train, options.folds, &mut r),
+                },
+                Some(fixed) => JointBlendFit {
+                    stretch: stretch::fit_with(set, feats, &train, fixed.stretch, &mut r),
+                    refit: refit::refit_with(set, feats, &train, fixed.refit, &mut r),
+                },
+            };
+            joint_blend::reweight(set, feats, &train, ssd, k, &mut r);
+            (r, Some(fitted))
+        }
+    }
+}
+
+/// `set` with the poses of `held` marked held out, so that everything trained on it sees the
+/// other training poses only.
+fn without(set: &ExampleSet, held: &[usize]) -> ExampleSet {
+    let mut inner = set.clone();
+    for &i in held {
+        inner.is_test[i] = true;
+    }
+    inner
+}
+
+/// Cross-validates `candidates` over the training poses of `set` and keeps one by the
+/// one-standard-error rule (module docs). `rigid`: the rigid predictor whose per-pose error
+/// normalises each held-out pose; `ridges`: the joint-blend fits' ridges, chosen once on all
+/// training poses (for the first candidate) and fixed inside the folds.
+pub fn choose(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    rigid: &Skinning,
+    candidates: &[Structure],
+    ridges: Ridges,
+    options: &TrainOptions,
+) -> Chosen {
+    let train = set.train();
+    let folds = options.folds.min(train.len());
+    if folds < 2 || candidates.len() < 2 {
+        return Chosen {
+            structure: candidates[0],
+            candidates: Vec::new(),
+            folds,
+            why: match candidates.len() < 2 {
+                true => Why::OnlyCandidate,
+                false => Why::TooFewPoses,
+            },
+        };
+    }
+    let normaliser = pose_scale::rigid_pose_errors(set, &train, rigid);
+    // Per candidate, per training pose (in `train` order): held-out relative squared error.
+    let mut relative = vec![vec![0.0; train.len()]; candidates.len()];
+    for fold in 0..folds {
+        let held: Vec<usize> = (0..train.len()).filter(|n| n % folds == fold).collect();
+        let held_poses: Vec<usize> = held.iter().map(|&n| train[n]).collect();
+        let inner_set = without(set, &held_poses);
+        let inner = inner_set.train();
+        let ssd = ssd::fit(
+            &inner_set,
+            &inner,
+            &ssd::rigid_errors(&inner_set, &inner),
+            options.influences,
+        );
+        for (c, structure) in candidates.iter().enumerate() {
+            let (reduced, _) = build(
+                &inner_set,
+                feats,
+                &ssd,
+                None,
+                structure,
+                options,
+                Some(ridges),
+            );
+            for (&n, &i) in held.iter().zip(&held_poses) {
+                let pose = &set.poses[i];
+                let y = reduced.predict(set, &feats[i], &pose.bones);
+                relative[c][n] = squared(&y, &pose.vertices) / normaliser[n];
+            }
+        }
+    }
+    let scored = one_standard_error(candidates, &relative);
+    let kept = pick(&scored);
+    Chosen {
+        structure: scored[kept].structure,
+        candidates: scored,
+        folds,
+        why: Why::CrossValidated,
+    }
+}
+
+fn squared(a: &[glam::DVec3], b: &[glam::DVec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum::<f64>()
+}
+
+/// Every candidate's mean per-pose score and the standard error of its per-pose difference to
+/// the best's ([`pose_scale::scores`]).
+fn one_standard_error(candidates: &[Structure], relative: &[Vec<f64>]) -> Vec<Scored> {
+    candidates
+        .iter()
+        .zip(pose_scale::scores(relative))
+        .map(|(&structure, (score, standard_error))| Scored {
+            structure,
+            score,
+            standard_error,
+        })
+        .collect()
+}
+
+/// Below this relative EE difference a more flexible (and for K = 8 or a larger P, costlier)
+/// structure is not worth it: differences of a few percent on held-out range-of-motion poses
+/// are what the animation's gentler poses undo (docs/experiments.md).
+pub const TOLERANCE: f64 = 0.03;
+
+/// The first candidate within one standard error, or within [`TOLERANCE`] of EE, of the best.
+fn pick(scored: &[Scored]) -> usize {
+    let best = scored.iter().map(|s| s.score).fold(f64::INFINITY, f64::min);
+    let within = (1.0 + TOLERANCE).powi(2) * best;
+    scored
+        .iter()
+        .position(|s| s.score <= (best + s.standard_error).max(within))
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn joint_blend(proxies: usize, influences: usize) -> Structure {
+        Structure {
+            method: Method::JointBlend,
+            proxies,
+            influences,
+        }
+    }
+
+    /// More proxies are a candidate only where the pool has them; K stays the caller's.
+    #[test]
+    fn candidates_follow_the_rig() {
+        let options = TrainOptions::default();
+        let (p, k) = (options.proxies, options.influences);
+        assert_eq!(
+            candidates(&options, 3 * p,),
+            vec![joint_blend(p, k), joint_blend(p + p / 2, k)]
+        );
+        assert_eq!(candidates(&options, p), vec![joint_blend(p, k)]);
+    }
+
+    /// Per-pose scores of three candidates over four poses: the rule keeps the first that is
+    /// not clearly beaten.
+    #[test]
+    fn the_first_candidate_not_clearly_beaten_is_kept() {
+        let structures = [joint_blend(60, 4), joint_blend(60, 8), joint_blend(90, 4)];
+        let clear = vec![
+            vec![1.0, 2.0, 1.0, 2.0],
+            vec![0.81, 1.62, 0.81, 1.62],
+            vec![1.0, 2.0, 1.0, 2.0],
+        ];
+        let scored = one_standard_error(&structures, &clear);
+        assert_eq!(scored[1].standard_error, 0.0);
+        assert_eq!(pick(&scored), 1);
+        // A gain of 3.4 % EE that one pose of four carries and another undoes: within one
+        // standard error.
+        let noisy = vec![
+            vec![1.0, 2.0, 1.0, 2.0],
+            vec![0.2, 2.0, 1.0, 2.4],
+            vec![1.0, 2.0, 1.0, 2.0],
+        ];
+        let scored = one_standard_error(&structures, &noisy);
+        assert!(scored[0].standard_error > 0.0);
+        assert_eq!(pick(&scored), 0);
+        // A consistent gain of 1 % EE: below the tolerance.
+        let base = [1.0, 2.0, 1.0, 2.0];
+        let small: Vec<Vec<f64>> = [1.0, 0.99f64.powi(2), 1.0]
+            .iter()
+            .map(|f| base.iter().map(|x| x * f).collect())
+            .collect();
+        assert_eq!(pick(&one_standard_error(&structures, &small)), 0);
+    }
+}
