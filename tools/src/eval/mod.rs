@@ -14,7 +14,7 @@ pub mod dqs;
 use crate::import::example_set::ExampleSet;
 use crate::train::selection::{squared_error, Choice};
 use crate::train::ssd::{self, Skinning};
-use crate::train::structure::{Chosen, Structure, Why};
+use crate::train::structure::{Chosen, Ridges, Structure, Why};
 use crate::train::{full_model, Method, TrainOptions, Trained};
 use crate::{Error, Result};
 use glam::DVec3;
@@ -68,9 +68,9 @@ pub struct Report {
     /// The full model's F percentile, ridge and fallback chosen by cross-validation, and the
     /// mean weight of the regression in the triangles' blended gradients (1: the paper).
     pub choice: Option<(Choice, f64)>,
-    /// The joint-blend model's key-stretch ridge and C refit ridge, chosen by cross-validation
-    /// (None inside: the keys kept rigid, C0 kept; None: not a joint-blend model trained here).
-    pub joint_blend: Option<(Option<f64>, Option<f64>)>,
+    /// The joint-blend model's key-stretch and C refit ridges, chosen by cross-validation (None
+    /// inside: the keys kept rigid, C0 kept; None: not a joint-blend model trained here).
+    pub joint_blend: Option<Ridges>,
     /// Folds of the cross-validation that made `choice` (below 2: none, fixed choices).
     pub folds: usize,
     /// Wall time per stage, in order.
@@ -193,7 +193,7 @@ impl Report {
                 choice.percentile, choice.ridge, choice.blend
             );
         }
-        if let Some((stretch, refit)) = self.joint_blend {
+        if let Some(Ridges { stretch, refit }) = self.joint_blend {
             let ridge =
                 |r: Option<f64>, none: &str| r.map_or(none.to_string(), |r| format!("ridge {r:e}"));
             s += &format!(
@@ -490,10 +490,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
                 alpha.iter().sum::<f64>() / alpha.len().max(1) as f64,
             )
         }),
-        joint_blend: trained
-            .joint_blend
-            .as_ref()
-            .map(|f| (f.stretch.ridge, f.refit.ridge)),
+        joint_blend: trained.joint_blend.as_ref().map(|f| f.ridges()),
         folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,

@@ -17,7 +17,7 @@
 //! | or: joint-blend proxies, the usual runtime model | [`reduce::joint_blend`] | beyond the paper |
 //! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
-//! | which of these, P and K: chosen per set | [`structure`] | beyond the paper |
+//! | how many joint-blend proxies: chosen per set | [`structure`] | beyond the paper |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
 
@@ -53,7 +53,7 @@ pub enum Method {
     /// The paper's reduction of the full model (§5, §4.3), on the training poses and gentle
     /// poses meshed by the full model ([`augment`]).
     Paper,
-    /// One of the above, P and K chosen by cross-validation over the training poses
+    /// Joint-blend proxies, P chosen by cross-validation over the training poses
     /// ([`structure`]).
     Auto,
 }
@@ -61,8 +61,7 @@ pub enum Method {
 /// Every training default, in one place.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainOptions {
-    /// K: influences per vertex of SSD, and of the runtime model unless [`Method::Auto`]
-    /// chooses 8 (4 or 8).
+    /// K: influences per vertex, of SSD and of the runtime model (4 or 8).
     pub influences: usize,
     /// P: proxy bones of the runtime model (0: train the full model only); with
     /// [`Method::Auto`], the P the candidates start from.
@@ -204,8 +203,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     }
     let feats = PoseFeatures::all(set);
     let pool = reduce::joint_blend::pool(set, &feats, &train);
-    let paper_wanted = options.method == Method::Paper;
-    let with_full = options.full_model || (options.proxies > 0 && paper_wanted);
+    let with_full = options.full_model || (options.proxies > 0 && options.method == Method::Paper);
     let steps = if with_full { options.folds + 3 } else { 2 };
     let steps = steps + usize::from(options.method == Method::Auto);
     let progress = Progress::new("training", steps, options.quiet);
@@ -247,16 +245,15 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let (reduced, model) = match options.proxies {
         0 => (None, None),
         proxies => {
-            let fixed = |method| structure::Structure {
-                method,
+            // Auto starts from its first candidate, which also fixes the ridges its folds use.
+            let first = structure::Structure {
+                method: match options.method {
+                    Method::Auto => Method::JointBlend,
+                    method => method,
+                },
                 proxies,
                 influences: k,
             };
-            // Auto starts from its first candidate, which also fixes the ridges its folds use.
-            let first = fixed(match options.method {
-                Method::Auto => Method::JointBlend,
-                method => method,
-            });
             progress.stage("reduction");
             let full_parts = full.as_ref().map(|f| (&f.prep, &f.model));
             let (mut reduced, mut fitted) =

@@ -57,6 +57,21 @@ pub fn scores(relative: &[Vec<f64>]) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// The one-standard-error rule (Breiman et al. 1984) over [`scores`]: the first candidate in
+/// `order` (most robust first) whose score is within one standard error of the best, or
+/// within `tolerance` of the best's EE (a score is EE²).
+pub fn first_within(
+    scored: &[(f64, f64)],
+    order: impl IntoIterator<Item = usize>,
+    tolerance: f64,
+) -> Option<usize> {
+    let best = scored.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+    let within = (1.0 + tolerance).powi(2) * best;
+    order
+        .into_iter()
+        .find(|&c| scored[c].0 <= (best + scored[c].1).max(within))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

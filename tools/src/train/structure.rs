@@ -23,6 +23,7 @@ use crate::train::reduce::refit::{self, Refit};
 use crate::train::reduce::stretch::{self, Stretch};
 use crate::train::reduce::{self, joint_blend, vertex::Stop, Reduction};
 use crate::train::rotreg::PoseFeatures;
+use crate::train::selection::squared_error;
 use crate::train::ssd::{self, Skinning};
 use crate::train::{augment, pose_scale, Method, TrainOptions};
 
@@ -225,9 +226,8 @@ pub fn choose(
                 Some(ridges),
             );
             for (&n, &i) in held.iter().zip(&held_poses) {
-                let pose = &set.poses[i];
-                let y = reduced.predict(set, &feats[i], &pose.bones);
-                relative[c][n] = squared(&y, &pose.vertices) / normaliser[n];
+                let y = reduced.predict(set, &feats[i], &set.poses[i].bones);
+                relative[c][n] = squared_error(set, &[i], &[y]) / normaliser[n];
             }
         }
     }
@@ -239,13 +239,6 @@ pub fn choose(
         folds,
         why: Why::CrossValidated,
     }
-}
-
-fn squared(a: &[glam::DVec3], b: &[glam::DVec3]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (*x - *y).length_squared())
-        .sum::<f64>()
 }
 
 /// Every candidate's mean per-pose score and the standard error of its per-pose difference to
@@ -269,12 +262,8 @@ pub const TOLERANCE: f64 = 0.03;
 
 /// The first candidate within one standard error, or within [`TOLERANCE`] of EE, of the best.
 fn pick(scored: &[Scored]) -> usize {
-    let best = scored.iter().map(|s| s.score).fold(f64::INFINITY, f64::min);
-    let within = (1.0 + TOLERANCE).powi(2) * best;
-    scored
-        .iter()
-        .position(|s| s.score <= (best + s.standard_error).max(within))
-        .unwrap_or(0)
+    let pairs: Vec<(f64, f64)> = scored.iter().map(|s| (s.score, s.standard_error)).collect();
+    pose_scale::first_within(&pairs, 0..pairs.len(), TOLERANCE).unwrap_or(0)
 }
 
 #[cfg(test)]

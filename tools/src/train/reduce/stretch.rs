@@ -160,7 +160,7 @@ impl Problem {
                     let phi = &self.phi[n][e];
                     for &(_, alpha, z) in &self.members[e] {
                         let z = z.to_array();
-                        let v: Vec<f64> = (0..18).map(|u| alpha * z[u / 6] * phi[u % 6]).collect();
+                        let v: [f64; 18] = std::array::from_fn(|u| alpha * z[u / 6] * phi[u % 6]);
                         for r in 0..18 {
                             for c in 0..18 {
                                 g[r * 18 + c] += v[r] * v[c];
@@ -210,6 +210,22 @@ impl Problem {
             }
         }
         h
+    }
+
+    /// Solves on every training pose with `ridge` and adds H' to `reduced`'s keys.
+    fn apply(&self, ridge: Option<f64>, reduced: &mut Reduced) {
+        let Some(r) = ridge else { return };
+        let all: Vec<usize> = (0..self.residual.len()).collect();
+        let h = self.solve(&all, r);
+        for (k, he) in reduced.predictors.iter_mut().zip(&h) {
+            for r in 0..3 {
+                for c in 0..3 {
+                    for f in 0..6 {
+                        k.stretch[7 * (3 * r + c) + f] += he[r * 18 + c * 6 + f];
+                    }
+                }
+            }
+        }
     }
 
     /// Σ squared distances on training pose n with coefficients h.
@@ -271,13 +287,9 @@ pub fn fit(
         }
     }
     let scored = pose_scale::scores(&relative);
-    let best = scored.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
-    // The one-standard-error rule, from the most regularised (rigid keys, then the strongest
-    // ridge) toward the weakest.
-    let best = (0..RIDGES.len())
-        .rev()
-        .find(|&c| scored[c].0 <= best + scored[c].1)
-        .unwrap_or(RIDGES.len() - 1);
+    // The most regularised first: rigid keys, then the strongest ridge.
+    let best =
+        pose_scale::first_within(&scored, (0..RIDGES.len()).rev(), 0.0).unwrap_or(RIDGES.len() - 1);
     let held_out = scored.iter().map(|s| s.0).collect();
     let ridge = RIDGES[best];
     problem.apply(ridge, reduced);
@@ -298,23 +310,5 @@ pub fn fit_with(
     Stretch {
         ridge,
         held_out: Vec::new(),
-    }
-}
-
-impl Problem {
-    /// Solves on every training pose with `ridge` and adds H' to `reduced`'s keys.
-    fn apply(&self, ridge: Option<f64>, reduced: &mut Reduced) {
-        let Some(r) = ridge else { return };
-        let all: Vec<usize> = (0..self.residual.len()).collect();
-        let h = self.solve(&all, r);
-        for (k, he) in reduced.predictors.iter_mut().zip(&h) {
-            for r in 0..3 {
-                for c in 0..3 {
-                    for f in 0..6 {
-                        k.stretch[7 * (3 * r + c) + f] += he[r * 18 + c * 6 + f];
-                    }
-                }
-            }
-        }
     }
 }
