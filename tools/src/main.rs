@@ -152,6 +152,10 @@ struct TrainArgs {
     /// paper's reduction of the full model.
     #[arg(long, value_enum, default_value_t = Reduction::Auto)]
     reduction: Reduction,
+    /// At most this many pose-space corrective targets on the runtime model (0: none; the
+    /// cross-validation over the training poses may keep none).
+    #[arg(long, default_value_t = TrainOptions::default().correctives)]
+    correctives: usize,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     no_gentle_poses: bool,
@@ -174,6 +178,7 @@ impl TrainArgs {
             influences: self.influences,
             proxies: self.proxies,
             epsilon: self.epsilon,
+            correctives: self.correctives,
             method: match self.reduction {
                 Reduction::Auto => Method::Auto,
                 Reduction::JointBlend => Method::JointBlend,

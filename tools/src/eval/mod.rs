@@ -26,6 +26,19 @@ pub struct Errors {
     pub test: Option<f64>,
 }
 
+/// What [`crate::train::corrective::fit`] chose for the runtime model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Correctives {
+    /// None: cross-validation kept none.
+    pub ridge: Option<f64>,
+    /// N and D of the model (0 without correctives).
+    pub targets: usize,
+    pub drivers: usize,
+    /// Per candidate (none, then [`crate::train::corrective::RIDGES`]): the mean held-out score
+    /// and its standard error to the best.
+    pub scores: Vec<(f64, f64)>,
+}
+
 /// The error budget: oracle ceilings (see [`diagnose`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Budget {
@@ -71,6 +84,9 @@ pub struct Report {
     /// The joint-blend model's key-stretch and C refit ridges, chosen by cross-validation (None
     /// inside: the keys kept rigid, C0 kept; None: not a joint-blend model trained here).
     pub joint_blend: Option<Ridges>,
+    /// The runtime model's pose-space correctives: what cross-validation chose, and the targets
+    /// and drivers kept (None: not asked for, or no runtime model trained here).
+    pub correctives: Option<Correctives>,
     /// Folds of the cross-validation that made `choice` (below 2: none, fixed choices).
     pub folds: usize,
     /// Wall time per stage, in order.
@@ -110,6 +126,13 @@ impl Report {
             "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
             "structure": self.structure.as_ref().map(structure_json),
+            "correctives": self.correctives.as_ref().map(|c| serde_json::json!({
+                "ridge": c.ridge, "targets": c.targets, "drivers": c.drivers,
+                "candidates": std::iter::once(None).chain(crate::train::corrective::RIDGES.map(Some))
+                    .zip(&c.scores)
+                    .map(|(ridge, (score, se))| serde_json::json!({"ridge": ridge, "score": score, "standard_error": se}))
+                    .collect::<Vec<_>>(),
+            })),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
                 "full_exact_gradients": errors(&b.full_exact),
                 "reduced_oracle_proxies": errors(&b.reduced_oracle),
@@ -201,6 +224,15 @@ impl Report {
                 ridge(stretch, "none (rigid keys)"),
                 ridge(refit, "none (C0)")
             );
+        }
+        if let Some(c) = &self.correctives {
+            s += &match c.ridge {
+                Some(r) => format!(
+                    "pose-space correctives: N = {} targets driven by D = {} joints, ridge {r:e} ({chosen}, one-standard-error rule)\n",
+                    c.targets, c.drivers
+                ),
+                None => format!("pose-space correctives: none ({chosen}, one-standard-error rule)\n"),
+            };
         }
         let d = &self.ddm_params;
         s += &format!(
@@ -491,6 +523,12 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
             )
         }),
         joint_blend: trained.joint_blend.as_ref().map(|f| f.ridges()),
+        correctives: trained.correctives.as_ref().map(|f| Correctives {
+            ridge: f.ridge,
+            targets: f.correctives.as_ref().map_or(0, |c| c.targets.len()),
+            drivers: f.correctives.as_ref().map_or(0, |c| c.drivers.len()),
+            scores: f.scores.clone(),
+        }),
         folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,

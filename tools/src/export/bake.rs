@@ -6,7 +6,8 @@
 //! included. Samples are placed where they are needed: between two samples a viewer lerps t and
 //! Σ and slerps U and Vᵀ, and every interval is halved (up to [`MAX_DEPTH`] times) until that
 //! playback stays within the tolerance of the model evaluated at the clip's own pose, at a
-//! quarter, half and three quarters of the interval.
+//! quarter, half and three quarters of the interval. A model's pose-space correctives are
+//! baked the same way, as morph-target weights that a viewer lerps between samples.
 
 use crate::import::example_set::Bone;
 use crate::linalg::{polar, svd3};
@@ -34,11 +35,13 @@ pub struct NodePair {
     pub child_rotation: DQuat,
 }
 
-/// A baked clip: sample times (seconds, increasing) and per sample the P + J node pairs.
+/// A baked clip: sample times (seconds, increasing) and per sample the P + J node pairs and
+/// the N corrective weights.
 #[derive(Debug, Clone)]
 pub struct Baked {
     pub times: Vec<f64>,
     pub samples: Vec<Vec<NodePair>>,
+    pub weights: Vec<Vec<f32>>,
     /// The largest vertex distance between the played file and the model, at the samples and
     /// between them (where it was checked), in the mesh's units.
     pub worst_at_samples: f64,
@@ -178,10 +181,14 @@ pub fn bake(
     step: bool,
     tolerance: f64,
 ) -> rrskin::Result<Baked> {
-    let entries = |t: f64| -> rrskin::Result<Vec<Affine>> {
+    // The palette and the corrective weights at time t.
+    let entries = |t: f64| -> rrskin::Result<(Vec<Affine>, Vec<f32>)> {
+        let bones = pose_at(t);
         let mut out = vec![[0.0; 12]; palette.len()];
-        palette.compute(&pose_at(t), &mut out)?;
-        Ok(out)
+        palette.compute(&bones, &mut out)?;
+        let mut weights = vec![0.0; palette.corrective_count()];
+        palette.corrective_weights(&bones, &mut weights)?;
+        Ok((out, weights))
     };
     let pairs = |a: &[Affine], previous: Option<&[NodePair]>| -> Vec<NodePair> {
         a.iter()
@@ -191,9 +198,12 @@ pub fn bake(
     };
     let v = palette.model().vertex_count();
     let (mut want, mut got) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
-    let mut distance = |reference: &[Affine], played: &[Affine]| -> rrskin::Result<f64> {
-        palette.skin_positions(reference, &mut want)?;
-        palette.skin_positions(played, &mut got)?;
+    let mut distance = |reference: &(Vec<Affine>, Vec<f32>),
+                        played: &[Affine],
+                        weights: &[f32]|
+     -> rrskin::Result<f64> {
+        palette.skin_positions_with_correctives(&reference.0, &reference.1, &mut want)?;
+        palette.skin_positions_with_correctives(played, weights, &mut got)?;
         Ok(want.iter().zip(&got).fold(0.0f64, |m, (a, b)| {
             let d = (0..3).map(|i| ((a[i] - b[i]) as f64).powi(2)).sum::<f64>();
             m.max(d.sqrt())
@@ -202,29 +212,32 @@ pub fn bake(
     let first = entries(keys[0])?;
     let mut baked = Baked {
         times: vec![keys[0]],
-        samples: vec![pairs(&first, None)],
+        samples: vec![pairs(&first.0, None)],
+        weights: vec![first.1.clone()],
         worst_at_samples: 0.0,
         worst_between: 0.0,
     };
     let played = |s: &[NodePair]| s.iter().map(NodePair::affine).collect::<Vec<_>>();
-    baked.worst_at_samples = distance(&first, &played(&baked.samples[0]))?;
+    baked.worst_at_samples = distance(&first, &played(&baked.samples[0]), &first.1)?;
     for &key in &keys[1..] {
         // Targets still to reach, with how often their interval was halved.
         let mut targets = vec![(key, 0u32)];
         while let Some(&(t1, depth)) = targets.last() {
-            let (t0, p0) = (
-                baked.times[baked.times.len() - 1],
-                &baked.samples[baked.samples.len() - 1],
-            );
+            let last = baked.times.len() - 1;
+            let (t0, p0, w0) = (baked.times[last], &baked.samples[last], &baked.weights[last]);
             let a1 = entries(t1)?;
-            let p1 = pairs(&a1, Some(p0));
+            let p1 = pairs(&a1.0, Some(p0));
             let mut worst = 0.0f64;
             for f in [0.25, 0.5, 0.75] {
-                let between: Vec<NodePair> = match step {
-                    true => p0.clone(),
-                    false => p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect(),
+                let (between, weights): (Vec<NodePair>, Vec<f32>) = match step {
+                    true => (p0.clone(), w0.clone()),
+                    false => (
+                        p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect(),
+                        w0.iter().zip(&a1.1).map(|(a, b)| a + f as f32 * (b - a)).collect(),
+                    ),
                 };
-                worst = worst.max(distance(&entries(t0 + f * (t1 - t0))?, &played(&between))?);
+                let reference = entries(t0 + f * (t1 - t0))?;
+                worst = worst.max(distance(&reference, &played(&between), &weights)?);
             }
             if !step && worst > tolerance && depth < MAX_DEPTH {
                 targets.push((0.5 * (t0 + t1), depth + 1));
@@ -232,9 +245,10 @@ pub fn bake(
             }
             targets.pop();
             baked.worst_between = baked.worst_between.max(worst);
-            baked.worst_at_samples = baked.worst_at_samples.max(distance(&a1, &played(&p1))?);
+            baked.worst_at_samples = baked.worst_at_samples.max(distance(&a1, &played(&p1), &a1.1)?);
             baked.times.push(t1);
             baked.samples.push(p1);
+            baked.weights.push(a1.1);
         }
     }
     Ok(baked)

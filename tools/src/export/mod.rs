@@ -9,7 +9,11 @@
 //! `--rig` (all, or those named), else the model's own animation at `fps` frames a second
 //! (between two of its frames the bones move as glTF would move them: slerped rotations,
 //! lerped translations). With `--rig`, the mesh is the rig's own: its primitives, materials,
-//! textures (embedded), UVs and joint names; without, the geometry alone.
+//! textures (embedded), UVs and joint names; without, the geometry alone. A model's pose-space
+//! correctives (docs/method.md §20) are the mesh's morph targets (POSITION offsets in rest
+//! space), their weights baked into every clip beside the joints; an engine that drives the
+//! skeleton itself computes them per frame with the palette
+//! (`rrskin::palette::Palette::corrective_weights`).
 
 pub mod bake;
 pub mod glb;
@@ -481,6 +485,9 @@ fn document(
         "meshes": [{"name": geometry.mesh_name, "primitives": primitives}],
         "skins": [{"name": "rrskin palette", "joints": joints, "skeleton": 1}],
     });
+    if palette.corrective_count() > 0 {
+        document["meshes"][0]["weights"] = json!(vec![0.0; palette.corrective_count()]);
+    }
     if !animations.is_empty() {
         document["animations"] = Value::Array(animations);
     }
@@ -586,6 +593,16 @@ fn primitives(
                 .collect();
             let mut primitive =
                 json!({"attributes": attributes, "indices": buffer.indices(&indices)});
+            if skin.correctives > 0 {
+                let v = skin.rest_positions.len();
+                let targets: Vec<Value> = (0..skin.correctives)
+                    .map(|n| {
+                        let offsets = &skin.corrective_targets[n * v..(n + 1) * v];
+                        json!({"POSITION": buffer.floats(&flat3(offsets), 3, Some(ARRAY_BUFFER))})
+                    })
+                    .collect();
+                primitive["targets"] = Value::Array(targets);
+            }
             if let Some(m) = material {
                 primitive["material"] = json!(m);
             }
@@ -630,7 +647,8 @@ fn skin_sets(indices: &[u32], weights: &[f32], k: usize) -> (Vec<Vec<u16>>, Vec<
 }
 
 /// One clip's channels: per palette entry the outer node's translation, rotation and scale and
-/// the joint's rotation, sampled at the baked times, LINEAR (STEP for a clip that holds keys).
+/// the joint's rotation, and the mesh's morph-target weights where it has any, sampled at the
+/// baked times, LINEAR (STEP for a clip that holds keys).
 fn animation(name: &str, step: bool, baked: &Baked, buffer: &mut Buffer) -> Value {
     let interpolation = if step { "STEP" } else { "LINEAR" };
     let times: Vec<f32> = baked.times.iter().map(|&t| t as f32).collect();
@@ -674,6 +692,11 @@ fn animation(name: &str, step: bool, baked: &Baked, buffer: &mut Buffer) -> Valu
             samplers
                 .push(json!({"input": input, "output": output, "interpolation": interpolation}));
         }
+    }
+    if baked.weights.first().is_some_and(|w| !w.is_empty()) {
+        let output = buffer.floats(&baked.weights.concat(), 1, None);
+        channels.push(json!({"sampler": samplers.len(), "target": {"node": 0, "path": "weights"}}));
+        samplers.push(json!({"input": input, "output": output, "interpolation": interpolation}));
     }
     json!({"name": name, "samplers": samplers, "channels": channels})
 }

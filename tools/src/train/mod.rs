@@ -18,10 +18,12 @@
 //! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //! | how many joint-blend proxies: chosen per set | [`structure`] | beyond the paper |
+//! | pose-space correctives on the runtime model | [`corrective`] | §8 (suggested there) |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
 
 pub mod augment;
+pub mod corrective;
 pub mod full_model;
 pub mod gradients;
 pub mod pivots;
@@ -78,6 +80,9 @@ pub struct TrainOptions {
     /// regardless. `rrskin train` of joint-blend proxies leaves it out: the runtime model does
     /// not use it, and its cross-validation is most of the training time.
     pub full_model: bool,
+    /// N: at most this many pose-space corrective targets on the runtime model ([`corrective`];
+    /// 0: none). Cross-validation may keep none.
+    pub correctives: usize,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -92,6 +97,7 @@ impl Default for TrainOptions {
             method: Method::Auto,
             gentle_scales: vec![augment::GENTLE_SCALE],
             full_model: true,
+            correctives: corrective::TARGETS,
             quiet: false,
         }
     }
@@ -166,6 +172,8 @@ pub struct Trained {
     pub joint_blend: Option<structure::JointBlendFit>,
     /// The runtime model's structure and, with [`Method::Auto`], every candidate's score.
     pub structure: Option<structure::Chosen>,
+    /// What the correctives' cross-validation chose (None: not asked for, or no runtime model).
+    pub correctives: Option<corrective::Fit>,
     pub model: Option<rrskin::Model>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
@@ -205,7 +213,9 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let pool = reduce::joint_blend::pool(set, &feats, &train);
     let with_full = options.full_model || (options.proxies > 0 && options.method == Method::Paper);
     let steps = if with_full { options.folds + 3 } else { 2 };
-    let steps = steps + usize::from(options.method == Method::Auto);
+    let steps = steps
+        + usize::from(options.method == Method::Auto)
+        + usize::from(options.proxies > 0 && options.correctives > 0);
     let progress = Progress::new("training", steps, options.quiet);
     let mut clock = Clock {
         last: Instant::now(),
@@ -242,6 +252,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
 
     let mut joint_blend = None;
     let mut structure = None;
+    let mut correctives = None;
     let (reduced, model) = match options.proxies {
         0 => (None, None),
         proxies => {
@@ -288,8 +299,27 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                 },
             };
             joint_blend = fitted;
-            let model = reduced.to_runtime(set, chosen.structure.influences)?;
+            let mut model = reduced.to_runtime(set, chosen.structure.influences)?;
             structure = Some(chosen);
+            if options.correctives > 0 {
+                progress.stage("correctives");
+                let residuals = corrective::Residuals::of(set, &feats, &model, &train)?;
+                let fit = corrective::fit(
+                    set,
+                    &ssd,
+                    &rigid,
+                    &train,
+                    &residuals,
+                    options.correctives,
+                    options.folds,
+                );
+                if let Some(c) = &fit.correctives {
+                    model = model.with_correctives(c.to_runtime())?;
+                }
+                correctives = Some(fit);
+                clock.lap("correctives");
+                progress.step();
+            }
             (Some(reduced), Some(model))
         }
     };
@@ -303,6 +333,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         reduced,
         joint_blend,
         structure,
+        correctives,
         model,
         seconds: clock.seconds,
     })
