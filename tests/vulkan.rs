@@ -867,7 +867,9 @@ fn memory_queries_are_the_bytes_created() {
     };
     let models = [(LBS, 41), (RR, 42)].map(|(spec, seed)| random_model(spec, seed));
     let sparse = joint_blend_pattern(&models[1], 1);
-    for model in models.iter().chain([&sparse]) {
+    // With correctives: the targets in the rest buffer, the map, the drivers and the weights.
+    let corrected = with_correctives(&models[1], 5, 1);
+    for model in models.iter().chain([&sparse, &corrected]) {
         let sizes = ModelSizes::of(model);
         let gpu = GpuModel::new(&ctx, model).expect("upload");
         let spec = (sizes, gpu.is_block_sparse());
