@@ -174,10 +174,7 @@ impl Palette {
             rest_tangents: &parts.rest_tangents,
             triangles: &parts.triangles,
             correctives: self.model.corrective_count(),
-            corrective_targets: parts
-                .correctives
-                .as_ref()
-                .map_or(&[][..], |c| &c.targets),
+            corrective_targets: parts.correctives.as_ref().map_or(&[][..], |c| &c.targets),
         }
     }
 
@@ -296,7 +293,11 @@ impl Palette {
         positions: &mut [[f32; 3]],
     ) -> Result<()> {
         let skin = self.skin();
-        let n = if weights.is_empty() { 0 } else { skin.correctives };
+        let n = if weights.is_empty() {
+            0
+        } else {
+            skin.correctives
+        };
         for (what, expected, actual) in [
             ("palette transforms", self.len(), palette.len()),
             ("positions", skin.rest_positions.len(), positions.len()),

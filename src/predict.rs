@@ -122,7 +122,11 @@ pub fn corrective_weights(model: &Model, bones: &[Affine], out: &mut [f64]) -> R
         });
         for (n, w) in out.iter_mut().enumerate() {
             let map = &c.map[n * width + 9 * i..n * width + 9 * i + 9];
-            *w += map.iter().zip(&phi).map(|(&m, f)| m as f64 * f).sum::<f64>();
+            *w += map
+                .iter()
+                .zip(&phi)
+                .map(|(&m, f)| m as f64 * f)
+                .sum::<f64>();
         }
     }
     Ok(())

@@ -36,7 +36,11 @@ fn a_zero_map_gives_the_model_without_correctives() {
         let zero = Model::new(parts).expect("valid");
         assert_eq!(zero.corrective_count(), 5);
         let bones = random_poses(&plain, 6, 2);
-        assert_eq!(evaluate(&zero, &bones), evaluate(&plain, &bones), "P = {proxies}");
+        assert_eq!(
+            evaluate(&zero, &bones),
+            evaluate(&plain, &bones),
+            "P = {proxies}"
+        );
         // And the non-zero map does change the shape (the comparison above is not vacuous).
         let (moved, _) = evaluate(&corrected, &bones);
         let (still, _) = evaluate(&plain, &bones);

@@ -509,7 +509,14 @@ fn malformed_corrective_sections_are_refused() {
     // Drivers: a root, out of range, twice.
     let p = edit(&|b| put_u32(b, at + 8, 0));
     assert!(
-        matches!(p, ModelProblem::BadDriver { index: 0, bone: 0, .. }),
+        matches!(
+            p,
+            ModelProblem::BadDriver {
+                index: 0,
+                bone: 0,
+                ..
+            }
+        ),
         "{p:?}"
     );
     assert!(p.to_string().contains("root"), "{p}");

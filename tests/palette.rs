@@ -239,7 +239,10 @@ fn corrected_error(model: &Model, bones: &[Affine]) -> f32 {
     palette
         .corrective_weights_batch(bones, &mut weights)
         .expect("weights");
-    let (mut want, mut normals) = (vec![[0.0; 3]; characters * v], vec![[0.0; 3]; characters * v]);
+    let (mut want, mut normals) = (
+        vec![[0.0; 3]; characters * v],
+        vec![[0.0; 3]; characters * v],
+    );
     CpuEvaluator::new(model)
         .evaluate(bones, &mut want, &mut normals)
         .expect("reference");
@@ -317,7 +320,10 @@ fn corrective_weights_batched_and_one_by_one_agree_and_check_their_input() {
     let short = palette.corrective_weights_batch(&bones, &mut batch[1..]);
     assert!(matches!(short, Err(Error::WrongLength { .. })), "{short:?}");
     let partial = palette.corrective_weights(&bones[..j - 1], &mut batch[..n]);
-    assert!(matches!(partial, Err(Error::WrongLength { .. })), "{partial:?}");
+    assert!(
+        matches!(partial, Err(Error::WrongLength { .. })),
+        "{partial:?}"
+    );
     bones[j + 1][2] = f32::INFINITY;
     let inf = palette.corrective_weights_batch(&bones, &mut batch);
     assert!(matches!(inf, Err(Error::NonFinite { .. })), "{inf:?}");
@@ -371,7 +377,11 @@ fn the_c_abi_gives_the_corrective_weights_and_targets() {
         let v = model.vertex_count();
         assert_eq!(
             std::slice::from_raw_parts(skin.corrective_targets, 4 * v * 3),
-            model.correctives().expect("correctives").targets.as_flattened()
+            model
+                .correctives()
+                .expect("correctives")
+                .targets
+                .as_flattened()
         );
         let mut got = vec![0.0f32; characters * 4];
         assert_eq!(

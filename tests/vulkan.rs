@@ -1031,7 +1031,9 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
         .map(|m| GpuModel::new(&ctx, m).expect("upload"))
         .collect();
     assert_eq!(
-        gpu.iter().map(GpuModel::corrective_count).collect::<Vec<_>>(),
+        gpu.iter()
+            .map(GpuModel::corrective_count)
+            .collect::<Vec<_>>(),
         [6, 9, 3, 0]
     );
     assert!(gpu[2].fuses_predictors());
@@ -1090,6 +1092,9 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
     CpuEvaluator::new(&plain)
         .evaluate(&poses, &mut without, &mut normals)
         .expect("cpu");
-    assert!(with.iter().zip(&without).any(|(a, b)| (0..3).any(|i| (a[i] - b[i]).abs() > 1e-3)));
+    assert!(with
+        .iter()
+        .zip(&without)
+        .any(|(a, b)| (0..3).any(|i| (a[i] - b[i]).abs() > 1e-3)));
     assert_no_validation_messages(&ctx);
 }

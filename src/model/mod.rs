@@ -279,7 +279,10 @@ impl Model {
 
     /// D, the corrective driver bones (0 without correctives).
     pub fn corrective_driver_count(&self) -> usize {
-        self.parts.correctives.as_ref().map_or(0, |c| c.drivers.len())
+        self.parts
+            .correctives
+            .as_ref()
+            .map_or(0, |c| c.drivers.len())
     }
 
     /// The model's pose-space correctives, if it has any.

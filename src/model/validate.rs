@@ -1,7 +1,9 @@
 //! The model invariants, checked on every construction (from parts or from a file).
 //! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
 
-use super::{Correctives, KeyPredictor, Mat3Rows, ModelParts, MAX_CORRECTIVES, SUPPORTED_INFLUENCES};
+use super::{
+    Correctives, KeyPredictor, Mat3Rows, ModelParts, MAX_CORRECTIVES, SUPPORTED_INFLUENCES,
+};
 use crate::error::ModelProblem;
 
 /// Largest vertex, triangle or bone count: indices and offsets must fit the shaders' u32/i32.
@@ -159,7 +161,11 @@ fn correctives(c: &Correctives, parents: &[i32], v: usize) -> Check {
             reason: "more drivers than bones with a parent",
         });
     }
-    length("corrective map (N x 9D)", n * 9 * c.drivers.len(), c.map.len())?;
+    length(
+        "corrective map (N x 9D)",
+        n * 9 * c.drivers.len(),
+        c.map.len(),
+    )?;
     finite("corrective map", c.map.iter())?;
     finite("corrective targets", c.targets.iter().flatten())?;
     for (i, &d) in c.drivers.iter().enumerate() {
