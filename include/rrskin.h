@@ -92,8 +92,9 @@
  * | normals | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
  * | bounds, slot f | compute write (pass 4) | host-visible, storage |
  * | tangents | compute write (pass 5) | device-local, vertex + storage + transfer-src |
+ * | corrective weights | compute write (pass 1), then read (pass 3) | device-local, internal (models with correctives) |
  *
- * It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at
+ * It binds compute pipelines, descriptor set 0 and push constants (bytes 0..20) at
  * `VK_PIPELINE_BIND_POINT_COMPUTE`, and writes timestamps into the batch's own query pool; it
  * leaves the graphics bind point, render passes and dynamic state alone, and never begins,
  * ends or submits the command buffer. The engine re-binds its own compute state after it.
@@ -223,6 +224,10 @@ typedef struct rrskin_model_info {
   uint32_t blend_columns;
   // Nonzero: the model carries rest tangents, so its crowds can output tangents.
   uint32_t tangents;
+  // N, the pose-space corrective targets (0 without correctives; at most 64).
+  uint32_t correctives;
+  // D, the corrective driver bones (0 without correctives).
+  uint32_t corrective_drivers;
 } rrskin_model_info;
 
 // How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -309,6 +314,7 @@ typedef struct rrskin_crowd_output {
 
 // GPU time per pass of the last recorded frame, in milliseconds.
 typedef struct rrskin_pass_timings {
+  // The key predictors and the pose-space corrective weights.
   double predict_ms;
   // The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused; the Rust `product_ms`).
   double blend_ms;
@@ -320,7 +326,9 @@ typedef struct rrskin_pass_timings {
 
 // What an engine skins with, borrowed from a palette model (valid until it is destroyed).
 // Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
-// * (rest_positions[a], 1)`, each palette entry a 3x4 row-major matrix.
+// * (rest_positions[a] + sum over n < correctives of w[n] * corrective_targets[n*V + a], 1)`,
+// each palette entry a 3x4 row-major matrix, w the character's corrective weights
+// (`rrskin_palette_compute_corrective_weights`; no sum without correctives).
 typedef struct rrskin_palette_skin {
   // V.
   uint32_t vertices;
@@ -345,6 +353,11 @@ typedef struct rrskin_palette_skin {
   const float *rest_tangents;
   // T x 3 vertex indices.
   const uint32_t *triangle_indices;
+  // N, the pose-space corrective targets (0 without correctives; at most 64).
+  uint32_t correctives;
+  // N x V x 3 rest-space deltas, target-major (as glTF morph targets), or NULL without
+  // correctives.
+  const float *corrective_targets;
 } rrskin_palette_skin;
 
 // A bone transform relative to the rest pose, 3x4 row-major: `x ↦ Q x + d`.
@@ -601,6 +614,31 @@ rrskin_status rrskin_palette_model_load_memory(const uint8_t *data,
 // `rrskin_palette_skin`.
 rrskin_status rrskin_palette_model_get_skin(const struct rrskin_palette_model *model,
                                             struct rrskin_palette_skin *out);
+
+// N, the pose-space corrective weights of a character (0 for a model without correctives):
+// the floats per character `rrskin_palette_compute_corrective_weights` writes.
+//
+// # Safety
+// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+// `uint32_t`.
+rrskin_status rrskin_palette_model_get_corrective_count(const struct rrskin_palette_model *model,
+                                                        uint32_t *out);
+
+// The pose-space corrective weights of `characters` characters on the calling thread: `bones`
+// as `rrskin_palette_compute`'s (`bone_floats` = characters * J * 12), `out` characters x N
+// floats (`out_floats`; N from `rrskin_palette_model_get_corrective_count`), each character's
+// N weights of the skin's `corrective_targets`. For a model without correctives N = 0 and
+// `out_floats` must be 0 (`out` may then be NULL). Allocates nothing and takes no lock.
+//
+// # Safety
+// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+// readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
+// overlap.
+rrskin_status rrskin_palette_compute_corrective_weights(const struct rrskin_palette_model *model,
+                                                        const float *bones,
+                                                        size_t bone_floats,
+                                                        float *out,
+                                                        size_t out_floats);
 
 // The palette of `characters` characters on the calling thread: `bones` is characters x J
 // transforms (`bone_floats` = characters * J * 12 floats, 3x4 row-major, world space, relative

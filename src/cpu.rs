@@ -6,11 +6,13 @@
 //! `[t (P); q (J)]` with K influences; (4) normals: area-weighted sum of incident triangle
 //! normals, normalised (zero where the sum vanishes); (5) with [`CpuEvaluator::evaluate_with_tangents`],
 //! tangents: the rest tangent through the blended palette matrix's 3x3, made orthogonal to the
-//! normal and normalised (zero where it vanishes), w kept.
+//! normal and normalised (zero where it vanishes), w kept. With pose-space correctives
+//! (paper §8), step (3) skins `ŷ_a + Σ_n w_n targets[n V + a]`, `w` =
+//! [`crate::predict::corrective_weights`] of the character's bones.
 
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::predict::{key_gradient, Affine};
+use crate::predict::{corrective_weights, key_gradient, Affine};
 use glam::{DMat3, DVec3};
 
 /// Evaluates C characters of one model. Holds its scratch, so repeated frames allocate nothing.
@@ -23,6 +25,8 @@ pub struct CpuEvaluator<'m> {
     /// Palette of one character: P + J transforms, 3x4 row-major.
     palette: Vec<[f64; 12]>,
     gradients: Vec<DMat3>,
+    /// The corrective weights of one character (N).
+    weights: Vec<f64>,
     positions: Vec<DVec3>,
 }
 
@@ -35,6 +39,7 @@ impl<'m> CpuEvaluator<'m> {
             rhs: vec![0.0; 3 * p + 4 * j],
             palette: vec![[0.0; 12]; p + j],
             gradients: vec![DMat3::ZERO; p],
+            weights: vec![0.0; model.corrective_count()],
             positions: vec![DVec3::ZERO; model.vertex_count()],
         }
     }
@@ -96,6 +101,7 @@ impl<'m> CpuEvaluator<'m> {
         for ch in 0..c {
             let q = &bones[ch * j..(ch + 1) * j];
             self.palette_of(q);
+            corrective_weights(self.model, q, &mut self.weights)?;
             self.skin();
             let normals = &mut normals[ch * v..(ch + 1) * v];
             self.normals_into(normals);
@@ -156,8 +162,13 @@ impl<'m> CpuEvaluator<'m> {
 
     fn skin(&mut self) {
         let parts = self.model.parts();
-        for a in 0..self.positions.len() {
-            let rest = DVec3::from(parts.rest_positions[a].map(f64::from));
+        let v = self.positions.len();
+        let targets = parts.correctives.as_ref().map_or(&[][..], |c| &c.targets);
+        for a in 0..v {
+            let mut rest = DVec3::from(parts.rest_positions[a].map(f64::from));
+            for (n, &w) in self.weights.iter().enumerate() {
+                rest += w * DVec3::from(targets[n * v + a].map(f64::from));
+            }
             let m = self.blended(a);
             self.positions[a] = DVec3::new(
                 m[0] * rest.x + m[1] * rest.y + m[2] * rest.z + m[3],

@@ -136,6 +136,12 @@ pub enum ModelProblem {
         index: usize,
         error: f32,
     },
+    /// A corrective driver (element `index` of the drivers, bone `bone`) is not usable.
+    BadDriver {
+        index: usize,
+        bone: u32,
+        reason: &'static str,
+    },
     /// A rest tangent's xyz is not a unit vector or its handedness w is not ±1.
     BadTangent {
         vertex: usize,
@@ -156,7 +162,7 @@ impl fmt::Display for ModelProblem {
             }
             BadMagic => write!(f, "not an rrskin model (bad magic)"),
             UnsupportedVersion { found, supported } => {
-                write!(f, "format version {found} is not supported (this build reads {supported})")
+                write!(f, "format version {found} is not supported (this build reads 1 to {supported})")
             }
             Checksum { stored, computed } => write!(
                 f,
@@ -186,6 +192,9 @@ impl fmt::Display for ModelProblem {
             ),
             NotRotation { what, index, error } => {
                 write!(f, "{what}[{index}] is not a rotation matrix (error {error:.3e})")
+            }
+            BadDriver { index, bone, reason } => {
+                write!(f, "corrective drivers[{index}] = bone {bone} {reason}")
             }
             BadTangent { vertex, length, handedness } => write!(
                 f,

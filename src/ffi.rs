@@ -143,6 +143,10 @@ pub struct RrskinModelInfo {
     pub blend_columns: u32,
     /// Nonzero: the model carries rest tangents, so its crowds can output tangents.
     pub tangents: u32,
+    /// N, the pose-space corrective targets (0 without correctives; at most 64).
+    pub correctives: u32,
+    /// D, the corrective driver bones (0 without correctives).
+    pub corrective_drivers: u32,
 }
 
 /// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -224,6 +228,7 @@ pub struct RrskinRequirements {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RrskinPassTimings {
+    /// The key predictors and the pose-space corrective weights.
     pub predict_ms: f64,
     /// The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused; the Rust `product_ms`).
     pub blend_ms: f64,
@@ -579,6 +584,8 @@ pub unsafe extern "C" fn rrskin_query_memory(
             influences: i.influences as usize,
             product_columns: i.blend_columns as usize,
             tangents: i.tangents != 0,
+            correctives: i.correctives as usize,
+            corrective_drivers: i.corrective_drivers as usize,
         };
         let options = if options.is_null() {
             CrowdOptions::default()
@@ -818,6 +825,8 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             influences: m.influences() as u32,
             blend_columns: crate::vk::ModelSizes::of(m).product_columns as u32,
             tangents: u32::from(m.has_tangents()),
+            correctives: m.corrective_count() as u32,
+            corrective_drivers: m.corrective_driver_count() as u32,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }

@@ -3,13 +3,16 @@
 //! (Wang, Pulli, Popović, SIGGRAPH 2007.) A trained [`Model`] turns per-frame bone transforms
 //! into deformed vertex positions and normals through five passes, for many characters at once:
 //!
-//! 1. predictors `d(q)`: P key deformation gradients per character (paper §3, Eq. 3–4);
+//! 1. predictors `d(q)`: P key deformation gradients per character (paper §3, Eq. 3–4), and,
+//!    for a model with pose-space correctives (paper §8), their N weights `w = map · φ(q)`,
+//!    linear in the driver joints' rotations relative to their parents;
 //! 2. proxy transforms `t = C1 d + C2 q`: one matrix product over all characters (Eq. 5),
 //!    dense, or block-sparse per proxy where `[C1 | C2]` is mostly zeros (joint-blend proxies:
 //!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]); where each proxy
 //!    reads one key, the product evaluates that key's predictor itself and pass 1 does not run
 //!    ([`vk::GpuModel::fuses_predictors`]);
-//! 3. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences;
+//! 3. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences
+//!    (of the rest position plus the N weighted corrective targets, where the model has them);
 //! 4. normals, gathered from incident triangles;
 //! 5. optionally tangent frames (models with rest tangents): each rest tangent through its
 //!    vertex's blended palette matrix, made orthogonal to the normal.
@@ -17,7 +20,7 @@
 //! [`cpu::CpuEvaluator`] runs them on the CPU in `f64` (the reference); [`vk`] runs them as
 //! Vulkan compute passes, recorded for all crowds into one command buffer. For an engine that
 //! skins with its own shaders, [`palette::Palette`] runs steps 1–2 on the CPU in `f32`: bones in,
-//! the P + J palette out, with no Vulkan at all.
+//! the P + J palette (and the N corrective weights) out, with no Vulkan at all.
 //!
 //! ## Contract
 //!
@@ -70,8 +73,9 @@
 //! | normals | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
 //! | bounds, slot f | compute write (pass 4) | host-visible, storage |
 //! | tangents | compute write (pass 5) | device-local, vertex + storage + transfer-src |
+//! | corrective weights | compute write (pass 1), then read (pass 3) | device-local, internal (models with correctives) |
 //!
-//! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..16) at
+//! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..20) at
 //! `VK_PIPELINE_BIND_POINT_COMPUTE`, and writes timestamps into the batch's own query pool; it
 //! leaves the graphics bind point, render passes and dynamic state alone, and never begins,
 //! ends or submits the command buffer. The engine re-binds its own compute state after it.
@@ -124,4 +128,4 @@ pub mod predict;
 pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};
-pub use model::{KeyPredictor, Model, ModelParts, SecondBone};
+pub use model::{Correctives, KeyPredictor, Model, ModelParts, SecondBone};

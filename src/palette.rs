@@ -8,6 +8,11 @@
 //! shader blends the K entries the [`Skin`] names: `x = Σ_k w_k M_{i_k} [x̂; 1]`, which is
 //! [`Palette::skin`].
 //!
+//! A model with pose-space correctives (paper §8) adds, per character, N weights
+//! ([`Palette::corrective_weights`], linear in the driver joints' rotations) of N rest-space
+//! targets ([`Skin::corrective_targets`]): the shader skins `x̂ + Σ_n w_n target_n` instead of
+//! `x̂` ([`Palette::skin_positions_with_correctives`]), as a morph target before skinning.
+//!
 //! A [`Palette`] is immutable after [`Palette::new`]: any number of threads may call
 //! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
 //! call for a model of that size), so a frame allocates nothing.
@@ -36,6 +41,8 @@ pub struct Palette {
     columns: Vec<u32>,
     values: Vec<[f32; 4]>,
     rest_normals: Vec<[f32; 3]>,
+    /// The corrective drivers (bone, parent), in the order of the map's columns.
+    drivers: Vec<(usize, usize)>,
 }
 
 /// One key predictor, compiled: `D = Q_parent exp(uW θ~_bone) [exp(u₂W₂ θ~_second)] S`, with
@@ -66,6 +73,11 @@ pub struct Skin<'a> {
     /// V rest tangents (xyz, handedness w), or empty where the model has none.
     pub rest_tangents: &'a [[f32; 4]],
     pub triangles: &'a [[u32; 3]],
+    /// N, the pose-space corrective targets (0 without correctives).
+    pub correctives: usize,
+    /// N x V rest-space deltas, target-major (as glTF morph targets), or empty: vertex a of
+    /// target n is `corrective_targets[n * V + a]`, weighted by [`Palette::corrective_weights`].
+    pub corrective_targets: &'a [[f32; 3]],
 }
 
 #[derive(Default)]
@@ -122,6 +134,9 @@ impl Palette {
             offsets.push(columns.len() as u32);
         }
         let rest_normals = rest_normals(&model)?;
+        let drivers = (model.correctives().map_or(&[][..], |c| &c.drivers).iter())
+            .map(|&d| (d as usize, model.parent(d as usize).unwrap_or(d as usize)))
+            .collect();
         Ok(Palette {
             model,
             keys,
@@ -130,6 +145,7 @@ impl Palette {
             columns,
             values,
             rest_normals,
+            drivers,
         })
     }
 
@@ -157,7 +173,55 @@ impl Palette {
             rest_normals: &self.rest_normals,
             rest_tangents: &parts.rest_tangents,
             triangles: &parts.triangles,
+            correctives: self.model.corrective_count(),
+            corrective_targets: parts.correctives.as_ref().map_or(&[][..], |c| &c.targets),
         }
+    }
+
+    /// N: the corrective weights of a character (0 for a model without pose-space correctives).
+    pub fn corrective_count(&self) -> usize {
+        self.model.corrective_count()
+    }
+
+    /// The pose-space corrective weights of one character: `bones` J transforms (as
+    /// [`Palette::compute`]'s), `out` N. `w = map · φ`, `φ[9i + 3r + c] = R_i[r][c] − δ_rc`,
+    /// `R_i = rot(Q_parent)ᵀ rot(Q_driver)` (docs/method.md §9). Allocates nothing.
+    pub fn corrective_weights(&self, bones: &[Affine], out: &mut [f32]) -> Result<()> {
+        self.corrective_weights_batch(bones, out)
+    }
+
+    /// [`Palette::corrective_weights`] for C characters: `bones` C x J, `out` C x N.
+    pub fn corrective_weights_batch(&self, bones: &[Affine], out: &mut [f32]) -> Result<()> {
+        let (j, n) = (self.model.bone_count(), self.corrective_count());
+        let c = characters(bones, j)?;
+        if out.len() != c * n {
+            return Err(Error::WrongLength {
+                what: "corrective weights (characters x correctives)",
+                expected: c * n,
+                actual: out.len(),
+            });
+        }
+        let Some(correctives) = self.model.correctives() else {
+            return Ok(());
+        };
+        let width = 9 * self.drivers.len();
+        for (q, w) in bones.chunks_exact(j).zip(out.chunks_exact_mut(n)) {
+            w.fill(0.0);
+            for (i, &(d, p)) in self.drivers.iter().enumerate() {
+                let (qd, qp) = (&q[d], &q[p]);
+                // R[r][c] = Σ_k Q_p[k][r] Q_d[k][c] (row-major 3x4 transforms), minus I.
+                let phi: [f32; 9] = std::array::from_fn(|e| {
+                    let (r, c) = (e / 3, e % 3);
+                    let dot: f32 = (0..3).map(|k| qp[4 * k + r] * qd[4 * k + c]).sum();
+                    dot - f32::from(u8::from(r == c))
+                });
+                for (t, w) in w.iter_mut().enumerate() {
+                    let row = &correctives.map[t * width + 9 * i..t * width + 9 * i + 9];
+                    *w += row.iter().zip(&phi).map(|(m, f)| m * f).sum::<f32>();
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The palette of one character: `bones` J transforms (3x4 row-major, relative to the rest
@@ -212,12 +276,32 @@ impl Palette {
         })
     }
 
-    /// The vertices an engine's skinning makes of one character's palette: `positions` V.
+    /// The vertices an engine's skinning makes of one character's palette: `positions` V. Without
+    /// the pose-space correctives (all weights zero, as at the rest pose): for a model with
+    /// them, [`Palette::skin_positions_with_correctives`].
     pub fn skin_positions(&self, palette: &[Affine], positions: &mut [[f32; 3]]) -> Result<()> {
+        self.skin_positions_with_correctives(palette, &[], positions)
+    }
+
+    /// The vertices an engine's skinning makes of one character's palette and corrective
+    /// weights ([`Palette::corrective_weights`], N, or empty for none): `positions` V, each
+    /// `Σ_k w_k M_{i_k} [x̂ + Σ_n weights[n] target_n; 1]`. Allocates nothing.
+    pub fn skin_positions_with_correctives(
+        &self,
+        palette: &[Affine],
+        weights: &[f32],
+        positions: &mut [[f32; 3]],
+    ) -> Result<()> {
         let skin = self.skin();
+        let n = if weights.is_empty() {
+            0
+        } else {
+            skin.correctives
+        };
         for (what, expected, actual) in [
             ("palette transforms", self.len(), palette.len()),
             ("positions", skin.rest_positions.len(), positions.len()),
+            ("corrective weights", n, weights.len()),
         ] {
             if expected != actual {
                 return Err(Error::WrongLength {
@@ -234,7 +318,13 @@ impl Palette {
                 let (w, entry) = (skin.weights[i], &palette[skin.indices[i] as usize]);
                 m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
             }
-            let [x, y, z] = skin.rest_positions[a];
+            let mut rest = skin.rest_positions[a];
+            let v = skin.rest_positions.len();
+            for (t, &w) in weights.iter().enumerate() {
+                let delta = skin.corrective_targets[t * v + a];
+                rest.iter_mut().zip(delta).for_each(|(x, d)| *x += w * d);
+            }
+            let [x, y, z] = rest;
             *out = [0, 4, 8].map(|r| m[r] * x + m[r + 1] * y + m[r + 2] * z + m[r + 3]);
         }
         Ok(())

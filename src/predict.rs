@@ -2,6 +2,7 @@
 //! math it needs, in `f64`. `glsl/predict.comp` mirrors these functions line for line in `f32`
 //! (same branch thresholds), so the two agree away from the rotation log's branch cut at π.
 
+use crate::error::{Error, Result};
 use crate::model::{KeyPredictor, Mat3Rows, Model};
 use glam::{DMat3, DVec3};
 
@@ -86,6 +87,49 @@ pub fn joint_rotation(model: &Model, bones: &[Affine], b: usize) -> DVec3 {
         Some(p) => log_rotation(rotation_of(&bones[p]).transpose() * q),
         None => log_rotation(q),
     }
+}
+
+/// The pose-space corrective weights of one character (`bones`: its J transforms), `w = map ·
+/// φ(q)` with `φ[9i + 3r + c] = R_i[r][c] − δ_rc` and `R_i = rot(Q_p)ᵀ rot(Q_d)` for driver i
+/// (bone d, parent p): `out` N (empty without correctives). `WrongLength` unless `bones` is J
+/// and `out` N.
+pub fn corrective_weights(model: &Model, bones: &[Affine], out: &mut [f64]) -> Result<()> {
+    for (what, expected, actual) in [
+        ("bone transforms", model.bone_count(), bones.len()),
+        ("corrective weights", model.corrective_count(), out.len()),
+    ] {
+        if expected != actual {
+            return Err(Error::WrongLength {
+                what,
+                expected,
+                actual,
+            });
+        }
+    }
+    let Some(c) = model.correctives() else {
+        return Ok(());
+    };
+    out.fill(0.0);
+    let width = 9 * c.drivers.len();
+    for (i, &d) in c.drivers.iter().enumerate() {
+        let d = d as usize;
+        let p = model.parent(d).unwrap_or(d); // validated: drivers have parents
+        let r = rotation_of(&bones[p]).transpose() * rotation_of(&bones[d]);
+        // φ_i, row-major: R[r][c] is column c's component r in glam.
+        let phi: [f64; 9] = std::array::from_fn(|k| {
+            let (row, col) = (k / 3, k % 3);
+            r.col(col)[row] - f64::from(u8::from(row == col))
+        });
+        for (n, w) in out.iter_mut().enumerate() {
+            let map = &c.map[n * width + 9 * i..n * width + 9 * i + 9];
+            *w += map
+                .iter()
+                .zip(&phi)
+                .map(|(&m, f)| m as f64 * f)
+                .sum::<f64>();
+        }
+    }
+    Ok(())
 }
 
 /// `D_ℓ(q) = R(q) S(q)` for one predictor and one character's J bone transforms.

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{joint_blend_pattern, random_model, random_poses, Spec};
+use common::{joint_blend_pattern, random_model, random_poses, with_correctives, Spec};
 use rrskin::cpu::CpuEvaluator;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -236,17 +236,22 @@ fn memcheck(exe: &Path, args: &[impl AsRef<std::ffi::OsStr>], vulkan: bool) {
 fn the_c_palette_example_skins_without_vulkan() {
     let (frames, characters) = (3usize, 20usize);
     let dir = example_dir("palette");
-    let model = joint_blend_pattern(
-        &random_model(
-            Spec {
-                grid: 12,
-                bones: 9,
-                proxies: 14,
-                influences: 8,
-            },
-            6,
+    // With pose-space correctives: the program adds the weighted targets as a shader would.
+    let model = with_correctives(
+        &joint_blend_pattern(
+            &random_model(
+                Spec {
+                    grid: 12,
+                    bones: 9,
+                    proxies: 14,
+                    influences: 8,
+                },
+                6,
+            ),
+            1,
         ),
-        1,
+        5,
+        6,
     );
     model.save(dir.join("model.rrs")).expect("save model");
     write_reference(&dir, &model, frames, characters);
@@ -274,14 +279,19 @@ fn the_c_palette_example_skins_without_vulkan() {
 #[test]
 fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     use rrskin::ffi::*;
-    let model = random_model(
-        Spec {
-            grid: 8,
-            bones: 5,
-            proxies: 4,
-            influences: 4,
-        },
-        9,
+    // With pose-space correctives (rrskin_model_info reports their sizes).
+    let model = with_correctives(
+        &random_model(
+            Spec {
+                grid: 8,
+                bones: 5,
+                proxies: 4,
+                influences: 4,
+            },
+            9,
+        ),
+        4,
+        2,
     );
     let bytes = model.to_bytes();
     let characters = 5u32;
@@ -440,13 +450,20 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         influences: model.influences() as u32,
         blend_columns: rrskin::vk::ModelSizes::of(&model).product_columns as u32,
         tangents: 1,
+        correctives: model.corrective_count() as u32,
+        corrective_drivers: model.corrective_driver_count() as u32,
     };
     let mut reported = RrskinModelInfo::default();
     // SAFETY: `out` points to a live value.
     assert_eq!(unsafe { rrskin_model_get_info(m, &mut reported) }, ok);
     assert_eq!(
-        (reported.blend_columns, reported.tangents),
-        (info.blend_columns, 1)
+        (
+            reported.blend_columns,
+            reported.tangents,
+            reported.correctives,
+            reported.corrective_drivers
+        ),
+        (info.blend_columns, 1, 4, 3)
     );
     let (mut model_bytes, mut crowd_bytes) = (0u64, 0u64);
     // SAFETY: live values.

@@ -1,6 +1,8 @@
 //! The `.rrs` loader: exact round trips, and every kind of bad file rejected with the error that
 //! names the problem (never a panic, never a silently wrong model).
 
+mod common;
+
 use proptest::prelude::*;
 use rrskin::model::{FORMAT_VERSION, MAGIC};
 use rrskin::{Error, Model, ModelProblem};
@@ -425,4 +427,210 @@ fn rest_tangents_round_trip_and_are_checked() {
             ..
         }
     ));
+}
+
+/// Byte offset of a section's entry in the section table (its tag), and its payload's length.
+fn table_entry(bytes: &[u8], tag: &[u8; 4]) -> (usize, u64) {
+    let count = u32::from_le_bytes(bytes[12..16].try_into().expect("4 bytes")) as usize;
+    let e = (0..count)
+        .map(|i| 24 + 24 * i)
+        .find(|&e| &bytes[e..e + 4] == tag)
+        .expect("section present");
+    let length = u64::from_le_bytes(bytes[e + 16..e + 24].try_into().expect("8 bytes"));
+    (e, length)
+}
+
+#[test]
+fn correctives_round_trip_and_version_1_files_still_load() {
+    for (p, k) in [(0, 4), (3, 8)] {
+        let m = common::with_correctives(&model(p, k), 6, 5);
+        assert_eq!((m.corrective_count(), m.corrective_driver_count()), (6, 3));
+        let bytes = m.to_bytes();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().expect("4")), 2);
+        let back = Model::from_bytes(&bytes).expect("round trip");
+        assert_eq!(back, m);
+        assert_eq!(back.to_bytes(), bytes);
+        // CORR: N, D, drivers, map, targets.
+        let (_, length) = table_entry(&bytes, b"CORR");
+        let v = m.vertex_count() as u64;
+        assert_eq!(length, 4 * (2 + 3 + 6 * 9 * 3 + 6 * v * 3));
+    }
+    // A version-1 file (no CORR: what this format was before correctives) loads as it did.
+    let m = model(3, 4);
+    let mut v1 = m.to_bytes();
+    put_u32(&mut v1, 8, 1);
+    reseal(&mut v1);
+    let back = Model::from_bytes(&v1).expect("a version-1 file");
+    assert_eq!(back, m);
+    assert!(back.correctives().is_none() && back.corrective_count() == 0);
+    let mut v0 = v1.clone();
+    put_u32(&mut v0, 8, 0);
+    reseal(&mut v0);
+    assert_eq!(
+        problem(Model::from_bytes(&v0)),
+        ModelProblem::UnsupportedVersion {
+            found: 0,
+            supported: FORMAT_VERSION
+        }
+    );
+}
+
+#[test]
+fn malformed_corrective_sections_are_refused() {
+    let m = common::with_correctives(&model(3, 4), 4, 2);
+    let bytes = m.to_bytes();
+    let at = section(&bytes, b"CORR");
+    let (entry, length) = table_entry(&bytes, b"CORR");
+    let edit = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut bad = bytes.clone();
+        f(&mut bad);
+        reseal(&mut bad);
+        problem(Model::from_bytes(&bad))
+    };
+    // N and D that disagree with the section's length.
+    for (word, value) in [(0, 5), (0, 0), (1, 2), (0, u32::MAX), (1, u32::MAX)] {
+        let p = edit(&|b| put_u32(b, at + 4 * word, value));
+        assert!(
+            matches!(p, ModelProblem::SectionLength { ref tag, actual, .. } if tag == "CORR" && actual == length),
+            "word {word} = {value}: {p:?}"
+        );
+    }
+    // Shorter than its two counts.
+    let p = edit(&|b| b[entry + 16..entry + 24].copy_from_slice(&4u64.to_le_bytes()));
+    assert_eq!(
+        p,
+        ModelProblem::SectionLength {
+            tag: "CORR".into(),
+            expected: 8,
+            actual: 4
+        }
+    );
+    assert!(p.to_string().contains("'CORR'"), "{p}");
+    // Drivers: a root, out of range, twice.
+    let p = edit(&|b| put_u32(b, at + 8, 0));
+    assert!(
+        matches!(
+            p,
+            ModelProblem::BadDriver {
+                index: 0,
+                bone: 0,
+                ..
+            }
+        ),
+        "{p:?}"
+    );
+    assert!(p.to_string().contains("root"), "{p}");
+    let p = edit(&|b| put_u32(b, at + 8 + 4, 9));
+    assert_eq!(
+        p,
+        ModelProblem::IndexOutOfRange {
+            what: "corrective drivers",
+            index: 1,
+            value: 9,
+            bound: 4
+        }
+    );
+    let first = u32::from_le_bytes(bytes[at + 8..at + 12].try_into().expect("4"));
+    let p = edit(&|b| put_u32(b, at + 8 + 8, first));
+    assert!(
+        matches!(p, ModelProblem::BadDriver { index: 2, reason, .. } if reason.contains("twice")),
+        "{p:?}"
+    );
+    // A NaN in the map and in the targets.
+    let map = at + 8 + 4 * 3;
+    let p = edit(&|b| put_u32(b, map + 4 * 7, f32::NAN.to_bits()));
+    assert_eq!(
+        p,
+        ModelProblem::NonFinite {
+            what: "corrective map",
+            index: 7
+        }
+    );
+    let targets = map + 4 * 4 * 27;
+    let p = edit(&|b| put_u32(b, targets + 4 * 5, f32::INFINITY.to_bits()));
+    assert_eq!(
+        p,
+        ModelProblem::NonFinite {
+            what: "corrective targets",
+            index: 5
+        }
+    );
+}
+
+#[test]
+fn inconsistent_correctives_are_refused_by_validation() {
+    let m = common::with_correctives(&model(2, 4), 3, 7);
+    let v = m.vertex_count();
+    let parts = m.into_parts();
+    let with = |f: &dyn Fn(&mut rrskin::Correctives)| {
+        let mut p = parts.clone();
+        f(p.correctives.as_mut().expect("correctives"));
+        problem(Model::new(p))
+    };
+    assert!(matches!(
+        with(&|c| {
+            c.targets.pop();
+        }),
+        ModelProblem::Length {
+            what: "corrective targets (targets x vertices)",
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| c.targets.clear()),
+        ModelProblem::Dimension {
+            what: "corrective target count (N)",
+            value: 0,
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| {
+            let first = c.targets[..v].to_vec();
+            c.targets = first.repeat(65);
+        }),
+        ModelProblem::Dimension {
+            what: "corrective target count (N)",
+            value: 65,
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| {
+            c.map.pop();
+        }),
+        ModelProblem::Length {
+            what: "corrective map (N x 9D)",
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| {
+            c.drivers.clear();
+            c.map.clear();
+        }),
+        ModelProblem::Dimension {
+            what: "corrective driver count (D)",
+            value: 0,
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| c.drivers[1] = c.drivers[0]),
+        ModelProblem::BadDriver { index: 1, .. }
+    ));
+    assert!(matches!(
+        with(&|c| c.drivers[0] = 0),
+        ModelProblem::BadDriver {
+            index: 0,
+            bone: 0,
+            ..
+        }
+    ));
+    // 64 targets are the most, and valid.
+    let mut most = parts.clone();
+    let c = most.correctives.as_mut().expect("correctives");
+    c.targets = c.targets[..v].repeat(64);
+    c.map = c.map[..27].repeat(64);
+    assert_eq!(Model::new(most).expect("64 targets").corrective_count(), 64);
 }

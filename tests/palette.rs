@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{joint_blend_pattern, random_model, random_poses, Spec};
+use common::{joint_blend_pattern, random_model, random_poses, with_correctives, Spec};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
 use rrskin::predict::Affine;
@@ -219,5 +219,235 @@ fn the_c_abi_palette_matches_the_rust_one() {
         assert!(bad.is_null());
         assert_eq!(rrskin_palette_model_destroy(m), ok);
         assert_eq!(rrskin_palette_model_destroy(std::ptr::null_mut()), ok);
+    }
+}
+
+/// Positions skinned from the palette and the corrective weights (as an engine's shader does)
+/// against the reference's, worst relative error over C characters.
+fn corrected_error(model: &Model, bones: &[Affine]) -> f32 {
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (v, j, n, c) = (
+        model.vertex_count(),
+        model.bone_count(),
+        palette.len(),
+        palette.corrective_count(),
+    );
+    let characters = bones.len() / j;
+    let mut entries = vec![[0.0; 12]; characters * n];
+    palette.compute_batch(bones, &mut entries).expect("palette");
+    let mut weights = vec![0.0; characters * c];
+    palette
+        .corrective_weights_batch(bones, &mut weights)
+        .expect("weights");
+    let (mut want, mut normals) = (
+        vec![[0.0; 3]; characters * v],
+        vec![[0.0; 3]; characters * v],
+    );
+    CpuEvaluator::new(model)
+        .evaluate(bones, &mut want, &mut normals)
+        .expect("reference");
+    let mut got = vec![[0.0; 3]; v];
+    let mut worst = 0.0f32;
+    for ch in 0..characters {
+        palette
+            .skin_positions_with_correctives(
+                &entries[ch * n..(ch + 1) * n],
+                &weights[ch * c..(ch + 1) * c],
+                &mut got,
+            )
+            .expect("skin");
+        for (g, w) in got.iter().zip(&want[ch * v..(ch + 1) * v]) {
+            let d = (0..3).map(|i| (g[i] - w[i]).powi(2)).sum::<f32>().sqrt();
+            let size = (0..3).map(|i| w[i] * w[i]).sum::<f32>().sqrt().max(1.0);
+            worst = worst.max(d / size);
+        }
+    }
+    worst
+}
+
+#[test]
+fn correctives_through_the_palette_match_the_reference() {
+    for (what, model) in models() {
+        let corrected = with_correctives(&model, 6, 3);
+        let bones = random_poses(&corrected, 16, 8);
+        let worst = corrected_error(&corrected, &bones);
+        eprintln!("{what} with correctives: worst relative position error {worst:.2e}");
+        assert!(worst <= PALETTE_TOLERANCE, "{what}: {worst}");
+        // The f32 weights are the f64 reference's.
+        let palette = Palette::new(corrected.clone()).expect("palette");
+        let j = corrected.bone_count();
+        let mut w32 = vec![0.0f32; 6];
+        let mut w64 = vec![0.0f64; 6];
+        for q in bones.chunks_exact(j) {
+            palette.corrective_weights(q, &mut w32).expect("weights");
+            rrskin::predict::corrective_weights(&corrected, q, &mut w64).expect("reference");
+            for (a, b) in w32.iter().zip(&w64) {
+                assert!((*a as f64 - b).abs() <= 1e-5, "{what}: {a} vs {b}");
+            }
+        }
+        // Without the weights, the skin is that of the model without correctives.
+        let plain = Palette::new(model.clone()).expect("palette");
+        let mut entries = vec![[0.0; 12]; palette.len()];
+        palette.compute(&bones[..j], &mut entries).expect("palette");
+        let v = model.vertex_count();
+        let (mut a, mut b) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v]);
+        palette.skin_positions(&entries, &mut a).expect("skin");
+        plain.skin_positions(&entries, &mut b).expect("skin");
+        assert_eq!(a, b, "{what}");
+    }
+}
+
+#[test]
+fn corrective_weights_batched_and_one_by_one_agree_and_check_their_input() {
+    let (_, model) = models().swap_remove(0);
+    let model = with_correctives(&model, 5, 4);
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (j, n, characters) = (model.bone_count(), palette.corrective_count(), 11);
+    assert_eq!(n, 5);
+    let skin = palette.skin();
+    assert_eq!(skin.correctives, 5);
+    assert_eq!(skin.corrective_targets.len(), 5 * model.vertex_count());
+    let mut bones = random_poses(&model, characters, 3);
+    let mut batch = vec![0.0; characters * n];
+    palette
+        .corrective_weights_batch(&bones, &mut batch)
+        .expect("batch");
+    for (q, w) in bones.chunks_exact(j).zip(batch.chunks_exact(n)) {
+        let mut one = vec![0.0; n];
+        palette.corrective_weights(q, &mut one).expect("one");
+        assert!(one == w);
+    }
+    let short = palette.corrective_weights_batch(&bones, &mut batch[1..]);
+    assert!(matches!(short, Err(Error::WrongLength { .. })), "{short:?}");
+    let partial = palette.corrective_weights(&bones[..j - 1], &mut batch[..n]);
+    assert!(
+        matches!(partial, Err(Error::WrongLength { .. })),
+        "{partial:?}"
+    );
+    bones[j + 1][2] = f32::INFINITY;
+    let inf = palette.corrective_weights_batch(&bones, &mut batch);
+    assert!(matches!(inf, Err(Error::NonFinite { .. })), "{inf:?}");
+    let mut entries = vec![[0.0; 12]; palette.len()];
+    palette.compute(&bones[..j], &mut entries).expect("palette");
+    let mut got = vec![[0.0; 3]; model.vertex_count()];
+    let wrong = palette.skin_positions_with_correctives(&entries, &batch[..n - 1], &mut got);
+    assert!(matches!(wrong, Err(Error::WrongLength { .. })), "{wrong:?}");
+    // A model without correctives has none to compute.
+    let (_, plain) = models().swap_remove(0);
+    let plain = Palette::new(plain).expect("palette");
+    assert_eq!(plain.corrective_count(), 0);
+    assert!(plain.skin().corrective_targets.is_empty());
+    plain
+        .corrective_weights_batch(&bones[..j], &mut [])
+        .expect("no weights");
+}
+
+#[test]
+fn the_c_abi_gives_the_corrective_weights_and_targets() {
+    use rrskin::ffi::*;
+    let (_, model) = models().swap_remove(3);
+    let model = with_correctives(&model, 4, 6);
+    let bytes = model.to_bytes();
+    let palette = Palette::new(model.clone()).expect("palette");
+    let (j, characters) = (model.bone_count(), 5usize);
+    let bones = random_poses(&model, characters, 9);
+    let mut want = vec![0.0f32; characters * 4];
+    palette
+        .corrective_weights_batch(&bones, &mut want)
+        .expect("weights");
+    let ok = RrskinStatus::Ok;
+    let floats = bones.as_flattened();
+    let mut m: *mut RrskinPaletteModel = std::ptr::null_mut();
+    // SAFETY: valid pointers and lengths (so in every call below).
+    unsafe {
+        assert_eq!(
+            rrskin_palette_model_load_memory(bytes.as_ptr(), bytes.len(), &mut m),
+            ok
+        );
+        let mut n = u32::MAX;
+        assert_eq!(rrskin_palette_model_get_corrective_count(m, &mut n), ok);
+        assert_eq!(n, 4);
+        assert_eq!(
+            rrskin_palette_model_get_corrective_count(m, std::ptr::null_mut()),
+            RrskinStatus::ErrorNullPointer
+        );
+        let mut skin = std::mem::zeroed::<RrskinPaletteSkin>();
+        assert_eq!(rrskin_palette_model_get_skin(m, &mut skin), ok);
+        assert_eq!(skin.correctives, 4);
+        let v = model.vertex_count();
+        assert_eq!(
+            std::slice::from_raw_parts(skin.corrective_targets, 4 * v * 3),
+            model
+                .correctives()
+                .expect("correctives")
+                .targets
+                .as_flattened()
+        );
+        let mut got = vec![0.0f32; characters * 4];
+        assert_eq!(
+            rrskin_palette_compute_corrective_weights(
+                m,
+                floats.as_ptr(),
+                floats.len(),
+                got.as_mut_ptr(),
+                got.len()
+            ),
+            ok
+        );
+        assert!(got == want);
+        assert_eq!(
+            rrskin_palette_compute_corrective_weights(
+                m,
+                floats.as_ptr(),
+                floats.len(),
+                got.as_mut_ptr(),
+                got.len() - 1
+            ),
+            RrskinStatus::ErrorWrongLength
+        );
+        let message = std::ffi::CStr::from_ptr(rrskin_last_error()).to_string_lossy();
+        assert!(message.contains("corrective weights"), "{message}");
+        assert_eq!(
+            rrskin_palette_compute_corrective_weights(
+                m,
+                floats.as_ptr(),
+                floats.len(),
+                std::ptr::null_mut(),
+                got.len()
+            ),
+            RrskinStatus::ErrorNullPointer
+        );
+        assert_eq!(
+            rrskin_palette_compute_corrective_weights(
+                std::ptr::null(),
+                floats.as_ptr(),
+                j * 12,
+                got.as_mut_ptr(),
+                4
+            ),
+            RrskinStatus::ErrorNullPointer
+        );
+        assert_eq!(rrskin_palette_model_destroy(m), ok);
+        // A model without correctives: N = 0, no targets, no floats to write.
+        let plain = models().swap_remove(3).1.to_bytes();
+        assert_eq!(
+            rrskin_palette_model_load_memory(plain.as_ptr(), plain.len(), &mut m),
+            ok
+        );
+        assert_eq!(rrskin_palette_model_get_corrective_count(m, &mut n), ok);
+        assert_eq!(n, 0);
+        assert_eq!(rrskin_palette_model_get_skin(m, &mut skin), ok);
+        assert!(skin.correctives == 0 && skin.corrective_targets.is_null());
+        assert_eq!(
+            rrskin_palette_compute_corrective_weights(
+                m,
+                floats.as_ptr(),
+                floats.len(),
+                std::ptr::null_mut(),
+                0
+            ),
+            ok
+        );
+        assert_eq!(rrskin_palette_model_destroy(m), ok);
     }
 }

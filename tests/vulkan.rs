@@ -867,7 +867,9 @@ fn memory_queries_are_the_bytes_created() {
     };
     let models = [(LBS, 41), (RR, 42)].map(|(spec, seed)| random_model(spec, seed));
     let sparse = joint_blend_pattern(&models[1], 1);
-    for model in models.iter().chain([&sparse]) {
+    // With correctives: the targets in the rest buffer, the map, the drivers and the weights.
+    let corrected = with_correctives(&models[1], 5, 1);
+    for model in models.iter().chain([&sparse, &corrected]) {
         let sizes = ModelSizes::of(model);
         let gpu = GpuModel::new(&ctx, model).expect("upload");
         let spec = (sizes, gpu.is_block_sparse());
@@ -995,4 +997,104 @@ fn outputs_released_to_another_queue_family_each_frame_match_cpu() {
         Crowd::with_options(&gpu, 1, own),
         Err(Error::OutOfRange { .. })
     ));
+}
+
+/// Pose-space correctives on the GPU: models with them (plain LBS, K = 8 dense, block-sparse
+/// with fused predictors; one crowd split into chunks) and a model without, in one command
+/// buffer over two frame slots, each crowd's positions, normals and bounds against the CPU
+/// reference (the tolerances of `compare`; boxes as in `overlapping_frames`).
+#[test]
+fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
+    let ctx = validated_context();
+    let models = [
+        with_correctives(&random_model(LBS, 51), 6, 1),
+        with_correctives(
+            &random_model(
+                Spec {
+                    influences: 8,
+                    ..RR
+                },
+                52,
+            ),
+            9,
+            2,
+        ),
+        with_correctives(
+            &joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 53), 1),
+            3,
+            3,
+        ),
+        random_model(RR, 54),
+    ];
+    let gpu: Vec<GpuModel> = models
+        .iter()
+        .map(|m| GpuModel::new(&ctx, m).expect("upload"))
+        .collect();
+    assert_eq!(
+        gpu.iter()
+            .map(GpuModel::corrective_count)
+            .collect::<Vec<_>>(),
+        [6, 9, 3, 0]
+    );
+    assert!(gpu[2].fuses_predictors());
+    let counts = [9, 7, 5, 3];
+    let v = models[0].vertex_count() as u64;
+    let crowds: Vec<Crowd> = (gpu.iter().zip(counts).enumerate())
+        .map(|(i, (g, c))| {
+            let options = CrowdOptions {
+                bounds: true,
+                debug_settings: CrowdDebugSettings {
+                    // The first crowd in chunks of 4 characters' positions.
+                    max_binding_bytes: (i == 0).then_some(4 * v * 12),
+                },
+                ..CrowdOptions::default()
+            };
+            Crowd::with_options(g, c, options).expect("crowd")
+        })
+        .collect();
+    assert!(crowds[0].chunk_count() > 1);
+    let mut crowds = crowds;
+    let mut batch = Batch::new(&ctx).expect("batch");
+    for frame in 0..2 {
+        let mut expected = Vec::new();
+        for ((model, crowd), &c) in models.iter().zip(&mut crowds).zip(&counts) {
+            let (poses, p, n) = checkable_poses(model, c, frame + 1).swap_remove(frame);
+            crowd.set_bones(frame, &poses).expect("bones");
+            expected.push((p, n));
+        }
+        let refs: Vec<&Crowd> = crowds.iter().collect();
+        batch.run(frame, &refs).expect("run");
+        for ((model, crowd), (p, n)) in models.iter().zip(&mut crowds).zip(&expected) {
+            let out = crowd.read_back().expect("read back");
+            compare(model, (p, n), (&out.positions, &out.normals));
+            let mut boxes = vec![Aabb::default(); crowd.character_count()];
+            crowd.read_bounds(frame, &mut boxes).expect("bounds");
+            for (want, got) in boxes_of(p, model.vertex_count()).iter().zip(&boxes) {
+                let pairs = (want.min.iter().chain(&want.max)).zip(got.min.iter().chain(&got.max));
+                for (w, g) in pairs {
+                    assert!(
+                        (w - g).abs() <= POSITION_TOLERANCE * w.abs().max(1.0),
+                        "frame {frame}: box {got:?}, CPU {want:?}"
+                    );
+                }
+            }
+        }
+    }
+    // The correctives moved the mesh: without them the CPU reference differs.
+    let plain = Model::new(rrskin::ModelParts {
+        correctives: None,
+        ..models[0].parts().clone()
+    })
+    .expect("valid");
+    let (poses, with, _) = checkable_poses(&models[0], 4, 1).swap_remove(0);
+    let mut without = vec![[0.0; 3]; with.len()];
+    let mut normals = without.clone();
+    CpuEvaluator::new(&plain)
+        .evaluate(&poses, &mut without, &mut normals)
+        .expect("cpu");
+    assert!(with
+        .iter()
+        .zip(&without)
+        .any(|(a, b)| (0..3).any(|i| (a[i] - b[i]).abs() > 1e-3)));
+    assert_no_validation_messages(&ctx);
 }

@@ -1,8 +1,10 @@
 /*
  * A C engine that skins with its own code, using rrskin's CPU palette only: no Vulkan (this
  * program is linked without the Vulkan loader). It loads a model, computes each character's
- * palette of P + J 3x4 matrices from its J bone transforms, skins the rest positions with the
- * model's K joint indices and weights exactly as a vertex shader would, and checks the result
+ * palette of P + J 3x4 matrices from its J bone transforms (and, for a model with pose-space
+ * correctives, its N corrective weights), skins the rest positions (plus the weighted corrective
+ * targets) with the model's K joint indices and weights exactly as a vertex shader would, and
+ * checks the result
  * against positions computed by the Rust CPU reference evaluator; then it checks the ABI's
  * answers to bad input. Prints "N passed, M failed" and exits non-zero on any failure.
  *
@@ -48,9 +50,10 @@ static float *read_floats(const char *path, size_t count) {
     return data;
 }
 
-/* What a skinning vertex shader does: blend K palette matrices, apply to the rest position. */
-static void skin_vertex(const rrskin_palette_skin *skin, const float *palette, uint32_t a,
-                        float out[3]) {
+/* What a skinning vertex shader does: add the weighted corrective targets (morph targets) to the
+   rest position, blend K palette matrices, apply. */
+static void skin_vertex(const rrskin_palette_skin *skin, const float *palette,
+                        const float *corrective_weights, uint32_t a, float out[3]) {
     float m[12] = {0};
     for (uint32_t k = 0; k < skin->influences; k++) {
         uint32_t i = a * skin->influences + k;
@@ -59,7 +62,14 @@ static void skin_vertex(const rrskin_palette_skin *skin, const float *palette, u
             m[e] += skin->weights[i] * entry[e];
         }
     }
-    const float *x = skin->rest_positions + 3 * (size_t)a;
+    const float *rest = skin->rest_positions + 3 * (size_t)a;
+    float x[3] = {rest[0], rest[1], rest[2]};
+    for (uint32_t n = 0; n < skin->correctives; n++) {
+        const float *delta = skin->corrective_targets + 3 * ((size_t)n * skin->vertices + a);
+        for (int i = 0; i < 3; i++) {
+            x[i] += corrective_weights[n] * delta[i];
+        }
+    }
     for (int r = 0; r < 3; r++) {
         out[r] = m[4 * r] * x[0] + m[4 * r + 1] * x[1] + m[4 * r + 2] * x[2] + m[4 * r + 3];
     }
@@ -86,7 +96,14 @@ int main(int argc, char **argv) {
     float *poses = read_floats(argv[2], frames * bone_floats);
     float *expected = read_floats(argv[3], frames * characters * skin.vertices * 3);
     float *palette = malloc(palette_floats * sizeof(float));
-    if (!poses || !expected || !palette) {
+    uint32_t correctives = 0;
+    check(rrskin_palette_model_get_corrective_count(model, &correctives) == RRSKIN_STATUS_OK &&
+              correctives == skin.correctives,
+          "the corrective count is the skin's");
+    size_t weight_floats = characters * correctives;
+    /* One float more than needed, so that malloc never sees 0. */
+    float *weights = malloc((weight_floats + 1) * sizeof(float));
+    if (!poses || !expected || !palette || !weights) {
         return 1;
     }
     for (size_t f = 0; f < frames; f++) {
@@ -97,12 +114,15 @@ int main(int argc, char **argv) {
                                                                    bone_floats, palette,
                                                                    palette_floats, 2);
         check(s == RRSKIN_STATUS_OK, "palette of a frame");
+        check(rrskin_palette_compute_corrective_weights(model, poses + f * bone_floats, bone_floats,
+                                                        weights, weight_floats) == RRSKIN_STATUS_OK,
+              "corrective weights of a frame");
         float worst = 0;
         for (size_t c = 0; c < characters; c++) {
             const float *entries = palette + c * skin.palette_entries * 12;
             for (uint32_t a = 0; a < skin.vertices; a++) {
                 float p[3];
-                skin_vertex(&skin, entries, a, p);
+                skin_vertex(&skin, entries, weights + c * correctives, a, p);
                 const float *want = expected + ((f * characters + c) * skin.vertices + a) * 3;
                 float d = 0, size = 0;
                 for (int i = 0; i < 3; i++) {
@@ -123,6 +143,10 @@ int main(int argc, char **argv) {
     check(rrskin_palette_compute(NULL, poses, bone_floats, palette, palette_floats) ==
               RRSKIN_STATUS_ERROR_NULL_POINTER,
           "a NULL model is refused");
+    check(rrskin_palette_compute_corrective_weights(model, poses, bone_floats, weights,
+                                                    weight_floats + 1) ==
+              RRSKIN_STATUS_ERROR_WRONG_LENGTH,
+          "corrective weights of the wrong length are refused");
     rrskin_palette_model *missing = NULL;
     check(rrskin_palette_model_load_file("/nonexistent/model.rrs", &missing) == RRSKIN_STATUS_ERROR_IO &&
               missing == NULL,
@@ -131,6 +155,7 @@ int main(int argc, char **argv) {
     free(poses);
     free(expected);
     free(palette);
+    free(weights);
     printf("%d passed, %d failed\n", passed, failed);
     return failed == 0 ? 0 : 1;
 }

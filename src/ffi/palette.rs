@@ -16,7 +16,9 @@ pub struct RrskinPaletteModel {
 
 /// What an engine skins with, borrowed from a palette model (valid until it is destroyed).
 /// Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
-/// * (rest_positions[a], 1)`, each palette entry a 3x4 row-major matrix.
+/// * (rest_positions[a] + sum over n < correctives of w[n] * corrective_targets[n*V + a], 1)`,
+/// each palette entry a 3x4 row-major matrix, w the character's corrective weights
+/// (`rrskin_palette_compute_corrective_weights`; no sum without correctives).
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct RrskinPaletteSkin {
@@ -43,6 +45,11 @@ pub struct RrskinPaletteSkin {
     pub rest_tangents: *const f32,
     /// T x 3 vertex indices.
     pub triangle_indices: *const u32,
+    /// N, the pose-space corrective targets (0 without correctives; at most 64).
+    pub correctives: u32,
+    /// N x V x 3 rest-space deltas, target-major (as glTF morph targets), or NULL without
+    /// correctives.
+    pub corrective_targets: *const f32,
 }
 
 /// Loads and validates a `.rrs` file (UTF-8 path) for CPU palette evaluation. Destroy with
@@ -121,9 +128,72 @@ pub unsafe extern "C" fn rrskin_palette_model_get_skin(
                 t => t.as_flattened().as_ptr(),
             },
             triangle_indices: skin.triangles.as_flattened().as_ptr(),
+            correctives: skin.correctives as u32,
+            corrective_targets: match skin.corrective_targets {
+                [] => std::ptr::null(),
+                t => t.as_flattened().as_ptr(),
+            },
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }
+    })
+}
+
+/// N, the pose-space corrective weights of a character (0 for a model without correctives):
+/// the floats per character `rrskin_palette_compute_corrective_weights` writes.
+///
+/// # Safety
+/// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+/// `uint32_t`.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_model_get_corrective_count(
+    model: *const RrskinPaletteModel,
+    out: *mut u32,
+) -> RrskinStatus {
+    guard(|| {
+        // SAFETY: NULL or live, as the caller guarantees.
+        let palette = &unsafe { model.as_ref() }
+            .ok_or(Failure::null("model"))?
+            .palette;
+        // SAFETY: `out` as the function's contract requires.
+        unsafe { put(out, palette.corrective_count() as u32, "out") }
+    })
+}
+
+/// The pose-space corrective weights of `characters` characters on the calling thread: `bones`
+/// as `rrskin_palette_compute`'s (`bone_floats` = characters * J * 12), `out` characters x N
+/// floats (`out_floats`; N from `rrskin_palette_model_get_corrective_count`), each character's
+/// N weights of the skin's `corrective_targets`. For a model without correctives N = 0 and
+/// `out_floats` must be 0 (`out` may then be NULL). Allocates nothing and takes no lock.
+///
+/// # Safety
+/// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+/// readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
+/// overlap.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_compute_corrective_weights(
+    model: *const RrskinPaletteModel,
+    bones: *const f32,
+    bone_floats: usize,
+    out: *mut f32,
+    out_floats: usize,
+) -> RrskinStatus {
+    guard(|| {
+        // SAFETY: NULL or live, as the caller guarantees.
+        let palette = &unsafe { model.as_ref() }
+            .ok_or(Failure::null("model"))?
+            .palette;
+        let count = transforms(bone_floats, "bone floats")?;
+        // SAFETY: `bones` points to `bone_floats` floats, as the caller guarantees.
+        let bones = unsafe { slice(bones.cast::<Affine>(), count, "bones") }?;
+        let out = match (out.is_null(), out_floats) {
+            (_, 0) => &mut [][..],
+            (true, _) => return Err(Failure::null("out")),
+            // SAFETY: non-null, `out_floats` writable floats not overlapping `bones`, as the
+            // caller guarantees.
+            (false, n) => unsafe { std::slice::from_raw_parts_mut(out, n) },
+        };
+        Ok(palette.corrective_weights_batch(bones, out)?)
     })
 }
 

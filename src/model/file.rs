@@ -3,7 +3,7 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION
+//! 8       4          format version (u32) = FORMAT_VERSION (2; version 1, without CORR, reads too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -29,15 +29,17 @@
 //! | SSDW | optional: V x K f32 SSD baseline weights             |
 //! | ANIM | optional: frames x J x 12 f32 bone transforms        |
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
+//! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
 
-use super::{KeyPredictor, ModelParts, SecondBone};
+use super::{Correctives, KeyPredictor, ModelParts, SecondBone};
 use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
-pub const FORMAT_VERSION: u32 = 1;
+/// The version this build writes; it reads every version from 1 to this one.
+pub const FORMAT_VERSION: u32 = 2;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
@@ -60,6 +62,7 @@ const SSDI: [u8; 4] = *b"SSDI";
 const SSDW: [u8; 4] = *b"SSDW";
 const ANIM: [u8; 4] = *b"ANIM";
 const TANG: [u8; 4] = *b"TANG";
+const CORR: [u8; 4] = *b"CORR";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let (v, t, j, p) = (
@@ -125,6 +128,15 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
         push_f32s(&mut tangents, m.rest_tangents.as_flattened());
         sections.push((TANG, tangents));
     }
+    if let Some(c) = &m.correctives {
+        let mut corr = Vec::new();
+        let n = c.targets.len() / v.max(1);
+        push_u32s(&mut corr, &[n as u32, c.drivers.len() as u32]);
+        push_u32s(&mut corr, &c.drivers);
+        push_f32s(&mut corr, &c.map);
+        push_f32s(&mut corr, c.targets.as_flattened());
+        sections.push((CORR, corr));
+    }
 
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
@@ -173,7 +185,7 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         return Err(ModelProblem::BadMagic);
     }
     let version = le_u32(bytes, 8);
-    if version != FORMAT_VERSION {
+    if !(1..=FORMAT_VERSION).contains(&version) {
         return Err(ModelProblem::UnsupportedVersion {
             found: version,
             supported: FORMAT_VERSION,
@@ -258,6 +270,11 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         false => Vec::new(),
     };
 
+    let correctives = match table.entry(CORR) {
+        Some(length) => Some(correctives(&table, body, length, v)?),
+        None => None,
+    };
+
     let predictors = pred
         .chunks_exact(PREDICTOR_WORDS * 4)
         .map(|r| {
@@ -294,6 +311,39 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         baseline_weights,
         animation,
         rest_tangents,
+        correctives,
+    })
+}
+
+/// The CORR section: N and D, then the lengths they give (checked before anything is read).
+fn correctives(
+    table: &SectionTable,
+    body: &[u8],
+    length: u64,
+    v: u64,
+) -> Result<Correctives, ModelProblem> {
+    if length < 8 {
+        return Err(ModelProblem::SectionLength {
+            tag: "CORR".into(),
+            expected: 8,
+            actual: length,
+        });
+    }
+    let head = table.section(body, CORR, length)?;
+    let (n, d) = (le_u32(head, 0) as u64, le_u32(head, 4) as u64);
+    let floats = |factors: &[u64]| factors.iter().fold(1u64, |acc, &f| acc.saturating_mul(f));
+    let (map, targets) = (floats(&[n, 9, d]), floats(&[n, v, 3]));
+    let words = 2u64
+        .saturating_add(d)
+        .saturating_add(map)
+        .saturating_add(targets);
+    let corr = table.section(body, CORR, words.saturating_mul(4))?;
+    let (d, map) = (d as usize, map as usize);
+    let values = f32s(&corr[8 + 4 * d..]);
+    Ok(Correctives {
+        drivers: u32s(&corr[8..8 + 4 * d]),
+        map: values[..map].to_vec(),
+        targets: values[map..].chunks_exact(3).map(array).collect(),
     })
 }
 

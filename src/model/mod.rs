@@ -17,11 +17,22 @@
 //! | `baseline_*`       | V x K or empty   | SSD skinning of the same mesh (bone indices, weights)|
 //! | `animation`        | frames x J       | optional bone transforms to show the model with      |
 //! | `rest_tangents`    | V x 4 or empty   | rest tangent xyz (unit) + handedness w = ±1 (glTF)   |
+//! | `correctives`      | optional         | pose-space correctives (paper §8): N rest-space targets |
+//! | `  .drivers`       | D                | driver bones (each with a parent, distinct)          |
+//! | `  .map`           | N x 9D           | w = map · φ(q), φ = the drivers' R − I (see below)   |
+//! | `  .targets`       | N x V x 3        | rest-space deltas, target-major (as glTF morph targets) |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
 //! transform b, 3x4), `d_c[3ℓ + j] = D_ℓ[c][j]` (key gradient ℓ, 3x3).
 //! A model with P = 0 is plain linear blend skinning: every index points at a bone.
+//!
+//! Pose-space correctives (paper §8, docs/method.md §9): for driver i, bone d = `drivers[i]`
+//! with parent p, `R_i = rot(Q_p)ᵀ rot(Q_d)` (rot: the 3x3 of the bone transform, as
+//! [`crate::predict::rotation_of`]) and `φ[9i + 3r + c] = R_i[r][c] − δ_rc`; the weights are
+//! `w = map · φ` (N), and vertex a is skinned from `ŷ_a + Σ_n w_n targets[n V + a]` instead of
+//! ŷ_a (normals follow from the positions; tangents and the rest normals do not see them).
+//! 1 ≤ N ≤ [`MAX_CORRECTIVES`].
 
 mod file;
 mod validate;
@@ -60,6 +71,28 @@ pub struct SecondBone {
     pub w: Mat3Rows,
 }
 
+/// The most corrective targets a model may carry (N).
+pub const MAX_CORRECTIVES: usize = 64;
+
+/// Pose-space correctives (paper §8; docs/method.md §9): rest-space morph targets whose weights
+/// are linear in the driver joints' rotations relative to their parents.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Correctives {
+    /// D driver joints, each with a parent (not a root), distinct.
+    pub drivers: Vec<u32>,
+    /// N x 9D, row-major: w = map · φ(q).
+    pub map: Vec<f32>,
+    /// N x V rest-space deltas (target-major, like glTF morph targets).
+    pub targets: Vec<[f32; 3]>,
+}
+
+impl Correctives {
+    /// D
+    pub fn driver_count(&self) -> usize {
+        self.drivers.len()
+    }
+}
+
 /// Everything a model holds, unchecked. Turn it into a [`Model`] with [`Model::new`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelParts {
@@ -88,6 +121,9 @@ pub struct ModelParts {
     /// the bitangent `cross(n, t) * w` (glTF's TANGENT convention). Skinned per frame when a
     /// crowd asks for tangents ([`crate::vk::CrowdOptions::tangents`]).
     pub rest_tangents: Vec<[f32; 4]>,
+    /// Pose-space correctives (paper §8; docs/method.md): rest-space morph targets whose weights
+    /// are linear in the driver joints' rotations. None: no correctives.
+    pub correctives: Option<Correctives>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -233,6 +269,27 @@ impl Model {
         !self.parts.rest_tangents.is_empty()
     }
 
+    /// N, the corrective targets (0 without correctives).
+    pub fn corrective_count(&self) -> usize {
+        match &self.parts.correctives {
+            Some(c) => c.targets.len() / self.vertex_count(),
+            None => 0,
+        }
+    }
+
+    /// D, the corrective driver bones (0 without correctives).
+    pub fn corrective_driver_count(&self) -> usize {
+        self.parts
+            .correctives
+            .as_ref()
+            .map_or(0, |c| c.drivers.len())
+    }
+
+    /// The model's pose-space correctives, if it has any.
+    pub fn correctives(&self) -> Option<&Correctives> {
+        self.parts.correctives.as_ref()
+    }
+
     /// The model's animation: frames of J bone transforms (empty if it carries none).
     pub fn animation(&self) -> impl Iterator<Item = &[crate::predict::Affine]> {
         self.parts.animation.chunks_exact(self.bone_count())
@@ -252,6 +309,7 @@ impl Model {
             c2: Vec::new(),
             baseline_indices: Vec::new(),
             baseline_weights: Vec::new(),
+            correctives: None,
             ..self.parts.clone()
         };
         Model::new(parts).ok()

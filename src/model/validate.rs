@@ -1,7 +1,9 @@
 //! The model invariants, checked on every construction (from parts or from a file).
 //! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
 
-use super::{KeyPredictor, Mat3Rows, ModelParts, SUPPORTED_INFLUENCES};
+use super::{
+    Correctives, KeyPredictor, Mat3Rows, ModelParts, MAX_CORRECTIVES, SUPPORTED_INFLUENCES,
+};
 use crate::error::ModelProblem;
 
 /// Largest vertex, triangle or bone count: indices and offsets must fit the shaders' u32/i32.
@@ -124,6 +126,65 @@ pub fn check(m: &ModelParts) -> Check {
                     handedness: t[3],
                 });
             }
+        }
+    }
+    if let Some(c) = &m.correctives {
+        correctives(c, &m.bone_parents, v)?;
+    }
+    Ok(())
+}
+
+/// N = targets / V in 1..=MAX_CORRECTIVES, the map N x 9D, every number finite, the drivers
+/// bones with a parent, each once.
+fn correctives(c: &Correctives, parents: &[i32], v: usize) -> Check {
+    let j = parents.len();
+    let n = c.targets.len() / v;
+    if c.targets.len() % v != 0 {
+        return Err(ModelProblem::Length {
+            what: "corrective targets (targets x vertices)",
+            expected: c.targets.len().div_ceil(v) * v,
+            actual: c.targets.len(),
+        });
+    }
+    if n == 0 || n > MAX_CORRECTIVES {
+        return Err(ModelProblem::Dimension {
+            what: "corrective target count (N)",
+            value: n as u64,
+            reason: "must be 1 to 64 (MAX_CORRECTIVES)",
+        });
+    }
+    dimension("corrective driver count (D)", c.drivers.len(), 1)?;
+    if c.drivers.len() >= j {
+        return Err(ModelProblem::Dimension {
+            what: "corrective driver count (D)",
+            value: c.drivers.len() as u64,
+            reason: "more drivers than bones with a parent",
+        });
+    }
+    length(
+        "corrective map (N x 9D)",
+        n * 9 * c.drivers.len(),
+        c.map.len(),
+    )?;
+    finite("corrective map", c.map.iter())?;
+    finite("corrective targets", c.targets.iter().flatten())?;
+    for (i, &d) in c.drivers.iter().enumerate() {
+        if d as usize >= j {
+            return Err(out_of_range("corrective drivers", i, d as i64, j));
+        }
+        if parents[d as usize] < 0 {
+            return Err(ModelProblem::BadDriver {
+                index: i,
+                bone: d,
+                reason: "is a root (a driver's rotation is relative to its parent)",
+            });
+        }
+        if c.drivers[..i].contains(&d) {
+            return Err(ModelProblem::BadDriver {
+                index: i,
+                bone: d,
+                reason: "is listed twice",
+            });
         }
     }
     Ok(())

@@ -4,6 +4,7 @@
 //!
 //! ```text
 //! ts0 | barrier(prev. frame's reads/writes → compute) | predict (crowds with P > 0, not fused)
+//!     |         and corrective weights (crowds of models with pose-space correctives)
 //! ts1 | barrier | C1/C2 product (all crowds with P > 0: the GEMM, the sparse or the fused one)
 //! ts2 | barrier | skin (all crowds, the pipeline of their K)
 //! ts3 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
@@ -29,7 +30,7 @@ use std::sync::Arc;
 /// The frame: phases in order, each a set of passes without dependencies among them (one
 /// timestamp per phase, reported by [`PassTimings`]).
 pub(super) const SCHEDULE: [&[Pass]; 5] = [
-    &[Pass::Predict],
+    &[Pass::Predict, Pass::CorrectiveWeights],
     &[Pass::DenseProduct, Pass::SparseProduct, Pass::FusedProduct],
     &[Pass::SkinK4, Pass::SkinK8],
     &[Pass::Normals, Pass::Bounds],
@@ -58,9 +59,10 @@ const PASS_ACCESSES: [Access; 2] = [Access::ComputeShaderReadStorage, Access::Co
 const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;
 
 /// GPU time per pass of a recorded frame, in milliseconds (the bounds count with the normals; a
-/// fused product's predictors with the product).
+/// fused product's predictors with the product; the corrective weights with the predictors).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimings {
+    /// The key predictors and the pose-space corrective weights.
     pub predict_ms: f64,
     /// The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused).
     pub product_ms: f64,

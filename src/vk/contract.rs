@@ -27,6 +27,7 @@ fn row_name(b: CrowdBuffer) -> &'static str {
         CrowdBuffer::Normals => "normals",
         CrowdBuffer::Bounds => "bounds, slot f",
         CrowdBuffer::Tangents => "tangents",
+        CrowdBuffer::CorrectiveWeights => "corrective weights",
     }
 }
 

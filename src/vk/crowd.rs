@@ -256,7 +256,7 @@ impl Crowd {
                         what: "a pass binds a buffer the crowd was made without",
                     })?;
                     Ok(match per_character[b as usize] {
-                        0 => buffer.whole(), // P = 0: an unread placeholder
+                        0 => buffer.whole(), // P = 0 or N = 0: an unread placeholder
                         per => buffer.descriptor(first * per, count * per),
                     })
                 };
@@ -315,7 +315,8 @@ impl Crowd {
             CrowdBuffer::Rhs
             | CrowdBuffer::Palette
             | CrowdBuffer::Normals
-            | CrowdBuffer::Tangents => copies.first(),
+            | CrowdBuffer::Tangents
+            | CrowdBuffer::CorrectiveWeights => copies.first(),
         }
     }
 
@@ -695,6 +696,7 @@ pub(super) fn kind(b: CrowdBuffer) -> (&'static str, vk::BufferUsageFlags, Memor
         CrowdBuffer::Normals => ("crowd normals", output, gpu),
         CrowdBuffer::Bounds => ("crowd bounds", storage, host),
         CrowdBuffer::Tangents => ("crowd tangents", output, gpu),
+        CrowdBuffer::CorrectiveWeights => ("crowd corrective weights", storage, gpu),
     }
 }
 

@@ -32,6 +32,8 @@ struct UploadData<'m> {
     predictors: Vec<u32>,
     /// [C1 | C2] row-major where the model stays dense, else empty.
     dense: Vec<f32>,
+    /// The rest positions, then the corrective targets: (1 + N) x V x 3.
+    rest: Vec<f32>,
     blocks: BlockSparse,
 }
 
@@ -42,10 +44,7 @@ impl UploadData<'_> {
         let floats = bytemuck::cast_slice::<f32, u8>;
         let (offsets, incident) = self.model.incidence();
         match b {
-            ModelBuffer::Rest => (
-                "rest positions",
-                floats(parts.rest_positions.as_flattened()),
-            ),
+            ModelBuffer::Rest => ("rest positions and corrective targets", floats(&self.rest)),
             ModelBuffer::SkinIndex => ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
             ModelBuffer::SkinWeight => ("skin weights", floats(&parts.skin_weights)),
             ModelBuffer::Parents => ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
@@ -71,6 +70,14 @@ impl UploadData<'_> {
             ModelBuffer::RestTangents => {
                 ("rest tangents", floats(parts.rest_tangents.as_flattened()))
             }
+            ModelBuffer::CorrectiveDrivers => (
+                "corrective drivers",
+                bytemuck::cast_slice(self.model.correctives().map_or(&[][..], |c| &c.drivers)),
+            ),
+            ModelBuffer::CorrectiveMap => (
+                "corrective map",
+                floats(self.model.correctives().map_or(&[][..], |c| &c.map)),
+            ),
         }
     }
 }
@@ -88,7 +95,15 @@ impl GpuModel {
             tangents: false,
             sparse: sparse.is_some(),
             fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
+            correctives: model.corrective_count() as u32,
+            drivers: model.corrective_driver_count() as u32,
         };
+        let parts = model.parts();
+        let targets = parts.correctives.as_ref().map_or(&[][..], |c| &c.targets);
+        let rest = (parts.rest_positions.iter().chain(targets))
+            .flatten()
+            .copied()
+            .collect();
         let data = UploadData {
             model,
             predictors: (model.parts().predictors.iter())
@@ -98,6 +113,7 @@ impl GpuModel {
                 Some(_) => Vec::new(),
                 None => model.c1_c2(),
             },
+            rest,
             blocks: sparse.unwrap_or_default(),
         };
         let sizes = ModelSizes::with_product_columns(model, data.blocks.columns.len());
@@ -167,6 +183,11 @@ impl GpuModel {
     /// predictor pass does not run.
     pub fn fuses_predictors(&self) -> bool {
         self.inner.dims.fused
+    }
+
+    /// N, the model's pose-space corrective targets (0 without correctives).
+    pub fn corrective_count(&self) -> usize {
+        self.inner.dims.correctives as usize
     }
 
     /// Bytes of the model's buffers: what [`super::model_bytes`] said before the upload.

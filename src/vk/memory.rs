@@ -33,6 +33,10 @@ pub struct ModelSizes {
     pub product_columns: usize,
     /// Whether the model carries rest tangents (uploaded, and crowds may output tangents).
     pub tangents: bool,
+    /// N, the pose-space corrective targets (0 without correctives).
+    pub correctives: usize,
+    /// D, the corrective driver bones (0 without correctives).
+    pub corrective_drivers: usize,
 }
 
 impl ModelSizes {
@@ -51,6 +55,8 @@ impl ModelSizes {
             influences: model.influences(),
             product_columns: columns,
             tangents: model.has_tangents(),
+            correctives: model.corrective_count(),
+            corrective_drivers: model.corrective_driver_count(),
         }
     }
 
@@ -73,6 +79,8 @@ impl ModelSizes {
             // No crowd buffer's size depends on it (B stays allocated, unused, for a fused
             // model: the sizes do not tell the two apart).
             fused: false,
+            correctives: word("corrective targets", self.correctives)?,
+            drivers: word("corrective drivers", self.corrective_drivers)?,
         })
     }
 }
@@ -87,9 +95,11 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         s.influences as u64,
         s.product_columns as u64,
     );
+    let (corr, drivers) = (s.correctives as u64, s.corrective_drivers as u64);
     let sparse = n > 0;
     4 * match b {
-        ModelBuffer::Rest => 3 * v,
+        // The rest positions, then the N corrective targets.
+        ModelBuffer::Rest => 3 * v * (1 + corr),
         ModelBuffer::SkinIndex | ModelBuffer::SkinWeight => k * v,
         ModelBuffer::Parents => j,
         ModelBuffer::Predictors => PREDICTOR_WORDS as u64 * p,
@@ -103,6 +113,8 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::IncidentTriangles | ModelBuffer::Triangles => 3 * t,
         ModelBuffer::RestTangents if s.tangents => 4 * v,
         ModelBuffer::RestTangents => 0,
+        ModelBuffer::CorrectiveDrivers => drivers,
+        ModelBuffer::CorrectiveMap => corr * 9 * drivers,
     }
 }
 
@@ -130,6 +142,9 @@ pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
         CrowdBuffer::Bounds => 0,
         CrowdBuffer::Tangents if d.tangents => v * TANGENT_STRIDE,
         CrowdBuffer::Tangents => 0,
+        // w, N floats per character rounded up to whole vec4s (so that chunk offsets align as
+        // easily as the other buffers'), only with correctives.
+        CrowdBuffer::CorrectiveWeights => 16 * (d.correctives as u64).div_ceil(4),
     }
 }
 
@@ -141,7 +156,10 @@ pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usi
         CrowdBuffer::Bounds if options.bounds => options.frames_in_flight,
         CrowdBuffer::Bounds => 0,
         CrowdBuffer::Tangents => usize::from(options.tangents),
-        CrowdBuffer::Rhs | CrowdBuffer::Palette | CrowdBuffer::Normals => 1,
+        CrowdBuffer::Rhs
+        | CrowdBuffer::Palette
+        | CrowdBuffer::Normals
+        | CrowdBuffer::CorrectiveWeights => 1,
     }
 }
 

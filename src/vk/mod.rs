@@ -6,9 +6,9 @@
 //! - [`Crowd`]: C characters of one GPU model: bone input, palette, output positions/normals
 //!   (and optionally previous positions, bounds, tangents).
 //! - [`Batch`]: records the passes of any number of crowds into ONE command buffer, pass-major
-//!   (all predictors, barrier, all C1/C2 products, barrier, all skinning, barrier, all normals,
-//!   barrier, all tangents), with GPU timestamps per pass; `run` submits and waits, `record`
-//!   writes into the caller's buffer.
+//!   (all predictors and corrective weights, barrier, all C1/C2 products, barrier, all
+//!   skinning, barrier, all normals, barrier, all tangents), with GPU timestamps per pass; `run`
+//!   submits and waits, `record` writes into the caller's buffer.
 //!
 //! Each pass is described once in `passes.rs` (its shader from `glsl/shaders.txt`, its bindings
 //! in the order of its shader in `glsl/`, push words, workgroups; the types are in `pass.rs`);

@@ -29,6 +29,11 @@ pub struct Dims {
     /// evaluates its predictors itself (the fused product runs instead of the predictor pass
     /// and the sparse product; see `GpuModel::new`). Implies `sparse`.
     pub fused: bool,
+    /// N, the pose-space corrective targets (0: none; the weights pass does not run and
+    /// skinning adds nothing).
+    pub correctives: u32,
+    /// D, the corrective driver bones (0 without correctives).
+    pub drivers: u32,
 }
 
 /// An enum whose variants index arrays: `ALL` lists them in declaration order
@@ -51,6 +56,8 @@ indexed_enum! {
     /// A buffer of the GPU model, uploaded once and only ever read; sized by
     /// `memory::model_buffer_bytes`, filled by `gpu_model::upload_bytes`.
     pub enum ModelBuffer {
+        /// (1 + N) x V x 3 f32: the rest positions, then the N corrective targets (one buffer,
+        /// so that skinning binds no more storage buffers than the widest pass already does)
         Rest,
         SkinIndex,
         SkinWeight,
@@ -69,6 +76,10 @@ indexed_enum! {
         Triangles,
         /// V x vec4 rest tangents (xyz, handedness w); empty for a model without them
         RestTangents,
+        /// D u32: the corrective driver bones (empty without correctives)
+        CorrectiveDrivers,
+        /// N x 9D f32, row-major: the corrective map (empty without correctives)
+        CorrectiveMap,
     }
 }
 
@@ -86,6 +97,9 @@ indexed_enum! {
         Normals,
         Bounds,
         Tangents,
+        /// N f32 rounded up to a multiple of 4 (the stride): the pose-space corrective weights
+        /// w = map · φ(q) (only with N > 0)
+        CorrectiveWeights,
     }
 }
 
@@ -113,10 +127,14 @@ pub enum PushWord {
     Bones,
     /// The characters of the chunk being dispatched.
     Characters,
+    /// N, the corrective targets (0 without).
+    Correctives,
+    /// D, the corrective drivers.
+    Drivers,
 }
 
 /// Push blocks hold at most this many words (far below Vulkan's guaranteed 128 bytes).
-pub const MAX_PUSH_WORDS: usize = 4;
+pub const MAX_PUSH_WORDS: usize = 5;
 
 impl PushWord {
     pub fn value(self, d: &Dims, characters: u32) -> u32 {
@@ -125,6 +143,8 @@ impl PushWord {
             PushWord::Proxies => d.proxies,
             PushWord::Bones => d.bones,
             PushWord::Characters => characters,
+            PushWord::Correctives => d.correctives,
+            PushWord::Drivers => d.drivers,
         }
     }
 }
@@ -143,6 +163,8 @@ pub enum Extent {
     Characters,
     /// 3C columns of T, three per character
     CharacterColumns,
+    /// N corrective weights
+    Correctives,
 }
 
 impl Extent {
@@ -161,6 +183,7 @@ impl Extent {
             Extent::Proxies => p,
             Extent::Characters => c,
             Extent::CharacterColumns => 3 * c,
+            Extent::Correctives => d.correctives as u64,
         }
     }
 
@@ -182,6 +205,7 @@ impl Extent {
             Extent::Proxies => "workgroups over proxies",
             Extent::Characters => "workgroups over characters",
             Extent::CharacterColumns => "workgroups over character columns",
+            Extent::Correctives => "workgroups over corrective weights",
         }
     }
 }
@@ -327,6 +351,8 @@ mod tests {
         tangents: false,
         sparse: false,
         fused: false,
+        correctives: 0,
+        drivers: 0,
     };
 
     #[test]

@@ -4,7 +4,7 @@
 use super::pass::Binding::{Model, Reads, Writes};
 use super::pass::CrowdBuffer as Crowd;
 use super::pass::Extent::{
-    CharacterColumns, Characters, PredictorsAndBones, Proxies, ProxyRows, Vertices,
+    CharacterColumns, Characters, Correctives, PredictorsAndBones, Proxies, ProxyRows, Vertices,
 };
 use super::pass::ModelBuffer as M;
 use super::pass::{indexed_enum, over, Axis, Dims, PassDesc, PushWord as W, ONE};
@@ -33,6 +33,7 @@ indexed_enum! {
         Bounds,
         TangentsK4,
         TangentsK8,
+        CorrectiveWeights,
     }
 }
 
@@ -49,6 +50,7 @@ impl Pass {
             Pass::Bounds => &BOUNDS,
             Pass::TangentsK4 => &TANGENTS_K4,
             Pass::TangentsK8 => &TANGENTS_K8,
+            Pass::CorrectiveWeights => &CORRECTIVE_WEIGHTS,
         }
     }
 
@@ -71,9 +73,20 @@ impl Pass {
 
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
 /// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
-/// with and without bounds, with and without tangents.
+/// with and without bounds, with and without tangents, with and without correctives.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
+    plain_model_kinds().flat_map(|d| {
+        [(0, 0), (3, 2)].map(|(correctives, drivers)| Dims {
+            correctives,
+            drivers,
+            ..d
+        })
+    })
+}
+
+#[cfg(test)]
+fn plain_model_kinds() -> impl Iterator<Item = Dims> {
     let products = [
         (0, false, false),
         (3, false, false),
@@ -95,6 +108,8 @@ pub fn model_kinds() -> impl Iterator<Item = Dims> {
                 tangents,
                 sparse,
                 fused,
+                correctives: 0,
+                drivers: 0,
             })
         })
 }
@@ -169,8 +184,26 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
     runs: |d| d.proxies > 0 && d.fused,
 };
 
+/// Pose-space corrective weights w = map · φ(q) for every (target, character), from the
+/// drivers' rotations relative to their parents. Models with correctives only.
+const CORRECTIVE_WEIGHTS: PassDesc = PassDesc {
+    shader: shaders::CORRECTIVE_WEIGHTS,
+    bindings: &[
+        Reads(Crowd::Bones),
+        Model(M::Parents),
+        Model(M::CorrectiveDrivers),
+        Model(M::CorrectiveMap),
+        Writes(Crowd::CorrectiveWeights),
+    ],
+    push: &[W::Correctives, W::Drivers, W::Bones, W::Characters],
+    // local_size_x = 64 over targets, one row of groups per character.
+    groups: [over(Correctives, 64), over(Characters, 1), ONE],
+    runs: |d| d.correctives > 0,
+};
+
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
 /// of it in the Palette buffer, of a plain LBS model the bones in place; one pipeline per K.
+/// With correctives (N > 0), the rest position plus the weighted targets is skinned.
 const SKIN_K4: PassDesc = PassDesc {
     shader: shaders::SKIN_K4,
     bindings: &[
@@ -180,8 +213,15 @@ const SKIN_K4: PassDesc = PassDesc {
         Reads(Crowd::Palette),
         Reads(Crowd::Bones),
         Writes(Crowd::Positions),
+        Reads(Crowd::CorrectiveWeights),
     ],
-    push: &[W::Vertices, W::Proxies, W::Bones, W::Characters],
+    push: &[
+        W::Vertices,
+        W::Proxies,
+        W::Bones,
+        W::Characters,
+        W::Correctives,
+    ],
     groups: PER_VERTEX,
     runs: |d| d.influences == 4,
 };
@@ -296,6 +336,8 @@ mod tests {
                 M::IncidentTriangles => "Incident",
                 M::Triangles => "Triangles",
                 M::RestTangents => "RestTangents",
+                M::CorrectiveDrivers => "Drivers",
+                M::CorrectiveMap => "CorrectiveMap",
             },
             Binding::Reads(c) | Binding::Writes(c) => match c {
                 CrowdBuffer::Bones => "Bones",
@@ -305,6 +347,7 @@ mod tests {
                 CrowdBuffer::Normals => "Normals",
                 CrowdBuffer::Bounds => "Bounds",
                 CrowdBuffer::Tangents => "Tangents",
+                CrowdBuffer::CorrectiveWeights => "CorrectiveWeights",
             },
         }
     }
@@ -315,6 +358,8 @@ mod tests {
             W::Proxies => "P",
             W::Bones => "J",
             W::Characters => "chars",
+            W::Correctives => "N",
+            W::Drivers => "D",
         }
     }
 
@@ -375,8 +420,9 @@ mod tests {
             assert_eq!(writers(CrowdBuffer::Bounds), usize::from(d.bounds), "{d:?}");
             for p in Pass::of_model(&d) {
                 for b in CrowdBuffer::ALL {
-                    let input =
-                        b == CrowdBuffer::Bones || (d.proxies == 0 && b == CrowdBuffer::Palette);
+                    let input = b == CrowdBuffer::Bones
+                        || (d.proxies == 0 && b == CrowdBuffer::Palette)
+                        || (d.correctives == 0 && b == CrowdBuffer::CorrectiveWeights);
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
                         let palette = b == CrowdBuffer::Palette && !d.fused;
                         let expected = if palette { 2 } else { 1 };
@@ -398,39 +444,48 @@ mod tests {
             tangents: false,
             sparse: false,
             fused: false,
+            correctives: 0,
+            drivers: 0,
         };
-        // skin (6 buffers) and normals (5)
-        assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
+        // skin (7 buffers) and normals (5)
+        assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 12));
         let bounded = Dims {
             bounds: true,
             ..lbs
         };
         // + bounds (2)
-        assert_eq!(Pass::descriptors_per_chunk(&bounded), (3, 13));
+        assert_eq!(Pass::descriptors_per_chunk(&bounded), (3, 14));
         let reduced = Dims {
             proxies: 3,
             influences: 8,
             ..lbs
         };
         // + predict (5) and the GEMM (3)
-        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 19));
+        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 20));
         let sparse = Dims {
             sparse: true,
             ..reduced
         };
         // + predict (5) and the sparse product (5)
-        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 21));
+        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 22));
         let fused = Dims {
             fused: true,
             ..sparse
         };
         // + the fused product (7)
-        assert_eq!(Pass::descriptors_per_chunk(&fused), (3, 18));
+        assert_eq!(Pass::descriptors_per_chunk(&fused), (3, 19));
         let tangents = Dims {
             tangents: true,
             ..fused
         };
         // + tangents (7)
-        assert_eq!(Pass::descriptors_per_chunk(&tangents), (4, 25));
+        assert_eq!(Pass::descriptors_per_chunk(&tangents), (4, 26));
+        let corrected = Dims {
+            correctives: 3,
+            drivers: 2,
+            ..tangents
+        };
+        // + the corrective weights (5)
+        assert_eq!(Pass::descriptors_per_chunk(&corrected), (5, 31));
     }
 }

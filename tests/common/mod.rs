@@ -234,3 +234,52 @@ pub fn joint_blend_pattern(model: &Model, keys: usize) -> Model {
     }
     Model::new(parts).expect("the same model with fewer non-zeros")
 }
+
+/// `model` with `n` pose-space correctives (paper §8) driven by its first (up to) three bones
+/// with a parent: a map with three non-zero entries per target (|m| ≤ 0.5) and smooth
+/// rest-space targets of a few hundredths (the synthetic grid is the unit square), seeded.
+pub fn with_correctives(model: &Model, n: usize, seed: u64) -> Model {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let drivers: Vec<u32> = (0..model.bone_count())
+        .filter(|&b| model.parent(b).is_some())
+        .take(3)
+        .map(|b| b as u32)
+        .collect();
+    let width = 9 * drivers.len();
+    let mut map = vec![0.0f32; n * width];
+    for t in 0..n {
+        for _ in 0..3 {
+            let e = (next() * width as f64) as usize;
+            map[t * width + e] = (next() - 0.5) as f32;
+        }
+    }
+    let rest = &model.parts().rest_positions;
+    let mut targets = Vec::with_capacity(n * rest.len());
+    for t in 0..n {
+        let (amplitude, phase) = (0.02 + 0.04 * next(), 6.0 * next());
+        targets.extend(rest.iter().map(|p| {
+            let [x, y, _] = p.map(f64::from);
+            [
+                amplitude * (3.0 * x + phase).sin(),
+                amplitude * (2.0 * y + phase + t as f64).cos(),
+                amplitude * (x + y + phase).sin(),
+            ]
+            .map(|c| c as f32)
+        }));
+    }
+    let parts = rrskin::ModelParts {
+        correctives: Some(rrskin::model::Correctives {
+            drivers,
+            map,
+            targets,
+        }),
+        ..model.parts().clone()
+    };
+    Model::new(parts).expect("a model with valid correctives")
+}

@@ -200,6 +200,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         baseline_weights: Vec::new(),
         animation: Vec::new(),
         rest_tangents,
+        correctives: None,
     };
     Model::new(parts)
 }

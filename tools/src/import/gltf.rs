@@ -239,6 +239,7 @@ impl Imported {
                 .collect(),
             animation: parts.animation.clone(),
             rest_tangents: self.tangents.as_ref().map_or(Vec::new(), |t| t.0.clone()),
+            correctives: None,
         })
     }
 }
@@ -307,6 +308,7 @@ impl Imported {
                 .collect(),
             animation: parts.animation.clone(),
             rest_tangents: Vec::new(),
+            correctives: None,
         })
     }
 }

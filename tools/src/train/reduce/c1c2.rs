@@ -344,6 +344,7 @@ impl Reduced {
             baseline_weights,
             animation: set_animation(set),
             rest_tangents: Vec::new(),
+            correctives: None,
         })
     }
 }
