@@ -1,5 +1,5 @@
 #version 450
-// Pose-space corrective weights (paper §8; docs/method.md §9): w = map · φ(q) per character,
+// Pose-space corrective weights (paper §8; docs/method.md §20): w = map · φ(q) per character,
 // φ[9i + 3r + c] = R_i[r][c] - δ_rc with R_i = rot(Q_p)ᵀ rot(Q_d) for driver i (bone d, its
 // parent p), rot the 3x3 of the bone transform. One invocation per (target n = x, character
 // = y); skin.comp adds Σ_n w_n target_n to the rest position. Models with correctives only.

@@ -11,7 +11,7 @@
 //! A model with pose-space correctives (paper §8) adds, per character, N weights
 //! ([`Palette::corrective_weights`], linear in the driver joints' rotations) of N rest-space
 //! targets ([`Skin::corrective_targets`]): the shader skins `x̂ + Σ_n w_n target_n` instead of
-//! `x̂` ([`Palette::skin_positions_with_correctives`]), as a morph target before skinning.
+//! `x̂` ([`Palette::skin_positions`]), as a morph target before skinning.
 //!
 //! A [`Palette`] is immutable after [`Palette::new`]: any number of threads may call
 //! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
@@ -185,7 +185,7 @@ impl Palette {
 
     /// The pose-space corrective weights of one character: `bones` J transforms (as
     /// [`Palette::compute`]'s), `out` N. `w = map · φ`, `φ[9i + 3r + c] = R_i[r][c] − δ_rc`,
-    /// `R_i = rot(Q_parent)ᵀ rot(Q_driver)` (docs/method.md §9). Allocates nothing.
+    /// `R_i = rot(Q_parent)ᵀ rot(Q_driver)` (docs/method.md §20). Allocates nothing.
     pub fn corrective_weights(&self, bones: &[Affine], out: &mut [f32]) -> Result<()> {
         self.corrective_weights_batch(bones, out)
     }
@@ -276,28 +276,18 @@ impl Palette {
         })
     }
 
-    /// The vertices an engine's skinning makes of one character's palette: `positions` V. Without
-    /// the pose-space correctives (all weights zero, as at the rest pose): for a model with
-    /// them, [`Palette::skin_positions_with_correctives`].
-    pub fn skin_positions(&self, palette: &[Affine], positions: &mut [[f32; 3]]) -> Result<()> {
-        self.skin_positions_with_correctives(palette, &[], positions)
-    }
-
     /// The vertices an engine's skinning makes of one character's palette and corrective
-    /// weights ([`Palette::corrective_weights`], N, or empty for none): `positions` V, each
-    /// `Σ_k w_k M_{i_k} [x̂ + Σ_n weights[n] target_n; 1]`. Allocates nothing.
-    pub fn skin_positions_with_correctives(
+    /// weights ([`Palette::corrective_weights`]: N, empty for a model without correctives):
+    /// `positions` V, each `Σ_k w_k M_{i_k} [x̂ + Σ_n weights[n] target_n; 1]`. Allocates
+    /// nothing.
+    pub fn skin_positions(
         &self,
         palette: &[Affine],
         weights: &[f32],
         positions: &mut [[f32; 3]],
     ) -> Result<()> {
         let skin = self.skin();
-        let n = if weights.is_empty() {
-            0
-        } else {
-            skin.correctives
-        };
+        let n = skin.correctives;
         for (what, expected, actual) in [
             ("palette transforms", self.len(), palette.len()),
             ("positions", skin.rest_positions.len(), positions.len()),

@@ -250,7 +250,7 @@ fn corrected_error(model: &Model, bones: &[Affine]) -> f32 {
     let mut worst = 0.0f32;
     for ch in 0..characters {
         palette
-            .skin_positions_with_correctives(
+            .skin_positions(
                 &entries[ch * n..(ch + 1) * n],
                 &weights[ch * c..(ch + 1) * c],
                 &mut got,
@@ -285,14 +285,16 @@ fn correctives_through_the_palette_match_the_reference() {
                 assert!((*a as f64 - b).abs() <= 1e-5, "{what}: {a} vs {b}");
             }
         }
-        // Without the weights, the skin is that of the model without correctives.
+        // With zero weights, the skin is that of the model without correctives.
         let plain = Palette::new(model.clone()).expect("palette");
         let mut entries = vec![[0.0; 12]; palette.len()];
         palette.compute(&bones[..j], &mut entries).expect("palette");
         let v = model.vertex_count();
         let (mut a, mut b) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v]);
-        palette.skin_positions(&entries, &mut a).expect("skin");
-        plain.skin_positions(&entries, &mut b).expect("skin");
+        palette
+            .skin_positions(&entries, &[0.0; 6], &mut a)
+            .expect("skin");
+        plain.skin_positions(&entries, &[], &mut b).expect("skin");
         assert_eq!(a, b, "{what}");
     }
 }
@@ -330,7 +332,7 @@ fn corrective_weights_batched_and_one_by_one_agree_and_check_their_input() {
     let mut entries = vec![[0.0; 12]; palette.len()];
     palette.compute(&bones[..j], &mut entries).expect("palette");
     let mut got = vec![[0.0; 3]; model.vertex_count()];
-    let wrong = palette.skin_positions_with_correctives(&entries, &batch[..n - 1], &mut got);
+    let wrong = palette.skin_positions(&entries, &batch[..n - 1], &mut got);
     assert!(matches!(wrong, Err(Error::WrongLength { .. })), "{wrong:?}");
     // A model without correctives has none to compute.
     let (_, plain) = models().swap_remove(0);

@@ -27,7 +27,7 @@
 //! transform b, 3x4), `d_c[3ℓ + j] = D_ℓ[c][j]` (key gradient ℓ, 3x3).
 //! A model with P = 0 is plain linear blend skinning: every index points at a bone.
 //!
-//! Pose-space correctives (paper §8, docs/method.md §9): for driver i, bone d = `drivers[i]`
+//! Pose-space correctives (paper §8, docs/method.md §20): for driver i, bone d = `drivers[i]`
 //! with parent p, `R_i = rot(Q_p)ᵀ rot(Q_d)` (rot: the 3x3 of the bone transform, as
 //! [`crate::predict::rotation_of`]) and `φ[9i + 3r + c] = R_i[r][c] − δ_rc`; the weights are
 //! `w = map · φ` (N), and vertex a is skinned from `ŷ_a + Σ_n w_n targets[n V + a]` instead of
@@ -74,7 +74,7 @@ pub struct SecondBone {
 /// The most corrective targets a model may carry (N).
 pub const MAX_CORRECTIVES: usize = 64;
 
-/// Pose-space correctives (paper §8; docs/method.md §9): rest-space morph targets whose weights
+/// Pose-space correctives (paper §8; docs/method.md §20): rest-space morph targets whose weights
 /// are linear in the driver joints' rotations relative to their parents.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Correctives {
@@ -121,7 +121,7 @@ pub struct ModelParts {
     /// the bitangent `cross(n, t) * w` (glTF's TANGENT convention). Skinned per frame when a
     /// crowd asks for tangents ([`crate::vk::CrowdOptions::tangents`]).
     pub rest_tangents: Vec<[f32; 4]>,
-    /// Pose-space correctives (paper §8; docs/method.md): rest-space morph targets whose weights
+    /// Pose-space correctives (paper §8; docs/method.md §20): rest-space morph targets whose weights
     /// are linear in the driver joints' rotations. None: no correctives.
     pub correctives: Option<Correctives>,
 }

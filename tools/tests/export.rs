@@ -176,13 +176,14 @@ fn read_floats(path: &Path) -> Vec<f32> {
         .collect()
 }
 
-/// The CesiumMan runtime model, trained from the bundled glTF rig and exported twice: with the
-/// rig (its materials and texture, its clip `examples`, a series of poses each held until the
-/// next: STEP) and without it (its own animation, the 20 held-out poses at 30 fps, LINEAR, so
-/// that between two frames the export's samples are interpolated). The Validator finds no error
-/// in either, and Blender's importer, set to key times and to times a third and a half of the
-/// way to the next key, gives vertices within [`PLAYED_TOLERANCE`] of rrskin's CPU evaluator
-/// at the same pose.
+/// The CesiumMan runtime model with 16 pose-space correctives, trained from the bundled glTF
+/// rig and exported twice: with the rig (its materials and texture, its clip `examples`, a
+/// series of poses each held until the next: STEP) and without it (its own animation, the 20
+/// held-out poses at 30 fps, LINEAR, so that between two frames the export's samples are
+/// interpolated). The correctives are the mesh's morph targets, their weights a channel of each
+/// clip. The Validator finds no error in either, and Blender's importer, set to key times and
+/// to times a third and a half of the way to the next key, gives vertices within
+/// [`PLAYED_TOLERANCE`] of rrskin's CPU evaluator at the same pose.
 #[test]
 fn blender_plays_an_exported_model_like_the_runtime() {
     let dir = temp_dir("export-blender");
@@ -197,9 +198,12 @@ fn blender_plays_an_exported_model_like_the_runtime() {
         s(&cache),
         "--test-frames",
         "41..60",
+        "--correctives",
+        "16",
         "-o",
         s(&model_path),
     ]);
+    assert_eq!(model.corrective_count(), 16, "the cross-validation kept correctives");
 
     let with_rig = dir.join("with_rig.glb");
     export(&[
@@ -212,6 +216,7 @@ fn blender_plays_an_exported_model_like_the_runtime() {
         "examples",
     ]);
     let report = assert_valid(&with_rig);
+    assert_eq!(report["info"]["hasMorphTargets"], true, "{}", report["info"]);
     assert!(report["info"]["materialCount"].as_u64() >= Some(1));
     assert!(report["info"]["hasTextures"] == true, "{}", report["info"]);
     let clip = Rig::load(&rig, "examples").expect("the rig");

@@ -528,7 +528,11 @@ fn the_corrective_fit_recovers_known_correctives() {
     let residuals = corrective::Residuals::of(&set, &trained.feats, &model, &train).expect("evaluates");
     let fit = corrective::fit(&set, &trained.ssd, &trained.rigid, &train, &residuals, 32, 4);
     let fitted = fit.correctives.clone().expect("correctives kept");
-    let with = model.clone().with_correctives(fitted.to_runtime()).expect("a valid model");
+    let with = rrskin::Model::new(rrskin::ModelParts {
+        correctives: Some(fitted.to_runtime()),
+        ..model.clone().into_parts()
+    })
+    .expect("a valid model");
     let error = |m: &rrskin::Model| -> f64 {
         let mut evaluator = CpuEvaluator::new(m);
         let v = set.vertex_count();

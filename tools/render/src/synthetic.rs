@@ -319,10 +319,14 @@ pub fn palette_error(model: &Model, bones: &[Affine]) -> Result<f32> {
         vec![[0.0; 3]; characters * v],
     );
     rrskin::cpu::CpuEvaluator::new(model).evaluate(bones, &mut want, &mut normals)?;
+    let mut weights = vec![0.0; characters * palette.corrective_count()];
+    palette.corrective_weights_batch(bones, &mut weights)?;
     let mut got = vec![[0.0; 3]; v];
     let mut worst = 0.0f32;
+    let per = palette.corrective_count();
     for (c, entries) in entries.chunks_exact(n).enumerate() {
-        palette.skin_positions(entries, &mut got)?;
+        let w = &weights[c * per..(c + 1) * per];
+        palette.skin_positions(entries, w, &mut got)?;
         for (g, w) in got.iter().zip(&want[c * v..(c + 1) * v]) {
             let d = (0..3).map(|i| (g[i] - w[i]).powi(2)).sum::<f32>().sqrt();
             let size = (0..3).map(|i| w[i] * w[i]).sum::<f32>().sqrt().max(1.0);

@@ -202,8 +202,8 @@ pub fn bake(
                         played: &[Affine],
                         weights: &[f32]|
      -> rrskin::Result<f64> {
-        palette.skin_positions_with_correctives(&reference.0, &reference.1, &mut want)?;
-        palette.skin_positions_with_correctives(played, weights, &mut got)?;
+        palette.skin_positions(&reference.0, &reference.1, &mut want)?;
+        palette.skin_positions(played, weights, &mut got)?;
         Ok(want.iter().zip(&got).fold(0.0f64, |m, (a, b)| {
             let d = (0..3).map(|i| ((a[i] - b[i]) as f64).powi(2)).sum::<f64>();
             m.max(d.sqrt())

@@ -239,7 +239,10 @@ impl Imported {
                 .collect(),
             animation: parts.animation.clone(),
             rest_tangents: self.tangents.as_ref().map_or(Vec::new(), |t| t.0.clone()),
-            correctives: None,
+            correctives: parts.correctives.as_ref().map(|c| rrskin::model::Correctives {
+                targets: per_target(&c.targets, model.vertex_count(), &self.weld),
+                ..c.clone()
+            }),
         })
     }
 }
@@ -308,9 +311,21 @@ impl Imported {
                 .collect(),
             animation: parts.animation.clone(),
             rest_tangents: Vec::new(),
-            correctives: None,
+            correctives: parts.correctives.as_ref().map(|c| rrskin::model::Correctives {
+                targets: per_target(&c.targets, model.vertex_count(), &first),
+                ..c.clone()
+            }),
         })
     }
+}
+
+/// N targets of `v` vertices each (target-major), re-indexed: vertex g of each new target is
+/// vertex `from[g]` of the old.
+fn per_target(targets: &[[f32; 3]], v: usize, from: &[usize]) -> Vec<[f32; 3]> {
+    targets
+        .chunks_exact(v.max(1))
+        .flat_map(|t| from.iter().map(|&g| t[g]))
+        .collect()
 }
 
 /// Groups vertices with equal rest positions and trajectories; returns each vertex's group, the

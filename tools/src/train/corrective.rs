@@ -16,7 +16,9 @@
 //!    one factorisation.
 //! 4. **Reduced rank.** The fitted offsets of the training poses, X (3V x n), give the N leading
 //!    left singular vectors U (the targets, N x V x 3) and the map A = Uᵀ G (N x 9D): at run time
-//!    w(q) = A φ(q) and the vertex's rest position is ŷ_a + Σ_k w_k U_ka, before skinning.
+//!    w(q) = A φ(q) and the vertex's rest position is ŷ_a + Σ_k w_k U_ka, before skinning. Each
+//!    target is scaled (and its row of A divided) so that its weights span [−1, 1] over the
+//!    training poses.
 //!
 //! λ is chosen by k-fold cross-validation over the training poses from [`RIDGES`] or none, with
 //! the pose-relative score and one-standard-error rule of §18 ([`pose_scale`]), the most
@@ -31,10 +33,6 @@ use crate::train::ssd::Skinning;
 use faer::{Mat, Side};
 use glam::{DMat3, DVec3};
 use std::collections::HashMap;
-
-/// The default of [`crate::train::TrainOptions::correctives`]: N. Every target costs the runtime three
-/// multiply-adds a vertex (docs/performance.md).
-pub const TARGETS: usize = 32;
 
 /// The ridges tried, most regularised first (after none).
 pub const RIDGES: [f64; 4] = [10.0, 1.0, 0.1, 0.01];
@@ -256,13 +254,16 @@ impl<'d> Local<'d> {
             if sigma * sigma <= 1e-12 * largest || sigma == 0.0 {
                 break;
             }
+            // Scaled so that the training poses' weights (σ u_ie) span [−1, 1], as morph
+            // weights usually do (Blender's shape keys clamp theirs to ±10).
+            let scale = sigma * (0..m).map(|i| u[(i, e)].abs()).fold(0.0, f64::max);
             let target: Vec<DVec3> = (0..self.g.len())
-                .map(|a| (0..m).map(|i| x[i][a] * u[(i, e)]).sum::<DVec3>() / sigma)
+                .map(|a| (0..m).map(|i| x[i][a] * u[(i, e)]).sum::<DVec3>() * (scale / sigma))
                 .collect();
             let mut row = vec![0.0; 9 * out.drivers.len()];
             for ((d, g), t) in self.drivers.iter().zip(&self.g).zip(&target) {
                 for (p, g) in g.iter().enumerate() {
-                    row[9 * column[&d[p / 9]] + p % 9] += t.dot(DVec3::from(*g));
+                    row[9 * column[&d[p / 9]] + p % 9] += t.dot(DVec3::from(*g)) / (scale * scale);
                 }
             }
             out.map.extend(row);

@@ -81,7 +81,8 @@ pub struct TrainOptions {
     /// not use it, and its cross-validation is most of the training time.
     pub full_model: bool,
     /// N: at most this many pose-space corrective targets on the runtime model ([`corrective`];
-    /// 0: none). Cross-validation may keep none.
+    /// 0: none, the default). Cross-validation may keep none. Off by default: each target costs
+    /// the skinning pass about as much as 3 % of palette skinning (docs/performance.md).
     pub correctives: usize,
     /// No progress output (for `--json`).
     pub quiet: bool,
@@ -97,7 +98,7 @@ impl Default for TrainOptions {
             method: Method::Auto,
             gentle_scales: vec![augment::GENTLE_SCALE],
             full_model: true,
-            correctives: corrective::TARGETS,
+            correctives: 0,
             quiet: false,
         }
     }
@@ -314,7 +315,10 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
                     options.folds,
                 );
                 if let Some(c) = &fit.correctives {
-                    model = model.with_correctives(c.to_runtime())?;
+                    model = rrskin::Model::new(rrskin::ModelParts {
+                        correctives: Some(c.to_runtime()),
+                        ..model.into_parts()
+                    })?;
                 }
                 correctives = Some(fit);
                 clock.lap("correctives");

@@ -4,7 +4,7 @@
 # glTF's coordinates (Y up) as little-endian f32, time after time, to OUT.bin. The vertex order
 # is the file's: the importer keeps each primitive's vertices in order (merge_vertices off),
 # primitives one after the other; REST.bin (the file's rest positions, f32 xyz) is checked
-# against the imported mesh to prove it.
+# against the imported mesh to prove it. Morph targets (shape keys) play with the clip.
 #
 #   blender -b --factory-startup --python-exit-code 1 --python play_export.py -- \
 #       FILE.glb CLIP TIMES.txt REST.bin OUT.bin
@@ -47,13 +47,30 @@ for v, r in zip(mesh.data.vertices, rest):
 if worst > 1e-4:
     raise SystemExit(f"the imported rest mesh is not the file's in order (off by {worst})")
 
-action = bpy.data.actions.get(clip)
-if action is None:
-    # The importer names actions after the animation, possibly with the object's name added.
-    action = next((a for a in bpy.data.actions if a.name.startswith(clip)), None)
+# The importer names actions after the animation, possibly with the object's name added; a
+# clip's morph-target weights (a model's pose-space correctives) are an action of the mesh's
+# shape keys (id_root KEY), which the importer only stashes: both are made active here.
+def clip_action(root):
+    named = [a for a in bpy.data.actions if a.id_root == root and a.name.startswith(clip)]
+    return next((a for a in named if a.name == clip), named[0] if named else None)
+
+action = clip_action("OBJECT")
 if action is None:
     raise SystemExit(f"no action for animation '{clip}': {[a.name for a in bpy.data.actions]}")
 armature.animation_data.action = action
+keys = mesh.data.shape_keys
+if keys is not None:
+    weights = clip_action("KEY")
+    if weights is None:
+        raise SystemExit(f"the mesh has shape keys but '{clip}' does not animate them")
+    if keys.animation_data is None:
+        keys.animation_data_create()
+    keys.animation_data.action = weights
+    # Blender 3.4's importer widens a shape key's slider range from the clip's first key only
+    # (io_scene_gltf2 gltf2_blender_animation_weight.py: min(coords[1:2])), so later weights
+    # below 0 or above 1 would be clamped; glTF's weights are unbounded: the full range here.
+    for block in keys.key_blocks:
+        block.slider_min, block.slider_max = -10.0, 10.0
 scene = bpy.context.scene
 fps = scene.render.fps / scene.render.fps_base
 start = action.frame_range[0]
