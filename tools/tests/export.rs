@@ -203,7 +203,11 @@ fn blender_plays_an_exported_model_like_the_runtime() {
         "-o",
         s(&model_path),
     ]);
-    assert_eq!(model.corrective_count(), 16, "the cross-validation kept correctives");
+    assert_eq!(
+        model.corrective_count(),
+        16,
+        "the cross-validation kept correctives"
+    );
 
     let with_rig = dir.join("with_rig.glb");
     export(&[
@@ -216,7 +220,11 @@ fn blender_plays_an_exported_model_like_the_runtime() {
         "examples",
     ]);
     let report = assert_valid(&with_rig);
-    assert_eq!(report["info"]["hasMorphTargets"], true, "{}", report["info"]);
+    assert_eq!(
+        report["info"]["hasMorphTargets"], true,
+        "{}",
+        report["info"]
+    );
     assert!(report["info"]["materialCount"].as_u64() >= Some(1));
     assert!(report["info"]["hasTextures"] == true, "{}", report["info"]);
     let clip = Rig::load(&rig, "examples").expect("the rig");

@@ -509,11 +509,13 @@ fn the_corrective_fit_recovers_known_correctives() {
             .any(|&(b, w)| w > 0.0 && b >= 1);
         let f = &phi[driver];
         match skinned {
-            true => DVec3::new(
-                0.3 * f[0] - 0.2 * f[4],
-                0.25 * f[1] + 0.1 * f[8],
-                -0.2 * f[2] + 0.15 * f[5],
-            ) * (1.0 + set.rest[a].length()),
+            true => {
+                DVec3::new(
+                    0.3 * f[0] - 0.2 * f[4],
+                    0.25 * f[1] + 0.1 * f[8],
+                    -0.2 * f[2] + 0.15 * f[5],
+                ) * (1.0 + set.rest[a].length())
+            }
             false => DVec3::ZERO,
         }
     };
@@ -525,8 +527,17 @@ fn the_corrective_fit_recovers_known_correctives() {
     }
     let train = set.train();
     let test = set.test();
-    let residuals = corrective::Residuals::of(&set, &trained.feats, &model, &train).expect("evaluates");
-    let fit = corrective::fit(&set, &trained.ssd, &trained.rigid, &train, &residuals, 32, 4);
+    let residuals =
+        corrective::Residuals::of(&set, &trained.feats, &model, &train).expect("evaluates");
+    let fit = corrective::fit(
+        &set,
+        &trained.ssd,
+        &trained.rigid,
+        &train,
+        &residuals,
+        32,
+        4,
+    );
     let fitted = fit.correctives.clone().expect("correctives kept");
     let with = rrskin::Model::new(rrskin::ModelParts {
         correctives: Some(fitted.to_runtime()),
@@ -540,7 +551,9 @@ fn the_corrective_fit_recovers_known_correctives() {
         test.iter()
             .map(|&i| {
                 let bones: Vec<_> = set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
-                evaluator.evaluate(&bones, &mut pos, &mut nrm).expect("evaluates");
+                evaluator
+                    .evaluate(&bones, &mut pos, &mut nrm)
+                    .expect("evaluates");
                 (pos.iter().zip(&set.poses[i].vertices))
                     .map(|(p, y)| (DVec3::from(p.map(f64::from)) - *y).length_squared())
                     .sum::<f64>()

@@ -224,7 +224,11 @@ pub fn bake(
         let mut targets = vec![(key, 0u32)];
         while let Some(&(t1, depth)) = targets.last() {
             let last = baked.times.len() - 1;
-            let (t0, p0, w0) = (baked.times[last], &baked.samples[last], &baked.weights[last]);
+            let (t0, p0, w0) = (
+                baked.times[last],
+                &baked.samples[last],
+                &baked.weights[last],
+            );
             let a1 = entries(t1)?;
             let p1 = pairs(&a1.0, Some(p0));
             let mut worst = 0.0f64;
@@ -233,7 +237,10 @@ pub fn bake(
                     true => (p0.clone(), w0.clone()),
                     false => (
                         p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect(),
-                        w0.iter().zip(&a1.1).map(|(a, b)| a + f as f32 * (b - a)).collect(),
+                        w0.iter()
+                            .zip(&a1.1)
+                            .map(|(a, b)| a + f as f32 * (b - a))
+                            .collect(),
                     ),
                 };
                 let reference = entries(t0 + f * (t1 - t0))?;
@@ -245,7 +252,10 @@ pub fn bake(
             }
             targets.pop();
             baked.worst_between = baked.worst_between.max(worst);
-            baked.worst_at_samples = baked.worst_at_samples.max(distance(&a1, &played(&p1), &a1.1)?);
+            baked.worst_at_samples =
+                baked
+                    .worst_at_samples
+                    .max(distance(&a1, &played(&p1), &a1.1)?);
             baked.times.push(t1);
             baked.samples.push(p1);
             baked.weights.push(a1.1);

@@ -239,10 +239,13 @@ impl Imported {
                 .collect(),
             animation: parts.animation.clone(),
             rest_tangents: self.tangents.as_ref().map_or(Vec::new(), |t| t.0.clone()),
-            correctives: parts.correctives.as_ref().map(|c| rrskin::model::Correctives {
-                targets: per_target(&c.targets, model.vertex_count(), &self.weld),
-                ..c.clone()
-            }),
+            correctives: parts
+                .correctives
+                .as_ref()
+                .map(|c| rrskin::model::Correctives {
+                    targets: per_target(&c.targets, model.vertex_count(), &self.weld),
+                    ..c.clone()
+                }),
         })
     }
 }
@@ -311,10 +314,13 @@ impl Imported {
                 .collect(),
             animation: parts.animation.clone(),
             rest_tangents: Vec::new(),
-            correctives: parts.correctives.as_ref().map(|c| rrskin::model::Correctives {
-                targets: per_target(&c.targets, model.vertex_count(), &first),
-                ..c.clone()
-            }),
+            correctives: parts
+                .correctives
+                .as_ref()
+                .map(|c| rrskin::model::Correctives {
+                    targets: per_target(&c.targets, model.vertex_count(), &first),
+                    ..c.clone()
+                }),
         })
     }
 }

@@ -114,7 +114,7 @@ impl Residuals {
     ) -> rrskin::Result<Residuals> {
         let palette = rrskin::palette::Palette::new(model.clone())?;
         let mut evaluator = rrskin::cpu::CpuEvaluator::new(model);
-        let (v, k) = (set.vertex_count(), model.influences() as usize);
+        let (v, k) = (set.vertex_count(), model.influences());
         let skin = palette.skin();
         let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
         let mut entries = vec![[0.0f32; 12]; palette.len()];
@@ -142,7 +142,10 @@ impl Residuals {
                 .collect();
             let delta = (0..v)
                 .map(|a| match m[a].determinant().abs() > SINGULAR {
-                    true => m[a].inverse() * (set.poses[i].vertices[a] - DVec3::from(pos[a].map(f64::from))),
+                    true => {
+                        m[a].inverse()
+                            * (set.poses[i].vertices[a] - DVec3::from(pos[a].map(f64::from)))
+                    }
                     false => DVec3::ZERO,
                 })
                 .collect();
@@ -234,11 +237,14 @@ impl<'d> Local<'d> {
     fn reduce(&self, r: &Residuals, fit: &[usize], n: usize) -> Correctives {
         let x: Vec<Vec<DVec3>> = fit.iter().map(|&i| self.predict(&r.phi[i])).collect();
         let m = x.len();
-        let gram = Mat::<f64>::from_fn(m, m, |i, j| x[i].iter().zip(&x[j]).map(|(a, b)| a.dot(*b)).sum());
+        let gram = Mat::<f64>::from_fn(m, m, |i, j| {
+            x[i].iter().zip(&x[j]).map(|(a, b)| a.dot(*b)).sum()
+        });
         let mut drivers: Vec<usize> = self.drivers.iter().flatten().copied().collect();
         drivers.sort_unstable();
         drivers.dedup();
-        let column: HashMap<usize, usize> = drivers.iter().enumerate().map(|(c, &b)| (b, c)).collect();
+        let column: HashMap<usize, usize> =
+            drivers.iter().enumerate().map(|(c, &b)| (b, c)).collect();
         let mut out = Correctives {
             map: Vec::new(),
             targets: Vec::new(),
@@ -330,11 +336,15 @@ pub fn fit(
             e / normaliser[i]
         };
         let zero = vec![DVec3::ZERO; set.vertex_count()];
-        let mut relative = vec![all.iter().map(|&i| held_error(i, &zero)).collect::<Vec<f64>>()];
+        let mut relative = vec![all
+            .iter()
+            .map(|&i| held_error(i, &zero))
+            .collect::<Vec<f64>>()];
         for &lambda in &RIDGES {
             let mut per_pose = vec![0.0; all.len()];
             for fold in 0..folds {
-                let (held, kept): (Vec<usize>, Vec<usize>) = all.iter().partition(|&&i| i % folds == fold);
+                let (held, kept): (Vec<usize>, Vec<usize>) =
+                    all.iter().partition(|&&i| i % folds == fold);
                 let local = Local::fit(&drivers, r, &kept, lambda);
                 for i in held {
                     per_pose[i] = held_error(i, &local.predict(&r.phi[i]));
