@@ -639,12 +639,12 @@ fn info(model: &Path, json: bool) -> Outcome {
         let dims = serde_json::json!({
             "vertices": m.vertex_count(), "triangles": m.triangle_count(),
             "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
-            "tangents": m.has_tangents(),
+            "tangents": m.has_tangents(), "correctives": m.corrective_count(),
         });
         out!("{dims}");
     } else {
         out!(
-            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}",
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}; {} pose-space correctives",
             model.display(),
             m.vertex_count(),
             m.triangle_count(),
@@ -652,7 +652,8 @@ fn info(model: &Path, json: bool) -> Outcome {
             m.proxy_count(),
             m.influences(),
             if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
-            if m.has_tangents() { "rest tangents" } else { "no rest tangents" }
+            if m.has_tangents() { "rest tangents" } else { "no rest tangents" },
+            m.corrective_count()
         );
     }
     Ok(())

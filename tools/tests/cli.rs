@@ -306,10 +306,12 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "diagnose",
         "stages",
         "structure",
+        "correctives",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 21, "{e}");
+    assert_eq!(keys.len(), 22, "{e}");
+    assert!(e["correctives"].is_null(), "off by default: {e}");
     assert!(
         e["rig_lbs"].is_null() && e["rig_dqs"].is_null() && e["rig_cor"].is_null(),
         "no skin_weights.npy here"
@@ -396,8 +398,9 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
     }
 }
 
-/// `rrskin train` writes a runtime model; `rrskin eval --model` evaluates that file with the
-/// runtime's CPU evaluator and reports the same figures training did.
+/// `rrskin train` writes a runtime model (here with pose-space correctives); `rrskin eval
+/// --model` evaluates that file with the runtime's CPU evaluator and reports the same figures
+/// training did.
 #[test]
 fn a_trained_model_file_evaluates_as_trained() {
     let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
@@ -414,6 +417,8 @@ fn a_trained_model_file_evaluates_as_trained() {
         "20",
         "--reduction",
         "joint-blend",
+        "--correctives",
+        "8",
         "--json",
     ]));
     let info = json(&rrskin(&["info", m, "--json"]));
@@ -421,6 +426,11 @@ fn a_trained_model_file_evaluates_as_trained() {
         (info["proxies"].as_u64(), info["vertices"].as_u64()),
         (Some(20), Some(2338))
     );
+    // The file carries the correctives the cross-validation kept (and the evaluation below
+    // reads them back: the same figures).
+    assert!(trained["correctives"]["ridge"].is_number(), "{trained}");
+    assert_eq!(trained["correctives"]["targets"], 8, "{trained}");
+    assert_eq!(info["correctives"], 8, "{info}");
     // The CPU palette of the trained file agrees with the reference playing its animation
     // (tests/palette.rs's tolerance).
     let trained_model = rrskin::Model::load(&model).expect("valid");
