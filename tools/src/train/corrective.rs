@@ -280,21 +280,6 @@ impl<'d> Local<'d> {
 }
 
 impl Correctives {
-    /// The rest-space offsets of one pose's features.
-    pub fn offsets(&self, phi: &[[f64; 9]]) -> Vec<DVec3> {
-        let f = 9 * self.drivers.len();
-        let x: Vec<f64> = self.drivers.iter().flat_map(|&b| phi[b]).collect();
-        let v = self.targets.first().map_or(0, Vec::len);
-        let mut out = vec![DVec3::ZERO; v];
-        for (row, target) in self.map.chunks_exact(f.max(1)).zip(&self.targets) {
-            let w: f64 = row.iter().zip(&x).map(|(a, b)| a * b).sum();
-            for (o, t) in out.iter_mut().zip(target) {
-                *o += w * *t;
-            }
-        }
-        out
-    }
-
     /// For the runtime model.
     pub fn to_runtime(&self) -> rrskin::model::Correctives {
         rrskin::model::Correctives {
