@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # The GPU check (issue 16): the runtime on a real GPU against the CPU reference, and `rrskin
-# bench` at 1, 256, 4096 and 16384 characters on the CesiumMan and human_heavy models, into one
-# JSON file. The GPU machine has no network and maybe no Rust, so the work is in two steps:
+# bench` at 1, 256, 4096 and 16384 characters on the CesiumMan and human_heavy models (and
+# CesiumMan with 32 pose-space correctives, for their cost on a GPU), into one JSON file. The GPU machine has no network and maybe no Rust, so the work is in two steps:
 #
 #   tools/gpu-bench.sh prepare [DIR]     here (network, Rust): build, train, download, into DIR
 #   tools/gpu-bench.sh run [DIR] [OUT]   there, from the repository root: one run, a few minutes
 #
 # DIR (default target/gpu-bench, ~60 MiB, an ignored path: hand it to the device's `carry`)
-# holds release builds of `rrskin` and of the Vulkan test binaries, the two trained models and
+# holds release builds of `rrskin` and of the Vulkan test binaries, the three trained models and
 # the Debian packages of the Vulkan loader and the validation layer (docs/gpu-measurement.md:
 # unpacked with dpkg -x, then ldconfig). OUT defaults to $OUT/gpu-bench.json when
 # $OUT is set (the device's output folder), else DIR/gpu-bench.json. CHARACTERS (default
@@ -33,6 +33,7 @@ for line in sys.stdin:
         | while read -r name exe; do cp "$exe" "$dir/bin/test-$name"; done
     target/release/rrskin train data/cesiumman -o "$dir/cesiumman.rrs"
     target/release/rrskin train data/human_heavy -o "$dir/human_heavy.rrs"
+    target/release/rrskin train data/cesiumman --correctives 32 -o "$dir/cesiumman_correctives.rrs"
     (cd "$dir/debs" && apt-get download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 \
         libgles2 vulkan-validationlayers)
     du -sh "$dir"
@@ -53,10 +54,10 @@ run() {
     local tests=()
     for t in "$dir"/bin/test-*; do
         local name=${t##*/test-} status=passed
-        # The trained-file check (ignored by default) runs on both trained models.
+        # The trained-file check (ignored by default) runs on every trained model.
         if ! "$t" --test-threads 1 >>"$log" 2>&1; then status=failed; fi
         if [[ $name == vulkan ]]; then
-            for m in cesiumman human_heavy; do
+            for m in cesiumman human_heavy cesiumman_correctives; do
                 RRSKIN_MODEL="$dir/$m.rrs" "$t" --ignored --test-threads 1 >>"$log" 2>&1 \
                     || status=failed
             done
@@ -64,7 +65,7 @@ run() {
         tests+=("\"$name\": \"$status\"")
     done
     local benches=()
-    for m in cesiumman human_heavy; do
+    for m in cesiumman human_heavy cesiumman_correctives; do
         for c in ${CHARACTERS:-1 256 4096 16384}; do
             local b
             b=$("$dir/bin/rrskin" bench "$dir/$m.rrs" --characters "$c" \
