@@ -170,11 +170,19 @@ fn bad_counts_and_outputs_fail_before_any_work() {
             && err.contains("lower --characters"),
         "{err}"
     );
+    let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
+    let set = set.to_str().expect("utf-8");
+    let started = std::time::Instant::now();
+    let out = format!("{}/c.rrs", dir.display());
+    let err = failed(&["train", set, "-o", &out, "--correctives", "65"]);
+    assert!(
+        err.contains("--correctives 65") && err.contains("at most 64"),
+        "{err}"
+    );
+    assert!(started.elapsed().as_secs() < 10, "trained first");
     // Outputs under a file: no folder can be made there.
     let file = dir.join("a-file");
     std::fs::write(&file, "").expect("write");
-    let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
-    let set = set.to_str().expect("utf-8");
     let under = file.join("out");
     let under = under.to_str().expect("utf-8");
     for args in [

@@ -109,6 +109,8 @@ impl Default for TrainOptions {
 pub enum TrainError {
     /// K is not one the runtime has shaders for.
     Influences { influences: usize },
+    /// More corrective targets than a model holds.
+    Correctives { correctives: usize, max: usize },
     /// The set has no training pose.
     NoTrainingPoses,
     /// More proxy bones than the paper's reduction can make (one per triangle at most).
@@ -125,6 +127,10 @@ impl fmt::Display for TrainError {
             TrainError::Influences { influences } => {
                 write!(f, "{influences} influences per vertex: the runtime supports 4 or 8")
             }
+            TrainError::Correctives { correctives, max } => write!(
+                f,
+                "--correctives {correctives}: a model holds at most {max} pose-space corrective targets"
+            ),
             TrainError::NoTrainingPoses => write!(f, "the example set has no training pose"),
             TrainError::TooManyProxies { proxies, triangles } => write!(
                 f,
@@ -199,6 +205,12 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let k = options.influences;
     if !rrskin::model::SUPPORTED_INFLUENCES.contains(&(k as u32)) {
         return Err(TrainError::Influences { influences: k });
+    }
+    if options.correctives > rrskin::model::MAX_CORRECTIVES {
+        return Err(TrainError::Correctives {
+            correctives: options.correctives,
+            max: rrskin::model::MAX_CORRECTIVES,
+        });
     }
     let train = set.train();
     if train.is_empty() {
