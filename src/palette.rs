@@ -80,6 +80,20 @@ pub struct Skin<'a> {
     pub corrective_targets: &'a [[f32; 3]],
 }
 
+impl Skin<'_> {
+    /// Vertex a's blended palette matrix `Σ_k w_k M_{i_k}` (3x4 row-major), of one character's
+    /// `palette` (P + J entries; not checked here).
+    pub fn blended(&self, a: usize, palette: &[Affine]) -> Affine {
+        let k = self.influences;
+        let mut m = [0.0f32; 12];
+        for i in a * k..(a + 1) * k {
+            let (w, entry) = (self.weights[i], &palette[self.indices[i] as usize]);
+            m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
+        }
+        m
+    }
+}
+
 #[derive(Default)]
 struct Scratch {
     /// θ~_b per bone (only `rotations` are written).
@@ -301,15 +315,10 @@ impl Palette {
                 });
             }
         }
-        let k = skin.influences;
+        let v = skin.rest_positions.len();
         for (a, out) in positions.iter_mut().enumerate() {
-            let mut m = [0.0f32; 12];
-            for i in a * k..(a + 1) * k {
-                let (w, entry) = (skin.weights[i], &palette[skin.indices[i] as usize]);
-                m.iter_mut().zip(entry).for_each(|(x, e)| *x += w * e);
-            }
+            let m = skin.blended(a, palette);
             let mut rest = skin.rest_positions[a];
-            let v = skin.rest_positions.len();
             for (t, &w) in weights.iter().enumerate() {
                 let delta = skin.corrective_targets[t * v + a];
                 rest.iter_mut().zip(delta).for_each(|(x, d)| *x += w * d);

@@ -170,6 +170,12 @@ fn nearest_signed_permutation(
     (best.1, best.2, best.3)
 }
 
+/// One character's palette and corrective weights: the model at a pose, or what a viewer plays.
+struct Frame {
+    palette: Vec<Affine>,
+    weights: Vec<f32>,
+}
+
 /// Bakes one clip: `keys` its key times (at least one), `pose_at(t)` the J bone transforms at
 /// any time in their range, `tolerance` the largest vertex distance allowed between samples.
 /// A clip that holds each key until the next (`step`: glTF's STEP) is sampled at its keys and
@@ -181,14 +187,15 @@ pub fn bake(
     step: bool,
     tolerance: f64,
 ) -> rrskin::Result<Baked> {
-    // The palette and the corrective weights at time t.
-    let entries = |t: f64| -> rrskin::Result<(Vec<Affine>, Vec<f32>)> {
+    let entries = |t: f64| -> rrskin::Result<Frame> {
         let bones = pose_at(t);
-        let mut out = vec![[0.0; 12]; palette.len()];
-        palette.compute(&bones, &mut out)?;
-        let mut weights = vec![0.0; palette.corrective_count()];
-        palette.corrective_weights(&bones, &mut weights)?;
-        Ok((out, weights))
+        let mut frame = Frame {
+            palette: vec![[0.0; 12]; palette.len()],
+            weights: vec![0.0; palette.corrective_count()],
+        };
+        palette.compute(&bones, &mut frame.palette)?;
+        palette.corrective_weights(&bones, &mut frame.weights)?;
+        Ok(frame)
     };
     let pairs = |a: &[Affine], previous: Option<&[NodePair]>| -> Vec<NodePair> {
         a.iter()
@@ -198,12 +205,9 @@ pub fn bake(
     };
     let v = palette.model().vertex_count();
     let (mut want, mut got) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
-    let mut distance = |reference: &(Vec<Affine>, Vec<f32>),
-                        played: &[Affine],
-                        weights: &[f32]|
-     -> rrskin::Result<f64> {
-        palette.skin_positions(&reference.0, &reference.1, &mut want)?;
-        palette.skin_positions(played, weights, &mut got)?;
+    let mut distance = |reference: &Frame, played: &Frame| -> rrskin::Result<f64> {
+        palette.skin_positions(&reference.palette, &reference.weights, &mut want)?;
+        palette.skin_positions(&played.palette, &played.weights, &mut got)?;
         Ok(want.iter().zip(&got).fold(0.0f64, |m, (a, b)| {
             let d = (0..3).map(|i| ((a[i] - b[i]) as f64).powi(2)).sum::<f64>();
             m.max(d.sqrt())
@@ -212,13 +216,17 @@ pub fn bake(
     let first = entries(keys[0])?;
     let mut baked = Baked {
         times: vec![keys[0]],
-        samples: vec![pairs(&first.0, None)],
-        weights: vec![first.1.clone()],
+        samples: vec![pairs(&first.palette, None)],
+        weights: vec![first.weights.clone()],
         worst_at_samples: 0.0,
         worst_between: 0.0,
     };
-    let played = |s: &[NodePair]| s.iter().map(NodePair::affine).collect::<Vec<_>>();
-    baked.worst_at_samples = distance(&first, &played(&baked.samples[0]), &first.1)?;
+    // What a viewer plays from node pairs and morph weights.
+    let played = |s: &[NodePair], weights: &[f32]| Frame {
+        palette: s.iter().map(NodePair::affine).collect(),
+        weights: weights.to_vec(),
+    };
+    baked.worst_at_samples = distance(&first, &played(&baked.samples[0], &first.weights))?;
     for &key in &keys[1..] {
         // Targets still to reach, with how often their interval was halved.
         let mut targets = vec![(key, 0u32)];
@@ -230,7 +238,7 @@ pub fn bake(
                 &baked.weights[last],
             );
             let a1 = entries(t1)?;
-            let p1 = pairs(&a1.0, Some(p0));
+            let p1 = pairs(&a1.palette, Some(p0));
             let mut worst = 0.0f64;
             for f in [0.25, 0.5, 0.75] {
                 let (between, weights): (Vec<NodePair>, Vec<f32>) = match step {
@@ -238,13 +246,13 @@ pub fn bake(
                     false => (
                         p0.iter().zip(&p1).map(|(a, b)| a.lerp(b, f)).collect(),
                         w0.iter()
-                            .zip(&a1.1)
+                            .zip(&a1.weights)
                             .map(|(a, b)| a + f as f32 * (b - a))
                             .collect(),
                     ),
                 };
                 let reference = entries(t0 + f * (t1 - t0))?;
-                worst = worst.max(distance(&reference, &played(&between), &weights)?);
+                worst = worst.max(distance(&reference, &played(&between, &weights))?);
             }
             if !step && worst > tolerance && depth < MAX_DEPTH {
                 targets.push((0.5 * (t0 + t1), depth + 1));
@@ -252,13 +260,12 @@ pub fn bake(
             }
             targets.pop();
             baked.worst_between = baked.worst_between.max(worst);
-            baked.worst_at_samples =
-                baked
-                    .worst_at_samples
-                    .max(distance(&a1, &played(&p1), &a1.1)?);
+            baked.worst_at_samples = baked
+                .worst_at_samples
+                .max(distance(&a1, &played(&p1, &a1.weights))?);
             baked.times.push(t1);
             baked.samples.push(p1);
-            baked.weights.push(a1.1);
+            baked.weights.push(a1.weights);
         }
     }
     Ok(baked)

@@ -538,6 +538,17 @@ impl ExampleSet {
         self.parents.len()
     }
 
+    /// Per bone, its children, ascending.
+    pub fn children(&self) -> Vec<Vec<usize>> {
+        let mut children = vec![Vec::new(); self.bone_count()];
+        for (b, p) in self.parents.iter().enumerate() {
+            if let Some(p) = p {
+                children[*p].push(b);
+            }
+        }
+        children
+    }
+
     /// Indices of the training poses (split 0).
     pub fn train(&self) -> Vec<usize> {
         (0..self.poses.len())

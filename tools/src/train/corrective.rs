@@ -74,12 +74,7 @@ pub fn features(set: &ExampleSet, f: &PoseFeatures) -> Vec<[f64; 9]> {
 
 /// N(a) per vertex: its SSD bones and their children, roots left out, ascending.
 pub fn drivers(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
-    let mut children = vec![Vec::new(); set.bone_count()];
-    for (b, p) in set.parents.iter().enumerate() {
-        if let Some(p) = p {
-            children[*p].push(b);
-        }
-    }
+    let children = set.children();
     ssd.influences
         .iter()
         .map(|inf| {
@@ -114,7 +109,7 @@ impl Residuals {
     ) -> rrskin::Result<Residuals> {
         let palette = rrskin::palette::Palette::new(model.clone())?;
         let mut evaluator = rrskin::cpu::CpuEvaluator::new(model);
-        let (v, k) = (set.vertex_count(), model.influences());
+        let v = set.vertex_count();
         let skin = palette.skin();
         let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
         let mut entries = vec![[0.0f32; 12]; palette.len()];
@@ -129,16 +124,7 @@ impl Residuals {
             evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
             palette.compute(&bones, &mut entries)?;
             let m: Vec<DMat3> = (0..v)
-                .map(|a| {
-                    let mut rows = [0.0f64; 9];
-                    for j in a * k..(a + 1) * k {
-                        let (e, w) = (&entries[skin.indices[j] as usize], skin.weights[j] as f64);
-                        for (r, row) in rows.iter_mut().enumerate() {
-                            *row += w * e[4 * (r / 3) + r % 3] as f64;
-                        }
-                    }
-                    DMat3::from_cols_array(&rows).transpose()
-                })
+                .map(|a| rrskin::predict::rotation_of(&skin.blended(a, &entries)))
                 .collect();
             let delta = (0..v)
                 .map(|a| match m[a].determinant().abs() > SINGULAR {

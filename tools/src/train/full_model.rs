@@ -79,12 +79,7 @@ pub struct Rotations(pub Vec<Option<RotationPredictor>>);
 /// children. Nearby bones only (docs/method.md §2: all bones sometimes pair a shoulder with a leg).
 pub fn nearby_bones(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
     let j = set.bone_count();
-    let mut children = vec![Vec::new(); j];
-    for (b, p) in set.parents.iter().enumerate() {
-        if let Some(p) = p {
-            children[*p].push(b);
-        }
-    }
+    let children = set.children();
     set.faces
         .iter()
         .map(|tri| {
