@@ -29,6 +29,7 @@ pub mod gradients;
 pub mod pivots;
 pub mod poisson;
 pub mod pose_scale;
+pub mod proxy_corrective;
 pub mod reduce;
 pub mod rotreg;
 pub mod scale_shear;

@@ -278,8 +278,12 @@ impl Reduced {
 
     /// The mesh for key gradients `d` (P) and bones: t = C1 d + C2 q, palette skinning.
     pub fn predict_with_keys(&self, set: &ExampleSet, d: &[DMat3], bones: &[Bone]) -> Vec<DVec3> {
+        self.skin_with(set, &self.proxy_transforms(d, bones), bones)
+    }
+
+    /// The mesh for the proxies' transforms `palette` (P) and bones: palette skinning.
+    pub fn skin_with(&self, set: &ExampleSet, palette: &[Bone], bones: &[Bone]) -> Vec<DVec3> {
         let p = self.proxies;
-        let palette = self.proxy_transforms(d, bones);
         set.rest
             .iter()
             .zip(&self.skin)
