@@ -459,23 +459,19 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         let fit = crate::train::proxy_corrective::fit(
             set, &trained.feats, &trained.ssd, rigid, reduced, &train, options.train.folds,
         );
-        eprintln!("proxy correctives: ridge {:?} scores {:?} ({:.2} s)", fit.ridge, fit.scores, t0.elapsed().as_secs_f64());
+        eprintln!("proxy correctives: chosen {:?} none {:?} cands {:?} ({:.2} s)", fit.chosen, fit.uncorrected, fit.candidates, t0.elapsed().as_secs_f64());
         let e = errors(&|p| {
             p.iter()
                 .map(|&i| {
                     let f = &trained.feats[i];
-                    let d: Vec<glam::DMat3> =
-                        reduced.predictors.iter().map(|k| k.predict(f, &set.parents)).collect();
-                    let mut t = reduced.proxy_transforms(&d, &set.poses[i].bones);
+                    let mut t = reduced.predict_proxies(set, f, &set.poses[i].bones);
                     let phi = crate::train::corrective::features(set, f);
-                    crate::train::proxy_corrective::correct(&mut t, &phi, &fit.correctives);
+                    if let Some(c) = &fit.correctives { c.correct(&mut t, &phi); }
                     reduced.skin_with(set, &t, &set.poses[i].bones)
                 })
                 .collect()
         });
         eprintln!("proxy correctives: train {:.2} test {:?}", e.train, e.test);
-        let sizes: Vec<usize> = fit.correctives.iter().map(|c| c.drivers.len()).collect();
-        eprintln!("drivers per proxy {:?}", sizes);
     }
     let budget = match (&trained.reduced, full, options.diagnose) {
         (Some(reduced), Some(f), true) => {

@@ -1,20 +1,24 @@
 //! Proxy correctives (docs/method.md §21): each proxy's transform is corrected, in its own rest
-//! frame, by an affine map linear in the rotations of the joints near its vertices:
-//! `T'_e(q) = T_e(q) (I + E_e(q))`, `E_e(q) = Σ_f φ_f(q) G_ef` (G_ef: 3 x 4, bottom row 0).
-//! The palette stays P + J matrices and the skinning unchanged: what a muscle bulge or a sag
-//! needs beyond the key predictors (which see one joint and its parent) is paid once per proxy on
-//! the CPU, not per vertex. Letters: P proxies, D_e drivers of proxy e, n training poses.
+//! frame, by an affine map of the rotations of the joints near its vertices,
+//! `T'_e(q) = T_e(q) (I + E_e(q))` with `E_e = Σ_f x_f(q) G_ef` (G_ef: 3 x 4). The palette stays
+//! P + J matrices and the skinning is unchanged: what a muscle bulge or a sag needs beyond the
+//! key predictors (each sees one joint and its parent) is paid once per proxy and character, not
+//! per vertex. Letters: P proxies, J joints, D_e drivers of proxy e, C kernel centres, n poses.
 //!
-//! 1. **Targets.** Per training pose, the proxy transforms that fit the mesh best with the
-//!    trained weights (T*, least squares per pose), and the predicted ones T: the correction that
-//!    would make them exact is `E* = T⁻¹ T* − I`, in T's rest frame so that it does not depend
-//!    on the character's heading.
-//! 2. **Features** φ_b = vec(R_b − I) of the drivers (as [`corrective::features`]); the drivers
-//!    of proxy e are those of its vertices ([`corrective::drivers`]: their SSD bones and their
-//!    children), zero at rest so that the rest pose stays exact.
-//! 3. **Ridge regression per proxy**, 12 outputs from 9 D_e features; one λ for every proxy
-//!    (times each proxy's mean Gram diagonal), chosen by k-fold cross-validation on the training
-//!    poses with the pose-relative vertex error and the one-standard-error rule of §18.
+//! 1. **Targets.** Per training pose, the proxy transforms T* that fit the mesh best with the
+//!    trained weights ([`Reduced::best_transforms`]) and the predicted T: the correction that
+//!    makes T exact is `E* = T⁻¹ T* − I`, in T's rest frame, so it does not follow the heading.
+//! 2. **Features** of driver b, zero at rest (so the rest pose stays exact): φ_b = vec(R_b − I)
+//!    (as [`corrective::features`]), and with kernels, per training pose c,
+//!    `exp(−|φ_b − φ_b(q_c)|² / w_b) − exp(−|φ_b(q_c)|² / w_b)` (pose-space RBFs as in Lewis et
+//!    al.'s PSD, per joint, w_b twice the mean |φ_b|² over the centres): a corrective driven by a
+//!    clamped ramp of an angle is not linear in the rotation. The drivers of proxy e are the
+//!    bones carrying at least [`SHARE`] of its vertices' SSD weight, and their children (a muscle
+//!    bulges with the joint below it).
+//! 3. **Ridge regression per proxy**, 12 outputs from F_e features, λ times the proxy's mean
+//!    Gram diagonal. The basis (linear, or linear and kernels) and λ are chosen together by
+//!    k-fold cross-validation on the training poses, scored by the pose-relative vertex error of
+//!    §18 ([`pose_scale`]), the simpler basis and the stronger ridge first.
 
 use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::DenseCholesky;
@@ -23,82 +27,171 @@ use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::Skinning;
-use glam::{DMat3, DVec3, DVec4};
+use glam::{DMat3, DVec3};
 
-/// The ridges tried, most regularised first (after none).
-pub const RIDGES: [f64; 5] = [10.0, 1.0, 0.1, 0.01, 0.001];
+/// The ridges tried per basis, most regularised first.
+pub const RIDGES: [f64; 6] = [1000.0, 100.0, 10.0, 1.0, 0.1, 0.01];
 
-/// Below this |det T| a proxy's predicted transform is taken as singular: no target there.
+/// A bone drives a proxy when it carries this share of the proxy's vertices' SSD weight.
+pub const SHARE: f64 = 0.1;
+
+/// Below this |det M| a predicted proxy transform is taken as singular: no target there.
 const SINGULAR: f64 = 1e-9;
 
-/// The fitted correction of one proxy.
+/// The features every proxy draws from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Basis {
+    /// φ_b of each driver.
+    Linear,
+    /// φ_b and one kernel per training pose.
+    Kernels,
+}
+
+/// The fitted corrections, in f64, ready for [`rrskin::model::ProxyCorrectives`].
 #[derive(Debug, Clone, PartialEq)]
-pub struct ProxyCorrective {
+pub struct ProxyCorrectives {
+    pub basis: Basis,
+    /// C x J kernel centres φ_b(q_c) (empty for [`Basis::Linear`]).
+    pub centres: Vec<Vec<[f64; 9]>>,
+    /// J kernel widths w_b (empty for [`Basis::Linear`]).
+    pub widths: Vec<f64>,
+    pub proxies: Vec<Corrected>,
+}
+
+/// One corrected proxy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Corrected {
     pub proxy: usize,
     /// D_e driver joints, ascending.
     pub drivers: Vec<usize>,
-    /// 9 D_e x 12, row-major: feature f's G_ef, rows of [A | b] stacked.
+    /// F_e x 12, row-major: feature f's G_ef as the rows of [A | b].
     pub map: Vec<f64>,
 }
 
-/// What [`fit`] chose: the ridge (None: no correction) and every candidate's score, in the
-/// order considered (none first, then [`RIDGES`]).
+/// What [`fit`] chose: the score (mean, standard error) of the uncorrected proxies, every
+/// candidate's (basis, ridge, score) in the order considered, and the best (None where nothing
+/// beats no correction).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
-    pub ridge: Option<f64>,
-    pub scores: Vec<(f64, f64)>,
-    pub correctives: Vec<ProxyCorrective>,
+    pub uncorrected: (f64, f64),
+    pub candidates: Vec<(Basis, f64, (f64, f64))>,
+    pub chosen: Option<(Basis, f64)>,
+    pub correctives: Option<ProxyCorrectives>,
 }
 
-/// The training poses as the fit sees them.
-struct Poses {
-    /// Per pose: the predicted proxy transforms.
-    predicted: Vec<Vec<Bone>>,
-    /// Per pose and proxy: E* (12, rows of [A | b]), None where T is singular.
-    targets: Vec<Vec<Option<[f64; 12]>>>,
-    phi: Vec<Vec<[f64; 9]>>,
-}
+impl ProxyCorrectives {
+    /// The basis over the poses `centres` (indices into `phi`).
+    fn basis(basis: Basis, phi: &[Vec<[f64; 9]>], centres: &[usize]) -> ProxyCorrectives {
+        let (centres, widths) = match basis {
+            Basis::Linear => (Vec::new(), Vec::new()),
+            Basis::Kernels => {
+                let c: Vec<Vec<[f64; 9]>> = centres.iter().map(|&i| phi[i].clone()).collect();
+                let joints = phi.first().map_or(0, Vec::len);
+                let widths = (0..joints)
+                    .map(|b| {
+                        let m = c.iter().map(|z| squared(&z[b])).sum::<f64>() / c.len() as f64;
+                        2.0 * m.max(1e-12)
+                    })
+                    .collect();
+                (c, widths)
+            }
+        };
+        ProxyCorrectives {
+            basis,
+            centres,
+            widths,
+            proxies: Vec::new(),
+        }
+    }
 
-impl ProxyCorrective {
-    /// E_e(φ) applied to T: `T (I + E)`.
-    pub fn apply(&self, t: &Bone, phi: &[[f64; 9]]) -> Bone {
-        let mut e = [0.0; 12];
-        for (i, &b) in self.drivers.iter().enumerate() {
-            for (k, &x) in phi[b].iter().enumerate() {
-                let row = &self.map[(9 * i + k) * 12..(9 * i + k + 1) * 12];
-                for (e, g) in e.iter_mut().zip(row) {
+    /// The features of `drivers` in the pose with features `phi`.
+    fn features(&self, drivers: &[usize], phi: &[[f64; 9]], out: &mut Vec<f64>) {
+        out.clear();
+        for &b in drivers {
+            out.extend(phi[b]);
+            for z in &self.centres {
+                let d2: f64 = z[b].iter().zip(&phi[b]).map(|(x, y)| (x - y) * (x - y)).sum();
+                let w = self.widths[b];
+                out.push((-d2 / w).exp() - (-squared(&z[b]) / w).exp());
+            }
+        }
+    }
+
+    /// Applies the corrections to `palette` (the P predicted proxies of a pose with features
+    /// `phi`).
+    pub fn correct(&self, palette: &mut [Bone], phi: &[[f64; 9]]) {
+        let mut x = Vec::new();
+        for c in &self.proxies {
+            self.features(&c.drivers, phi, &mut x);
+            let mut e = [0.0; 12];
+            for (x, g) in x.iter().zip(c.map.chunks_exact(12)) {
+                for (e, g) in e.iter_mut().zip(g) {
                     *e += x * g;
                 }
             }
+            palette[c.proxy] = corrected(&palette[c.proxy], &e);
         }
-        corrected(t, &e)
+    }
+
+    /// For the runtime model.
+    #[cfg(any())]
+    pub fn to_runtime(&self) -> rrskin::model::ProxyCorrectives {
+        let f32s = |x: &[f64; 9]| x.map(|v| v as f32);
+        let mut offsets = vec![0u32];
+        for c in &self.proxies {
+            offsets.push(offsets[offsets.len() - 1] + c.drivers.len() as u32);
+        }
+        rrskin::model::ProxyCorrectives {
+            linear: true,
+            centres: self.centres.iter().flatten().map(f32s).collect(),
+            widths: self.widths.iter().map(|&w| w as f32).collect(),
+            proxies: self.proxies.iter().map(|c| c.proxy as u32).collect(),
+            driver_offsets: offsets,
+            drivers: (self.proxies.iter())
+                .flat_map(|c| c.drivers.iter().map(|&b| b as u32))
+                .collect(),
+            maps: (self.proxies.iter())
+                .flat_map(|c| c.map.iter().map(|&g| g as f32))
+                .collect(),
+        }
     }
 }
 
-/// `T (I + E)`, E as rows of [A | b].
+fn squared(x: &[f64; 9]) -> f64 {
+    x.iter().map(|v| v * v).sum()
+}
+
+/// `T (I + E)`, E as the rows of [A | b]: `[M (I + A) | t + M b]`.
 fn corrected(t: &Bone, e: &[f64; 12]) -> Bone {
-    let a = DMat3::from_cols_array(&[
-        e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10],
-    ]);
-    let b = DVec3::new(e[3], e[7], e[11]);
+    let a = DMat3::from_cols_array(&[e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10]]);
     Bone {
         q: t.q * (DMat3::IDENTITY + a),
-        d: t.d + t.q * b,
+        d: t.d + t.q * DVec3::new(e[3], e[7], e[11]),
     }
 }
 
-/// The drivers of each proxy: the bones carrying at least [`SHARE`] of its vertices' SSD weight
-/// (weighted by the proxy's own weights), and their children; roots left out.
-fn proxy_drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<usize>> {
-    let share: f64 = std::env::var("PC_SHARE").ok().and_then(|s| s.parse().ok()).unwrap_or(0.1);
+/// `T⁻¹ T* − I` as the rows of [A | b], None where T is singular.
+fn target(t: &Bone, best: &Bone) -> Option<[f64; 12]> {
+    if t.q.determinant().abs() <= SINGULAR {
+        return None;
+    }
+    let inv = t.q.inverse();
+    let a = inv * best.q - DMat3::IDENTITY;
+    let b = inv * (best.d - t.d);
+    Some(std::array::from_fn(|k| match k % 4 {
+        3 => b[k / 4],
+        c => a.row(k / 4)[c],
+    }))
+}
+
+/// The drivers of each proxy (module docs, step 2).
+fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<usize>> {
     let children = set.children();
     let mut mass = vec![vec![0.0; set.bone_count()]; reduced.proxies];
     for (a, inf) in reduced.skin.iter().enumerate() {
-        for &(e, w) in inf {
-            if e < reduced.proxies {
-                for &(b, v) in &ssd.influences[a] {
-                    mass[e][b] += w * v;
-                }
+        for &(e, w) in inf.iter().filter(|x| x.0 < reduced.proxies) {
+            for &(b, v) in &ssd.influences[a] {
+                mass[e][b] += w * v;
             }
         }
     }
@@ -106,7 +199,7 @@ fn proxy_drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec
         .map(|m| {
             let total: f64 = m.iter().sum();
             let mut d: Vec<usize> = (0..m.len())
-                .filter(|&b| m[b] > share * total && total > 0.0)
+                .filter(|&b| total > 0.0 && m[b] >= SHARE * total)
                 .flat_map(|b| std::iter::once(b).chain(children[b].iter().copied()))
                 .filter(|&b| set.parents[b].is_some())
                 .collect();
@@ -117,88 +210,66 @@ fn proxy_drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec
         .collect()
 }
 
-fn gather(drivers: &[usize], phi: &[[f64; 9]], out: &mut Vec<f64>) {
-    out.clear();
-    out.extend(drivers.iter().flat_map(|&b| phi[b]));
+/// The training poses as the fit sees them (in `train` order).
+struct Poses {
+    predicted: Vec<Vec<Bone>>,
+    /// Per pose and proxy: E*.
+    targets: Vec<Vec<Option<[f64; 12]>>>,
+    phi: Vec<Vec<[f64; 9]>>,
 }
 
-/// Ridge regression of E* on φ per proxy over the poses `fit` (indices into `poses`).
+/// Ridge regression of E* per proxy over the poses `fit` (indices into `poses`).
 fn regress(
+    basis: Basis,
     drivers: &[Vec<usize>],
     poses: &Poses,
     fit: &[usize],
     ridge: f64,
-) -> Vec<ProxyCorrective> {
+) -> ProxyCorrectives {
+    let mut out = ProxyCorrectives::basis(basis, &poses.phi, fit);
     let mut x = Vec::new();
-    drivers
-        .iter()
-        .enumerate()
-        .filter(|(_, d)| !d.is_empty())
-        .map(|(e, d)| {
-            let f = 9 * d.len();
-            let mut gram = vec![0.0; f * f];
-            let mut rhs = vec![0.0; f * 12];
-            for &i in fit {
-                let Some(target) = poses.targets[i][e] else {
-                    continue;
-                };
-                gather(d, &poses.phi[i], &mut x);
-                for p in 0..f {
-                    for q in 0..f {
-                        gram[p * f + q] += x[p] * x[q];
-                    }
-                    for c in 0..12 {
-                        rhs[p * 12 + c] += x[p] * target[c];
-                    }
-                }
-            }
-            let mean = (0..f).map(|p| gram[p * f + p]).sum::<f64>() / f as f64;
+    for (e, d) in drivers.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
+        let f = d.len() * (9 + out.centres.len());
+        let (mut gram, mut rhs) = (vec![0.0; f * f], vec![0.0; f * 12]);
+        for &i in fit {
+            let Some(target) = poses.targets[i][e] else {
+                continue;
+            };
+            out.features(d, &poses.phi[i], &mut x);
             for p in 0..f {
-                gram[p * f + p] += ridge * mean.max(f64::MIN_POSITIVE);
-            }
-            let factor = DenseCholesky::new(&gram, f);
-            let mut map = vec![0.0; f * 12];
-            for c in 0..12 {
-                let mut col: Vec<f64> = (0..f).map(|p| rhs[p * 12 + c]).collect();
-                factor.solve(&mut col);
-                for p in 0..f {
-                    map[p * 12 + c] = col[p];
+                for q in 0..f {
+                    gram[p * f + q] += x[p] * x[q];
+                }
+                for c in 0..12 {
+                    rhs[p * 12 + c] += x[p] * target[c];
                 }
             }
-            ProxyCorrective {
-                proxy: e,
-                drivers: d.clone(),
-                map,
+        }
+        let mean = (0..f).map(|p| gram[p * f + p]).sum::<f64>() / f as f64;
+        for p in 0..f {
+            gram[p * f + p] += ridge * mean.max(f64::MIN_POSITIVE);
+        }
+        let factor = DenseCholesky::new(&gram, f);
+        let mut map = vec![0.0; f * 12];
+        for c in 0..12 {
+            let mut col: Vec<f64> = (0..f).map(|p| rhs[p * 12 + c]).collect();
+            factor.solve(&mut col);
+            for (p, v) in col.iter().enumerate() {
+                map[p * 12 + c] = *v;
             }
-        })
-        .collect()
-}
-
-/// The mesh of pose i (of `poses`) with the corrections applied.
-fn mesh(
-    set: &ExampleSet,
-    reduced: &Reduced,
-    bones: &[Bone],
-    predicted: &[Bone],
-    phi: &[[f64; 9]],
-    correctives: &[ProxyCorrective],
-) -> Vec<DVec3> {
-    let mut palette = predicted.to_vec();
-    for c in correctives {
-        palette[c.proxy] = c.apply(&predicted[c.proxy], phi);
+        }
+        out.proxies.push(Corrected {
+            proxy: e,
+            drivers: d.clone(),
+            map,
+        });
     }
-    reduced.skin_with(set, &palette, bones)
+    out
 }
 
-/// The corrected palette of one pose: `predicted` (P) with `correctives` applied.
-pub fn correct(predicted: &mut [Bone], phi: &[[f64; 9]], correctives: &[ProxyCorrective]) {
-    for c in correctives {
-        predicted[c.proxy] = c.apply(&predicted[c.proxy], phi);
-    }
-}
-
-/// Fits the proxy correctives of `reduced` on the training poses `train`, the ridge chosen by
-/// `folds`-fold cross-validation; `rigid` normalises each held-out pose's error.
+/// Fits the proxy correctives of `reduced` on the training poses `train`, basis and ridge chosen
+/// by `folds`-fold cross-validation; `rigid` normalises each held-out pose's error. None is
+/// chosen where no candidate beats the uncorrected proxies.
 pub fn fit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -208,90 +279,68 @@ pub fn fit(
     train: &[usize],
     folds: usize,
 ) -> Fit {
-    let drivers = proxy_drivers(set, ssd, reduced);
-    let oracle = crate::eval::diagnose::oracle_transforms(set, reduced, train);
+    let drivers = drivers(set, ssd, reduced);
+    let best = reduced.best_transforms(set, train);
     let mut poses = Poses {
         predicted: Vec::new(),
         targets: Vec::new(),
         phi: Vec::new(),
     };
-    for (&i, best) in train.iter().zip(&oracle) {
-        let d: Vec<DMat3> = reduced
-            .predictors
-            .iter()
-            .map(|k| k.predict(&feats[i], &set.parents))
-            .collect();
-        let predicted = reduced.proxy_transforms(&d, &set.poses[i].bones);
-        let targets = predicted
-            .iter()
-            .zip(best)
-            .map(|(t, rows)| {
-                if t.q.determinant().abs() <= SINGULAR {
-                    return None;
-                }
-                let inv = t.q.inverse();
-                let m = DMat3::from_cols(rows[0].truncate(), rows[1].truncate(), rows[2].truncate())
-                    .transpose();
-                let a = inv * m - DMat3::IDENTITY;
-                let b = inv * (DVec3::new(rows[0].w, rows[1].w, rows[2].w) - t.d);
-                let r = |k: usize| [a.row(k).x, a.row(k).y, a.row(k).z, b[k]];
-                let (r0, r1, r2) = (r(0), r(1), r(2));
-                Some([
-                    r0[0], r0[1], r0[2], r0[3], r1[0], r1[1], r1[2], r1[3], r2[0], r2[1], r2[2],
-                    r2[3],
-                ])
-            })
-            .collect();
+    for (&i, best) in train.iter().zip(&best) {
+        let predicted = reduced.predict_proxies(set, &feats[i], &set.poses[i].bones);
+        poses.targets.push(predicted.iter().zip(best).map(|(t, b)| target(t, b)).collect());
         poses.predicted.push(predicted);
-        poses.targets.push(targets);
         poses.phi.push(corrective::features(set, &feats[i]));
     }
     let all: Vec<usize> = (0..train.len()).collect();
     let folds = folds.min(train.len());
-    let mut scores = Vec::new();
-    let mut ridge = None;
-    if folds >= 2 {
-        let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
-        let held_error = |k: usize, correctives: &[ProxyCorrective]| -> f64 {
-            let i = train[k];
-            let y = mesh(
-                set,
-                reduced,
-                &set.poses[i].bones,
-                &poses.predicted[k],
-                &poses.phi[k],
-                correctives,
-            );
-            let e: f64 = y
-                .iter()
-                .zip(&set.poses[i].vertices)
-                .map(|(a, b)| (*a - *b).length_squared())
-                .sum();
-            e / normaliser[k]
-        };
-        let mut relative = vec![all.iter().map(|&k| held_error(k, &[])).collect::<Vec<f64>>()];
-        for &lambda in &RIDGES {
-            let mut per_pose = vec![0.0; all.len()];
-            for fold in 0..folds {
-                let (held, kept): (Vec<usize>, Vec<usize>) =
-                    all.iter().partition(|&&k| k % folds == fold);
-                let c = regress(&drivers, &poses, &kept, lambda);
-                for k in held {
-                    per_pose[k] = held_error(k, &c);
-                }
-            }
-            relative.push(per_pose);
+    let mut out = Fit {
+        uncorrected: (0.0, 0.0),
+        candidates: Vec::new(),
+        chosen: None,
+        correctives: None,
+    };
+    if folds < 2 {
+        return out;
+    }
+    let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
+    let held_error = |k: usize, c: Option<&ProxyCorrectives>| -> f64 {
+        let pose = &set.poses[train[k]];
+        let mut palette = poses.predicted[k].clone();
+        if let Some(c) = c {
+            c.correct(&mut palette, &poses.phi[k]);
         }
-        scores = pose_scale::scores(&relative);
-        ridge = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
-            .and_then(|c| c.checked_sub(1))
-            .map(|c| RIDGES[c]);
+        let y = reduced.skin_with(set, &palette, &pose.bones);
+        let e: f64 = (y.iter().zip(&pose.vertices))
+            .map(|(a, b)| (*a - *b).length_squared())
+            .sum();
+        e / normaliser[k]
+    };
+    let mut relative = vec![all.iter().map(|&k| held_error(k, None)).collect::<Vec<f64>>()];
+    let grid: Vec<(Basis, f64)> = [Basis::Linear, Basis::Kernels]
+        .into_iter()
+        .flat_map(|b| RIDGES.map(|r| (b, r)))
+        .collect();
+    for &(basis, ridge) in &grid {
+        let mut per_pose = vec![0.0; all.len()];
+        for fold in 0..folds {
+            let (held, kept): (Vec<usize>, Vec<usize>) =
+                all.iter().partition(|&&k| k % folds == fold);
+            let c = regress(basis, &drivers, &poses, &kept, ridge);
+            for k in held {
+                per_pose[k] = held_error(k, Some(&c));
+            }
+        }
+        relative.push(per_pose);
     }
-    let correctives = ridge.map_or(Vec::new(), |lambda| regress(&drivers, &poses, &all, lambda));
-    let _ = DVec4::ZERO;
-    Fit {
-        ridge,
-        scores,
-        correctives,
-    }
+    let scores = pose_scale::scores(&relative);
+    out.chosen = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
+        .and_then(|c| c.checked_sub(1))
+        .map(|c| grid[c]);
+    out.correctives = (out.chosen)
+        .map(|(basis, ridge)| regress(basis, &drivers, &poses, &all, ridge))
+        .filter(|c| !c.proxies.is_empty());
+    out.uncorrected = scores[0];
+    out.candidates = grid.iter().zip(&scores[1..]).map(|(&(b, r), &s)| (b, r, s)).collect();
+    out
 }

@@ -21,6 +21,8 @@ use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::Skinning;
+use faer::prelude::*;
+use faer::{Mat, Side};
 use glam::{DMat3, DVec3, DVec4};
 
 /// The reduced model in f64, as trained: what the runtime model stores in f32.
@@ -236,12 +238,52 @@ impl Reduced {
 
     /// The mesh in one pose, in f64: predictors, t = C1 d + C2 q, palette skinning.
     pub fn predict(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<DVec3> {
-        let d: Vec<DMat3> = self
-            .predictors
-            .iter()
+        self.skin_with(set, &self.predict_proxies(set, f, bones), bones)
+    }
+
+    /// The proxies' transforms in one pose, in f64: predictors, t = C1 d + C2 q.
+    pub fn predict_proxies(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<Bone> {
+        let d: Vec<DMat3> = (self.predictors.iter())
             .map(|k| k.predict(f, &set.parents))
             .collect();
-        self.predict_with_keys(set, &d, bones)
+        self.proxy_transforms(&d, bones)
+    }
+
+    /// Per pose of `poses`, the P proxy transforms that fit the vertices best with the trained
+    /// weights (the bones' share of each vertex is known), by least squares: the ceiling of the
+    /// runtime form (docs/method.md §19) and the targets of the proxy correctives.
+    pub fn best_transforms(&self, set: &ExampleSet, poses: &[usize]) -> Vec<Vec<Bone>> {
+        let p = self.proxies;
+        let n4p = 4 * p;
+        let normal = self.proxy_normal_matrix(set);
+        let mut gram = Mat::<f64>::from_fn(n4p, n4p, |r, c| normal[r * n4p + c]);
+        // A weak ridge keeps proxies without free vertices determined (at zero: they move
+        // nothing).
+        let trace = (0..n4p).map(|d| gram[(d, d)]).sum::<f64>() / n4p.max(1) as f64;
+        for d in 0..n4p {
+            gram[(d, d)] += 1e-9 * trace.max(1e-300);
+        }
+        let zero = Bone {
+            q: DMat3::ZERO,
+            d: DVec3::ZERO,
+        };
+        let Ok(llt) = gram.llt(Side::Lower) else {
+            return poses.iter().map(|_| vec![zero; p]).collect();
+        };
+        poses
+            .iter()
+            .map(|&i| {
+                let (targets, _) = self.proxy_targets(set, &set.poses[i]);
+                let rhs = Mat::<f64>::from_fn(n4p, 3, |r, c| targets[r][c]);
+                let t = llt.solve(&rhs);
+                (0..p)
+                    .map(|e| Bone {
+                        q: DMat3::from_cols_array(&std::array::from_fn(|k| t[(4 * e + k / 3, k % 3)])),
+                        d: DVec3::from_array(std::array::from_fn(|c| t[(4 * e + 3, c)])),
+                    })
+                    .collect()
+            })
+            .collect()
     }
 
     /// The proxies' transforms for key gradients `d` (P) and bones: t = C1 d + C2 q (§4.3).
