@@ -569,3 +569,79 @@ fn the_corrective_fit_recovers_known_correctives() {
     );
     assert!(after < 1e-2 * before, "without {before}, with {after}");
 }
+
+#[test]
+fn the_proxy_corrective_fit_recovers_a_known_correction() {
+    use rrskin_tools::train::{self, corrective, proxy_corrective, TrainOptions};
+    let mut set = rrskin_tools::cylinder_chain::Chain {
+        rings: 21,
+        segments: 8,
+        bones: 3,
+        poses: 60,
+    }
+    .build()
+    .expect("a valid chain");
+    let options = TrainOptions {
+        proxies: 4,
+        full_model: false,
+        quiet: true,
+        ..TrainOptions::default()
+    };
+    let trained = train::run(&set, &options).expect("trains");
+    let reduced = trained.reduced.clone().expect("a reduced model");
+    let drivers = proxy_corrective::drivers(&set, &trained.ssd, &reduced);
+    // The known correction of proxy e, in its rest frame, from its first driver's φ: a stretch
+    // along x and a shift along z, as a muscle bulging with the joint below would.
+    let truth = |phi: &[[f64; 9]], palette: &mut [Bone]| {
+        for (e, d) in drivers.iter().enumerate() {
+            let Some(&b) = d.first() else { continue };
+            let f = &phi[b];
+            let (s, z) = (0.4 * f[0] - 0.3 * f[4], 0.2 * f[8] + 0.1 * f[1]);
+            let t = palette[e];
+            palette[e] = Bone {
+                q: t.q * glam::DMat3::from_diagonal(DVec3::new(1.0 + s, 1.0, 1.0)),
+                d: t.d + t.q * DVec3::new(0.0, 0.0, z),
+            };
+        }
+    };
+    for (i, f) in trained.feats.iter().enumerate() {
+        let bones = set.poses[i].bones.clone();
+        let mut palette = reduced.predict_proxies(&set, f, &bones);
+        truth(&corrective::features(&set, f), &mut palette);
+        set.poses[i].vertices = reduced.skin_with(&set, &palette, &bones);
+    }
+    let (train, test) = (set.train(), set.test());
+    let fit = proxy_corrective::fit(
+        &set,
+        &trained.feats,
+        &trained.ssd,
+        &trained.rigid,
+        &reduced,
+        &train,
+        4,
+    );
+    let fitted = fit.correctives.as_ref().expect("correctives kept");
+    let error = |corrected: bool| -> f64 {
+        test.iter()
+            .map(|&i| {
+                let f = &trained.feats[i];
+                let mut palette = reduced.predict_proxies(&set, f, &set.poses[i].bones);
+                if corrected {
+                    fitted.correct(&mut palette, &corrective::features(&set, f));
+                }
+                let y = reduced.skin_with(&set, &palette, &set.poses[i].bones);
+                (y.iter().zip(&set.poses[i].vertices))
+                    .map(|(a, b)| (*a - *b).length_squared())
+                    .sum::<f64>()
+            })
+            .sum()
+    };
+    let (before, after) = (error(false), error(true));
+    eprintln!(
+        "held-out Σ|Δ|²: without {before:.3e}, with {after:.3e} (chosen {:?}, {} proxies)",
+        fit.chosen,
+        fitted.proxies.len()
+    );
+    assert!(before > 1e-4, "the correction moves the mesh ({before})");
+    assert!(after < 1e-2 * before, "without {before}, with {after}");
+}

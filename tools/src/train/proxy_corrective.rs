@@ -30,7 +30,7 @@ use crate::train::ssd::Skinning;
 use glam::{DMat3, DVec3};
 
 /// The ridges tried per basis, most regularised first.
-pub const RIDGES: [f64; 6] = [1000.0, 100.0, 10.0, 1.0, 0.1, 0.01];
+pub const RIDGES: [f64; 8] = [1000.0, 100.0, 10.0, 1.0, 0.1, 0.01, 1e-3, 1e-4];
 
 /// A bone drives a proxy when it carries this share of the proxy's vertices' SSD weight.
 pub const SHARE: f64 = 0.1;
@@ -185,7 +185,7 @@ fn target(t: &Bone, best: &Bone) -> Option<[f64; 12]> {
 }
 
 /// The drivers of each proxy (module docs, step 2).
-fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<usize>> {
+pub fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<usize>> {
     let children = set.children();
     let mut mass = vec![vec![0.0; set.bone_count()]; reduced.proxies];
     for (a, inf) in reduced.skin.iter().enumerate() {
