@@ -8,11 +8,13 @@
 //! tangents: the rest tangent through the blended palette matrix's 3x3, made orthogonal to the
 //! normal and normalised (zero where it vanishes), w kept. With pose-space correctives
 //! (paper §8), step (3) skins `ŷ_a + Σ_n w_n targets[n V + a]`, `w` =
-//! [`crate::predict::corrective_weights`] of the character's bones.
+//! [`crate::predict::corrective_weights`] of the character's bones. With proxy correctives
+//! (docs/method.md §21), between (2) and (3) each corrected proxy becomes `T_e (I + E_e)`
+//! ([`crate::predict::apply_proxy_correctives`]).
 
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::predict::{corrective_weights, key_gradient, Affine};
+use crate::predict::{apply_proxy_correctives, corrective_weights, key_gradient, Affine};
 use glam::{DMat3, DVec3};
 
 /// Evaluates C characters of one model. Holds its scratch, so repeated frames allocate nothing.
@@ -101,6 +103,8 @@ impl<'m> CpuEvaluator<'m> {
         for ch in 0..c {
             let q = &bones[ch * j..(ch + 1) * j];
             self.palette_of(q);
+            let p = self.model.proxy_count();
+            apply_proxy_correctives(self.model, q, &mut self.palette[..p])?;
             corrective_weights(self.model, q, &mut self.weights)?;
             self.skin();
             let normals = &mut normals[ch * v..(ch + 1) * v];

@@ -142,6 +142,21 @@ pub enum ModelProblem {
         bone: u32,
         reason: &'static str,
     },
+    /// A proxy corrective's driver (element `index` of corrected proxy `proxy`'s drivers, bone
+    /// `bone`) is not usable.
+    BadProxyDriver {
+        proxy: u32,
+        index: usize,
+        bone: u32,
+        reason: &'static str,
+    },
+    /// Element `index` of the proxy correctives' array `what` (proxies, driver offsets, widths)
+    /// breaks an invariant, which `reason` names.
+    BadProxyCorrective {
+        what: &'static str,
+        index: usize,
+        reason: &'static str,
+    },
     /// A rest tangent's xyz is not a unit vector or its handedness w is not ±1.
     BadTangent {
         vertex: usize,
@@ -195,6 +210,13 @@ impl fmt::Display for ModelProblem {
             }
             BadDriver { index, bone, reason } => {
                 write!(f, "corrective drivers[{index}] = bone {bone} {reason}")
+            }
+            BadProxyDriver { proxy, index, bone, reason } => write!(
+                f,
+                "proxy correctives: proxy {proxy}'s drivers[{index}] = bone {bone} {reason}"
+            ),
+            BadProxyCorrective { what, index, reason } => {
+                write!(f, "proxy correctives: {what}[{index}] {reason}")
             }
             BadTangent { vertex, length, handedness } => write!(
                 f,

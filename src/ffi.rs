@@ -147,6 +147,14 @@ pub struct RrskinModelInfo {
     pub correctives: u32,
     /// D, the corrective driver bones (0 without correctives).
     pub corrective_drivers: u32,
+    /// E, the proxies corrected by proxy correctives (0 without them; at most `proxies`).
+    pub proxy_correctives: u32,
+    /// The drivers of all corrected proxies together (0 without proxy correctives).
+    pub proxy_corrective_drivers: u32,
+    /// C, the proxy correctives' kernel centres per joint (0 without kernels; at most 256).
+    pub proxy_corrective_kernels: u32,
+    /// Nonzero: the proxy correctives have the 9 linear features per driver.
+    pub proxy_corrective_linear: u32,
 }
 
 /// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -232,6 +240,8 @@ pub struct RrskinPassTimings {
     pub predict_ms: f64,
     /// The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused; the Rust `product_ms`).
     pub blend_ms: f64,
+    /// The proxy correctives, T_e (I + E_e) in the palette (0 where no crowd has them).
+    pub proxy_correctives_ms: f64,
     pub skin_ms: f64,
     pub normals_ms: f64,
     /// 0 without tangents.
@@ -586,6 +596,10 @@ pub unsafe extern "C" fn rrskin_query_memory(
             tangents: i.tangents != 0,
             correctives: i.correctives as usize,
             corrective_drivers: i.corrective_drivers as usize,
+            proxy_correctives: i.proxy_correctives as usize,
+            proxy_corrective_drivers: i.proxy_corrective_drivers as usize,
+            proxy_corrective_kernels: i.proxy_corrective_kernels as usize,
+            proxy_corrective_linear: i.proxy_corrective_linear != 0,
         };
         let options = if options.is_null() {
             CrowdOptions::default()
@@ -817,16 +831,21 @@ pub unsafe extern "C" fn rrskin_model_get_info(
     guard(|| {
         let entry = model_entry(model)?;
         let m = &entry.model;
+        let sizes = crate::vk::ModelSizes::of(m);
         let info = RrskinModelInfo {
             vertices: m.vertex_count() as u32,
             triangles: m.triangle_count() as u32,
             bones: m.bone_count() as u32,
             proxies: m.proxy_count() as u32,
             influences: m.influences() as u32,
-            blend_columns: crate::vk::ModelSizes::of(m).product_columns as u32,
+            blend_columns: sizes.product_columns as u32,
             tangents: u32::from(m.has_tangents()),
             correctives: m.corrective_count() as u32,
             corrective_drivers: m.corrective_driver_count() as u32,
+            proxy_correctives: sizes.proxy_correctives as u32,
+            proxy_corrective_drivers: sizes.proxy_corrective_drivers as u32,
+            proxy_corrective_kernels: sizes.proxy_corrective_kernels as u32,
+            proxy_corrective_linear: u32::from(sizes.proxy_corrective_linear),
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }
@@ -1233,6 +1252,7 @@ pub unsafe extern "C" fn rrskin_context_get_timings(
         let timings = RrskinPassTimings {
             predict_ms: t.predict_ms,
             blend_ms: t.product_ms,
+            proxy_correctives_ms: t.proxy_correctives_ms,
             skin_ms: t.skin_ms,
             normals_ms: t.normals_ms,
             tangents_ms: t.tangents_ms,

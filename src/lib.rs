@@ -1,7 +1,7 @@
 //! # rrskin: the runtime of "Real-Time Enveloping with Rotational Regression"
 //!
 //! (Wang, Pulli, Popović, SIGGRAPH 2007.) A trained [`Model`] turns per-frame bone transforms
-//! into deformed vertex positions and normals through five passes, for many characters at once:
+//! into deformed vertex positions and normals through six passes, for many characters at once:
 //!
 //! 1. predictors `d(q)`: P key deformation gradients per character (paper §3, Eq. 3–4), and,
 //!    for a model with pose-space correctives (paper §8), their N weights `w = map · φ(q)`,
@@ -11,15 +11,18 @@
 //!    chosen when the model uploads, [`vk::GpuModel::is_block_sparse`]); where each proxy
 //!    reads one key, the product evaluates that key's predictor itself and pass 1 does not run
 //!    ([`vk::GpuModel::fuses_predictors`]);
-//! 3. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences
+//! 3. for a model with proxy correctives (docs/method.md §21, [`ProxyCorrectives`]), each
+//!    corrected proxy `T_e ← T_e (I + E_e)`, `E_e = Σ_f x_f G_ef` from its drivers' rotations,
+//!    in the palette;
+//! 4. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences
 //!    (of the rest position plus the N weighted corrective targets, where the model has them);
-//! 4. normals, gathered from incident triangles;
-//! 5. optionally tangent frames (models with rest tangents): each rest tangent through its
+//! 5. normals, gathered from incident triangles;
+//! 6. optionally tangent frames (models with rest tangents): each rest tangent through its
 //!    vertex's blended palette matrix, made orthogonal to the normal.
 //!
 //! [`cpu::CpuEvaluator`] runs them on the CPU in `f64` (the reference); [`vk`] runs them as
 //! Vulkan compute passes, recorded for all crowds into one command buffer. For an engine that
-//! skins with its own shaders, [`palette::Palette`] runs steps 1–2 on the CPU in `f32`: bones in,
+//! skins with its own shaders, [`palette::Palette`] runs steps 1–3 on the CPU in `f32`: bones in,
 //! the P + J palette (and the N corrective weights) out, with no Vulkan at all.
 //!
 //! ## Contract
@@ -60,22 +63,23 @@
 //! outputs may still be in flight on the queue. After: a global barrier makes every compute
 //! write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
 //! vertex attribute reads. In between, per crowd and frame slot f (pass n of the list above; the
-//! bounds are written with the normals, and a fused product reads the bones):
+//! bounds are written with the normals, a fused product reads the bones, and the proxy
+//! correctives read the bones and update the palette's proxies in place):
 //!
 //! | buffer | access | memory |
 //! |---|---|---|
-//! | bone transforms, slot f | compute read (passes 1, 2, 3, 5) | host-visible, written by setting the bones of slot f |
+//! | bone transforms, slot f | compute read (passes 1, 2, 3, 4, 6) | host-visible, written by setting the bones of slot f |
 //! | model buffers | compute read | device-local, written once at upload |
 //! | B = [d; q] | compute write (pass 1), then read (pass 2) | device-local, internal |
-//! | palette [t; q] | compute write (passes 1, 2), then read (passes 3, 5) | device-local, internal |
-//! | positions (this frame's buffer) | compute write (pass 3), then read (pass 4) | device-local, vertex + storage + transfer-src |
+//! | palette [t; q] | compute write (passes 1, 2, 3), then read (passes 3, 4, 6) | device-local, internal |
+//! | positions (this frame's buffer) | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
 //! | previous positions | not touched | the buffer the last recorded frame wrote |
-//! | normals | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
-//! | bounds, slot f | compute write (pass 4) | host-visible, storage |
-//! | tangents | compute write (pass 5) | device-local, vertex + storage + transfer-src |
-//! | corrective weights | compute write (pass 1), then read (pass 3) | device-local, internal (models with correctives) |
+//! | normals | compute write (pass 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
+//! | bounds, slot f | compute write (pass 5) | host-visible, storage |
+//! | tangents | compute write (pass 6) | device-local, vertex + storage + transfer-src |
+//! | corrective weights | compute write (pass 1), then read (pass 4) | device-local, internal (models with correctives) |
 //!
-//! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..20) at
+//! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..24) at
 //! `VK_PIPELINE_BIND_POINT_COMPUTE`, and writes timestamps into the batch's own query pool; it
 //! leaves the graphics bind point, render passes and dynamic state alone, and never begins,
 //! ends or submits the command buffer. The engine re-binds its own compute state after it.
@@ -128,4 +132,4 @@ pub mod predict;
 pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};
-pub use model::{Correctives, KeyPredictor, Model, ModelParts, SecondBone};
+pub use model::{Correctives, KeyPredictor, Model, ModelParts, ProxyCorrectives, SecondBone};

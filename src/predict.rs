@@ -89,6 +89,18 @@ pub fn joint_rotation(model: &Model, bones: &[Affine], b: usize) -> DVec3 {
     }
 }
 
+/// `φ = vec(R − I)` of bone `b` relative to bone `p` (its parent), row-major: `φ[3r + c] =
+/// R[r][c] − δ_rc` with `R = rot(Q_p)ᵀ rot(Q_b)`: the features of the pose-space correctives and
+/// the linear features of the proxy correctives. Exactly zero when both are the identity.
+pub fn rotation_features(bones: &[Affine], b: usize, p: usize) -> [f64; 9] {
+    let r = rotation_of(&bones[p]).transpose() * rotation_of(&bones[b]);
+    // R[r][c] is column c's component r in glam.
+    std::array::from_fn(|k| {
+        let (row, col) = (k / 3, k % 3);
+        r.col(col)[row] - f64::from(u8::from(row == col))
+    })
+}
+
 /// The pose-space corrective weights of one character (`bones`: its J transforms), `w = map ·
 /// φ(q)` with `φ[9i + 3r + c] = R_i[r][c] − δ_rc` and `R_i = rot(Q_p)ᵀ rot(Q_d)` for driver i
 /// (bone d, parent p): `out` N (empty without correctives). `WrongLength` unless `bones` is J
@@ -114,12 +126,7 @@ pub fn corrective_weights(model: &Model, bones: &[Affine], out: &mut [f64]) -> R
     for (i, &d) in c.drivers.iter().enumerate() {
         let d = d as usize;
         let p = model.parent(d).unwrap_or(d); // validated: drivers have parents
-        let r = rotation_of(&bones[p]).transpose() * rotation_of(&bones[d]);
-        // φ_i, row-major: R[r][c] is column c's component r in glam.
-        let phi: [f64; 9] = std::array::from_fn(|k| {
-            let (row, col) = (k / 3, k % 3);
-            r.col(col)[row] - f64::from(u8::from(row == col))
-        });
+        let phi = rotation_features(bones, d, p);
         for (n, w) in out.iter_mut().enumerate() {
             let map = &c.map[n * width + 9 * i..n * width + 9 * i + 9];
             *w += map
@@ -130,6 +137,95 @@ pub fn corrective_weights(model: &Model, bones: &[Affine], out: &mut [f64]) -> R
         }
     }
     Ok(())
+}
+
+/// The kernel feature of the proxy correctives (docs/method.md §21): `exp(−|φ − z|² / w) −
+/// exp(−|z|² / w)`, zero at φ = 0 (both terms are computed alike, so exactly zero there).
+pub fn kernel_feature(phi: &[f64; 9], z: &[f32; 9], w: f64) -> f64 {
+    let (mut d2, mut r2) = (0.0, 0.0);
+    for (&f, &z) in phi.iter().zip(z) {
+        let z = f64::from(z);
+        d2 += (f - z) * (f - z);
+        r2 += (0.0 - z) * (0.0 - z);
+    }
+    (-d2 / w).exp() - (-r2 / w).exp()
+}
+
+/// The correction `E_e = [A | b] = Σ_f x_f G_ef` (3x4 row-major) of corrected proxy i of the
+/// model's proxy correctives for one character's J `bones`: the features x of its drivers in
+/// order, per driver its 9 linear φ_b (if `linear`) then its C kernels (see
+/// [`crate::ProxyCorrectives`]). Zero without proxy correctives or at the rest pose.
+pub fn proxy_correction(model: &Model, bones: &[Affine], i: usize) -> [f64; 12] {
+    let mut e = [0.0f64; 12];
+    let Some(c) = model.proxy_correctives() else {
+        return e;
+    };
+    let j = model.bone_count();
+    let kernels = c.kernel_count(j);
+    let mut rows = c.map_of(i, j).chunks_exact(12);
+    let mut add = |x: f64, g: &[f32]| {
+        e.iter_mut()
+            .zip(g)
+            .for_each(|(e, &g)| *e += x * f64::from(g));
+    };
+    for &b in c.drivers_of(i) {
+        let b = b as usize;
+        let phi = rotation_features(bones, b, model.parent(b).unwrap_or(b)); // validated: parents
+        if c.linear {
+            for &x in &phi {
+                add(x, rows.next().unwrap_or_default());
+            }
+        }
+        for k in 0..kernels {
+            let x = kernel_feature(&phi, &c.centres[k * j + b], f64::from(c.widths[b]));
+            add(x, rows.next().unwrap_or_default());
+        }
+    }
+    e
+}
+
+/// Applies the model's proxy correctives (docs/method.md §21) to one character's proxies: `bones`
+/// its J transforms, `proxies` its P proxy transforms `T_e = [M | t]` (3x4 row-major) as
+/// computed from C1/C2; each corrected proxy e becomes `T'_e = T_e (I + E_e)` =
+/// `[M (I + A) | t + M b]` with `E_e = [A | b]` = [`proxy_correction`]. Nothing changes
+/// without proxy correctives. `WrongLength` unless `bones` is J and `proxies` P.
+pub fn apply_proxy_correctives(
+    model: &Model,
+    bones: &[Affine],
+    proxies: &mut [[f64; 12]],
+) -> Result<()> {
+    for (what, expected, actual) in [
+        ("bone transforms", model.bone_count(), bones.len()),
+        ("proxy transforms", model.proxy_count(), proxies.len()),
+    ] {
+        if expected != actual {
+            return Err(Error::WrongLength {
+                what,
+                expected,
+                actual,
+            });
+        }
+    }
+    let Some(c) = model.proxy_correctives() else {
+        return Ok(());
+    };
+    for (i, &e) in c.proxies.iter().enumerate() {
+        let correction = proxy_correction(model, bones, i);
+        let t = &mut proxies[e as usize];
+        *t = corrected(t, &correction);
+    }
+    Ok(())
+}
+
+/// `T (I + E)` for 3x4 row-major affine `T = [M | t]` and `E = [A | b]`: `[M + M A | t + M b]`.
+pub fn corrected(t: &[f64; 12], e: &[f64; 12]) -> [f64; 12] {
+    let mut out = *t;
+    for r in 0..3 {
+        for c in 0..4 {
+            out[4 * r + c] += (0..3).map(|k| t[4 * r + k] * e[4 * k + c]).sum::<f64>();
+        }
+    }
+    out
 }
 
 /// `D_ℓ(q) = R(q) S(q)` for one predictor and one character's J bone transforms.

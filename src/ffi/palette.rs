@@ -200,7 +200,8 @@ pub unsafe extern "C" fn rrskin_palette_compute_corrective_weights(
 /// The palette of `characters` characters on the calling thread: `bones` is characters x J
 /// transforms (`bone_floats` = characters * J * 12 floats, 3x4 row-major, world space, relative
 /// to the rest pose), `out` characters x (P + J) palette matrices (`out_floats` floats, same
-/// layout), proxies first. Allocates nothing (after a thread's first call for a model of that
+/// layout), proxies first (corrected by the model's proxy correctives where it has them:
+/// nothing more to apply). Allocates nothing (after a thread's first call for a model of that
 /// size) and takes no lock: call it from an engine's worker threads on disjoint characters.
 ///
 /// # Safety

@@ -3,7 +3,8 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION (2; version 1, without CORR, reads too)
+//! 8       4          format version (u32) = FORMAT_VERSION (3; versions 1, without CORR and
+//!                    PCOR, and 2, without PCOR, read too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -30,16 +31,17 @@
 //! | ANIM | optional: frames x J x 12 f32 bone transforms        |
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
+//! | PCOR | optional (version 3): proxy correctives: E u32, C u32, linear u32 (0 or 1), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), maps 12 D (9 linear + C) f32 |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
 
-use super::{Correctives, KeyPredictor, ModelParts, SecondBone};
+use super::{Correctives, KeyPredictor, ModelParts, ProxyCorrectives, SecondBone};
 use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 /// The version this build writes; it reads every version from 1 to this one.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
@@ -63,6 +65,7 @@ const SSDW: [u8; 4] = *b"SSDW";
 const ANIM: [u8; 4] = *b"ANIM";
 const TANG: [u8; 4] = *b"TANG";
 const CORR: [u8; 4] = *b"CORR";
+const PCOR: [u8; 4] = *b"PCOR";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let (v, t, j, p) = (
@@ -136,6 +139,26 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
         push_f32s(&mut corr, &c.map);
         push_f32s(&mut corr, c.targets.as_flattened());
         sections.push((CORR, corr));
+    }
+    if let Some(c) = &m.proxy_correctives {
+        let mut pcor = Vec::new();
+        let kernels = c.kernel_count(j);
+        push_u32s(
+            &mut pcor,
+            &[
+                c.proxies.len() as u32,
+                kernels as u32,
+                u32::from(c.linear),
+                c.drivers.len() as u32,
+            ],
+        );
+        push_u32s(&mut pcor, &c.proxies);
+        push_u32s(&mut pcor, &c.driver_offsets);
+        push_u32s(&mut pcor, &c.drivers);
+        push_f32s(&mut pcor, c.centres.as_flattened());
+        push_f32s(&mut pcor, &c.widths);
+        push_f32s(&mut pcor, &c.maps);
+        sections.push((PCOR, pcor));
     }
 
     let mut out = Vec::new();
@@ -275,6 +298,11 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         None => None,
     };
 
+    let proxy_correctives = match table.entry(PCOR) {
+        Some(length) => Some(proxy_correctives(&table, body, length, j)?),
+        None => None,
+    };
+
     let predictors = pred
         .chunks_exact(PREDICTOR_WORDS * 4)
         .map(|r| {
@@ -312,6 +340,64 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         animation,
         rest_tangents,
         correctives,
+        proxy_correctives,
+    })
+}
+
+/// The PCOR section: E, C, the linear flag and D, then the lengths they give (checked before
+/// anything else is read).
+fn proxy_correctives(
+    table: &SectionTable,
+    body: &[u8],
+    length: u64,
+    j: u64,
+) -> Result<ProxyCorrectives, ModelProblem> {
+    const HEAD: u64 = 16;
+    if length < HEAD {
+        return Err(ModelProblem::SectionLength {
+            tag: "PCOR".into(),
+            expected: HEAD,
+            actual: length,
+        });
+    }
+    let head = table.section(body, PCOR, length)?;
+    let [e, c, linear, d] = [0, 1, 2, 3].map(|i| le_u32(head, 4 * i) as u64);
+    if linear > 1 {
+        return Err(ModelProblem::Dimension {
+            what: "the PCOR section's linear flag",
+            value: linear,
+            reason: "must be 0 or 1",
+        });
+    }
+    let product = |factors: &[u64]| factors.iter().fold(1u64, |acc, &f| acc.saturating_mul(f));
+    let widths = if c > 0 { j } else { 0 };
+    let centres = product(&[c, j, 9]);
+    let maps = product(&[12, d, 9 * linear + c]);
+    let words = [4, e, e.saturating_add(1), d, centres, widths, maps]
+        .into_iter()
+        .fold(0u64, u64::saturating_add);
+    let pcor = table.section(body, PCOR, words.saturating_mul(4))?;
+    let (e, d, centres, widths) = (e as usize, d as usize, centres as usize, widths as usize);
+    let mut at = 16;
+    let mut take = |count: usize| {
+        let slice = &pcor[at..at + 4 * count];
+        at += 4 * count;
+        slice
+    };
+    let proxies = u32s(take(e));
+    let driver_offsets = u32s(take(e + 1));
+    let drivers = u32s(take(d));
+    let centres = f32s(take(centres)).chunks_exact(9).map(array).collect();
+    let widths = f32s(take(widths));
+    let maps = f32s(take(maps as usize));
+    Ok(ProxyCorrectives {
+        linear: linear == 1,
+        centres,
+        widths,
+        proxies,
+        driver_offsets,
+        drivers,
+        maps,
     })
 }
 

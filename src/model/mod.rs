@@ -21,6 +21,13 @@
 //! | `  .drivers`       | D                | driver bones (each with a parent, distinct)          |
 //! | `  .map`           | N x 9D           | w = map · φ(q), φ = the drivers' R − I (see below)   |
 //! | `  .targets`       | N x V x 3        | rest-space deltas, target-major (as glTF morph targets) |
+//! | `proxy_correctives`| optional         | proxy correctives (docs/method.md §21): E corrected proxies |
+//! | `  .centres`       | C x J x 9        | kernel centres z_cb = `centres[c J + b]` (C ≥ 0)      |
+//! | `  .widths`        | J or empty       | kernel widths w_b (2σ²), > 0; empty when C = 0        |
+//! | `  .proxies`       | E                | the corrected proxies, ascending, distinct, < P        |
+//! | `  .driver_offsets`| E + 1            | CSR offsets into `drivers`                             |
+//! | `  .drivers`       | Σ D_i            | driver joints of each corrected proxy                  |
+//! | `  .maps`          | Σ F_i x 12       | G_ef per feature f (F_i = D_i (9·linear + C))          |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
@@ -33,6 +40,12 @@
 //! `w = map · φ` (N), and vertex a is skinned from `ŷ_a + Σ_n w_n targets[n V + a]` instead of
 //! ŷ_a (normals follow from the positions; tangents and the rest normals do not see them).
 //! 1 ≤ N ≤ [`MAX_CORRECTIVES`].
+//!
+//! Proxy correctives (docs/method.md §21): after the proxies `T_e = [M | t]` (3x4) of a
+//! character are computed, each corrected proxy e is replaced by `T'_e = T_e (I + E_e)` =
+//! `[M (I + A) | t + M b]`, `E_e = [A | b] = Σ_f x_f G_ef`, with the features x of its drivers
+//! (see [`ProxyCorrectives`]); the palette keeps its P + J entries and skinning is unchanged.
+//! They vanish at the rest pose (every bone the identity), where T' = T exactly.
 
 mod file;
 mod validate;
@@ -93,6 +106,75 @@ impl Correctives {
     }
 }
 
+/// The most kernel centres per joint a model's proxy correctives may carry (C): the GPU pass
+/// loops over them per driver.
+pub const MAX_PROXY_KERNELS: usize = 256;
+/// The most drivers one corrected proxy may have (D_i): the GPU pass loops over them.
+pub const MAX_PROXY_DRIVERS: usize = 32;
+
+/// Proxy correctives (docs/method.md §21): per corrected proxy e (a proxy bone, < P), an affine
+/// correction in the proxy's own rest frame, computed from the rotations of its driver joints:
+///
+/// `T'_e = T_e (I + E_e)`, `E_e = Σ_f x_f G_ef`; with `E_e = [A | b]` (A 3x3, b 3-vector) and
+/// `T_e = [M | t]`, `T'_e = [M (I + A) | t + M b]`.
+///
+/// The features x of proxy e are, for its drivers b_1..b_D in order, concatenated per driver:
+/// - if `linear`, the 9 values `φ_b = vec(R_b − I)` row-major, `φ[3r + c] = R_b[r][c] − δ_rc`,
+///   `R_b = rot(Q_p)ᵀ rot(Q_b)` with p = parent(b) and rot the 3x3 of the bone transform (the
+///   φ of the pose-space correctives, [`crate::predict::rotation_features`]);
+/// - then, for each kernel centre c in 0..C, `k = exp(−|φ_b − z_cb|² / w_b) − exp(−|z_cb|² / w_b)`,
+///   with `z_cb = centres[c * J + b]` (9 floats, laid out as φ) and `w_b = widths[b]`;
+///   |·|² is the sum of the squares of the 9 components.
+///
+/// So proxy i has `F_i = D_i (9·linear + C)` features, and its map is F_i rows of 12 floats, row
+/// f being `G_ef = [A00 A01 A02 b0 A10 A11 A12 b1 A20 A21 A22 b2]`. Every feature is zero at the
+/// rest pose (φ = 0 there), so the corrections vanish exactly at rest.
+///
+/// Limits: 1 ≤ E ≤ P corrected proxies; D_i ≤ [`MAX_PROXY_DRIVERS`] drivers each (bones with a
+/// parent, distinct within the proxy; none leaves the proxy as it is); C ≤ [`MAX_PROXY_KERNELS`]; `linear` or C > 0.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProxyCorrectives {
+    /// Whether each driver contributes its 9 linear features φ_b.
+    pub linear: bool,
+    /// C x J kernel centres (z_cb = centres[c * J + b]); empty: no kernels (C = 0).
+    pub centres: Vec<[f32; 9]>,
+    /// J kernel widths w_b (2σ²); empty when C = 0.
+    pub widths: Vec<f32>,
+    /// The corrected proxies, ascending, distinct, < P.
+    pub proxies: Vec<u32>,
+    /// proxies.len() + 1 offsets into `drivers` (CSR), starting at 0, non-decreasing.
+    pub driver_offsets: Vec<u32>,
+    /// Driver joints (each with a parent, < J, distinct within a proxy).
+    pub drivers: Vec<u32>,
+    /// Per corrected proxy i, F_i x 12 floats (F_i = D_i (9·linear + C)), concatenated in proxy
+    /// order.
+    pub maps: Vec<f32>,
+}
+
+impl ProxyCorrectives {
+    /// C, the kernel centres per joint, of a model of `bones` joints (J).
+    pub fn kernel_count(&self, bones: usize) -> usize {
+        self.centres.len() / bones.max(1)
+    }
+
+    /// 9·linear + C: the features of one driver.
+    pub fn features_per_driver(&self, bones: usize) -> usize {
+        9 * usize::from(self.linear) + self.kernel_count(bones)
+    }
+
+    /// The drivers of corrected proxy i (`proxies[i]`).
+    pub fn drivers_of(&self, i: usize) -> &[u32] {
+        &self.drivers[self.driver_offsets[i] as usize..self.driver_offsets[i + 1] as usize]
+    }
+
+    /// The map of corrected proxy i: F_i x 12 floats, row f the G_ef of feature f.
+    pub fn map_of(&self, i: usize, bones: usize) -> &[f32] {
+        let per = 12 * self.features_per_driver(bones);
+        let (a, b) = (self.driver_offsets[i], self.driver_offsets[i + 1]);
+        &self.maps[per * a as usize..per * b as usize]
+    }
+}
+
 /// Everything a model holds, unchecked. Turn it into a [`Model`] with [`Model::new`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelParts {
@@ -124,6 +206,9 @@ pub struct ModelParts {
     /// Pose-space correctives (paper §8; docs/method.md §20): rest-space morph targets whose weights
     /// are linear in the driver joints' rotations. None: no correctives.
     pub correctives: Option<Correctives>,
+    /// Proxy correctives (docs/method.md §21): affine corrections of some proxies' transforms,
+    /// from the rotations of their driver joints, applied before skinning. None: no correction.
+    pub proxy_correctives: Option<ProxyCorrectives>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -290,6 +375,19 @@ impl Model {
         self.parts.correctives.as_ref()
     }
 
+    /// E, the proxies corrected by proxy correctives (0 without them).
+    pub fn proxy_corrective_count(&self) -> usize {
+        self.parts
+            .proxy_correctives
+            .as_ref()
+            .map_or(0, |c| c.proxies.len())
+    }
+
+    /// The model's proxy correctives, if it has any.
+    pub fn proxy_correctives(&self) -> Option<&ProxyCorrectives> {
+        self.parts.proxy_correctives.as_ref()
+    }
+
     /// The model's animation: frames of J bone transforms (empty if it carries none).
     pub fn animation(&self) -> impl Iterator<Item = &[crate::predict::Affine]> {
         self.parts.animation.chunks_exact(self.bone_count())
@@ -310,6 +408,7 @@ impl Model {
             baseline_indices: Vec::new(),
             baseline_weights: Vec::new(),
             correctives: None,
+            proxy_correctives: None,
             ..self.parts.clone()
         };
         Model::new(parts).ok()

@@ -2,7 +2,8 @@
 //! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
 
 use super::{
-    Correctives, KeyPredictor, Mat3Rows, ModelParts, MAX_CORRECTIVES, SUPPORTED_INFLUENCES,
+    Correctives, KeyPredictor, Mat3Rows, ModelParts, ProxyCorrectives, MAX_CORRECTIVES,
+    MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS, SUPPORTED_INFLUENCES,
 };
 use crate::error::ModelProblem;
 
@@ -131,6 +132,149 @@ pub fn check(m: &ModelParts) -> Check {
     if let Some(c) = &m.correctives {
         correctives(c, &m.bone_parents, v)?;
     }
+    if let Some(c) = &m.proxy_correctives {
+        proxy_correctives(c, &m.bone_parents, p)?;
+    }
+    Ok(())
+}
+
+/// E in 1..=P corrected proxies, ascending and distinct; CSR driver offsets from 0 giving each
+/// at most MAX_PROXY_DRIVERS drivers (none leaves the proxy as it is), bones with a parent, distinct within the proxy; C x J centres
+/// (C ≤ MAX_PROXY_KERNELS), J widths when C > 0 (> 0 for every driver), at least one feature
+/// per driver; the maps Σ 12 F_i; every number finite.
+fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
+    let j = parents.len();
+    let e = c.proxies.len();
+    if e == 0 || e > p {
+        return Err(ModelProblem::Dimension {
+            what: "corrected proxy count (E)",
+            value: e as u64,
+            reason: "must be 1 to P (the model's proxies)",
+        });
+    }
+    for (i, &proxy) in c.proxies.iter().enumerate() {
+        if proxy as usize >= p {
+            return Err(out_of_range(
+                "proxy corrective proxies",
+                i,
+                proxy as i64,
+                p,
+            ));
+        }
+        if i > 0 && proxy <= c.proxies[i - 1] {
+            return Err(ModelProblem::BadProxyCorrective {
+                what: "proxies",
+                index: i,
+                reason: "is not above the one before (ascending, distinct)",
+            });
+        }
+    }
+    length(
+        "proxy corrective driver offsets (E + 1)",
+        e + 1,
+        c.driver_offsets.len(),
+    )?;
+    if c.driver_offsets[0] != 0 {
+        return Err(ModelProblem::BadProxyCorrective {
+            what: "driver offsets",
+            index: 0,
+            reason: "is not 0",
+        });
+    }
+    for (i, w) in c.driver_offsets.windows(2).enumerate() {
+        if w[1] < w[0] {
+            return Err(ModelProblem::BadProxyCorrective {
+                what: "driver offsets",
+                index: i + 1,
+                reason: "is below the one before (offsets are non-decreasing)",
+            });
+        }
+        if (w[1] - w[0]) as usize > MAX_PROXY_DRIVERS {
+            return Err(ModelProblem::BadProxyCorrective {
+                what: "driver offsets",
+                index: i + 1,
+                reason: "gives its proxy more than 32 drivers (MAX_PROXY_DRIVERS)",
+            });
+        }
+    }
+    length(
+        "proxy corrective drivers (the last driver offset)",
+        c.driver_offsets[e] as usize,
+        c.drivers.len(),
+    )?;
+    for i in 0..e {
+        let first = c.driver_offsets[i] as usize;
+        let drivers = c.drivers_of(i);
+        for (k, &b) in drivers.iter().enumerate() {
+            if b as usize >= j {
+                return Err(out_of_range(
+                    "proxy corrective drivers",
+                    first + k,
+                    b as i64,
+                    j,
+                ));
+            }
+            let bad = |reason| ModelProblem::BadProxyDriver {
+                proxy: c.proxies[i],
+                index: k,
+                bone: b,
+                reason,
+            };
+            if parents[b as usize] < 0 {
+                return Err(bad(
+                    "is a root (a driver's rotation is relative to its parent)",
+                ));
+            }
+            if drivers[..k].contains(&b) {
+                return Err(bad("is listed twice"));
+            }
+        }
+    }
+    if c.centres.len() % j != 0 {
+        return Err(ModelProblem::Length {
+            what: "proxy corrective kernel centres (C x J)",
+            expected: c.centres.len().div_ceil(j) * j,
+            actual: c.centres.len(),
+        });
+    }
+    let kernels = c.centres.len() / j;
+    if kernels > MAX_PROXY_KERNELS {
+        return Err(ModelProblem::Dimension {
+            what: "proxy corrective kernels per joint (C)",
+            value: kernels as u64,
+            reason: "must be at most 256 (MAX_PROXY_KERNELS)",
+        });
+    }
+    if !c.linear && kernels == 0 {
+        return Err(ModelProblem::Dimension {
+            what: "proxy corrective features per driver (9 linear + C)",
+            value: 0,
+            reason: "needs the linear features, kernels or both",
+        });
+    }
+    length(
+        "proxy corrective kernel widths (J, none without kernels)",
+        if kernels > 0 { j } else { 0 },
+        c.widths.len(),
+    )?;
+    finite("proxy corrective kernel centres", c.centres.iter().flatten())?;
+    finite("proxy corrective kernel widths", c.widths.iter())?;
+    if kernels > 0 {
+        if let Some(&b) = (c.drivers.iter()).find(|&&b| c.widths[b as usize] <= 0.0) {
+            return Err(ModelProblem::BadProxyCorrective {
+                what: "widths",
+                index: b as usize,
+                reason: "is not > 0 (the bone drives a proxy)",
+            });
+        }
+    }
+    let features = 9 * usize::from(c.linear) + kernels;
+    length(
+        "proxy corrective maps (12 x features, summed over the proxies)",
+        12 * features * c.drivers.len(),
+        c.maps.len(),
+    )?;
+    finite("proxy corrective maps", c.maps.iter())?;
     Ok(())
 }
 

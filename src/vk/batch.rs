@@ -6,17 +6,19 @@
 //! ts0 | barrier(prev. frame's reads/writes → compute) | predict (crowds with P > 0, not fused)
 //!     |         and corrective weights (crowds of models with pose-space correctives)
 //! ts1 | barrier | C1/C2 product (all crowds with P > 0: the GEMM, the sparse or the fused one)
-//! ts2 | barrier | skin (all crowds, the pipeline of their K)
-//! ts3 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
-//! ts4 | barrier | tangents (crowds with tangents, the pipeline of their K)
-//! ts5 | barrier(compute writes → vertex input, transfer, compute and host reads)
+//! ts2 | barrier | proxy correctives, in the palette (crowds of models with them)
+//! ts3 | barrier | skin (all crowds, the pipeline of their K)
+//! ts4 | barrier | normals and bounds (all crowds; bounds where the crowd has them)
+//! ts5 | barrier | tangents (crowds with tangents, the pipeline of their K)
+//! ts6 | barrier(compute writes → vertex input, transfer, compute and host reads)
 //! ```
 //! Frame slot f of every crowd reads its own bone transforms and writes its own bounds, so
 //! recording frame f while the other frames in flight execute is safe; the buffers frames
 //! share (intermediates, positions, normals) are ordered by the first barrier, which waits
 //! for earlier submissions' uses on the queue. Timestamps are ringed per frame slot too.
 //! A barrier between phases is recorded where a phase touches a crowd buffer written (or
-//! writes one read) since the last barrier, as the table's bindings say. ts0..ts4 are GPU
+//! writes one read) since the last barrier, as the table's bindings say (so a frame without
+//! proxy correctives records neither their phase's barrier nor any dispatch). ts0..ts5 are GPU
 //! timestamps; [`Batch::timings`] turns them into per-phase milliseconds.
 
 use super::barrier::{global_barrier, Access};
@@ -29,9 +31,10 @@ use std::sync::Arc;
 
 /// The frame: phases in order, each a set of passes without dependencies among them (one
 /// timestamp per phase, reported by [`PassTimings`]).
-pub(super) const SCHEDULE: [&[Pass]; 5] = [
+pub(super) const SCHEDULE: [&[Pass]; 6] = [
     &[Pass::Predict, Pass::CorrectiveWeights],
     &[Pass::DenseProduct, Pass::SparseProduct, Pass::FusedProduct],
+    &[Pass::ProxyCorrectives],
     &[Pass::SkinK4, Pass::SkinK8],
     &[Pass::Normals, Pass::Bounds],
     &[Pass::TangentsK4, Pass::TangentsK8],
@@ -66,6 +69,8 @@ pub struct PassTimings {
     pub predict_ms: f64,
     /// The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused).
     pub product_ms: f64,
+    /// The proxy correctives, T_e (I + E_e) in the palette (0 where no crowd has them).
+    pub proxy_correctives_ms: f64,
     pub skin_ms: f64,
     pub normals_ms: f64,
     /// 0 for crowds without tangents (the phase records no dispatch).
@@ -74,7 +79,12 @@ pub struct PassTimings {
 
 impl PassTimings {
     pub fn total_ms(&self) -> f64 {
-        self.predict_ms + self.product_ms + self.skin_ms + self.normals_ms + self.tangents_ms
+        self.predict_ms
+            + self.product_ms
+            + self.proxy_correctives_ms
+            + self.skin_ms
+            + self.normals_ms
+            + self.tangents_ms
     }
 
     /// The median of each pass over `samples`, and the median frame total (None if empty).
@@ -83,6 +93,7 @@ impl PassTimings {
         let passes = PassTimings {
             predict_ms: median(|t| t.predict_ms)?,
             product_ms: median(|t| t.product_ms)?,
+            proxy_correctives_ms: median(|t| t.proxy_correctives_ms)?,
             skin_ms: median(|t| t.skin_ms)?,
             normals_ms: median(|t| t.normals_ms)?,
             tangents_ms: median(|t| t.tangents_ms)?,
@@ -249,10 +260,11 @@ impl Batch {
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
         let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);
         // One field per phase of the schedule (a new phase needs its field here).
-        let [predict_ms, product_ms, skin_ms, normals_ms, tangents_ms] = phases;
+        let [predict_ms, product_ms, proxy_correctives_ms, skin_ms, normals_ms, tangents_ms] = phases;
         Ok(PassTimings {
             predict_ms,
             product_ms,
+            proxy_correctives_ms,
             skin_ms,
             normals_ms,
             tangents_ms,
@@ -420,12 +432,32 @@ mod tests {
     #[test]
     fn frames_without_reduced_models_skip_the_barriers_of_their_passes() {
         let lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals);
-        assert_eq!(barriers_before(lbs), [true, false, false, true, false]);
+        assert_eq!(
+            barriers_before(lbs),
+            [true, false, false, false, true, false]
+        );
         let bounded_lbs = |p: Pass| matches!(p, Pass::SkinK4 | Pass::Normals | Pass::Bounds);
         assert_eq!(
             barriers_before(bounded_lbs),
-            [true, false, false, true, false]
+            [true, false, false, false, true, false]
         );
-        assert_eq!(barriers_before(|_| true), [true; 5]);
+        // Reduced models without proxy correctives: no barrier for their empty phase.
+        let reduced = |p: Pass| matches!(p, Pass::Predict | Pass::DenseProduct | Pass::SkinK4);
+        assert_eq!(
+            barriers_before(reduced),
+            [true, true, false, true, false, false]
+        );
+        // With them: one barrier after the product, one after the correction.
+        let corrected = |p: Pass| {
+            matches!(
+                p,
+                Pass::FusedProduct | Pass::ProxyCorrectives | Pass::SkinK8 | Pass::Normals
+            )
+        };
+        assert_eq!(
+            barriers_before(corrected),
+            [true, false, true, true, true, false]
+        );
+        assert_eq!(barriers_before(|_| true), [true; 6]);
     }
 }

@@ -282,7 +282,7 @@ impl Crowd {
             let buffers = (pass.desc().bindings.iter())
                 .map(|&binding| match binding {
                     Binding::Model(b) => Ok(m.buffer(b).whole()),
-                    Binding::Reads(b) | Binding::Writes(b) => view(b),
+                    Binding::Reads(b) | Binding::Writes(b) | Binding::Updates(b) => view(b),
                 })
                 .collect::<Result<Vec<_>>>()?;
             let pipeline = shared.pipelines.get(pass);

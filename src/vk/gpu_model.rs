@@ -34,6 +34,10 @@ struct UploadData<'m> {
     dense: Vec<f32>,
     /// The rest positions, then the corrective targets: (1 + N) x V x 3.
     rest: Vec<f32>,
+    /// The proxy correctives' corrected proxies, driver offsets and drivers, one after the other.
+    proxy_topology: Vec<u32>,
+    /// The proxy correctives' kernel centres (C x J x 9), then their widths (J).
+    proxy_kernels: Vec<f32>,
     blocks: BlockSparse,
 }
 
@@ -78,6 +82,15 @@ impl UploadData<'_> {
                 "corrective map",
                 floats(self.model.correctives().map_or(&[][..], |c| &c.map)),
             ),
+            ModelBuffer::ProxyTopology => (
+                "proxy corrective proxies and drivers",
+                bytemuck::cast_slice(&self.proxy_topology),
+            ),
+            ModelBuffer::ProxyKernels => ("proxy corrective kernels", floats(&self.proxy_kernels)),
+            ModelBuffer::ProxyMaps => (
+                "proxy corrective maps",
+                floats(self.model.proxy_correctives().map_or(&[][..], |c| &c.maps)),
+            ),
         }
     }
 }
@@ -97,6 +110,10 @@ impl GpuModel {
             fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
             correctives: model.corrective_count() as u32,
             drivers: model.corrective_driver_count() as u32,
+            corrected_proxies: model.proxy_corrective_count() as u32,
+            kernels: (model.proxy_correctives())
+                .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
+            linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
         };
         let parts = model.parts();
         let targets = parts.correctives.as_ref().map_or(&[][..], |c| &c.targets);
@@ -114,6 +131,19 @@ impl GpuModel {
                 None => model.c1_c2(),
             },
             rest,
+            proxy_topology: (model.proxy_correctives())
+                .map(|c| [&c.proxies, &c.driver_offsets, &c.drivers].map(|a| a.iter()))
+                .into_iter()
+                .flatten()
+                .flatten()
+                .copied()
+                .collect(),
+            proxy_kernels: (model.proxy_correctives())
+                .map(|c| c.centres.as_flattened().iter().chain(&c.widths))
+                .into_iter()
+                .flatten()
+                .copied()
+                .collect(),
             blocks: sparse.unwrap_or_default(),
         };
         let sizes = ModelSizes::with_product_columns(model, data.blocks.columns.len());
@@ -188,6 +218,11 @@ impl GpuModel {
     /// N, the model's pose-space corrective targets (0 without correctives).
     pub fn corrective_count(&self) -> usize {
         self.inner.dims.correctives as usize
+    }
+
+    /// E, the proxies the model's proxy correctives correct (0 without them).
+    pub fn proxy_corrective_count(&self) -> usize {
+        self.inner.dims.corrected_proxies as usize
     }
 
     /// Bytes of the model's buffers: what [`super::model_bytes`] said before the upload.

@@ -37,6 +37,14 @@ pub struct ModelSizes {
     pub correctives: usize,
     /// D, the corrective driver bones (0 without correctives).
     pub corrective_drivers: usize,
+    /// E, the proxies corrected by proxy correctives (0 without them).
+    pub proxy_correctives: usize,
+    /// Σ D_i, the drivers of all corrected proxies together (0 without proxy correctives).
+    pub proxy_corrective_drivers: usize,
+    /// C, the proxy correctives' kernel centres per joint (0 without kernels).
+    pub proxy_corrective_kernels: usize,
+    /// Whether the proxy correctives have the 9 linear features per driver.
+    pub proxy_corrective_linear: bool,
 }
 
 impl ModelSizes {
@@ -57,6 +65,11 @@ impl ModelSizes {
             tangents: model.has_tangents(),
             correctives: model.corrective_count(),
             corrective_drivers: model.corrective_driver_count(),
+            proxy_correctives: model.proxy_corrective_count(),
+            proxy_corrective_drivers: model.proxy_correctives().map_or(0, |c| c.drivers.len()),
+            proxy_corrective_kernels: (model.proxy_correctives())
+                .map_or(0, |c| c.kernel_count(model.bone_count())),
+            proxy_corrective_linear: model.proxy_correctives().is_some_and(|c| c.linear),
         }
     }
 
@@ -81,6 +94,9 @@ impl ModelSizes {
             fused: false,
             correctives: word("corrective targets", self.correctives)?,
             drivers: word("corrective drivers", self.corrective_drivers)?,
+            corrected_proxies: word("corrected proxies", self.proxy_correctives)?,
+            kernels: word("proxy corrective kernels", self.proxy_corrective_kernels)?,
+            linear_features: self.proxy_corrective_linear,
         })
     }
 }
@@ -96,6 +112,12 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         s.product_columns as u64,
     );
     let (corr, drivers) = (s.correctives as u64, s.corrective_drivers as u64);
+    let (corrected, proxy_drivers, kernels) = (
+        s.proxy_correctives as u64,
+        s.proxy_corrective_drivers as u64,
+        s.proxy_corrective_kernels as u64,
+    );
+    let features = 9 * u64::from(s.proxy_corrective_linear) + kernels;
     let sparse = n > 0;
     4 * match b {
         // The rest positions, then the N corrective targets.
@@ -115,6 +137,13 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::RestTangents => 0,
         ModelBuffer::CorrectiveDrivers => drivers,
         ModelBuffer::CorrectiveMap => corr * 9 * drivers,
+        // The corrected proxies, their driver offsets, the drivers.
+        ModelBuffer::ProxyTopology if corrected > 0 => 2 * corrected + 1 + proxy_drivers,
+        ModelBuffer::ProxyTopology => 0,
+        // The centres, then the widths (only with kernels).
+        ModelBuffer::ProxyKernels if kernels > 0 => kernels * j * 9 + j,
+        ModelBuffer::ProxyKernels => 0,
+        ModelBuffer::ProxyMaps => 12 * proxy_drivers * features,
     }
 }
 

@@ -1,13 +1,15 @@
-//! The Vulkan runtime (ash + gpu-allocator): five compute passes per frame for many characters
-//! (the fifth, tangents, for crowds that ask for them).
+//! The Vulkan runtime (ash + gpu-allocator): six compute passes per frame for many characters
+//! (the third, proxy correctives, for models with them; the sixth, tangents, for crowds that
+//! ask for them).
 //!
 //! - [`Context`]: headless (own instance/device) or wrapping an engine's objects.
 //! - [`GpuModel`]: a [`crate::Model`] uploaded once (device-local, read-only).
 //! - [`Crowd`]: C characters of one GPU model: bone input, palette, output positions/normals
 //!   (and optionally previous positions, bounds, tangents).
 //! - [`Batch`]: records the passes of any number of crowds into ONE command buffer, pass-major
-//!   (all predictors and corrective weights, barrier, all C1/C2 products, barrier, all
-//!   skinning, barrier, all normals, barrier, all tangents), with GPU timestamps per pass; `run`
+//!   (all predictors and corrective weights, barrier, all C1/C2 products, barrier, all proxy
+//!   correctives `T_e (I + E_e)` in the palettes, barrier, all skinning, barrier, all normals,
+//!   barrier, all tangents), with GPU timestamps per pass; `run`
 //!   submits and waits, `record` writes into the caller's buffer.
 //!
 //! Each pass is described once in `passes.rs` (its shader from `glsl/shaders.txt`, its bindings

@@ -34,6 +34,12 @@ pub struct Dims {
     pub correctives: u32,
     /// D, the corrective driver bones (0 without correctives).
     pub drivers: u32,
+    /// E, the proxies corrected by proxy correctives (0: none; their pass does not run).
+    pub corrected_proxies: u32,
+    /// C, the proxy correctives' kernel centres per joint (0 without kernels).
+    pub kernels: u32,
+    /// Whether the proxy correctives' features include the 9 linear φ_b per driver.
+    pub linear_features: bool,
 }
 
 /// An enum whose variants index arrays: `ALL` lists them in declaration order
@@ -80,6 +86,15 @@ indexed_enum! {
         CorrectiveDrivers,
         /// N x 9D f32, row-major: the corrective map (empty without correctives)
         CorrectiveMap,
+        /// u32, the proxy correctives' indices in one buffer: the E corrected proxies, their
+        /// E + 1 driver offsets, then the Σ D_i drivers (empty without proxy correctives; one
+        /// buffer, so that the pass binds no more storage buffers than the widest one)
+        ProxyTopology,
+        /// f32, the proxy correctives' kernels: C x J x 9 centres, then J widths (empty
+        /// without kernels)
+        ProxyKernels,
+        /// f32, the proxy correctives' maps: Σ_i F_i x 12 (empty without proxy correctives)
+        ProxyMaps,
     }
 }
 
@@ -111,12 +126,14 @@ impl CrowdBuffer {
 }
 
 /// One `layout(std430, binding = i) buffer` of a shader; the GLSL declares it `readonly`
-/// unless it is `Writes`.
+/// unless it is `Writes` or `Updates`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Binding {
     Model(ModelBuffer),
     Reads(CrowdBuffer),
     Writes(CrowdBuffer),
+    /// Read and written in place (the proxy correctives correct the palette's proxies).
+    Updates(CrowdBuffer),
 }
 
 /// One `uint` of a pass's push-constant block.
@@ -131,10 +148,16 @@ pub enum PushWord {
     Correctives,
     /// D, the corrective drivers.
     Drivers,
+    /// E, the proxies the proxy correctives correct.
+    CorrectedProxies,
+    /// C, the proxy correctives' kernels per joint.
+    Kernels,
+    /// 1 where the proxy correctives have linear features, else 0.
+    LinearFeatures,
 }
 
 /// Push blocks hold at most this many words (far below Vulkan's guaranteed 128 bytes).
-pub const MAX_PUSH_WORDS: usize = 5;
+pub const MAX_PUSH_WORDS: usize = 6;
 
 impl PushWord {
     pub fn value(self, d: &Dims, characters: u32) -> u32 {
@@ -145,6 +168,9 @@ impl PushWord {
             PushWord::Characters => characters,
             PushWord::Correctives => d.correctives,
             PushWord::Drivers => d.drivers,
+            PushWord::CorrectedProxies => d.corrected_proxies,
+            PushWord::Kernels => d.kernels,
+            PushWord::LinearFeatures => u32::from(d.linear_features),
         }
     }
 }
@@ -165,6 +191,8 @@ pub enum Extent {
     CharacterColumns,
     /// N corrective weights
     Correctives,
+    /// E proxies corrected by proxy correctives
+    CorrectedProxies,
 }
 
 impl Extent {
@@ -184,6 +212,7 @@ impl Extent {
             Extent::Characters => c,
             Extent::CharacterColumns => 3 * c,
             Extent::Correctives => d.correctives as u64,
+            Extent::CorrectedProxies => d.corrected_proxies as u64,
         }
     }
 
@@ -206,6 +235,7 @@ impl Extent {
             Extent::Characters => "workgroups over characters",
             Extent::CharacterColumns => "workgroups over character columns",
             Extent::Correctives => "workgroups over corrective weights",
+            Extent::CorrectedProxies => "workgroups over corrected proxies",
         }
     }
 }
@@ -313,6 +343,7 @@ impl PassDesc {
                 Binding::Model(_) => (reads, writes),
                 Binding::Reads(c) => (reads | c.bit(), writes),
                 Binding::Writes(c) => (reads, writes | c.bit()),
+                Binding::Updates(c) => (reads | c.bit(), writes | c.bit()),
             })
     }
 }
@@ -353,6 +384,9 @@ mod tests {
         fused: false,
         correctives: 0,
         drivers: 0,
+        corrected_proxies: 0,
+        kernels: 0,
+        linear_features: false,
     };
 
     #[test]

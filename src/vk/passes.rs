@@ -1,10 +1,11 @@
 //! The table of compute passes: one [`PassDesc`] per pipeline. The order they run in, and the
 //! barriers between them, are the schedule in `batch.rs`.
 
-use super::pass::Binding::{Model, Reads, Writes};
+use super::pass::Binding::{Model, Reads, Updates, Writes};
 use super::pass::CrowdBuffer as Crowd;
 use super::pass::Extent::{
-    CharacterColumns, Characters, Correctives, PredictorsAndBones, Proxies, ProxyRows, Vertices,
+    CharacterColumns, Characters, CorrectedProxies, Correctives, PredictorsAndBones, Proxies,
+    ProxyRows, Vertices,
 };
 use super::pass::ModelBuffer as M;
 use super::pass::{indexed_enum, over, Axis, Dims, PassDesc, PushWord as W, ONE};
@@ -34,6 +35,7 @@ indexed_enum! {
         TangentsK4,
         TangentsK8,
         CorrectiveWeights,
+        ProxyCorrectives,
     }
 }
 
@@ -51,6 +53,7 @@ impl Pass {
             Pass::TangentsK4 => &TANGENTS_K4,
             Pass::TangentsK8 => &TANGENTS_K8,
             Pass::CorrectiveWeights => &CORRECTIVE_WEIGHTS,
+            Pass::ProxyCorrectives => &PROXY_CORRECTIVES,
         }
     }
 
@@ -73,15 +76,27 @@ impl Pass {
 
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
 /// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
-/// with and without bounds, with and without tangents, with and without correctives.
+/// with and without bounds, with and without tangents, with and without correctives, and (of
+/// reduced models) with and without proxy correctives.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
-    plain_model_kinds().flat_map(|d| {
+    let corrected = plain_model_kinds().flat_map(|d| {
         [(0, 0), (3, 2)].map(|(correctives, drivers)| Dims {
             correctives,
             drivers,
             ..d
         })
+    });
+    corrected.flat_map(|d| {
+        let proxies = [(0, 0, false), (2, 3, true), (1, 0, true), (2, 4, false)];
+        (proxies.into_iter())
+            .filter(move |&(e, _, _)| e <= d.proxies)
+            .map(move |(corrected_proxies, kernels, linear_features)| Dims {
+                corrected_proxies,
+                kernels,
+                linear_features,
+                ..d
+            })
     })
 }
 
@@ -110,6 +125,9 @@ fn plain_model_kinds() -> impl Iterator<Item = Dims> {
                 fused,
                 correctives: 0,
                 drivers: 0,
+                corrected_proxies: 0,
+                kernels: 0,
+                linear_features: false,
             })
         })
 }
@@ -199,6 +217,34 @@ const CORRECTIVE_WEIGHTS: PassDesc = PassDesc {
     // local_size_x = 64 over targets, one row of groups per character.
     groups: [over(Correctives, 64), over(Characters, 1), ONE],
     runs: |d| d.correctives > 0,
+};
+
+/// Proxy correctives (docs/method.md §21): each corrected proxy's T_e = [M | t], as the product
+/// wrote it into the palette, becomes T_e (I + E_e) = [M (I + A) | t + M b] in place, E_e =
+/// [A | b] = Σ_f x_f G_ef from the features of its drivers (their φ_b = vec(R_b − I), then the
+/// kernels exp(−|φ_b − z_cb|² / w_b) − exp(−|z_cb|² / w_b)). After whichever product ran, before
+/// skinning. Models with proxy correctives only.
+const PROXY_CORRECTIVES: PassDesc = PassDesc {
+    shader: shaders::PROXY_CORRECTIVES,
+    bindings: &[
+        Reads(Crowd::Bones),
+        Model(M::Parents),
+        Model(M::ProxyTopology),
+        Model(M::ProxyKernels),
+        Model(M::ProxyMaps),
+        Updates(Crowd::Palette),
+    ],
+    push: &[
+        W::Proxies,
+        W::Bones,
+        W::Characters,
+        W::CorrectedProxies,
+        W::Kernels,
+        W::LinearFeatures,
+    ],
+    // local_size_x = 64 over characters, one row of groups per corrected proxy.
+    groups: [over(Characters, 64), over(CorrectedProxies, 1), ONE],
+    runs: |d| d.corrected_proxies > 0,
 };
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
@@ -338,8 +384,11 @@ mod tests {
                 M::RestTangents => "RestTangents",
                 M::CorrectiveDrivers => "Drivers",
                 M::CorrectiveMap => "CorrectiveMap",
+                M::ProxyTopology => "ProxyTopology",
+                M::ProxyKernels => "ProxyKernels",
+                M::ProxyMaps => "ProxyMaps",
             },
-            Binding::Reads(c) | Binding::Writes(c) => match c {
+            Binding::Reads(c) | Binding::Writes(c) | Binding::Updates(c) => match c {
                 CrowdBuffer::Bones => "Bones",
                 CrowdBuffer::Rhs => "Rhs",
                 CrowdBuffer::Palette => "Palette",
@@ -360,6 +409,9 @@ mod tests {
             W::Characters => "chars",
             W::Correctives => "N",
             W::Drivers => "D",
+            W::CorrectedProxies => "E",
+            W::Kernels => "C",
+            W::LinearFeatures => "L",
         }
     }
 
@@ -376,7 +428,7 @@ mod tests {
                 .map(|(i, &b)| {
                     (
                         i,
-                        !matches!(b, Binding::Writes(_)),
+                        !matches!(b, Binding::Writes(_) | Binding::Updates(_)),
                         block_name(b).to_string(),
                     )
                 })
@@ -401,7 +453,8 @@ mod tests {
 
     /// Every model runs exactly one writer of each output, and every crowd buffer its passes
     /// read is either the bone input or written by one of them (the palette by two: the bones
-    /// and t; with P = 0 it is bound but never read).
+    /// and t, and by the proxy correctives after them where the model has them; with P = 0 it
+    /// is bound but never read).
     #[test]
     fn every_model_writes_its_outputs_once_and_reads_only_what_is_written() {
         for d in model_kinds() {
@@ -424,8 +477,12 @@ mod tests {
                         || (d.proxies == 0 && b == CrowdBuffer::Palette)
                         || (d.correctives == 0 && b == CrowdBuffer::CorrectiveWeights);
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
-                        let palette = b == CrowdBuffer::Palette && !d.fused;
-                        let expected = if palette { 2 } else { 1 };
+                        let expected = match b {
+                            CrowdBuffer::Palette => {
+                                1 + usize::from(!d.fused) + usize::from(d.corrected_proxies > 0)
+                            }
+                            _ => 1,
+                        };
                         assert_eq!(writers(b), expected, "{p:?} reads {b:?} of {d:?}");
                     }
                 }
@@ -446,6 +503,9 @@ mod tests {
             fused: false,
             correctives: 0,
             drivers: 0,
+            corrected_proxies: 0,
+            kernels: 0,
+            linear_features: false,
         };
         // skin (7 buffers) and normals (5)
         assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 12));
@@ -487,5 +547,13 @@ mod tests {
         };
         // + the corrective weights (5)
         assert_eq!(Pass::descriptors_per_chunk(&corrected), (5, 31));
+        let proxy_corrected = Dims {
+            corrected_proxies: 2,
+            kernels: 3,
+            linear_features: true,
+            ..corrected
+        };
+        // + the proxy correctives (6)
+        assert_eq!(Pass::descriptors_per_chunk(&proxy_corrected), (6, 37));
     }
 }

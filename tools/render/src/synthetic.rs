@@ -201,6 +201,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         animation: Vec::new(),
         rest_tangents,
         correctives: None,
+        proxy_correctives: None,
     };
     Model::new(parts)
 }

@@ -246,6 +246,7 @@ impl Imported {
                     targets: per_target(&c.targets, model.vertex_count(), &self.weld),
                     ..c.clone()
                 }),
+            proxy_correctives: parts.proxy_correctives.clone(),
         })
     }
 }
@@ -321,6 +322,7 @@ impl Imported {
                     targets: per_target(&c.targets, model.vertex_count(), &first),
                     ..c.clone()
                 }),
+            proxy_correctives: parts.proxy_correctives.clone(),
         })
     }
 }

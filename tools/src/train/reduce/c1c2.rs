@@ -391,6 +391,7 @@ impl Reduced {
             animation: set_animation(set),
             rest_tangents: Vec::new(),
             correctives: None,
+            proxy_correctives: None,
         })
     }
 }
