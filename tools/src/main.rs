@@ -157,6 +157,10 @@ struct TrainArgs {
     /// 3 % of palette skinning.
     #[arg(long, default_value_t = TrainOptions::default().correctives)]
     correctives: usize,
+    /// No proxy correctives (each proxy corrected from the nearby joints' rotations where the
+    /// cross-validation keeps them; no per-vertex cost).
+    #[arg(long)]
+    no_proxy_correctives: bool,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     no_gentle_poses: bool,
@@ -180,6 +184,7 @@ impl TrainArgs {
             proxies: self.proxies,
             epsilon: self.epsilon,
             correctives: self.correctives,
+            proxy_correctives: !self.no_proxy_correctives,
             method: match self.reduction {
                 Reduction::Auto => Method::Auto,
                 Reduction::JointBlend => Method::JointBlend,
@@ -640,11 +645,12 @@ fn info(model: &Path, json: bool) -> Outcome {
             "vertices": m.vertex_count(), "triangles": m.triangle_count(),
             "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
             "tangents": m.has_tangents(), "correctives": m.corrective_count(),
+            "proxy_correctives": m.proxy_corrective_count(),
         });
         out!("{dims}");
     } else {
         out!(
-            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}; {} pose-space correctives",
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies",
             model.display(),
             m.vertex_count(),
             m.triangle_count(),
@@ -653,7 +659,8 @@ fn info(model: &Path, json: bool) -> Outcome {
             m.influences(),
             if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
             if m.has_tangents() { "rest tangents" } else { "no rest tangents" },
-            m.corrective_count()
+            m.corrective_count(),
+            m.proxy_corrective_count(),
         );
     }
     Ok(())

@@ -12,6 +12,7 @@ pub mod diagnose;
 pub mod dqs;
 
 use crate::import::example_set::ExampleSet;
+use crate::train::proxy_corrective;
 use crate::train::selection::{squared_error, Choice};
 use crate::train::ssd::{self, Skinning};
 use crate::train::structure::{Chosen, Ridges, Structure, Why};
@@ -87,6 +88,9 @@ pub struct Report {
     /// The runtime model's pose-space correctives: what cross-validation chose, and the targets
     /// and drivers kept (None: not asked for, or no runtime model trained here).
     pub correctives: Option<Correctives>,
+    /// The runtime model's proxy correctives: what cross-validation chose (None: not asked for,
+    /// or no runtime model trained here).
+    pub proxy_correctives: Option<proxy_corrective::Fit>,
     /// Folds of the cross-validation that made `choice` (below 2: none, fixed choices).
     pub folds: usize,
     /// Wall time per stage, in order.
@@ -131,6 +135,15 @@ impl Report {
                 "candidates": std::iter::once(None).chain(crate::train::corrective::RIDGES.map(Some))
                     .zip(&c.scores)
                     .map(|(ridge, (score, se))| serde_json::json!({"ridge": ridge, "score": score, "standard_error": se}))
+                    .collect::<Vec<_>>(),
+            })),
+            "proxy_correctives": self.proxy_correctives.as_ref().map(|f| serde_json::json!({
+                "basis": f.chosen.map(|c| basis_name(c.0)),
+                "ridge": f.chosen.map(|c| c.1),
+                "proxies": f.correctives.as_ref().map_or(0, |c| c.proxies.len()),
+                "uncorrected": {"score": f.uncorrected.0, "standard_error": f.uncorrected.1},
+                "candidates": f.candidates.iter()
+                    .map(|(b, r, (score, se))| serde_json::json!({"basis": basis_name(*b), "ridge": r, "score": score, "standard_error": se}))
                     .collect::<Vec<_>>(),
             })),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
@@ -234,6 +247,17 @@ impl Report {
                 None => format!("pose-space correctives: none ({chosen}, one-standard-error rule)\n"),
             };
         }
+        if let Some(f) = &self.proxy_correctives {
+            s += &match (f.chosen, &f.correctives) {
+                (Some((basis, r)), Some(c)) => format!(
+                    "proxy correctives: {} of {} proxies corrected, {} basis, ridge {r:e} ({chosen})\n",
+                    c.proxies.len(),
+                    self.reduced_proxies.unwrap_or(0),
+                    basis_name(basis)
+                ),
+                _ => format!("proxy correctives: none ({chosen})\n"),
+            };
+        }
         let d = &self.ddm_params;
         s += &format!(
             "direct delta mush: p = {}, λ = {}, κ = {}, α = {} (p and α chosen on the training poses)\n",
@@ -244,6 +268,13 @@ impl Report {
             s += &format!(" {stage} {t:.2} s;");
         }
         s
+    }
+}
+
+fn basis_name(b: proxy_corrective::Basis) -> &'static str {
+    match b {
+        proxy_corrective::Basis::Linear => "linear",
+        proxy_corrective::Basis::Kernels => "linear and kernels",
     }
 }
 
@@ -454,25 +485,6 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let mut rr_reduced = runtime
         .map(|m| runtime_errors(set, m, &train, &test, rigid))
         .transpose()?;
-    if let (Some(reduced), true) = (&trained.reduced, std::env::var("RRSKIN_PC").is_ok()) {
-        let t0 = std::time::Instant::now();
-        let fit = crate::train::proxy_corrective::fit(
-            set, &trained.feats, &trained.ssd, rigid, reduced, &train, options.train.folds,
-        );
-        eprintln!("proxy correctives: chosen {:?} none {:?} cands {:?} ({:.2} s)", fit.chosen, fit.uncorrected, fit.candidates, t0.elapsed().as_secs_f64());
-        let e = errors(&|p| {
-            p.iter()
-                .map(|&i| {
-                    let f = &trained.feats[i];
-                    let mut t = reduced.predict_proxies(set, f, &set.poses[i].bones);
-                    let phi = crate::train::corrective::features(set, f);
-                    if let Some(c) = &fit.correctives { c.correct(&mut t, &phi); }
-                    reduced.skin_with(set, &t, &set.poses[i].bones)
-                })
-                .collect()
-        });
-        eprintln!("proxy correctives: train {:.2} test {:?}", e.train, e.test);
-    }
     let budget = match (&trained.reduced, full, options.diagnose) {
         (Some(reduced), Some(f), true) => {
             let exact = |p: &[usize]| {
@@ -548,6 +560,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
             drivers: f.correctives.as_ref().map_or(0, |c| c.drivers.len()),
             scores: f.scores.clone(),
         }),
+        proxy_correctives: trained.proxy_correctives.clone(),
         folds: options.train.folds.min(train.len()),
         stages,
         loocv: options.loocv,

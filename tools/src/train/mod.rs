@@ -85,6 +85,9 @@ pub struct TrainOptions {
     /// 0: none, the default). Cross-validation may keep none. Off by default: each target costs
     /// the skinning pass about as much as 3 % of palette skinning (docs/performance.md).
     pub correctives: usize,
+    /// Proxy correctives ([`proxy_corrective`]): each proxy corrected by an affine map of the
+    /// nearby joints' rotations, where cross-validation finds they help. No per-vertex cost.
+    pub proxy_correctives: bool,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -100,6 +103,7 @@ impl Default for TrainOptions {
             gentle_scales: vec![augment::GENTLE_SCALE],
             full_model: true,
             correctives: 0,
+            proxy_correctives: true,
             quiet: false,
         }
     }
@@ -182,6 +186,8 @@ pub struct Trained {
     pub structure: Option<structure::Chosen>,
     /// What the correctives' cross-validation chose (None: not asked for, or no runtime model).
     pub correctives: Option<corrective::Fit>,
+    /// What the proxy corrective fit chose (None: not asked for, or no runtime model).
+    pub proxy_correctives: Option<proxy_corrective::Fit>,
     pub model: Option<rrskin::Model>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
@@ -229,7 +235,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let steps = if with_full { options.folds + 3 } else { 2 };
     let steps = steps
         + usize::from(options.method == Method::Auto)
-        + usize::from(options.proxies > 0 && options.correctives > 0);
+        + usize::from(options.proxies > 0 && options.correctives > 0)
+        + usize::from(options.proxies > 0 && options.proxy_correctives);
     let progress = Progress::new("training", steps, options.quiet);
     let mut clock = Clock {
         last: Instant::now(),
@@ -267,6 +274,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let mut joint_blend = None;
     let mut structure = None;
     let mut correctives = None;
+    let mut proxy_correctives = None;
     let (reduced, model) = match options.proxies {
         0 => (None, None),
         proxies => {
@@ -315,6 +323,28 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             joint_blend = fitted;
             let mut model = reduced.to_runtime(set, chosen.structure.influences)?;
             structure = Some(chosen);
+            if options.proxy_correctives {
+                progress.stage("proxy correctives");
+                let train = &train;
+                let fit = proxy_corrective::fit(
+                    set,
+                    &feats,
+                    &ssd,
+                    &rigid,
+                    &reduced,
+                    train,
+                    options.folds,
+                );
+                if let Some(c) = &fit.correctives {
+                    model = rrskin::Model::new(rrskin::ModelParts {
+                        proxy_correctives: Some(c.to_runtime()),
+                        ..model.into_parts()
+                    })?;
+                }
+                proxy_correctives = Some(fit);
+                clock.lap("proxy correctives");
+                progress.step();
+            }
             if options.correctives > 0 {
                 progress.stage("correctives");
                 let residuals = corrective::Residuals::of(set, &feats, &model, &train)?;
@@ -351,6 +381,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         joint_blend,
         structure,
         correctives,
+        proxy_correctives,
         model,
         seconds: clock.seconds,
     })

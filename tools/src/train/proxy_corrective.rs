@@ -85,11 +85,18 @@ impl ProxyCorrectives {
         let (centres, widths) = match basis {
             Basis::Linear => (Vec::new(), Vec::new()),
             Basis::Kernels => {
-                let c: Vec<Vec<[f64; 9]>> = centres.iter().map(|&i| phi[i].clone()).collect();
                 let joints = phi.first().map_or(0, Vec::len);
+                let count = kernel_count().min(centres.len());
+                let picks: Vec<Vec<usize>> = (0..joints)
+                    .map(|b| farthest_points(centres.iter().map(|&i| &phi[i][b]), count))
+                    .collect();
+                let c = (0..count)
+                    .map(|k| (0..joints).map(|b| phi[centres[picks[b][k]]][b]).collect())
+                    .collect();
                 let widths = (0..joints)
                     .map(|b| {
-                        let m = c.iter().map(|z| squared(&z[b])).sum::<f64>() / c.len() as f64;
+                        let m = centres.iter().map(|&i| squared(&phi[i][b])).sum::<f64>()
+                            / centres.len() as f64;
                         2.0 * m.max(1e-12)
                     })
                     .collect();
@@ -134,7 +141,6 @@ impl ProxyCorrectives {
     }
 
     /// For the runtime model.
-    #[cfg(any())]
     pub fn to_runtime(&self) -> rrskin::model::ProxyCorrectives {
         let f32s = |x: &[f64; 9]| x.map(|v| v as f32);
         let mut offsets = vec![0u32];
@@ -155,6 +161,28 @@ impl ProxyCorrectives {
                 .collect(),
         }
     }
+}
+
+fn kernel_count() -> usize {
+    std::env::var("PC_C").ok().and_then(|s| s.parse().ok()).unwrap_or(8)
+}
+
+/// `count` of `points` by farthest-point sampling from the one farthest from rest (zero): each
+/// next the farthest from those chosen, the first on ties.
+fn farthest_points<'a>(points: impl Iterator<Item = &'a [f64; 9]>, count: usize) -> Vec<usize> {
+    let points: Vec<&[f64; 9]> = points.collect();
+    let mut nearest: Vec<f64> = points.iter().map(|p| squared(p)).collect();
+    let mut picks = Vec::with_capacity(count);
+    while picks.len() < count.min(points.len()) {
+        let next = (0..points.len())
+            .fold(0, |best, i| if nearest[i] > nearest[best] { i } else { best });
+        picks.push(next);
+        for (i, p) in points.iter().enumerate() {
+            let d: f64 = p.iter().zip(points[next]).map(|(x, y)| (x - y) * (x - y)).sum();
+            nearest[i] = nearest[i].min(d);
+        }
+    }
+    picks
 }
 
 fn squared(x: &[f64; 9]) -> f64 {
