@@ -6,8 +6,7 @@
 mod common;
 
 use common::{
-    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives,
-    Spec,
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
 use std::path::{Path, PathBuf};

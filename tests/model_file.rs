@@ -670,7 +670,10 @@ fn proxy_correctives_round_trip_and_version_2_files_still_load() {
     }
     // Beside pose-space correctives.
     let both = common::with_correctives(&proxy_corrected(true, 2, 4), 3, 1);
-    assert_eq!(Model::from_bytes(&both.to_bytes()).expect("round trip"), both);
+    assert_eq!(
+        Model::from_bytes(&both.to_bytes()).expect("round trip"),
+        both
+    );
     // A version-2 file (no PCOR: what this format was before proxy correctives, with its
     // pose-space correctives) loads as it did.
     let m = common::with_correctives(&model(3, 4), 2, 4);
@@ -746,7 +749,10 @@ fn malformed_proxy_corrective_sections_are_refused() {
     // centres at 60 (2 x 4 x 9); widths at 348; maps at 364.
     let (proxies, offsets, drivers, centres, widths, maps) =
         (at + 16, at + 28, at + 44, at + 60, at + 348, at + 364);
-    assert_eq!(at + 4 * pcor_words(true, 2) as usize, maps + 4 * 12 * 4 * 11);
+    assert_eq!(
+        at + 4 * pcor_words(true, 2) as usize,
+        maps + 4 * 12 * 4 * 11
+    );
     assert_eq!(
         edit(&|b| put_u32(b, proxies + 8, 5)),
         ModelProblem::IndexOutOfRange {
@@ -758,7 +764,14 @@ fn malformed_proxy_corrective_sections_are_refused() {
     );
     let p = edit(&|b| put_u32(b, proxies + 4, 3));
     assert!(
-        matches!(p, ModelProblem::BadProxyCorrective { what: "proxies", index: 2, .. }),
+        matches!(
+            p,
+            ModelProblem::BadProxyCorrective {
+                what: "proxies",
+                index: 2,
+                ..
+            }
+        ),
         "{p:?}"
     );
     let p = edit(&|b| put_u32(b, offsets + 8, 0));
@@ -768,7 +781,14 @@ fn malformed_proxy_corrective_sections_are_refused() {
     );
     let p = edit(&|b| put_u32(b, offsets, 1));
     assert!(
-        matches!(p, ModelProblem::BadProxyCorrective { what: "driver offsets", index: 0, .. }),
+        matches!(
+            p,
+            ModelProblem::BadProxyCorrective {
+                what: "driver offsets",
+                index: 0,
+                ..
+            }
+        ),
         "{p:?}"
     );
     let p = edit(&|b| put_u32(b, offsets + 12, 5));

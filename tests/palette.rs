@@ -7,8 +7,7 @@
 mod common;
 
 use common::{
-    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives,
-    Spec,
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
@@ -473,7 +472,10 @@ fn proxy_correctives_through_the_palette_match_the_reference() {
             let worst = palette_error(&corrected, &bones).expect("palette");
             eprintln!("{what}: worst relative position error {worst:.2e}");
             assert!(worst <= PALETTE_TOLERANCE, "{what}: {worst}");
-            let (j, n) = (corrected.bone_count(), corrected.proxy_count() + corrected.bone_count());
+            let (j, n) = (
+                corrected.bone_count(),
+                corrected.proxy_count() + corrected.bone_count(),
+            );
             let palette = Palette::new(corrected.clone()).expect("palette");
             let plain = Palette::new(model.clone()).expect("palette");
             let (mut a, mut b) = (vec![[0.0; 12]; 16 * n], vec![[0.0; 12]; 16 * n]);
@@ -495,5 +497,8 @@ fn proxy_correctives_through_the_palette_match_the_reference() {
     let (what, model) = models().swap_remove(1);
     let both = with_proxy_correctives(&with_correctives(&model, 5, 2), true, 3, 12);
     let worst = corrected_error(&both, &random_poses(&both, 16, 10));
-    assert!(worst <= PALETTE_TOLERANCE, "{what} with both correctives: {worst}");
+    assert!(
+        worst <= PALETTE_TOLERANCE,
+        "{what} with both correctives: {worst}"
+    );
 }

@@ -213,7 +213,10 @@ fn the_reference_correction_is_the_stated_form() {
                 for r in 0..3 {
                     for col in 0..4 {
                         let (a, b) = (corrected[e][4 * r + col], want.col(col)[r]);
-                        assert!((a - b).abs() < 1e-12, "{what}: proxy {e} ({r}, {col}): {a} vs {b}");
+                        assert!(
+                            (a - b).abs() < 1e-12,
+                            "{what}: proxy {e} ({r}, {col}): {a} vs {b}"
+                        );
                     }
                     assert!(want.col(3)[3] == 1.0 && want.col(r)[3] == 0.0);
                 }
@@ -238,7 +241,10 @@ fn a_zero_map_changes_nothing_and_the_map_does() {
         let largest = (moved.iter().zip(&still))
             .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
             .fold(0.0, f32::max);
-        assert!(largest > 1e-3, "{what}: the proxy correctives moved {largest}");
+        assert!(
+            largest > 1e-3,
+            "{what}: the proxy correctives moved {largest}"
+        );
     }
 }
 
@@ -250,7 +256,11 @@ fn the_correction_is_exact_at_the_rest_pose() {
     for (what, corrected) in models() {
         let plain = without(&corrected);
         let rest = vec![REST; corrected.bone_count()];
-        assert_eq!(evaluate(&corrected, &rest), evaluate(&plain, &rest), "{what}");
+        assert_eq!(
+            evaluate(&corrected, &rest),
+            evaluate(&plain, &rest),
+            "{what}"
+        );
         let n = corrected.proxy_count() + corrected.bone_count();
         let (mut a, mut b) = (vec![[0.0; 12]; n], vec![[0.0; 12]; n]);
         Palette::new(corrected.clone())

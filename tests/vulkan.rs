@@ -1118,7 +1118,8 @@ fn proxy_correctives_after_each_product_match_cpu() {
         influences: 8,
         ..RR
     };
-    let sparse = |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
+    let sparse =
+        |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
     let models = [
         with_proxy_correctives(&random_model(k8, 61), true, 0, 1),
         with_proxy_correctives(&sparse(2, 62), false, 3, 2),
@@ -1131,7 +1132,13 @@ fn proxy_correctives_after_each_product_match_cpu() {
         .map(|m| GpuModel::new(&ctx, m).expect("upload"))
         .collect();
     let kinds: Vec<(bool, bool, usize)> = (gpu.iter())
-        .map(|g| (g.is_block_sparse(), g.fuses_predictors(), g.proxy_corrective_count()))
+        .map(|g| {
+            (
+                g.is_block_sparse(),
+                g.fuses_predictors(),
+                g.proxy_corrective_count(),
+            )
+        })
         .collect();
     // Proxies e with e % 3 != 1 are corrected: 5 of RR's 7, 13 of 20.
     assert_eq!(
@@ -1190,7 +1197,10 @@ fn proxy_correctives_after_each_product_match_cpu() {
             let moved = (out.positions.iter().zip(&without))
                 .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max))
                 .fold(0.0, f32::max);
-            assert!(moved > 1e-3, "model {i}: the GPU's correction moved {moved}");
+            assert!(
+                moved > 1e-3,
+                "model {i}: the GPU's correction moved {moved}"
+            );
         }
     }
     // At the rest pose the corrections vanish: the corrected models render what the

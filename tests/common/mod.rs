@@ -317,13 +317,23 @@ pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed:
             rrskin::predict::rotation_features(&pose, b, parent).map(|x| x as f32)
         }));
     }
-    let widths = if kernels > 0 { vec![8.0; j] } else { Vec::new() };
+    let widths = if kernels > 0 {
+        vec![8.0; j]
+    } else {
+        Vec::new()
+    };
     let features = 9 * usize::from(linear) + kernels;
     // Kernel features are smaller than the linear ones (differences of two exponentials).
     let maps = (0..features * drivers.len())
         .flat_map(|row| {
-            let scale = if row % features < 9 * usize::from(linear) { 0.04 } else { 0.2 };
-            (0..12).map(|_| (scale * (next() - 0.5)) as f32).collect::<Vec<_>>()
+            let scale = if row % features < 9 * usize::from(linear) {
+                0.04
+            } else {
+                0.2
+            };
+            (0..12)
+                .map(|_| (scale * (next() - 0.5)) as f32)
+                .collect::<Vec<_>>()
         })
         .collect();
     let parts = rrskin::ModelParts {
