@@ -79,22 +79,23 @@
  * outputs may still be in flight on the queue. After: a global barrier makes every compute
  * write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
  * vertex attribute reads. In between, per crowd and frame slot f (pass n of the list above; the
- * bounds are written with the normals, and a fused product reads the bones):
+ * bounds are written with the normals, a fused product reads the bones, and the proxy
+ * correctives read the bones and update the palette's proxies in place):
  *
  * | buffer | access | memory |
  * |---|---|---|
- * | bone transforms, slot f | compute read (passes 1, 2, 3, 5) | host-visible, written by setting the bones of slot f |
+ * | bone transforms, slot f | compute read (passes 1, 2, 3, 4, 6) | host-visible, written by setting the bones of slot f |
  * | model buffers | compute read | device-local, written once at upload |
  * | B = [d; q] | compute write (pass 1), then read (pass 2) | device-local, internal |
- * | palette [t; q] | compute write (passes 1, 2), then read (passes 3, 5) | device-local, internal |
- * | positions (this frame's buffer) | compute write (pass 3), then read (pass 4) | device-local, vertex + storage + transfer-src |
+ * | palette [t; q] | compute write (passes 1, 2, 3), then read (passes 3, 4, 6) | device-local, internal |
+ * | positions (this frame's buffer) | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
  * | previous positions | not touched | the buffer the last recorded frame wrote |
- * | normals | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
- * | bounds, slot f | compute write (pass 4) | host-visible, storage |
- * | tangents | compute write (pass 5) | device-local, vertex + storage + transfer-src |
- * | corrective weights | compute write (pass 1), then read (pass 3) | device-local, internal (models with correctives) |
+ * | normals | compute write (pass 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
+ * | bounds, slot f | compute write (pass 5) | host-visible, storage |
+ * | tangents | compute write (pass 6) | device-local, vertex + storage + transfer-src |
+ * | corrective weights | compute write (pass 1), then read (pass 4) | device-local, internal (models with correctives) |
  *
- * It binds compute pipelines, descriptor set 0 and push constants (bytes 0..20) at
+ * It binds compute pipelines, descriptor set 0 and push constants (bytes 0..24) at
  * `VK_PIPELINE_BIND_POINT_COMPUTE`, and writes timestamps into the batch's own query pool; it
  * leaves the graphics bind point, render passes and dynamic state alone, and never begins,
  * ends or submits the command buffer. The engine re-binds its own compute state after it.
@@ -228,6 +229,14 @@ typedef struct rrskin_model_info {
   uint32_t correctives;
   // D, the corrective driver bones (0 without correctives).
   uint32_t corrective_drivers;
+  // E, the proxies corrected by proxy correctives (0 without them; at most `proxies`).
+  uint32_t proxy_correctives;
+  // The drivers of all corrected proxies together (0 without proxy correctives).
+  uint32_t proxy_corrective_drivers;
+  // C, the proxy correctives' kernel centres per joint (0 without kernels; at most 256).
+  uint32_t proxy_corrective_kernels;
+  // Nonzero: the proxy correctives have the 9 linear features per driver.
+  uint32_t proxy_corrective_linear;
 } rrskin_model_info;
 
 // How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -318,6 +327,8 @@ typedef struct rrskin_pass_timings {
   double predict_ms;
   // The C1/C2 product t = C1 d + C2 q (dense, block-sparse or fused; the Rust `product_ms`).
   double blend_ms;
+  // The proxy correctives, T_e (I + E_e) in the palette (0 where no crowd has them).
+  double proxy_correctives_ms;
   double skin_ms;
   double normals_ms;
   // 0 without tangents.
@@ -643,7 +654,8 @@ rrskin_status rrskin_palette_compute_corrective_weights(const struct rrskin_pale
 // The palette of `characters` characters on the calling thread: `bones` is characters x J
 // transforms (`bone_floats` = characters * J * 12 floats, 3x4 row-major, world space, relative
 // to the rest pose), `out` characters x (P + J) palette matrices (`out_floats` floats, same
-// layout), proxies first. Allocates nothing (after a thread's first call for a model of that
+// layout), proxies first (corrected by the model's proxy correctives where it has them:
+// nothing more to apply). Allocates nothing (after a thread's first call for a model of that
 // size) and takes no lock: call it from an engine's worker threads on disjoint characters.
 //
 // # Safety

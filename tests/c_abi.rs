@@ -5,7 +5,9 @@
 
 mod common;
 
-use common::{joint_blend_pattern, random_model, random_poses, with_correctives, Spec};
+use common::{
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives, Spec,
+};
 use rrskin::cpu::CpuEvaluator;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -279,19 +281,25 @@ fn the_c_palette_example_skins_without_vulkan() {
 #[test]
 fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     use rrskin::ffi::*;
-    // With pose-space correctives (rrskin_model_info reports their sizes).
-    let model = with_correctives(
-        &random_model(
-            Spec {
-                grid: 8,
-                bones: 5,
-                proxies: 4,
-                influences: 4,
-            },
-            9,
+    // With pose-space and proxy correctives (rrskin_model_info reports their sizes; proxies
+    // 0, 2 and 3 corrected, by 1, 3 and 0 drivers).
+    let model = with_proxy_correctives(
+        &with_correctives(
+            &random_model(
+                Spec {
+                    grid: 8,
+                    bones: 5,
+                    proxies: 4,
+                    influences: 4,
+                },
+                9,
+            ),
+            4,
+            2,
         ),
-        4,
+        true,
         2,
+        3,
     );
     let bytes = model.to_bytes();
     let characters = 5u32;
@@ -452,6 +460,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         tangents: 1,
         correctives: model.corrective_count() as u32,
         corrective_drivers: model.corrective_driver_count() as u32,
+        proxy_correctives: 3,
+        proxy_corrective_drivers: 4,
+        proxy_corrective_kernels: 2,
+        proxy_corrective_linear: 1,
     };
     let mut reported = RrskinModelInfo::default();
     // SAFETY: `out` points to a live value.
@@ -464,6 +476,15 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
             reported.corrective_drivers
         ),
         (info.blend_columns, 1, 4, 3)
+    );
+    assert_eq!(
+        (
+            reported.proxy_correctives,
+            reported.proxy_corrective_drivers,
+            reported.proxy_corrective_kernels,
+            reported.proxy_corrective_linear
+        ),
+        (3, 4, 2, 1)
     );
     let (mut model_bytes, mut crowd_bytes) = (0u64, 0u64);
     // SAFETY: live values.

@@ -446,7 +446,10 @@ fn correctives_round_trip_and_version_1_files_still_load() {
         let m = common::with_correctives(&model(p, k), 6, 5);
         assert_eq!((m.corrective_count(), m.corrective_driver_count()), (6, 3));
         let bytes = m.to_bytes();
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().expect("4")), 2);
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
+            FORMAT_VERSION
+        );
         let back = Model::from_bytes(&bytes).expect("round trip");
         assert_eq!(back, m);
         assert_eq!(back.to_bytes(), bytes);
@@ -633,4 +636,347 @@ fn inconsistent_correctives_are_refused_by_validation() {
     c.targets = c.targets[..v].repeat(64);
     c.map = c.map[..27].repeat(64);
     assert_eq!(Model::new(most).expect("64 targets").corrective_count(), 64);
+}
+
+/// A model of the tests' shape (J = 4, P = 5) with proxy correctives: proxies 0, 2, 3 with 1,
+/// 3 and 0 drivers (4 in all), `linear` features or not and `kernels` kernels.
+fn proxy_corrected(linear: bool, kernels: usize, influences: u32) -> Model {
+    let m = common::with_proxy_correctives(&model(5, influences), linear, kernels, 3);
+    let c = m.proxy_correctives().expect("proxy correctives");
+    assert_eq!((c.proxies.len(), c.drivers.len()), (3, 4));
+    m
+}
+
+/// The PCOR section's words: E, C, linear, D, then E + (E + 1) + D u32, C J 9 + J (with
+/// kernels) f32, 12 D (9 linear + C) f32.
+fn pcor_words(linear: bool, kernels: u64) -> u64 {
+    let (e, d, j) = (3, 4, 4);
+    let widths = if kernels > 0 { j } else { 0 };
+    4 + e + e + 1 + d + kernels * j * 9 + widths + 12 * d * (9 * u64::from(linear) + kernels)
+}
+
+#[test]
+fn proxy_correctives_round_trip_and_version_2_files_still_load() {
+    for (linear, kernels, k) in [(true, 0, 4), (false, 3, 8), (true, 2, 4)] {
+        let m = proxy_corrected(linear, kernels, k);
+        assert_eq!(m.proxy_corrective_count(), 3);
+        let bytes = m.to_bytes();
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().expect("4")), 3);
+        let back = Model::from_bytes(&bytes).expect("round trip");
+        assert_eq!(back, m);
+        assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
+        let (_, length) = table_entry(&bytes, b"PCOR");
+        assert_eq!(length, 4 * pcor_words(linear, kernels as u64));
+    }
+    // Beside pose-space correctives.
+    let both = common::with_correctives(&proxy_corrected(true, 2, 4), 3, 1);
+    assert_eq!(
+        Model::from_bytes(&both.to_bytes()).expect("round trip"),
+        both
+    );
+    // A version-2 file (no PCOR: what this format was before proxy correctives, with its
+    // pose-space correctives) loads as it did.
+    let m = common::with_correctives(&model(3, 4), 2, 4);
+    let mut v2 = m.to_bytes();
+    put_u32(&mut v2, 8, 2);
+    reseal(&mut v2);
+    let back = Model::from_bytes(&v2).expect("a version-2 file");
+    assert_eq!(back, m);
+    assert!(back.proxy_correctives().is_none() && back.proxy_corrective_count() == 0);
+    assert_eq!(back.corrective_count(), 2);
+}
+
+#[test]
+fn malformed_proxy_corrective_sections_are_refused() {
+    let m = proxy_corrected(true, 2, 4);
+    let bytes = m.to_bytes();
+    let at = section(&bytes, b"PCOR");
+    let (entry, length) = table_entry(&bytes, b"PCOR");
+    let edit = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut bad = bytes.clone();
+        f(&mut bad);
+        reseal(&mut bad);
+        problem(Model::from_bytes(&bad))
+    };
+    // E, C, the flag and D that disagree with the section's length.
+    for (word, value) in [
+        (0, 5),
+        (0, 0),
+        (1, 3),
+        (1, 0),
+        (2, 0),
+        (3, 5),
+        (0, u32::MAX),
+        (1, u32::MAX),
+        (3, u32::MAX),
+    ] {
+        let p = edit(&|b| put_u32(b, at + 4 * word, value));
+        assert!(
+            matches!(p, ModelProblem::SectionLength { ref tag, actual, .. } if tag == "PCOR" && actual == length),
+            "word {word} = {value}: {p:?}"
+        );
+    }
+    let p = edit(&|b| put_u32(b, at + 8, 2));
+    assert_eq!(
+        p,
+        ModelProblem::Dimension {
+            what: "the PCOR section's linear flag",
+            value: 2,
+            reason: "must be 0 or 1"
+        }
+    );
+    // Shorter than its four counts, and cut inside its arrays.
+    let p = edit(&|b| b[entry + 16..entry + 24].copy_from_slice(&8u64.to_le_bytes()));
+    assert_eq!(
+        p,
+        ModelProblem::SectionLength {
+            tag: "PCOR".into(),
+            expected: 16,
+            actual: 8
+        }
+    );
+    assert!(p.to_string().contains("'PCOR'"), "{p}");
+    let p = edit(&|b| b[entry + 16..entry + 24].copy_from_slice(&(length - 4).to_le_bytes()));
+    assert_eq!(
+        p,
+        ModelProblem::SectionLength {
+            tag: "PCOR".into(),
+            expected: length,
+            actual: length - 4
+        }
+    );
+    // The arrays' contents: proxies 0, 2, 3 at 16; offsets 0, 1, 4, 4 at 28; drivers at 44;
+    // centres at 60 (2 x 4 x 9); widths at 348; maps at 364.
+    let (proxies, offsets, drivers, centres, widths, maps) =
+        (at + 16, at + 28, at + 44, at + 60, at + 348, at + 364);
+    assert_eq!(
+        at + 4 * pcor_words(true, 2) as usize,
+        maps + 4 * 12 * 4 * 11
+    );
+    assert_eq!(
+        edit(&|b| put_u32(b, proxies + 8, 5)),
+        ModelProblem::IndexOutOfRange {
+            what: "proxy corrective proxies",
+            index: 2,
+            value: 5,
+            bound: 5
+        }
+    );
+    let p = edit(&|b| put_u32(b, proxies + 4, 3));
+    assert!(
+        matches!(
+            p,
+            ModelProblem::BadProxyCorrective {
+                what: "proxies",
+                index: 2,
+                ..
+            }
+        ),
+        "{p:?}"
+    );
+    let p = edit(&|b| put_u32(b, offsets + 8, 0));
+    assert!(
+        matches!(p, ModelProblem::BadProxyCorrective { what: "driver offsets", index: 2, reason } if reason.contains("below")),
+        "{p:?}"
+    );
+    let p = edit(&|b| put_u32(b, offsets, 1));
+    assert!(
+        matches!(
+            p,
+            ModelProblem::BadProxyCorrective {
+                what: "driver offsets",
+                index: 0,
+                ..
+            }
+        ),
+        "{p:?}"
+    );
+    let p = edit(&|b| put_u32(b, offsets + 12, 5));
+    assert!(
+        matches!(p, ModelProblem::Length { what, expected: 5, actual: 4 } if what.contains("last driver offset")),
+        "{p:?}"
+    );
+    let p = edit(&|b| put_u32(b, drivers, 0));
+    assert!(
+        matches!(p, ModelProblem::BadProxyDriver { proxy: 0, index: 0, bone: 0, reason } if reason.contains("root")),
+        "{p:?}"
+    );
+    assert!(p.to_string().contains("proxy 0"), "{p}");
+    let second = u32::from_le_bytes(bytes[drivers + 4..drivers + 8].try_into().expect("4"));
+    let p = edit(&|b| put_u32(b, drivers + 8, second));
+    assert!(
+        matches!(p, ModelProblem::BadProxyDriver { proxy: 2, index: 1, reason, .. } if reason.contains("twice")),
+        "{p:?}"
+    );
+    assert_eq!(
+        edit(&|b| put_u32(b, drivers + 12, 4)),
+        ModelProblem::IndexOutOfRange {
+            what: "proxy corrective drivers",
+            index: 3,
+            value: 4,
+            bound: 4
+        }
+    );
+    assert_eq!(
+        edit(&|b| put_u32(b, centres + 4 * 10, f32::NAN.to_bits())),
+        ModelProblem::NonFinite {
+            what: "proxy corrective kernel centres",
+            index: 10
+        }
+    );
+    let driver = u32::from_le_bytes(bytes[drivers..drivers + 4].try_into().expect("4"));
+    let p = edit(&|b| put_u32(b, widths + 4 * driver as usize, 0.0f32.to_bits()));
+    assert!(
+        matches!(p, ModelProblem::BadProxyCorrective { what: "widths", index, .. } if index == driver as usize),
+        "{p:?}"
+    );
+    // The root drives nothing: its width may be anything finite.
+    let mut ok = bytes.clone();
+    put_u32(&mut ok, widths, (-1.0f32).to_bits());
+    reseal(&mut ok);
+    Model::from_bytes(&ok).expect("a root's width is not used");
+    assert_eq!(
+        edit(&|b| put_u32(b, widths, f32::INFINITY.to_bits())),
+        ModelProblem::NonFinite {
+            what: "proxy corrective kernel widths",
+            index: 0
+        }
+    );
+    assert_eq!(
+        edit(&|b| put_u32(b, maps + 4 * 100, f32::NAN.to_bits())),
+        ModelProblem::NonFinite {
+            what: "proxy corrective maps",
+            index: 100
+        }
+    );
+}
+
+#[test]
+fn inconsistent_proxy_correctives_are_refused_by_validation() {
+    let parts = proxy_corrected(true, 2, 4).into_parts();
+    let with = |f: &dyn Fn(&mut rrskin::ProxyCorrectives)| {
+        let mut p = parts.clone();
+        f(p.proxy_correctives.as_mut().expect("proxy correctives"));
+        problem(Model::new(p))
+    };
+    let dimension = |p: ModelProblem| match p {
+        ModelProblem::Dimension { what, value, .. } => (what, value),
+        p => panic!("not a Dimension: {p:?}"),
+    };
+    let length = |p: ModelProblem| match p {
+        ModelProblem::Length { what, .. } => what,
+        p => panic!("not a Length: {p:?}"),
+    };
+    let none = with(&|c| {
+        c.proxies.clear();
+        c.driver_offsets = vec![0];
+        c.drivers.clear();
+        c.maps.clear();
+    });
+    assert_eq!(dimension(none), ("corrected proxy count (E)", 0));
+    assert_eq!(
+        dimension(with(&|c| c.proxies = (0..6).collect())),
+        ("corrected proxy count (E)", 6)
+    );
+    // A plain LBS model has no proxies to correct.
+    let mut lbs = parts.clone();
+    (lbs.predictors, lbs.c1, lbs.c2) = (Vec::new(), Vec::new(), Vec::new());
+    lbs.skin_indices.iter_mut().for_each(|i| *i %= 4);
+    assert_eq!(
+        dimension(problem(Model::new(lbs))),
+        ("corrected proxy count (E)", 3)
+    );
+    assert!(length(with(&|c| {
+        c.driver_offsets.pop();
+    }))
+    .contains("driver offsets"));
+    let many = with(&|c| {
+        let d = 33;
+        c.driver_offsets = vec![0, d, d, d];
+        c.drivers = vec![1; d as usize];
+    });
+    assert!(
+        matches!(many, ModelProblem::BadProxyCorrective { what: "driver offsets", index: 1, reason } if reason.contains("32")),
+        "{many:?}"
+    );
+    assert!(length(with(&|c| {
+        c.centres.pop();
+    }))
+    .contains("centres"));
+    let too_many = with(&|c| {
+        c.centres = vec![[0.0; 9]; 4 * 257];
+        c.maps = vec![0.0; 12 * 4 * (9 + 257)];
+    });
+    assert_eq!(
+        dimension(too_many),
+        ("proxy corrective kernels per joint (C)", 257)
+    );
+    assert!(length(with(&|c| {
+        c.widths.pop();
+    }))
+    .contains("widths"));
+    // No kernels: no widths either.
+    assert!(length(with(&|c| {
+        c.centres.clear();
+        c.maps = vec![0.0; 12 * 4 * 9];
+    }))
+    .contains("widths"));
+    let nothing = with(&|c| {
+        c.linear = false;
+        c.centres.clear();
+        c.widths.clear();
+        c.maps.clear();
+    });
+    assert_eq!(
+        dimension(nothing),
+        ("proxy corrective features per driver (9 linear + C)", 0)
+    );
+    assert!(length(with(&|c| {
+        c.maps.pop();
+    }))
+    .contains("maps"));
+    assert!(matches!(
+        with(&|c| c.widths[c.drivers[0] as usize] = -1.0),
+        ModelProblem::BadProxyCorrective { what: "widths", .. }
+    ));
+    // 32 drivers per proxy and 256 kernels are the most, and valid (drivers may repeat across
+    // proxies, not within one).
+    let mut most = parts.clone();
+    let c = most.proxy_correctives.as_mut().expect("proxy correctives");
+    c.centres = vec![[0.1; 9]; 4 * 256];
+    c.maps = vec![0.0; 12 * 4 * (9 + 256)];
+    Model::new(most).expect("256 kernels");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+    /// Arbitrary edits of the PCOR section, resealed (so past the checksum: what a buggy writer
+    /// could make), never panic: the file is refused with a BadModel, or the model it gives
+    /// evaluates on the CPU and in the palette.
+    #[test]
+    fn resealed_edits_of_proxy_correctives_never_panic(at in 0usize..2476, junk in proptest::collection::vec(any::<u8>(), 1..12)) {
+        let good = proxy_corrected(true, 2, 4).to_bytes();
+        let start = section(&good, b"PCOR");
+        let mut bytes = good.clone();
+        for (i, b) in junk.iter().enumerate() {
+            if at + i < 2476 {
+                bytes[start + at + i] = *b;
+            }
+        }
+        reseal(&mut bytes);
+        match Model::from_bytes(&bytes) {
+            Ok(m) => {
+                let bones = rrskin_render::synthetic::random_poses(&m, 2, 1);
+                let n = 2 * m.vertex_count();
+                let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+                rrskin::cpu::CpuEvaluator::new(&m).evaluate(&bones, &mut p, &mut nrm).expect("CPU");
+                let palette = rrskin::palette::Palette::new(m.clone()).expect("palette");
+                let mut out = vec![[0.0; 12]; 2 * palette.len()];
+                palette.compute_batch(&bones, &mut out).expect("palette");
+            }
+            Err(Error::BadModel { .. }) => {}
+            Err(other) => prop_assert!(false, "unexpected error kind {:?}", other),
+        }
+    }
 }

@@ -1,11 +1,14 @@
 //! The CPU palette (`rrskin::palette`, and its C ABI in-process) against the f64 CPU reference
 //! evaluator: positions skinned from the f32 palette within `PALETTE_TOLERANCE * max(1, |p|)`
 //! of `CpuEvaluator`'s, on dense, block-sparse (joint-blend pattern), plain-LBS and K = 8
-//! models; the serial, batched and threaded forms agree bit for bit; bad input is an error.
+//! models, with and without pose-space and proxy correctives; the serial, batched and threaded
+//! forms agree bit for bit; bad input is an error.
 
 mod common;
 
-use common::{joint_blend_pattern, random_model, random_poses, with_correctives, Spec};
+use common::{
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives, Spec,
+};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
 use rrskin::predict::Affine;
@@ -452,4 +455,50 @@ fn the_c_abi_gives_the_corrective_weights_and_targets() {
         );
         assert_eq!(rrskin_palette_model_destroy(m), ok);
     }
+}
+
+/// Proxy correctives (docs/method.md §21) are applied by `Palette::compute` itself: the skin of
+/// the f32 palette is the f64 reference's within `PALETTE_TOLERANCE` (relative to max(1, |p|)),
+/// for linear features, kernels and both, on every reduced model kind, with pose-space
+/// correctives beside them on one; the corrected palette differs from the uncorrected one; the
+/// batched, one-by-one and threaded forms agree bit for bit.
+#[test]
+fn proxy_correctives_through_the_palette_match_the_reference() {
+    for (what, model) in models().into_iter().filter(|(_, m)| m.proxy_count() > 0) {
+        for (linear, kernels) in [(true, 0), (false, 4), (true, 2)] {
+            let corrected = with_proxy_correctives(&model, linear, kernels, 11);
+            let what = format!("{what}, linear {linear}, C = {kernels}");
+            let bones = random_poses(&corrected, 16, 9);
+            let worst = palette_error(&corrected, &bones).expect("palette");
+            eprintln!("{what}: worst relative position error {worst:.2e}");
+            assert!(worst <= PALETTE_TOLERANCE, "{what}: {worst}");
+            let (j, n) = (
+                corrected.bone_count(),
+                corrected.proxy_count() + corrected.bone_count(),
+            );
+            let palette = Palette::new(corrected.clone()).expect("palette");
+            let plain = Palette::new(model.clone()).expect("palette");
+            let (mut a, mut b) = (vec![[0.0; 12]; 16 * n], vec![[0.0; 12]; 16 * n]);
+            palette.compute_batch(&bones, &mut a).expect("palette");
+            plain.compute_batch(&bones, &mut b).expect("palette");
+            assert_ne!(a, b, "{what}: the correction changed nothing");
+            for (q, want) in bones.chunks_exact(j).zip(a.chunks_exact(n)) {
+                let mut one = vec![[0.0; 12]; n];
+                palette.compute(q, &mut one).expect("palette");
+                assert_eq!(one, want, "{what}");
+            }
+            let mut threaded = vec![[0.0; 12]; 16 * n];
+            palette
+                .compute_batch_parallel(&bones, &mut threaded, 3)
+                .expect("palette");
+            assert_eq!(threaded, a, "{what}");
+        }
+    }
+    let (what, model) = models().swap_remove(1);
+    let both = with_proxy_correctives(&with_correctives(&model, 5, 2), true, 3, 12);
+    let worst = corrected_error(&both, &random_poses(&both, 16, 10));
+    assert!(
+        worst <= PALETTE_TOLERANCE,
+        "{what} with both correctives: {worst}"
+    );
 }

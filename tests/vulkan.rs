@@ -869,7 +869,10 @@ fn memory_queries_are_the_bytes_created() {
     let sparse = joint_blend_pattern(&models[1], 1);
     // With correctives: the targets in the rest buffer, the map, the drivers and the weights.
     let corrected = with_correctives(&models[1], 5, 1);
-    for model in models.iter().chain([&sparse, &corrected]) {
+    // With proxy correctives: their proxies and drivers, kernels and maps.
+    let proxy_corrected = [(true, 0), (false, 3), (true, 2)]
+        .map(|(linear, kernels)| with_proxy_correctives(&models[1], linear, kernels, 2));
+    for model in (models.iter().chain([&sparse, &corrected])).chain(&proxy_corrected) {
         let sizes = ModelSizes::of(model);
         let gpu = GpuModel::new(&ctx, model).expect("upload");
         let spec = (sizes, gpu.is_block_sparse());
@@ -1097,4 +1100,148 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
         .zip(&without)
         .any(|(a, b)| (0..3).any(|i| (a[i] - b[i]).abs() > 1e-3)));
     assert_no_validation_messages(&ctx);
+}
+
+/// Proxy correctives (docs/method.md §21) on the GPU, after each of the three products: the
+/// dense GEMM (linear features), the block-sparse product with the predictor pass (kernels
+/// only) and the fused product (both, with pose-space correctives beside them, one crowd split
+/// into chunks), next to a reduced and a plain model without them, in one command buffer over
+/// two frame slots: each crowd's positions and normals against the CPU reference (the
+/// tolerances of `compare`: positions within `POSITION_TOLERANCE` = 2e-4 of max(1, |p|),
+/// normals within `NORMAL_TOLERANCE` = 2e-3), with the validation layer and synchronization
+/// validation on. The corrections move the mesh (without them the CPU reference differs), and
+/// at the rest pose the corrected models render the uncorrected rest mesh.
+#[test]
+fn proxy_correctives_after_each_product_match_cpu() {
+    let ctx = validated_context();
+    let k8 = Spec {
+        influences: 8,
+        ..RR
+    };
+    let sparse =
+        |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
+    let models = [
+        with_proxy_correctives(&random_model(k8, 61), true, 0, 1),
+        with_proxy_correctives(&sparse(2, 62), false, 3, 2),
+        with_proxy_correctives(&with_correctives(&sparse(1, 63), 4, 3), true, 2, 3),
+        random_model(RR, 64),
+        random_model(LBS, 65),
+    ];
+    let gpu: Vec<GpuModel> = models
+        .iter()
+        .map(|m| GpuModel::new(&ctx, m).expect("upload"))
+        .collect();
+    let kinds: Vec<(bool, bool, usize)> = (gpu.iter())
+        .map(|g| {
+            (
+                g.is_block_sparse(),
+                g.fuses_predictors(),
+                g.proxy_corrective_count(),
+            )
+        })
+        .collect();
+    // Proxies e with e % 3 != 1 are corrected: 5 of RR's 7, 13 of 20.
+    assert_eq!(
+        kinds,
+        [
+            (false, false, 5),
+            (true, false, 13),
+            (true, true, 13),
+            (false, false, 0),
+            (false, false, 0)
+        ]
+    );
+    let counts = [9, 70, 5, 3, 2];
+    let v = models[0].vertex_count() as u64;
+    let mut crowds: Vec<Crowd> = (gpu.iter().zip(counts).enumerate())
+        .map(|(i, (g, c))| {
+            let options = CrowdOptions {
+                debug_settings: CrowdDebugSettings {
+                    // The second crowd in chunks of 16 characters' positions.
+                    max_binding_bytes: (i == 1).then_some(16 * v * 12),
+                },
+                ..CrowdOptions::default()
+            };
+            Crowd::with_options(g, c, options).expect("crowd")
+        })
+        .collect();
+    assert!(crowds[1].chunk_count() > 1);
+    let mut batch = Batch::new(&ctx).expect("batch");
+    for frame in 0..2 {
+        let mut expected = Vec::new();
+        for ((model, crowd), &c) in models.iter().zip(&mut crowds).zip(&counts) {
+            let (poses, p, n) = checkable_poses(model, c, frame + 1).swap_remove(frame);
+            crowd.set_bones(frame, &poses).expect("bones");
+            expected.push((poses, p, n));
+        }
+        let refs: Vec<&Crowd> = crowds.iter().collect();
+        batch.run(frame, &refs).expect("run");
+        for (i, ((model, crowd), (poses, p, n))) in
+            models.iter().zip(&mut crowds).zip(&expected).enumerate()
+        {
+            let out = crowd.read_back().expect("read back");
+            compare(model, (p, n), (&out.positions, &out.normals));
+            if model.proxy_correctives().is_none() {
+                continue;
+            }
+            // The corrections moved the mesh: the uncorrected model's reference differs.
+            let plain = Model::new(rrskin::ModelParts {
+                proxy_correctives: None,
+                ..model.parts().clone()
+            })
+            .expect("valid");
+            let (mut without, mut normals) = (vec![[0.0; 3]; p.len()], vec![[0.0; 3]; p.len()]);
+            CpuEvaluator::new(&plain)
+                .evaluate(poses, &mut without, &mut normals)
+                .expect("cpu");
+            let moved = (out.positions.iter().zip(&without))
+                .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0.0, f32::max))
+                .fold(0.0, f32::max);
+            assert!(
+                moved > 1e-3,
+                "model {i}: the GPU's correction moved {moved}"
+            );
+        }
+    }
+    // At the rest pose the corrections vanish: the corrected models render what the
+    // uncorrected ones do.
+    for (model, crowd) in models.iter().zip(&mut crowds).take(3) {
+        let rest = vec![rrskin::palette::REST; crowd.character_count() * model.bone_count()];
+        crowd.set_bones(0, &rest).expect("bones");
+        let plain = Model::new(rrskin::ModelParts {
+            proxy_correctives: None,
+            ..model.parts().clone()
+        })
+        .expect("valid");
+        let n = rest.len() / model.bone_count() * model.vertex_count();
+        let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        CpuEvaluator::new(&plain)
+            .evaluate(&rest, &mut p, &mut nrm)
+            .expect("cpu");
+        batch.run(0, &[&*crowd]).expect("run");
+        let out = crowd.read_back().expect("read back");
+        compare(model, (&p, &nrm), (&out.positions, &out.normals));
+    }
+    assert_no_validation_messages(&ctx);
+}
+
+/// A proxy-corrected model recorded into the test's own command buffers with three frames in
+/// flight (the engine path of `overlapping_frames`), with bounds and tangents: every frame
+/// matches the CPU reference.
+#[test]
+fn proxy_correctives_of_overlapping_frames_match_cpu() {
+    let model = with_proxy_correctives(
+        &joint_blend_pattern(&random_model(Spec { proxies: 12, ..RR }, 66), 1),
+        true,
+        2,
+        4,
+    );
+    let options = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        tangents: true,
+        ..CrowdOptions::default()
+    };
+    overlapping_frames(&model, 6, options);
 }

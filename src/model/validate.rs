@@ -154,12 +154,7 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
     }
     for (i, &proxy) in c.proxies.iter().enumerate() {
         if proxy as usize >= p {
-            return Err(out_of_range(
-                "proxy corrective proxies",
-                i,
-                proxy as i64,
-                p,
-            ));
+            return Err(out_of_range("proxy corrective proxies", i, proxy as i64, p));
         }
         if i > 0 && proxy <= c.proxies[i - 1] {
             return Err(ModelProblem::BadProxyCorrective {
@@ -257,7 +252,10 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
         if kernels > 0 { j } else { 0 },
         c.widths.len(),
     )?;
-    finite("proxy corrective kernel centres", c.centres.iter().flatten())?;
+    finite(
+        "proxy corrective kernel centres",
+        c.centres.iter().flatten(),
+    )?;
     finite("proxy corrective kernel widths", c.widths.iter())?;
     if kernels > 0 {
         if let Some(&b) = (c.drivers.iter()).find(|&&b| c.widths[b as usize] <= 0.0) {

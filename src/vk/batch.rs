@@ -260,7 +260,8 @@ impl Batch {
         let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
         let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);
         // One field per phase of the schedule (a new phase needs its field here).
-        let [predict_ms, product_ms, proxy_correctives_ms, skin_ms, normals_ms, tangents_ms] = phases;
+        let [predict_ms, product_ms, proxy_correctives_ms, skin_ms, normals_ms, tangents_ms] =
+            phases;
         Ok(PassTimings {
             predict_ms,
             product_ms,

@@ -283,3 +283,70 @@ pub fn with_correctives(model: &Model, n: usize, seed: u64) -> Model {
     };
     Model::new(parts).expect("a model with valid correctives")
 }
+
+/// `model` (P > 0) with proxy correctives (docs/method.md §21): the proxies e with e % 3 != 1
+/// corrected, proxy e by (e + 1) % 4 drivers (so some by none) among the bones with a parent,
+/// from the e-th on; `linear` features or not, and `kernels` kernel centres per joint at the φ
+/// of random poses (width w_b = 8 for every joint: |φ|² reaches about 6); map entries |g| ≤
+/// 0.02 of the linear features and ≤ 0.1 of the kernels (a few percent of the proxies' scale
+/// over the tests' random poses), seeded.
+pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed: u64) -> Model {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let (p, j) = (model.proxy_count(), model.bone_count());
+    let children: Vec<u32> = (0..j as u32)
+        .filter(|&b| model.parent(b as usize).is_some())
+        .collect();
+    let proxies: Vec<u32> = (0..p as u32).filter(|e| e % 3 != 1).collect();
+    let (mut driver_offsets, mut drivers) = (vec![0u32], Vec::new());
+    for &e in &proxies {
+        let count = ((e as usize + 1) % 4).min(children.len());
+        drivers.extend((0..count).map(|k| children[(e as usize + k) % children.len()]));
+        driver_offsets.push(drivers.len() as u32);
+    }
+    let mut centres = Vec::with_capacity(kernels * j);
+    for c in 0..kernels {
+        let pose = random_poses(model, 1, seed.wrapping_add(1000 + c as u64));
+        centres.extend((0..j).map(|b| {
+            let parent = model.parent(b).unwrap_or(b);
+            rrskin::predict::rotation_features(&pose, b, parent).map(|x| x as f32)
+        }));
+    }
+    let widths = if kernels > 0 {
+        vec![8.0; j]
+    } else {
+        Vec::new()
+    };
+    let features = 9 * usize::from(linear) + kernels;
+    // Kernel features are smaller than the linear ones (differences of two exponentials).
+    let maps = (0..features * drivers.len())
+        .flat_map(|row| {
+            let scale = if row % features < 9 * usize::from(linear) {
+                0.04
+            } else {
+                0.2
+            };
+            (0..12)
+                .map(|_| (scale * (next() - 0.5)) as f32)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let parts = rrskin::ModelParts {
+        proxy_correctives: Some(rrskin::ProxyCorrectives {
+            linear,
+            centres,
+            widths,
+            proxies,
+            driver_offsets,
+            drivers,
+            maps,
+        }),
+        ..model.parts().clone()
+    };
+    Model::new(parts).expect("a model with valid proxy correctives")
+}

@@ -1,0 +1,308 @@
+//! Proxy correctives (docs/method.md §21) in the CPU reference evaluator: a hand-computed case
+//! (one vertex on one proxy, one driver, a linear and a kernel feature) matches the formula in
+//! the reference and the palette, the reference's correction is an independent reading of the
+//! form (features gathered into a vector, `T (I + E)` as 4x4 matrices), a zero map changes
+//! nothing while the non-zero one does, and the correction is exact at the rest pose.
+
+mod common;
+
+use common::{joint_blend_pattern, random_model, random_poses, with_proxy_correctives, Spec};
+use glam::{DMat4, DVec4};
+use rrskin::cpu::CpuEvaluator;
+use rrskin::palette::{Palette, REST};
+use rrskin::predict::{apply_proxy_correctives, kernel_feature, rotation_features, Affine};
+use rrskin::{Error, KeyPredictor, Model, ModelParts, ProxyCorrectives};
+
+const SPEC: Spec = Spec {
+    grid: 8,
+    bones: 6,
+    proxies: 5,
+    influences: 4,
+};
+
+fn evaluate(model: &Model, bones: &[Affine]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let n = bones.len() / model.bone_count() * model.vertex_count();
+    let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+    CpuEvaluator::new(model)
+        .evaluate(bones, &mut p, &mut nrm)
+        .expect("CPU evaluation");
+    (p, nrm)
+}
+
+fn without(model: &Model) -> Model {
+    Model::new(ModelParts {
+        proxy_correctives: None,
+        ..model.parts().clone()
+    })
+    .expect("valid")
+}
+
+/// The three feature kinds on a dense and a joint-blend (fused) model.
+fn models() -> Vec<(String, Model)> {
+    let dense = random_model(SPEC, 3);
+    let fused = joint_blend_pattern(&random_model(Spec { proxies: 9, ..SPEC }, 4), 1);
+    let mut out = Vec::new();
+    for (what, base) in [("dense", &dense), ("joint-blend", &fused)] {
+        for (linear, kernels) in [(true, 0), (false, 3), (true, 2)] {
+            let model = with_proxy_correctives(base, linear, kernels, 7 + kernels as u64);
+            out.push((format!("{what}, linear {linear}, C = {kernels}"), model));
+        }
+    }
+    out
+}
+
+/// Row-major 3x4 `[Q | d]`.
+fn affine(q: [[f64; 3]; 3], d: [f64; 3]) -> Affine {
+    let mut t = [0.0f32; 12];
+    for r in 0..3 {
+        for c in 0..3 {
+            t[4 * r + c] = q[r][c] as f32;
+        }
+        t[4 * r + 3] = d[r] as f32;
+    }
+    t
+}
+
+/// One vertex on proxy 0, which follows the root (C2 copies bone 0); bone 1 (a child of the
+/// root) drives it with its linear features and one kernel. The map's row 1 (φ_1 = R[0][1])
+/// is the translation b = (g1, 0, 0), its row 9 (the kernel) A00 = gk: y = Q_0 (x + A x + b) +
+/// d_0, worked out by hand.
+#[test]
+fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
+    let (g1, gk) = (0.25f32, -0.5f32);
+    let mut maps = vec![0.0f32; 10 * 12];
+    maps[12 + 3] = g1;
+    maps[9 * 12] = gk;
+    let z = [-0.8f32, 0.9, -0.2, -1.0, -0.9, 0.0, 0.0, 0.4, -0.1];
+    let mut c2 = vec![0.0f32; 4 * 8];
+    for r in 0..4 {
+        c2[r * 8 + r] = 1.0;
+    }
+    let parts = ModelParts {
+        rest_positions: vec![[1.0, 2.0, 3.0]],
+        triangles: Vec::new(),
+        bone_parents: vec![-1, 0],
+        influences: 4,
+        skin_indices: vec![0, 0, 0, 0],
+        skin_weights: vec![1.0, 0.0, 0.0, 0.0],
+        predictors: vec![KeyPredictor {
+            bone: 0,
+            u: 0.0,
+            w: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            second: None,
+            h: [0.0; 63],
+        }],
+        c1: vec![0.0; 4 * 3],
+        c2,
+        normal_groups: Vec::new(),
+        baseline_indices: Vec::new(),
+        baseline_weights: Vec::new(),
+        animation: Vec::new(),
+        rest_tangents: Vec::new(),
+        correctives: None,
+        proxy_correctives: Some(ProxyCorrectives {
+            linear: true,
+            centres: vec![[0.0; 9], z],
+            widths: vec![1.0, 0.5],
+            proxies: vec![0],
+            driver_offsets: vec![0, 1],
+            drivers: vec![1],
+            maps,
+        }),
+    };
+    let model = Model::new(parts).expect("valid");
+    assert_eq!(model.proxy_corrective_count(), 1);
+    // Q_0: 90° about z, d_0 = (1, 0, 0); Q_1 (world): α about x.
+    let alpha = 0.3f64;
+    let (c, s) = (alpha.cos(), alpha.sin());
+    let q0 = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+    let q1 = [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]];
+    let bones = [affine(q0, [1.0, 0.0, 0.0]), affine(q1, [0.0, 0.5, 0.0])];
+    // R = Q_0ᵀ Q_1 has rows (0, c, −s), (−1, 0, 0), (0, s, c).
+    let phi = [-1.0, c, -s, -1.0, -1.0, 0.0, 0.0, s, c - 1.0];
+    let (d2, r2): (f64, f64) = phi.iter().zip(&z).fold((0.0, 0.0), |(d, r), (&f, &z)| {
+        let z = z as f64;
+        (d + (f - z) * (f - z), r + z * z)
+    });
+    let k = (-d2 / 0.5).exp() - (-r2 / 0.5).exp();
+    assert!(k.abs() > 0.05, "the kernel is not negligible here: {k}");
+    // x + A x + b = (1 + gk k + g1 c, 2, 3); Q_0 u + d_0 = (−u_y + 1, u_x, u_z).
+    let want = [-1.0, 1.0 + gk as f64 * k + g1 as f64 * c, 3.0];
+    let (p, _) = evaluate(&model, &bones);
+    let palette = Palette::new(model.clone()).expect("palette");
+    let mut entries = [[0.0f32; 12]; 3];
+    palette.compute(&bones, &mut entries).expect("palette");
+    let mut skinned = [[0.0f32; 3]];
+    palette
+        .skin_positions(&entries, &[], &mut skinned)
+        .expect("skin");
+    for (what, got) in [("reference", p[0]), ("palette", skinned[0])] {
+        for i in 0..3 {
+            assert!(
+                (got[i] as f64 - want[i]).abs() < 1e-5,
+                "{what}: {got:?} vs {want:?}"
+            );
+        }
+    }
+}
+
+/// The reference's correction against the form read independently: the feature vector x of
+/// each corrected proxy gathered in order (per driver 9 φ if linear, then C kernels), E =
+/// Σ_f x_f G_f as a 4x4 with a zero bottom row, T' = T (I + E) as 4x4 products.
+#[test]
+fn the_reference_correction_is_the_stated_form() {
+    for (what, model) in models() {
+        let c = model.proxy_correctives().expect("proxy correctives");
+        let (p, j) = (model.proxy_count(), model.bone_count());
+        let kernels = c.centres.len() / j;
+        for bones in random_poses(&model, 4, 5).chunks_exact(j) {
+            // Any proxies will do: the rows of random 3x4 matrices.
+            let t: Vec<[f64; 12]> = (0..p)
+                .map(|e| std::array::from_fn(|i| ((e * 12 + i) as f64 * 0.37).sin()))
+                .collect();
+            let mut corrected = t.clone();
+            apply_proxy_correctives(&model, bones, &mut corrected).expect("correct");
+            for e in 0..p {
+                let Some(i) = c.proxies.iter().position(|&x| x as usize == e) else {
+                    assert_eq!(corrected[e], t[e], "{what}: proxy {e} is not corrected");
+                    continue;
+                };
+                let mut x = Vec::new();
+                for &b in &c.drivers[c.driver_offsets[i] as usize..c.driver_offsets[i + 1] as usize]
+                {
+                    let b = b as usize;
+                    let phi = rotation_features(bones, b, model.parent(b).expect("a parent"));
+                    if c.linear {
+                        x.extend(phi);
+                    }
+                    for k in 0..kernels {
+                        let z = c.centres[k * j + b].map(f64::from);
+                        let w = c.widths[b] as f64;
+                        let d2: f64 = (0..9).map(|m| (phi[m] - z[m]).powi(2)).sum();
+                        let r2: f64 = z.iter().map(|z| z * z).sum();
+                        x.push((-d2 / w).exp() - (-r2 / w).exp());
+                        let lib = kernel_feature(&phi, &c.centres[k * j + b], w);
+                        assert!((lib - x[x.len() - 1]).abs() < 1e-12, "{what}");
+                    }
+                }
+                let per_driver = 12 * (9 * usize::from(c.linear) + kernels);
+                let map = &c.maps[per_driver * c.driver_offsets[i] as usize..][..12 * x.len()];
+                let mut e4 = DMat4::ZERO;
+                for (f, &xf) in x.iter().enumerate() {
+                    let g = &map[12 * f..12 * f + 12];
+                    for r in 0..3 {
+                        let row = DVec4::new(
+                            g[4 * r] as f64,
+                            g[4 * r + 1] as f64,
+                            g[4 * r + 2] as f64,
+                            g[4 * r + 3] as f64,
+                        );
+                        // glam is column-major: element (r, col) is col(col)[r].
+                        for col in 0..4 {
+                            e4.col_mut(col)[r] += xf * row[col];
+                        }
+                    }
+                }
+                let mut t4 = DMat4::IDENTITY;
+                for r in 0..3 {
+                    for col in 0..4 {
+                        t4.col_mut(col)[r] = t[e][4 * r + col];
+                    }
+                }
+                let want = t4 * (DMat4::IDENTITY + e4);
+                for r in 0..3 {
+                    for col in 0..4 {
+                        let (a, b) = (corrected[e][4 * r + col], want.col(col)[r]);
+                        assert!(
+                            (a - b).abs() < 1e-12,
+                            "{what}: proxy {e} ({r}, {col}): {a} vs {b}"
+                        );
+                    }
+                    assert!(want.col(3)[3] == 1.0 && want.col(r)[3] == 0.0);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_zero_map_changes_nothing_and_the_map_does() {
+    for (what, corrected) in models() {
+        let plain = without(&corrected);
+        let mut parts = corrected.parts().clone();
+        let c = parts.proxy_correctives.as_mut().expect("proxy correctives");
+        c.maps.iter_mut().for_each(|g| *g = 0.0);
+        let zero = Model::new(parts).expect("valid");
+        let bones = random_poses(&plain, 6, 2);
+        assert_eq!(evaluate(&zero, &bones), evaluate(&plain, &bones), "{what}");
+        // The non-zero map does change the shape (the comparison above is not vacuous).
+        let (moved, _) = evaluate(&corrected, &bones);
+        let (still, _) = evaluate(&plain, &bones);
+        let largest = (moved.iter().zip(&still))
+            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max);
+        assert!(
+            largest > 1e-3,
+            "{what}: the proxy correctives moved {largest}"
+        );
+    }
+}
+
+/// At the rest pose every feature is zero (φ = 0, and both terms of a kernel are equal), so the
+/// corrected proxies are the uncorrected ones exactly, in the reference (f64) and the palette
+/// (f32) alike.
+#[test]
+fn the_correction_is_exact_at_the_rest_pose() {
+    for (what, corrected) in models() {
+        let plain = without(&corrected);
+        let rest = vec![REST; corrected.bone_count()];
+        assert_eq!(
+            evaluate(&corrected, &rest),
+            evaluate(&plain, &rest),
+            "{what}"
+        );
+        let n = corrected.proxy_count() + corrected.bone_count();
+        let (mut a, mut b) = (vec![[0.0; 12]; n], vec![[0.0; 12]; n]);
+        Palette::new(corrected.clone())
+            .expect("palette")
+            .compute(&rest, &mut a)
+            .expect("palette");
+        Palette::new(plain)
+            .expect("palette")
+            .compute(&rest, &mut b)
+            .expect("palette");
+        assert_eq!(a, b, "{what}");
+        let c = corrected.proxy_correctives().expect("proxy correctives");
+        let j = corrected.bone_count();
+        for b in 0..j {
+            let phi = rotation_features(&rest, b, corrected.parent(b).unwrap_or(b));
+            assert_eq!(phi, [0.0; 9]);
+            for z in c.centres.iter().skip(b).step_by(j) {
+                assert_eq!(kernel_feature(&phi, z, 2.0), 0.0, "{what}");
+            }
+        }
+    }
+}
+
+#[test]
+fn wrong_lengths_are_errors() {
+    let (_, model) = models().swap_remove(0);
+    let bones = random_poses(&model, 1, 1);
+    let mut proxies = vec![[0.0f64; 12]; model.proxy_count()];
+    apply_proxy_correctives(&model, &bones, &mut proxies).expect("the right lengths");
+    let mut short = vec![[0.0f64; 12]; model.proxy_count() - 1];
+    assert!(matches!(
+        apply_proxy_correctives(&model, &bones, &mut short),
+        Err(Error::WrongLength {
+            what: "proxy transforms",
+            ..
+        })
+    ));
+    assert!(matches!(
+        apply_proxy_correctives(&model, &bones[1..], &mut proxies),
+        Err(Error::WrongLength {
+            what: "bone transforms",
+            ..
+        })
+    ));
+}
