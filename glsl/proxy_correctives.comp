@@ -17,18 +17,15 @@ layout(std430, set = 0, binding = 0) readonly buffer Bones { Affine bones[]; }; 
 layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };            // J
 layout(std430, set = 0, binding = 2) readonly buffer ProxyTopology { uint topology[]; };    // E, E + 1, sum D_i
 layout(std430, set = 0, binding = 3) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J
-layout(std430, set = 0, binding = 4) readonly buffer ProxyMaps { float maps[]; };           // sum F_i x 12
+layout(std430, set = 0, binding = 4) readonly buffer ProxyMaps { vec4 maps[]; };            // sum F_i x 3 (x 4)
 layout(std430, set = 0, binding = 5) buffer Palette { Affine proxies[]; };                  // chars x (P + J)
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;
 
 // e + x G_f, G_f the 12 floats of map row f (the rows of [A | b]).
 Affine add(Affine e, float x, uint f) {
-    uint m = 12u * f;
-    vec4 g0 = vec4(maps[m], maps[m + 1u], maps[m + 2u], maps[m + 3u]);
-    vec4 g1 = vec4(maps[m + 4u], maps[m + 5u], maps[m + 6u], maps[m + 7u]);
-    vec4 g2 = vec4(maps[m + 8u], maps[m + 9u], maps[m + 10u], maps[m + 11u]);
-    return Affine(e.r0 + x * g0, e.r1 + x * g1, e.r2 + x * g2);
+    uint m = 3u * f;
+    return Affine(e.r0 + x * maps[m], e.r1 + x * maps[m + 1u], e.r2 + x * maps[m + 2u]);
 }
 
 void main() {

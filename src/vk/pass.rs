@@ -93,7 +93,7 @@ indexed_enum! {
         /// f32, the proxy correctives' kernels: C x J x 9 centres, then J widths (empty
         /// without kernels)
         ProxyKernels,
-        /// f32, the proxy correctives' maps: Σ_i F_i x 12 (empty without proxy correctives)
+        /// f32 (read as vec4s), the proxy correctives' maps: Σ_i F_i x 12 (empty without proxy correctives)
         ProxyMaps,
     }
 }

@@ -161,6 +161,11 @@ struct TrainArgs {
     /// cross-validation keeps them; no per-vertex cost).
     #[arg(long)]
     no_proxy_correctives: bool,
+    /// Also offer the proxy correctives a kernel per training pose (pose-space RBFs; the
+    /// cross-validation still decides): better on rigs with clamped correctives, at a run-time
+    /// cost per kernel.
+    #[arg(long)]
+    proxy_kernels: bool,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     no_gentle_poses: bool,
@@ -185,6 +190,7 @@ impl TrainArgs {
             epsilon: self.epsilon,
             correctives: self.correctives,
             proxy_correctives: !self.no_proxy_correctives,
+            proxy_kernels: self.proxy_kernels,
             method: match self.reduction {
                 Reduction::Auto => Method::Auto,
                 Reduction::JointBlend => Method::JointBlend,
@@ -711,6 +717,7 @@ fn profile(args: &RunArgs) -> Outcome {
     for (name, ms) in [
         ("predictors", t.predict_ms),
         ("C1/C2 prod.", t.product_ms),
+        ("proxy corr.", t.proxy_correctives_ms),
         ("skinning", t.skin_ms),
         ("normals", t.normals_ms),
         ("tangents", t.tangents_ms),

@@ -315,10 +315,11 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "stages",
         "structure",
         "correctives",
+        "proxy_correctives",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 22, "{e}");
+    assert_eq!(keys.len(), 23, "{e}");
     assert!(e["correctives"].is_null(), "off by default: {e}");
     assert!(
         e["rig_lbs"].is_null() && e["rig_dqs"].is_null() && e["rig_cor"].is_null(),
@@ -439,6 +440,16 @@ fn a_trained_model_file_evaluates_as_trained() {
     assert!(trained["correctives"]["ridge"].is_number(), "{trained}");
     assert_eq!(trained["correctives"]["targets"], 8, "{trained}");
     assert_eq!(info["correctives"], 8, "{info}");
+    // And the proxy correctives (on by default) the cross-validation kept, from the linear basis
+    // only (the kernels are asked for).
+    let corrected = &trained["proxy_correctives"];
+    assert_eq!(corrected["basis"], "linear", "{trained}");
+    assert!(corrected["proxies"].as_u64() > Some(0), "{trained}");
+    assert_eq!(info["proxy_correctives"], corrected["proxies"], "{info}");
+    assert!(
+        (corrected["candidates"].as_array()).is_some_and(|c| c.len() == 8),
+        "one candidate per ridge: {trained}"
+    );
     // The CPU palette of the trained file agrees with the reference playing its animation
     // (tests/palette.rs's tolerance).
     let trained_model = rrskin::Model::load(&model).expect("valid");

@@ -619,6 +619,7 @@ fn the_proxy_corrective_fit_recovers_a_known_correction() {
         &reduced,
         &train,
         4,
+        true,
     );
     let fitted = fit.correctives.as_ref().expect("correctives kept");
     let error = |corrected: bool| -> f64 {

@@ -235,7 +235,8 @@ pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> 
 }
 
 /// `model` with its bones renumbered: bone b becomes bone `new_index[b]` (parents, skinning and
-/// baseline indices, predictor bones, C2's columns and the animation follow), so that it
+/// baseline indices, predictor bones, C2's columns, the animation and both correctives' drivers
+/// follow), so that it
 /// deforms exactly as before for poses renumbered the same way. With `new_index` = J−1, …, 0 on
 /// a generated model every parent comes after its children. Errors if `new_index` is not a
 /// permutation of 0..J.
@@ -297,6 +298,29 @@ pub fn renumber_bones(model: &Model, new_index: &[usize]) -> Result<Model> {
     {
         for (b, t) in old.iter().enumerate() {
             frame[new_index[b]] = *t;
+        }
+    }
+    // The correctives' drivers (their maps' columns follow the drivers' order, kept).
+    if let Some(c) = parts.correctives.as_mut() {
+        c.drivers.iter_mut().for_each(|d| *d = bone(*d));
+    }
+    if let (Some(c), Some(old)) = (
+        parts.proxy_correctives.as_mut(),
+        model.parts().proxy_correctives.as_ref(),
+    ) {
+        c.drivers.iter_mut().for_each(|d| *d = bone(*d));
+        // Kernel centres C x J and widths J are per bone.
+        for (row, old) in c
+            .centres
+            .chunks_exact_mut(j)
+            .zip(old.centres.chunks_exact(j))
+        {
+            for (b, z) in old.iter().enumerate() {
+                row[new_index[b]] = *z;
+            }
+        }
+        for (b, w) in old.widths.iter().enumerate() {
+            c.widths[new_index[b]] = *w;
         }
     }
     Model::new(parts)

@@ -145,6 +145,7 @@ impl Bench {
             serde_json::json!({
                 "predict_ms": p.median.predict_ms,
                 "blend_ms": p.median.product_ms,
+                "proxy_correctives_ms": p.median.proxy_correctives_ms,
                 "skin_ms": p.median.skin_ms,
                 "normals_ms": p.median.normals_ms,
                 "tangents_ms": p.median.tangents_ms,

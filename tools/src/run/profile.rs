@@ -57,6 +57,7 @@ impl Profile {
             "frames": self.frames,
             "predict_ms": self.median.predict_ms,
             "blend_ms": self.median.product_ms,
+            "proxy_correctives_ms": self.median.proxy_correctives_ms,
             "skin_ms": self.median.skin_ms,
             "normals_ms": self.median.normals_ms,
             "tangents_ms": self.median.tangents_ms,

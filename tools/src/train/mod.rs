@@ -88,6 +88,9 @@ pub struct TrainOptions {
     /// Proxy correctives ([`proxy_corrective`]): each proxy corrected by an affine map of the
     /// nearby joints' rotations, where cross-validation finds they help. No per-vertex cost.
     pub proxy_correctives: bool,
+    /// Also offer the proxy correctives a kernel per training pose and driver (docs/method.md
+    /// §21): more accurate on some rigs, but they cost the runtime's proxy pass per kernel.
+    pub proxy_kernels: bool,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -104,6 +107,7 @@ impl Default for TrainOptions {
             full_model: true,
             correctives: 0,
             proxy_correctives: true,
+            proxy_kernels: false,
             quiet: false,
         }
     }
@@ -325,15 +329,15 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             structure = Some(chosen);
             if options.proxy_correctives {
                 progress.stage("proxy correctives");
-                let train = &train;
                 let fit = proxy_corrective::fit(
                     set,
                     &feats,
                     &ssd,
                     &rigid,
                     &reduced,
-                    train,
+                    &train,
                     options.folds,
+                    options.proxy_kernels,
                 );
                 if let Some(c) = &fit.correctives {
                     model = rrskin::Model::new(rrskin::ModelParts {

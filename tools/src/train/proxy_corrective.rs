@@ -85,14 +85,12 @@ impl ProxyCorrectives {
         let (centres, widths) = match basis {
             Basis::Linear => (Vec::new(), Vec::new()),
             Basis::Kernels => {
+                // One centre per pose, at most MAX_PROXY_KERNELS of them evenly spaced.
+                let count = centres.len().min(rrskin::model::MAX_PROXY_KERNELS);
+                let c: Vec<Vec<[f64; 9]>> = (0..count)
+                    .map(|k| phi[centres[k * centres.len() / count]].clone())
+                    .collect();
                 let joints = phi.first().map_or(0, Vec::len);
-                let count = kernel_count().min(centres.len());
-                let picks: Vec<Vec<usize>> = (0..joints)
-                    .map(|b| farthest_points(centres.iter().map(|&i| &phi[i][b]), count))
-                    .collect();
-                let c = (0..count)
-                    .map(|k| (0..joints).map(|b| phi[centres[picks[b][k]]][b]).collect())
-                    .collect();
                 let widths = (0..joints)
                     .map(|b| {
                         let m = centres.iter().map(|&i| squared(&phi[i][b])).sum::<f64>()
@@ -117,7 +115,11 @@ impl ProxyCorrectives {
         for &b in drivers {
             out.extend(phi[b]);
             for z in &self.centres {
-                let d2: f64 = z[b].iter().zip(&phi[b]).map(|(x, y)| (x - y) * (x - y)).sum();
+                let d2: f64 = z[b]
+                    .iter()
+                    .zip(&phi[b])
+                    .map(|(x, y)| (x - y) * (x - y))
+                    .sum();
                 let w = self.widths[b];
                 out.push((-d2 / w).exp() - (-squared(&z[b]) / w).exp());
             }
@@ -161,28 +163,6 @@ impl ProxyCorrectives {
                 .collect(),
         }
     }
-}
-
-fn kernel_count() -> usize {
-    std::env::var("PC_C").ok().and_then(|s| s.parse().ok()).unwrap_or(8)
-}
-
-/// `count` of `points` by farthest-point sampling from the one farthest from rest (zero): each
-/// next the farthest from those chosen, the first on ties.
-fn farthest_points<'a>(points: impl Iterator<Item = &'a [f64; 9]>, count: usize) -> Vec<usize> {
-    let points: Vec<&[f64; 9]> = points.collect();
-    let mut nearest: Vec<f64> = points.iter().map(|p| squared(p)).collect();
-    let mut picks = Vec::with_capacity(count);
-    while picks.len() < count.min(points.len()) {
-        let next = (0..points.len())
-            .fold(0, |best, i| if nearest[i] > nearest[best] { i } else { best });
-        picks.push(next);
-        for (i, p) in points.iter().enumerate() {
-            let d: f64 = p.iter().zip(points[next]).map(|(x, y)| (x - y) * (x - y)).sum();
-            nearest[i] = nearest[i].min(d);
-        }
-    }
-    picks
 }
 
 fn squared(x: &[f64; 9]) -> f64 {
@@ -295,8 +275,8 @@ fn regress(
     out
 }
 
-/// Fits the proxy correctives of `reduced` on the training poses `train`, basis and ridge chosen
-/// by `folds`-fold cross-validation; `rigid` normalises each held-out pose's error. None is
+/// Fits the proxy correctives of `reduced` on the training poses `train`, basis (the kernels
+/// only with `kernels`) and ridge chosen by `folds`-fold cross-validation; `rigid` normalises each held-out pose's error. None is
 /// chosen where no candidate beats the uncorrected proxies.
 pub fn fit(
     set: &ExampleSet,
@@ -306,6 +286,7 @@ pub fn fit(
     reduced: &Reduced,
     train: &[usize],
     folds: usize,
+    kernels: bool,
 ) -> Fit {
     let drivers = drivers(set, ssd, reduced);
     let best = reduced.best_transforms(set, train);
@@ -316,7 +297,13 @@ pub fn fit(
     };
     for (&i, best) in train.iter().zip(&best) {
         let predicted = reduced.predict_proxies(set, &feats[i], &set.poses[i].bones);
-        poses.targets.push(predicted.iter().zip(best).map(|(t, b)| target(t, b)).collect());
+        poses.targets.push(
+            predicted
+                .iter()
+                .zip(best)
+                .map(|(t, b)| target(t, b))
+                .collect(),
+        );
         poses.predicted.push(predicted);
         poses.phi.push(corrective::features(set, &feats[i]));
     }
@@ -344,10 +331,16 @@ pub fn fit(
             .sum();
         e / normaliser[k]
     };
-    let mut relative = vec![all.iter().map(|&k| held_error(k, None)).collect::<Vec<f64>>()];
-    let grid: Vec<(Basis, f64)> = [Basis::Linear, Basis::Kernels]
-        .into_iter()
-        .flat_map(|b| RIDGES.map(|r| (b, r)))
+    let mut relative = vec![all
+        .iter()
+        .map(|&k| held_error(k, None))
+        .collect::<Vec<f64>>()];
+    let bases: &[Basis] = match kernels {
+        true => &[Basis::Linear, Basis::Kernels],
+        false => &[Basis::Linear],
+    };
+    let grid: Vec<(Basis, f64)> = (bases.iter())
+        .flat_map(|&b| RIDGES.map(|r| (b, r)))
         .collect();
     for &(basis, ridge) in &grid {
         let mut per_pose = vec![0.0; all.len()];
@@ -369,6 +362,10 @@ pub fn fit(
         .map(|(basis, ridge)| regress(basis, &drivers, &poses, &all, ridge))
         .filter(|c| !c.proxies.is_empty());
     out.uncorrected = scores[0];
-    out.candidates = grid.iter().zip(&scores[1..]).map(|(&(b, r), &s)| (b, r, s)).collect();
+    out.candidates = grid
+        .iter()
+        .zip(&scores[1..])
+        .map(|(&(b, r), &s)| (b, r, s))
+        .collect();
     out
 }

@@ -278,7 +278,9 @@ impl Reduced {
                 let t = llt.solve(&rhs);
                 (0..p)
                     .map(|e| Bone {
-                        q: DMat3::from_cols_array(&std::array::from_fn(|k| t[(4 * e + k / 3, k % 3)])),
+                        q: DMat3::from_cols_array(&std::array::from_fn(|k| {
+                            t[(4 * e + k / 3, k % 3)]
+                        })),
                         d: DVec3::from_array(std::array::from_fn(|c| t[(4 * e + 3, c)])),
                     })
                     .collect()
