@@ -618,8 +618,11 @@ fn the_proxy_corrective_fit_recovers_a_known_correction() {
         &trained.rigid,
         &reduced,
         &train,
-        4,
-        true,
+        &TrainOptions {
+            folds: 4,
+            proxy_kernels: true,
+            ..options
+        },
     );
     let fitted = fit.correctives.as_ref().expect("correctives kept");
     let error = |corrected: bool| -> f64 {

@@ -329,16 +329,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             structure = Some(chosen);
             if options.proxy_correctives {
                 progress.stage("proxy correctives");
-                let fit = proxy_corrective::fit(
-                    set,
-                    &feats,
-                    &ssd,
-                    &rigid,
-                    &reduced,
-                    &train,
-                    options.folds,
-                    options.proxy_kernels,
-                );
+                let fit =
+                    proxy_corrective::fit(set, &feats, &ssd, &rigid, &reduced, &train, options);
                 if let Some(c) = &fit.correctives {
                     model = rrskin::Model::new(rrskin::ModelParts {
                         proxy_correctives: Some(c.to_runtime()),

@@ -27,6 +27,7 @@ use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::Skinning;
+use crate::train::TrainOptions;
 use glam::{DMat3, DVec3};
 
 /// The ridges tried per basis, most regularised first.
@@ -276,7 +277,7 @@ fn regress(
 }
 
 /// Fits the proxy correctives of `reduced` on the training poses `train`, basis (the kernels
-/// only with `kernels`) and ridge chosen by `folds`-fold cross-validation; `rigid` normalises each held-out pose's error. None is
+/// only with `options.proxy_kernels`) and ridge chosen by `options.folds`-fold cross-validation; `rigid` normalises each held-out pose's error. None is
 /// chosen where no candidate beats the uncorrected proxies.
 pub fn fit(
     set: &ExampleSet,
@@ -285,9 +286,9 @@ pub fn fit(
     rigid: &Skinning,
     reduced: &Reduced,
     train: &[usize],
-    folds: usize,
-    kernels: bool,
+    options: &TrainOptions,
 ) -> Fit {
+    let kernels = options.proxy_kernels;
     let drivers = drivers(set, ssd, reduced);
     let best = reduced.best_transforms(set, train);
     let mut poses = Poses {
@@ -308,7 +309,7 @@ pub fn fit(
         poses.phi.push(corrective::features(set, &feats[i]));
     }
     let all: Vec<usize> = (0..train.len()).collect();
-    let folds = folds.min(train.len());
+    let folds = options.folds.min(train.len());
     let mut out = Fit {
         uncorrected: (0.0, 0.0),
         candidates: Vec::new(),
