@@ -25,7 +25,7 @@
 use crate::cpu::{characters, CpuEvaluator};
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
+use crate::predict::{self, Affine, NEAR_PI_SIN, SMALL_ANGLE};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
 
@@ -227,7 +227,7 @@ impl Palette {
         for (q, w) in bones.chunks_exact(j).zip(out.chunks_exact_mut(n)) {
             w.fill(0.0);
             for (i, &(d, p)) in self.drivers.iter().enumerate() {
-                let phi = rotation_features(&q[p], &q[d]);
+                let phi = phi_f32(&q[p], &q[d]);
                 for (t, w) in w.iter_mut().enumerate() {
                     let row = &correctives.map[t * width + 9 * i..t * width + 9 * i + 9];
                     *w += row.iter().zip(&phi).map(|(m, f)| m * f).sum::<f32>();
@@ -375,73 +375,27 @@ impl Palette {
             *t = bytemuck::cast(acc);
         }
         if let Some(c) = self.model.proxy_correctives() {
+            // The reference's own f64 form (a few hundred multiply-adds a proxy, no allocation),
+            // rounded once to f32: one formula for both evaluators.
             for (i, &e) in c.proxies.iter().enumerate() {
-                let correction = self.proxy_correction(q, i);
                 let t = &mut out[e as usize];
-                *t = corrected(t, &correction);
+                let e = predict::proxy_correction(&self.model, q, i);
+                *t = predict::corrected(&t.map(f64::from), &e).map(|x| x as f32);
             }
         }
         out[p..].copy_from_slice(q);
     }
-
-    /// `E = [A | b] = Σ_f x_f G_ef` of corrected proxy i, mirroring
-    /// [`crate::predict::proxy_correction`] in `f32` (allocates nothing).
-    fn proxy_correction(&self, q: &[Affine], i: usize) -> Affine {
-        let mut e = [0.0f32; 12];
-        let Some(c) = self.model.proxy_correctives() else {
-            return e;
-        };
-        let j = self.model.bone_count();
-        let kernels = c.kernel_count(j);
-        let mut rows = c.map_of(i, j).chunks_exact(12);
-        let mut add = |x: f32, g: &[f32]| e.iter_mut().zip(g).for_each(|(e, g)| *e += x * g);
-        for &b in c.drivers_of(i) {
-            let b = b as usize;
-            let parent = self.model.parent(b).unwrap_or(b); // validated: drivers have parents
-            let phi = rotation_features(&q[parent], &q[b]);
-            if c.linear {
-                for &x in &phi {
-                    add(x, rows.next().unwrap_or_default());
-                }
-            }
-            for k in 0..kernels {
-                let x = kernel_feature(&phi, &c.centres[k * j + b], c.widths[b]);
-                add(x, rows.next().unwrap_or_default());
-            }
-        }
-        e
-    }
 }
 
-/// `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major: [`crate::predict::rotation_features`]
-/// in `f32`. `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]` (row-major 3x4 transforms).
-fn rotation_features(qp: &Affine, qb: &Affine) -> [f32; 9] {
+/// The corrective weights' `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major, in `f32`
+/// ([`predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]` (row-major 3x4
+/// transforms).
+fn phi_f32(qp: &Affine, qb: &Affine) -> [f32; 9] {
     std::array::from_fn(|e| {
         let (r, c) = (e / 3, e % 3);
         let dot: f32 = (0..3).map(|k| qp[4 * k + r] * qb[4 * k + c]).sum();
         dot - f32::from(u8::from(r == c))
     })
-}
-
-/// [`crate::predict::kernel_feature`] in `f32`.
-fn kernel_feature(phi: &[f32; 9], z: &[f32; 9], w: f32) -> f32 {
-    let (mut d2, mut r2) = (0.0f32, 0.0f32);
-    for (&f, &z) in phi.iter().zip(z) {
-        d2 += (f - z) * (f - z);
-        r2 += (0.0 - z) * (0.0 - z);
-    }
-    (-d2 / w).exp() - (-r2 / w).exp()
-}
-
-/// `T (I + E)` for 3x4 row-major `T = [M | t]`, `E = [A | b]`: `[M + M A | t + M b]`.
-fn corrected(t: &Affine, e: &Affine) -> Affine {
-    let mut out = *t;
-    for r in 0..3 {
-        for c in 0..4 {
-            out[4 * r + c] += (0..3).map(|k| t[4 * r + k] * e[4 * k + c]).sum::<f32>();
-        }
-    }
-    out
 }
 
 impl Key {

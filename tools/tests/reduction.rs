@@ -474,14 +474,11 @@ fn auto_scores_both_proxy_counts_and_builds_the_chosen() {
     );
 }
 
-/// Examples made by a runtime model plus known pose-space correctives (rest-space offsets linear
-/// in one joint's vec(R − I), on the vertices that joint's bone skins): the fit finds them from
-/// the training poses, and on held-out poses the model with the fitted correctives, evaluated by
-/// the runtime's CPU evaluator, is far nearer the examples than the model without.
-#[test]
-fn the_corrective_fit_recovers_known_correctives() {
-    use rrskin_tools::train::{self, corrective, TrainOptions};
-    let mut set = rrskin_tools::cylinder_chain::Chain {
+/// The 3-bone chain of 60 poses and its runtime model with 4 proxies, neither kind of corrective
+/// (the two corrective tests add a known correction to its examples).
+fn chain_with_four_proxies() -> (ExampleSet, rrskin_tools::train::Trained) {
+    use rrskin_tools::train::{self, TrainOptions};
+    let set = rrskin_tools::cylinder_chain::Chain {
         rings: 21,
         segments: 8,
         bones: 3,
@@ -493,10 +490,22 @@ fn the_corrective_fit_recovers_known_correctives() {
         proxies: 4,
         full_model: false,
         correctives: 0,
+        proxy_correctives: false,
         quiet: true,
         ..TrainOptions::default()
     };
     let trained = train::run(&set, &options).expect("trains");
+    (set, trained)
+}
+
+/// Examples made by a runtime model plus known pose-space correctives (rest-space offsets linear
+/// in one joint's vec(R − I), on the vertices that joint's bone skins): the fit finds them from
+/// the training poses, and on held-out poses the model with the fitted correctives, evaluated by
+/// the runtime's CPU evaluator, is far nearer the examples than the model without.
+#[test]
+fn the_corrective_fit_recovers_known_correctives() {
+    use rrskin_tools::train::corrective;
+    let (mut set, trained) = chain_with_four_proxies();
     let model = trained.model.expect("a runtime model");
     let all: Vec<usize> = (0..set.poses.len()).collect();
     let plain = corrective::Residuals::of(&set, &trained.feats, &model, &all).expect("evaluates");
@@ -572,22 +581,8 @@ fn the_corrective_fit_recovers_known_correctives() {
 
 #[test]
 fn the_proxy_corrective_fit_recovers_a_known_correction() {
-    use rrskin_tools::train::{self, corrective, proxy_corrective, TrainOptions};
-    let mut set = rrskin_tools::cylinder_chain::Chain {
-        rings: 21,
-        segments: 8,
-        bones: 3,
-        poses: 60,
-    }
-    .build()
-    .expect("a valid chain");
-    let options = TrainOptions {
-        proxies: 4,
-        full_model: false,
-        quiet: true,
-        ..TrainOptions::default()
-    };
-    let trained = train::run(&set, &options).expect("trains");
+    use rrskin_tools::train::{corrective, proxy_corrective, TrainOptions};
+    let (mut set, trained) = chain_with_four_proxies();
     let reduced = trained.reduced.clone().expect("a reduced model");
     let drivers = proxy_corrective::drivers(&set, &trained.ssd, &reduced);
     // The known correction of proxy e, in its rest frame, from its first driver's φ: a stretch
@@ -621,7 +616,7 @@ fn the_proxy_corrective_fit_recovers_a_known_correction() {
         &TrainOptions {
             folds: 4,
             proxy_kernels: true,
-            ..options
+            ..TrainOptions::default()
         },
     );
     let fitted = fit.correctives.as_ref().expect("correctives kept");

@@ -11,7 +11,7 @@
 //! 2. **Features** of driver b, zero at rest (so the rest pose stays exact): φ_b = vec(R_b − I)
 //!    (as [`corrective::features`]), and with kernels, per training pose c,
 //!    `exp(−|φ_b − φ_b(q_c)|² / w_b) − exp(−|φ_b(q_c)|² / w_b)` (pose-space RBFs as in Lewis et
-//!    al.'s PSD, per joint, w_b twice the mean |φ_b|² over the centres): a corrective driven by a
+//!    al.'s PSD, per joint, w_b twice the mean |φ_b|² over the training poses): a corrective driven by a
 //!    clamped ramp of an angle is not linear in the rotation. The drivers of proxy e are the
 //!    bones carrying at least [`SHARE`] of its vertices' SSD weight, and their children (a muscle
 //!    bulges with the joint below it).
@@ -51,7 +51,6 @@ pub enum Basis {
 /// The fitted corrections, in f64, ready for [`rrskin::model::ProxyCorrectives`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProxyCorrectives {
-    pub basis: Basis,
     /// C x J kernel centres φ_b(q_c) (empty for [`Basis::Linear`]).
     pub centres: Vec<Vec<[f64; 9]>>,
     /// J kernel widths w_b (empty for [`Basis::Linear`]).
@@ -103,7 +102,6 @@ impl ProxyCorrectives {
             }
         };
         ProxyCorrectives {
-            basis,
             centres,
             widths,
             proxies: Vec::new(),
@@ -277,8 +275,9 @@ fn regress(
 }
 
 /// Fits the proxy correctives of `reduced` on the training poses `train`, basis (the kernels
-/// only with `options.proxy_kernels`) and ridge chosen by `options.folds`-fold cross-validation; `rigid` normalises each held-out pose's error. None is
-/// chosen where no candidate beats the uncorrected proxies.
+/// only with `options.proxy_kernels`) and ridge chosen by `options.folds`-fold
+/// cross-validation; `rigid` normalises each held-out pose's error. None is chosen where no
+/// candidate beats the uncorrected proxies.
 pub fn fit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
