@@ -6,9 +6,15 @@
 // phi_b = vec(R_b - I) row-major with R_b = rot(Q_p)^T rot(Q_b) (as corrective_weights.comp),
 // then for each kernel centre c < C, exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b) with
 // z_cb the 9 floats of centre c * J + b and w_b = widths[b] (both terms computed alike: exactly
-// zero at the rest pose). One invocation per (character = x, corrected proxy i = y): the
-// invocations of a workgroup share the proxy, so loop bounds and map loads are uniform.
-// Models with proxy correctives only.
+// zero at the rest pose).
+//
+// One invocation per (FOUR characters, corrected proxy i = y): each map row G_f is loaded once
+// for four characters (CPU drivers pay every buffer load per lane, and the map loads are the
+// pass's cost there), the four characters' features are the lanes of a vec4 x_f, and their
+// E rows accumulate as the columns of three mat4 (E_r += outer(G_f row r, x_f)). A workgroup's
+// invocations share the proxy, so loop bounds and map loads are uniform. Characters of an
+// invocation are 64 apart (adjacent invocations read adjacent characters). Models with proxy
+// correctives only.
 layout(local_size_x = 64) in;
 
 struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
@@ -22,75 +28,100 @@ layout(std430, set = 0, binding = 5) buffer Palette { Affine proxies[]; };      
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;
 
-// e + x G_f, G_f the 12 floats of map row f (the rows of [A | b]).
-Affine add(Affine e, float x, uint f) {
-    uint m = 3u * f;
-    return Affine(e.r0 + x * maps[m], e.r1 + x * maps[m + 1u], e.r2 + x * maps[m + 2u]);
+// R_b - I of character ch with its rows as the columns (the row-major phi_b entry 3r + c is
+// [r][c]): column r of Q_p (its rows' r-th entries) combines Q_b's rows into row r of R.
+mat3 features(uint ch, uint b) {
+    Affine qb = bones[ch * pc.J + b];
+    Affine qp = bones[ch * pc.J + uint(parents[b])];
+    vec3 pr0 = vec3(qp.r0.x, qp.r1.x, qp.r2.x);
+    vec3 pr1 = vec3(qp.r0.y, qp.r1.y, qp.r2.y);
+    vec3 pr2 = vec3(qp.r0.z, qp.r1.z, qp.r2.z);
+    return mat3(pr0.x * qb.r0.xyz + pr0.y * qb.r1.xyz + pr0.z * qb.r2.xyz - vec3(1.0, 0.0, 0.0),
+                pr1.x * qb.r0.xyz + pr1.y * qb.r1.xyz + pr1.z * qb.r2.xyz - vec3(0.0, 1.0, 0.0),
+                pr2.x * qb.r0.xyz + pr2.y * qb.r1.xyz + pr2.z * qb.r2.xyz - vec3(0.0, 0.0, 1.0));
 }
 
-void main() {
-    uint ch = gl_GlobalInvocationID.x;
-    uint i = gl_WorkGroupID.y;
+// |phi - z|^2 of one character, z the 9 floats of a kernel centre from z.
+float distance2(mat3 phi, uint z) {
+    vec3 d0 = phi[0] - vec3(kernels[z], kernels[z + 1u], kernels[z + 2u]);
+    vec3 d1 = phi[1] - vec3(kernels[z + 3u], kernels[z + 4u], kernels[z + 5u]);
+    vec3 d2 = phi[2] - vec3(kernels[z + 6u], kernels[z + 7u], kernels[z + 8u]);
+    return dot(d0, d0) + dot(d1, d1) + dot(d2, d2);
+}
+
+// E_r += outer(G_f row r, x): map row f (its 3 vec4 from m) times the four characters' x_f.
+void add(inout mat4 e0, inout mat4 e1, inout mat4 e2, uint m, vec4 x) {
+    e0 += outerProduct(maps[m], x);
+    e1 += outerProduct(maps[m + 1u], x);
+    e2 += outerProduct(maps[m + 2u], x);
+}
+
+// Character ch's proxy T becomes T (I + E), E's rows e0, e1, e2: row r of T plus M[r][0] E row
+// 0 + M[r][1] E row 1 + M[r][2] E row 2 (E's bottom row is zero). Nothing past the crowd.
+void correct(uint ch, uint proxy, vec4 e0, vec4 e1, vec4 e2) {
     if (ch >= pc.chars) {
         return;
     }
-    Affine e = Affine(vec4(0.0), vec4(0.0), vec4(0.0));
+    uint at = ch * (pc.P + pc.J) + proxy;
+    Affine t = proxies[at];
+    proxies[at] = Affine(t.r0 + t.r0.x * e0 + t.r0.y * e1 + t.r0.z * e2,
+                         t.r1 + t.r1.x * e0 + t.r1.y * e1 + t.r1.z * e2,
+                         t.r2 + t.r2.x * e0 + t.r2.y * e1 + t.r2.z * e2);
+}
+
+void main() {
+    uint first_ch = gl_WorkGroupID.x * 256u + gl_LocalInvocationID.x;
+    uint i = gl_WorkGroupID.y;
+    if (first_ch >= pc.chars) {
+        return;
+    }
+    // Characters past the crowd read the last one's bones and are not written.
+    uint last_ch = pc.chars - 1u;
+    uvec4 ch = min(uvec4(first_ch) + uvec4(0u, 64u, 128u, 192u), uvec4(last_ch));
+    // E_r: column j is row r of character ch[j]'s E.
+    mat4 e0 = mat4(0.0);
+    mat4 e1 = mat4(0.0);
+    mat4 e2 = mat4(0.0);
     uint first = topology[pc.E + i];
     uint last = topology[pc.E + i + 1u];
-    uint per = 9u * pc.L + pc.C;
-    uint f = first * per;
-    uint base = ch * pc.J;
+    uint m = 3u * first * (9u * pc.L + pc.C);
     uint widths = 9u * pc.C * pc.J;
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
-        Affine qb = bones[base + b];
-        Affine qp = bones[base + uint(parents[b])];
-        // Column r of Q_p (its rows' r-th entries) combines Q_b's rows into row r of R.
-        vec3 pr0 = vec3(qp.r0.x, qp.r1.x, qp.r2.x);
-        vec3 pr1 = vec3(qp.r0.y, qp.r1.y, qp.r2.y);
-        vec3 pr2 = vec3(qp.r0.z, qp.r1.z, qp.r2.z);
-        vec3 f0 = pr0.x * qb.r0.xyz + pr0.y * qb.r1.xyz + pr0.z * qb.r2.xyz - vec3(1.0, 0.0, 0.0);
-        vec3 f1 = pr1.x * qb.r0.xyz + pr1.y * qb.r1.xyz + pr1.z * qb.r2.xyz - vec3(0.0, 1.0, 0.0);
-        vec3 f2 = pr2.x * qb.r0.xyz + pr2.y * qb.r1.xyz + pr2.z * qb.r2.xyz - vec3(0.0, 0.0, 1.0);
+        mat3 f0 = features(ch.x, b);
+        mat3 f1 = features(ch.y, b);
+        mat3 f2 = features(ch.z, b);
+        mat3 f3 = features(ch.w, b);
         if (pc.L != 0u) {
-            e = add(e, f0.x, f);
-            e = add(e, f0.y, f + 1u);
-            e = add(e, f0.z, f + 2u);
-            e = add(e, f1.x, f + 3u);
-            e = add(e, f1.y, f + 4u);
-            e = add(e, f1.z, f + 5u);
-            e = add(e, f2.x, f + 6u);
-            e = add(e, f2.y, f + 7u);
-            e = add(e, f2.z, f + 8u);
-            f += 9u;
+            // phi_b's entries 3r + c, one map row each (written out: local matrices indexed
+            // in a loop cost CPU drivers a round trip through memory per lane).
+            add(e0, e1, e2, m, vec4(f0[0][0], f1[0][0], f2[0][0], f3[0][0]));
+            add(e0, e1, e2, m + 3u, vec4(f0[0][1], f1[0][1], f2[0][1], f3[0][1]));
+            add(e0, e1, e2, m + 6u, vec4(f0[0][2], f1[0][2], f2[0][2], f3[0][2]));
+            add(e0, e1, e2, m + 9u, vec4(f0[1][0], f1[1][0], f2[1][0], f3[1][0]));
+            add(e0, e1, e2, m + 12u, vec4(f0[1][1], f1[1][1], f2[1][1], f3[1][1]));
+            add(e0, e1, e2, m + 15u, vec4(f0[1][2], f1[1][2], f2[1][2], f3[1][2]));
+            add(e0, e1, e2, m + 18u, vec4(f0[2][0], f1[2][0], f2[2][0], f3[2][0]));
+            add(e0, e1, e2, m + 21u, vec4(f0[2][1], f1[2][1], f2[2][1], f3[2][1]));
+            add(e0, e1, e2, m + 24u, vec4(f0[2][2], f1[2][2], f2[2][2], f3[2][2]));
+            m += 27u;
         }
         if (pc.C > 0u) {
             float w = kernels[widths + b];
+            mat3 zero = mat3(0.0);
             for (uint c = 0u; c < pc.C; c++) {
                 uint z = (c * pc.J + b) * 9u;
-                vec3 z0 = vec3(kernels[z], kernels[z + 1u], kernels[z + 2u]);
-                vec3 z1 = vec3(kernels[z + 3u], kernels[z + 4u], kernels[z + 5u]);
-                vec3 z2 = vec3(kernels[z + 6u], kernels[z + 7u], kernels[z + 8u]);
-                vec3 d0 = f0 - z0;
-                vec3 d1 = f1 - z1;
-                vec3 d2 = f2 - z2;
-                vec3 n0 = vec3(0.0) - z0;
-                vec3 n1 = vec3(0.0) - z1;
-                vec3 n2 = vec3(0.0) - z2;
-                float d = dot(d0, d0) + dot(d1, d1) + dot(d2, d2);
-                float r = dot(n0, n0) + dot(n1, n1) + dot(n2, n2);
-                e = add(e, exp(-d / w) - exp(-r / w), f);
-                f += 1u;
+                float at_rest = exp(-distance2(zero, z) / w);
+                vec4 d = vec4(distance2(f0, z), distance2(f1, z), distance2(f2, z), distance2(f3, z));
+                vec4 x = exp(-d / w) - vec4(at_rest);
+                add(e0, e1, e2, m, x);
+                m += 3u;
             }
         }
     }
-    uint at = ch * (pc.P + pc.J) + topology[i];
-    Affine t = proxies[at];
-    // Row r of T (I + E): row r of T plus M[r][0] E row 0 + M[r][1] E row 1 + M[r][2] E row 2
-    // (E's bottom row is zero).
-    Affine o;
-    o.r0 = t.r0 + t.r0.x * e.r0 + t.r0.y * e.r1 + t.r0.z * e.r2;
-    o.r1 = t.r1 + t.r1.x * e.r0 + t.r1.y * e.r1 + t.r1.z * e.r2;
-    o.r2 = t.r2 + t.r2.x * e.r0 + t.r2.y * e.r1 + t.r2.z * e.r2;
-    proxies[at] = o;
+    uint proxy = topology[i];
+    correct(first_ch, proxy, e0[0], e1[0], e2[0]);
+    correct(first_ch + 64u, proxy, e0[1], e1[1], e2[1]);
+    correct(first_ch + 128u, proxy, e0[2], e1[2], e2[2]);
+    correct(first_ch + 192u, proxy, e0[3], e1[3], e2[3]);
 }

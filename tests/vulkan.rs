@@ -1151,7 +1151,9 @@ fn proxy_correctives_after_each_product_match_cpu() {
             (false, false, 0)
         ]
     );
-    let counts = [9, 70, 5, 3, 2];
+    // 300 characters: the pass corrects four characters 64 apart an invocation, 256 a
+    // workgroup, so this covers full and partial invocations of two workgroups.
+    let counts = [300, 70, 5, 3, 2];
     let v = models[0].vertex_count() as u64;
     let mut crowds: Vec<Crowd> = (gpu.iter().zip(counts).enumerate())
         .map(|(i, (g, c))| {

@@ -242,8 +242,9 @@ const PROXY_CORRECTIVES: PassDesc = PassDesc {
         W::Kernels,
         W::LinearFeatures,
     ],
-    // local_size_x = 64 over characters, one row of groups per corrected proxy.
-    groups: [over(Characters, 64), over(CorrectedProxies, 1), ONE],
+    // local_size_x = 64, four characters an invocation (256 a workgroup), one row of
+    // groups per corrected proxy.
+    groups: [over(Characters, 256), over(CorrectedProxies, 1), ONE],
     runs: |d| d.corrected_proxies > 0,
 };
 
