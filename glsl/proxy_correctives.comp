@@ -9,8 +9,8 @@
 // zero at the rest pose).
 //
 // One invocation per (FOUR characters, corrected proxy i = y): each map row G_f is loaded once
-// for four characters (CPU drivers pay every buffer load per lane, and the map loads are the
-// pass's cost there), the four characters' features are the lanes of a vec4 x_f, and their
+// for four characters (CPU drivers pay every buffer load per lane, and the loads, not the
+// multiply-adds, are the pass's cost there), the four characters' features are the lanes of a vec4 x_f, and their
 // E rows accumulate as the columns of three mat4 (E_r += outer(G_f row r, x_f)). A workgroup's
 // invocations share the proxy, so loop bounds and map loads are uniform. Characters of an
 // invocation are 64 apart (adjacent invocations read adjacent characters). Models with proxy
