@@ -148,8 +148,8 @@ struct TrainArgs {
     #[arg(long, default_value_t = TrainOptions::default().influences)]
     influences: usize,
     /// How the runtime model is made: joint-blend proxies, as many as cross-validation over the
-    /// training poses chooses (auto, the default: P or 1.5 P), joint-blend proxies with P, or the
-    /// paper's reduction of the full model.
+    /// training poses chooses (auto, the default: a sixth or a third of P, P, or 1.5 P),
+    /// joint-blend proxies with P, or the paper's reduction of the full model.
     #[arg(long, value_enum, default_value_t = Reduction::Auto)]
     reduction: Reduction,
     /// At most this many pose-space corrective targets on the runtime model (0: none; the

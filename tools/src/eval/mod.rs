@@ -312,9 +312,9 @@ fn structure_line(c: &Chosen) -> String {
     let why = match c.why {
         Why::Asked => " (as asked)",
         Why::OnlyCandidate => {
-            " (the only candidate: the rig has no more joint-blend proxies than P)"
+            " (the only candidate: the rig has too few joint-blend proxies for fewer, none more than P)"
         }
-        Why::TooFewPoses => " (the first candidate: too few training poses to cross-validate)",
+        Why::TooFewPoses => " (P as given: too few training poses to cross-validate)",
         Why::CrossValidated => "",
     };
     if !why.is_empty() {

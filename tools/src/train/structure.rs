@@ -1,5 +1,5 @@
 //! The runtime model's structure, chosen per set on the training poses (beyond the paper;
-//! docs/method.md §18): how many joint-blend proxies (P).
+//! docs/method.md §18): how many joint-blend proxies (P), fewer or more than asked.
 //!
 //! Every candidate is trained end to end on k − 1 folds of the training poses (with the
 //! stretch and refit ridges chosen once on all of them) and scored on the held-out fold. Two things make this differ from plain cross-validation, both because the
@@ -58,17 +58,22 @@ pub struct Chosen {
 pub enum Why {
     /// The caller named it (`--reduction joint-blend` or `paper`).
     Asked,
-    /// The rig has one candidate (no more joint-blend proxies than P).
+    /// The rig has one candidate (fewer than three joint-blend proxies, none more than P).
     OnlyCandidate,
-    /// Too few training poses to cross-validate: the first candidate.
+    /// Too few training poses to cross-validate: P as given.
     TooFewPoses,
     /// Chosen by cross-validation (`candidates` holds the scores).
     CrossValidated,
 }
 
 /// The candidates, most robust first (see the module docs). P_max = `options.proxies`, K =
-/// `options.influences` (the engine's skinning budget, not chosen here):
+/// `options.influences` (the engine's skinning budget, not chosen here), P' = min(P_max,
+/// `pool`) the proxies joint-blend builds from P_max:
 ///
+/// - joint-blend proxies, P'/6 and P'/3 (about one per two moving joints and one per moving
+///   joint; left out below one): rigs whose deformation is plain skinning plus local terms
+///   (muscle bulges, soft flesh) are met as well or better by fewer proxies and the bones, and
+///   every proxy fewer is run time saved;
 /// - joint-blend proxies, P_max;
 /// - joint-blend with 1.5 P_max, when the set has more candidate proxies than P_max.
 ///
@@ -82,7 +87,14 @@ pub fn candidates(options: &TrainOptions, pool: usize) -> Vec<Structure> {
         proxies,
         influences: k,
     };
-    let mut out = vec![joint_blend(p)];
+    let built = p.min(pool);
+    let mut out: Vec<Structure> = [built / 6, built / 3]
+        .into_iter()
+        .filter(|&fewer| fewer > 0)
+        .map(joint_blend)
+        .collect();
+    out.dedup();
+    out.push(joint_blend(p));
     if pool > p {
         out.push(joint_blend(p + p / 2));
     }
@@ -191,8 +203,10 @@ pub fn choose(
     let train = set.train();
     let folds = options.folds.min(train.len());
     if folds < 2 || candidates.len() < 2 {
+        // Without folds, the caller's P.
+        let asked = candidates.iter().find(|c| c.proxies == options.proxies);
         return Chosen {
-            structure: candidates[0],
+            structure: *asked.unwrap_or(&candidates[0]),
             candidates: Vec::new(),
             folds,
             why: match candidates.len() < 2 {
@@ -284,10 +298,20 @@ mod tests {
         let options = TrainOptions::default();
         let (p, k) = (options.proxies, options.influences);
         assert_eq!(
-            candidates(&options, 3 * p,),
-            vec![joint_blend(p, k), joint_blend(p + p / 2, k)]
+            candidates(&options, 3 * p),
+            [p / 6, p / 3, p, p + p / 2].map(|p| joint_blend(p, k))
         );
-        assert_eq!(candidates(&options, p), vec![joint_blend(p, k)]);
+        // CesiumMan: 18 moving joints, 54 joint-blend proxies at most.
+        assert_eq!(
+            candidates(&options, 54),
+            [9, 18, p].map(|p| joint_blend(p, k))
+        );
+        // Fewer than one proxy a sixth of the pool: left out.
+        assert_eq!(
+            candidates(&options, 3),
+            [1, p].map(|p| joint_blend(p, k))
+        );
+        assert_eq!(candidates(&options, 2), vec![joint_blend(p, k)]);
     }
 
     /// Per-pose scores of three candidates over four poses: the rule keeps the first that is
