@@ -1,8 +1,9 @@
 #version 450
 // Pose-space corrective weights (paper §8; docs/method.md §20): w = map · φ(q) per character,
 // φ[9i + 3r + c] = R_i[r][c] - δ_rc with R_i = rot(Q_p)ᵀ rot(Q_d) for driver i (bone d, its
-// parent p), rot the 3x3 of the bone transform. One invocation per (target n = x, character
-// = y); skin.comp adds Σ_n w_n target_n to the rest position. Models with correctives only.
+// parent p), rot the 3x3 of the bone transform (joint_features.glsl). One invocation per
+// (target n = x, character = y); skin.comp adds Σ_n w_n target_n to the rest position. Models
+// with correctives only.
 layout(local_size_x = 64) in;
 
 struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
@@ -15,30 +16,22 @@ layout(std430, set = 0, binding = 4) buffer CorrectiveWeights { float weights[];
 
 layout(push_constant) uniform Push { uint N; uint D; uint J; uint chars; } pc;
 
+#include "joint_features.glsl"
+
 void main() {
     uint n = gl_GlobalInvocationID.x;
     uint ch = gl_GlobalInvocationID.y;
     if (n >= pc.N || ch >= pc.chars) {
         return;
     }
-    uint base = ch * pc.J;
     uint width = 9u * pc.D;
     float w = 0.0;
     for (uint i = 0u; i < pc.D; i++) {
-        uint d = drivers[i];
-        Affine qd = bones[base + d];
-        Affine qp = bones[base + uint(parents[d])];
-        // Column r of Q_p (its rows' r-th entries) combines Q_d's rows into row r of R.
-        vec3 pr0 = vec3(qp.r0.x, qp.r1.x, qp.r2.x);
-        vec3 pr1 = vec3(qp.r0.y, qp.r1.y, qp.r2.y);
-        vec3 pr2 = vec3(qp.r0.z, qp.r1.z, qp.r2.z);
-        vec3 r0 = pr0.x * qd.r0.xyz + pr0.y * qd.r1.xyz + pr0.z * qd.r2.xyz - vec3(1.0, 0.0, 0.0);
-        vec3 r1 = pr1.x * qd.r0.xyz + pr1.y * qd.r1.xyz + pr1.z * qd.r2.xyz - vec3(0.0, 1.0, 0.0);
-        vec3 r2 = pr2.x * qd.r0.xyz + pr2.y * qd.r1.xyz + pr2.z * qd.r2.xyz - vec3(0.0, 0.0, 1.0);
+        mat3 phi = joint_features(ch, drivers[i]);
         uint m = n * width + 9u * i;
-        w += dot(vec3(map[m], map[m + 1u], map[m + 2u]), r0);
-        w += dot(vec3(map[m + 3u], map[m + 4u], map[m + 5u]), r1);
-        w += dot(vec3(map[m + 6u], map[m + 7u], map[m + 8u]), r2);
+        w += dot(vec3(map[m], map[m + 1u], map[m + 2u]), phi[0]);
+        w += dot(vec3(map[m + 3u], map[m + 4u], map[m + 5u]), phi[1]);
+        w += dot(vec3(map[m + 6u], map[m + 7u], map[m + 8u]), phi[2]);
     }
     // N4 = N rounded up to whole vec4s: each character's weights start 16-byte aligned.
     weights[ch * ((pc.N + 3u) & ~3u) + n] = w;

@@ -3,15 +3,16 @@
 // palette and before skinning: each corrected proxy T_e = [M | t] becomes, in place,
 // T'_e = T_e (I + E_e) = [M (I + A) | t + M b] with E_e = [A | b] = sum over features f of
 // x_f G_ef. The features of proxy e, driver after driver (b, its parent p, in order): if L,
-// phi_b = vec(R_b - I) row-major with R_b = rot(Q_p)^T rot(Q_b) (as corrective_weights.comp),
+// phi_b = vec(R_b - I) row-major with R_b = rot(Q_p)^T rot(Q_b) (joint_features.glsl),
 // then for each kernel centre c < C, exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b) with
 // z_cb the 9 floats of centre c * J + b and w_b = widths[b] (both terms computed alike: exactly
 // zero at the rest pose).
 //
 // One invocation per (FOUR characters, corrected proxy i = y): each map row G_f is loaded once
 // for four characters (CPU drivers pay every buffer load per lane, and the loads, not the
-// multiply-adds, are the pass's cost there), the four characters' features are the lanes of a vec4 x_f, and their
-// E rows accumulate as the columns of three mat4 (E_r += outer(G_f row r, x_f)). A workgroup's
+// multiply-adds, are the pass's cost there), the four characters' features are the lanes of a
+// vec4 x_f, and their E rows accumulate as the columns of three mat4 (E_r += outer(G_f row r,
+// x_f)). A workgroup's
 // invocations share the proxy, so loop bounds and map loads are uniform. Characters of an
 // invocation are 64 apart (adjacent invocations read adjacent characters). Models with proxy
 // correctives only.
@@ -28,18 +29,7 @@ layout(std430, set = 0, binding = 5) buffer Palette { Affine proxies[]; };      
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;
 
-// R_b - I of character ch with its rows as the columns (the row-major phi_b entry 3r + c is
-// [r][c]): column r of Q_p (its rows' r-th entries) combines Q_b's rows into row r of R.
-mat3 features(uint ch, uint b) {
-    Affine qb = bones[ch * pc.J + b];
-    Affine qp = bones[ch * pc.J + uint(parents[b])];
-    vec3 pr0 = vec3(qp.r0.x, qp.r1.x, qp.r2.x);
-    vec3 pr1 = vec3(qp.r0.y, qp.r1.y, qp.r2.y);
-    vec3 pr2 = vec3(qp.r0.z, qp.r1.z, qp.r2.z);
-    return mat3(pr0.x * qb.r0.xyz + pr0.y * qb.r1.xyz + pr0.z * qb.r2.xyz - vec3(1.0, 0.0, 0.0),
-                pr1.x * qb.r0.xyz + pr1.y * qb.r1.xyz + pr1.z * qb.r2.xyz - vec3(0.0, 1.0, 0.0),
-                pr2.x * qb.r0.xyz + pr2.y * qb.r1.xyz + pr2.z * qb.r2.xyz - vec3(0.0, 0.0, 1.0));
-}
+#include "joint_features.glsl"
 
 // |phi - z|^2 of one character, z the 9 floats of a kernel centre from z.
 float distance2(mat3 phi, uint z) {
@@ -88,10 +78,10 @@ void main() {
     uint widths = 9u * pc.C * pc.J;
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
-        mat3 f0 = features(ch.x, b);
-        mat3 f1 = features(ch.y, b);
-        mat3 f2 = features(ch.z, b);
-        mat3 f3 = features(ch.w, b);
+        mat3 f0 = joint_features(ch.x, b);
+        mat3 f1 = joint_features(ch.y, b);
+        mat3 f2 = joint_features(ch.z, b);
+        mat3 f3 = joint_features(ch.w, b);
         if (pc.L != 0u) {
             // phi_b's entries 3r + c, one map row each (written out: local matrices indexed
             // in a loop cost CPU drivers a round trip through memory per lane).
