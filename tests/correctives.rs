@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{random_model, random_poses, with_correctives, Spec};
+use common::{affine, random_model, random_poses, with_correctives, Spec};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::predict::{corrective_weights, Affine};
 use rrskin::{Correctives, Model, ModelParts};
@@ -63,18 +63,6 @@ fn the_weights_vanish_at_the_rest_pose() {
         corrective_weights(&model, &rest, &mut short),
         Err(rrskin::Error::WrongLength { .. })
     ));
-}
-
-/// Row-major 3x4 `[Q | d]`.
-fn affine(q: [[f64; 3]; 3], d: [f64; 3]) -> Affine {
-    let mut t = [0.0f32; 12];
-    for r in 0..3 {
-        for c in 0..3 {
-            t[4 * r + c] = q[r][c] as f32;
-        }
-        t[4 * r + 3] = d[r] as f32;
-    }
-    t
 }
 
 /// One vertex skinned to the root, a child bone driving one target: y = Q_0 (ŷ + w t) + d_0

@@ -6,7 +6,9 @@
 
 mod common;
 
-use common::{joint_blend_pattern, random_model, random_poses, with_proxy_correctives, Spec};
+use common::{
+    affine, joint_blend_pattern, random_model, random_poses, with_proxy_correctives, Spec,
+};
 use glam::{DMat4, DVec4};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
@@ -49,18 +51,6 @@ fn models() -> Vec<(String, Model)> {
         }
     }
     out
-}
-
-/// Row-major 3x4 `[Q | d]`.
-fn affine(q: [[f64; 3]; 3], d: [f64; 3]) -> Affine {
-    let mut t = [0.0f32; 12];
-    for r in 0..3 {
-        for c in 0..3 {
-            t[4 * r + c] = q[r][c] as f32;
-        }
-        t[4 * r + 3] = d[r] as f32;
-    }
-    t
 }
 
 /// One vertex on proxy 0, which follows the root (C2 copies bone 0); bone 1 (a child of the

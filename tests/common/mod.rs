@@ -15,6 +15,18 @@ pub fn random_model(spec: Spec, seed: u64) -> Model {
     rrskin_render::synthetic::random_model(spec, seed).expect("the generator makes valid models")
 }
 
+/// Row-major 3x4 `[Q | d]`, the layout of a bone transform.
+pub fn affine(q: [[f64; 3]; 3], d: [f64; 3]) -> rrskin::predict::Affine {
+    let mut t = [0.0f32; 12];
+    for r in 0..3 {
+        for c in 0..3 {
+            t[4 * r + c] = q[r][c] as f32;
+        }
+        t[4 * r + 3] = d[r] as f32;
+    }
+    t
+}
+
 /// A headless context on the default device with validation + synchronization validation.
 pub fn validated_context() -> Context {
     Context::new(&ContextDesc {

@@ -307,10 +307,7 @@ mod tests {
             [9, 18, p].map(|p| joint_blend(p, k))
         );
         // Fewer than one proxy a sixth of the pool: left out.
-        assert_eq!(
-            candidates(&options, 3),
-            [1, p].map(|p| joint_blend(p, k))
-        );
+        assert_eq!(candidates(&options, 3), [1, p].map(|p| joint_blend(p, k)));
         assert_eq!(candidates(&options, 2), vec![joint_blend(p, k)]);
     }
 
