@@ -12,10 +12,9 @@
 // for four characters (CPU drivers pay every buffer load per lane, and the loads, not the
 // multiply-adds, are the pass's cost there), the four characters' features are the lanes of a
 // vec4 x_f, and their E rows accumulate as the columns of three mat4 (E_r += outer(G_f row r,
-// x_f)). A workgroup's
-// invocations share the proxy, so loop bounds and map loads are uniform. Characters of an
-// invocation are 64 apart (adjacent invocations read adjacent characters). Models with proxy
-// correctives only.
+// x_f)). A workgroup's invocations share the proxy, so loop bounds and map loads are uniform.
+// Characters of an invocation are 64 apart (adjacent invocations read adjacent characters).
+// Models with proxy correctives only.
 layout(local_size_x = 64) in;
 
 struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major

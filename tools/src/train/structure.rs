@@ -93,7 +93,6 @@ pub fn candidates(options: &TrainOptions, pool: usize) -> Vec<Structure> {
         .filter(|&fewer| fewer > 0)
         .map(joint_blend)
         .collect();
-    out.dedup();
     out.push(joint_blend(p));
     if pool > p {
         out.push(joint_blend(p + p / 2));
