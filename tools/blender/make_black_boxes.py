@@ -3,7 +3,7 @@ CesiumMan glb and exported with export_examples.py (the first-party exporter):
 
     blender -b --factory-startup --python-exit-code 1 --python tools/blender/make_black_boxes.py \\
         -- --out DIR [--sets muscle,cage,smooth,soft] [--poses 40] [--seed 7] [--glb FILE]
-        [--save-blend]
+        [--swing 40] [--twist 60] [--save-blend]
 
 writes DIR/cesium_muscle, DIR/cesium_cage, DIR/cesium_smooth and DIR/cesium_soft (the layout of
 data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`):
@@ -22,11 +22,11 @@ data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`
   a function of the pose alone: flesh sags with the limb's orientation and the skin resists
   LBS's collapse at twisted joints.
 
-Every set: pose 0 the rest pose, --poses random range-of-motion poses (swing <= 40 deg, twist
-<= +-60 deg, numpy seeded by --seed; the same poses in every set), then the glb's own walk
-(Anim_0, 48 frames) as held-out test poses. Deterministic up to float rounding (Blender's
-threaded evaluation: runs differ by at most 2e-7 m). --save-blend also writes DIR/<set>.blend
-(the rig, for a look in Blender).
+Every set: pose 0 the rest pose, --poses random range-of-motion poses (export_examples.py's:
+swing <= --swing deg, twist <= +-(--twist) deg, numpy seeded by --seed; the same poses in every
+set), then the glb's own walk (Anim_0, 48 frames) as held-out test poses. Deterministic up to
+float rounding (Blender's threaded evaluation: runs differ by at most 2e-7 m). --save-blend also
+writes DIR/<set>.blend (the rig, for a look in Blender).
 """
 
 import math
@@ -367,7 +367,7 @@ def soften(folder, bone_names):
 BUILDERS = {"muscle": build_muscle, "cage": build_cage, "smooth": build_smooth, "soft": build_soft}
 
 
-def make_set(name, out_dir, glb, poses, seed, save_blend):
+def make_set(name, out_dir, glb, poses, seed, save_blend, swing, twist):
     t0 = time.time()
     arm, body = import_character(glb)
     what = BUILDERS[name](arm, body)
@@ -375,8 +375,8 @@ def make_set(name, out_dir, glb, poses, seed, save_blend):
     os.makedirs(out_dir, exist_ok=True)
     if save_blend:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(folder + ".blend"))
-    summary = ex.export_examples(bpy.context, folder, poses=poses, seed=seed,
-                                 test_action=TEST_ACTION, mesh=body.name,
+    summary = ex.export_examples(bpy.context, folder, poses=poses, seed=seed, swing=swing,
+                                 twist=twist, test_action=TEST_ACTION, mesh=body.name,
                                  log=lambda t: say(f"{name}: {t}"))
     if name == "soft":
         say(f"{name}: " + soften(folder, [b.name for b in ex.deform_bones(arm)[0]]))
@@ -392,6 +392,8 @@ def main(argv):
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--glb", default=GLB)
     p.add_argument("--save-blend", action="store_true")
+    p.add_argument("--swing", type=float, default=40.0, help="largest swing, degrees (40)")
+    p.add_argument("--twist", type=float, default=60.0, help="largest twist, degrees (60)")
     args = p.parse_args(argv)
     names = [s for s in args.sets.split(",") if s]
     unknown = [s for s in names if s not in BUILDERS]
@@ -401,7 +403,7 @@ def main(argv):
         return 1
     for name in names:
         make_set(name, args.out, os.path.abspath(args.glb), args.poses, args.seed,
-                 args.save_blend)
+                 args.save_blend, args.swing, args.twist)
     return 0
 
 

@@ -455,9 +455,10 @@ fn a_trained_model_file_evaluates_as_trained() {
     assert_eq!(corrected["basis"], "linear", "{trained}");
     assert!(corrected["proxies"].as_u64() > Some(0), "{trained}");
     assert_eq!(info["proxy_correctives"], corrected["proxies"], "{info}");
+    assert!(corrected["anchor"].is_number(), "{trained}");
     assert!(
-        (corrected["candidates"].as_array()).is_some_and(|c| c.len() == 8),
-        "one candidate per ridge: {trained}"
+        (corrected["candidates"].as_array()).is_some_and(|c| c.len() == 3 * 8),
+        "one candidate per anchor and ridge: {trained}"
     );
     // The CPU palette of the trained file agrees with the reference playing its animation
     // (tests/palette.rs's tolerance).

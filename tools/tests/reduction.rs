@@ -645,3 +645,60 @@ fn the_proxy_corrective_fit_recovers_a_known_correction() {
     assert!(before > 1e-4, "the correction moves the mesh ({before})");
     assert!(after < 1e-2 * before, "without {before}, with {after}");
 }
+
+/// The best proxy transforms anchored to the predicted ones (the proxy correctives' targets):
+/// they trade vertex fit for nearness to the anchor, monotonically in μ, and a strong anchor
+/// returns the anchor itself.
+#[test]
+fn anchored_best_transforms_move_toward_the_anchor() {
+    let (set, trained) = chain_with_four_proxies();
+    let reduced = trained.reduced.clone().expect("a reduced model");
+    let train = set.train();
+    let anchor: Vec<Vec<Bone>> = (train.iter())
+        .map(|&i| reduced.predict_proxies(&set, &trained.feats[i], &set.poses[i].bones))
+        .collect();
+    // (vertex error, squared distance to the anchor) summed over the training poses.
+    let measure = |mu: Option<f64>| -> (f64, f64) {
+        let best = reduced.best_transforms(&set, &train, mu.map(|m| (anchor.as_slice(), m)));
+        let mut out = (0.0, 0.0);
+        for ((&i, t), a) in train.iter().zip(&best).zip(&anchor) {
+            let y = reduced.skin_with(&set, t, &set.poses[i].bones);
+            out.0 += (y.iter().zip(&set.poses[i].vertices))
+                .map(|(p, q)| (*p - *q).length_squared())
+                .sum::<f64>();
+            out.1 += (t.iter().zip(a))
+                .map(|(t, a)| {
+                    let m = t.q - a.q;
+                    m.x_axis.length_squared()
+                        + m.y_axis.length_squared()
+                        + m.z_axis.length_squared()
+                        + (t.d - a.d).length_squared()
+                })
+                .sum::<f64>();
+        }
+        out
+    };
+    let runs: Vec<(f64, f64)> = [None, Some(1e-3), Some(1e-1), Some(1e3)]
+        .into_iter()
+        .map(measure)
+        .collect();
+    eprintln!("(vertex error, distance to the anchor): {runs:?}");
+    for w in runs.windows(2) {
+        assert!(
+            w[1].0 >= w[0].0 * (1.0 - 1e-9),
+            "the fit gets no better: {runs:?}"
+        );
+        assert!(
+            w[1].1 <= w[0].1 * (1.0 + 1e-9),
+            "nearer the anchor: {runs:?}"
+        );
+    }
+    assert!(
+        runs[0].1 > 1e-6,
+        "the unanchored fit moves off the prediction: {runs:?}"
+    );
+    assert!(
+        runs[3].1 < 1e-4 * runs[0].1,
+        "a strong anchor holds: {runs:?}"
+    );
+}

@@ -19,7 +19,7 @@ use glam::{DMat3, DVec3};
 pub fn oracle_meshes(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> Vec<Vec<DVec3>> {
     poses
         .iter()
-        .zip(reduced.best_transforms(set, poses))
+        .zip(reduced.best_transforms(set, poses, None))
         .map(|(&i, t)| reduced.skin_with(set, &t, &set.poses[i].bones))
         .collect()
 }
@@ -28,7 +28,7 @@ pub fn oracle_meshes(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> Ve
 pub fn oracle_key_meshes(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> Vec<Vec<DVec3>> {
     poses
         .iter()
-        .zip(reduced.best_transforms(set, poses))
+        .zip(reduced.best_transforms(set, poses, None))
         .map(|(&i, t)| {
             let keys: Vec<DMat3> = t.iter().map(|b| b.q).collect();
             reduced.predict_with_keys(set, &keys, &set.poses[i].bones)

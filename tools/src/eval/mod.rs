@@ -138,12 +138,13 @@ impl Report {
                     .collect::<Vec<_>>(),
             })),
             "proxy_correctives": self.proxy_correctives.as_ref().map(|f| serde_json::json!({
-                "basis": f.chosen.map(|c| basis_name(c.0)),
-                "ridge": f.chosen.map(|c| c.1),
+                "anchor": f.chosen.map(|c| c.anchor),
+                "basis": f.chosen.map(|c| basis_name(c.basis)),
+                "ridge": f.chosen.map(|c| c.ridge),
                 "proxies": f.correctives.as_ref().map_or(0, |c| c.proxies.len()),
                 "uncorrected": {"score": f.uncorrected.0, "standard_error": f.uncorrected.1},
                 "candidates": f.candidates.iter()
-                    .map(|(b, r, (score, se))| serde_json::json!({"basis": basis_name(*b), "ridge": r, "score": score, "standard_error": se}))
+                    .map(|(c, (score, se))| serde_json::json!({"anchor": c.anchor, "basis": basis_name(c.basis), "ridge": c.ridge, "score": score, "standard_error": se}))
                     .collect::<Vec<_>>(),
             })),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
@@ -249,11 +250,16 @@ impl Report {
         }
         if let Some(f) = &self.proxy_correctives {
             s += &match (f.chosen, &f.correctives) {
-                (Some((basis, r)), Some(c)) => format!(
-                    "proxy correctives: {} of {} proxies corrected, {} basis, ridge {r:e} ({chosen})\n",
+                (Some(k), Some(c)) => format!(
+                    "proxy correctives: {} of {} proxies corrected, {} basis, ridge {:e}, targets anchored {} ({chosen})\n",
                     c.proxies.len(),
                     self.reduced_proxies.unwrap_or(0),
-                    basis_name(basis)
+                    basis_name(k.basis),
+                    k.ridge,
+                    match k.anchor {
+                        0.0 => "none".to_string(),
+                        mu => format!("{mu:e}"),
+                    }
                 ),
                 _ => format!("proxy correctives: none ({chosen})\n"),
             };

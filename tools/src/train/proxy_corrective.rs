@@ -8,6 +8,9 @@
 //! 1. **Targets.** Per training pose, the proxy transforms T* that fit the mesh best with the
 //!    trained weights ([`Reduced::best_transforms`]) and the predicted T: the correction that
 //!    makes T exact is `E* = T⁻¹ T* − I`, in T's rest frame, so it does not follow the heading.
+//!    Optionally T* is anchored to T (a ridge μ toward it): where proxies share vertices, the
+//!    plain least squares leaves directions the mesh barely determines, and fills them with
+//!    per-pose noise that no function of the pose fits.
 //! 2. **Features** of driver b, zero at rest (so the rest pose stays exact): φ_b = vec(R_b − I)
 //!    (as [`corrective::features`]), and with kernels, per training pose c,
 //!    `exp(−|φ_b − φ_b(q_c)|² / w_b) − exp(−|φ_b(q_c)|² / w_b)` (pose-space RBFs as in Lewis et
@@ -16,9 +19,10 @@
 //!    bones carrying at least [`SHARE`] of its vertices' SSD weight, and their children (a muscle
 //!    bulges with the joint below it).
 //! 3. **Ridge regression per proxy**, 12 outputs from F_e features, λ times the proxy's mean
-//!    Gram diagonal. The basis (linear, or linear and kernels) and λ are chosen together by
-//!    k-fold cross-validation on the training poses, scored by the pose-relative vertex error of
-//!    §18 ([`pose_scale`]), the simpler basis and the stronger ridge first.
+//!    Gram diagonal. The anchor μ ([`ANCHORS`]), the basis (linear, or linear and kernels) and
+//!    λ are chosen together by k-fold cross-validation on the training poses, scored by the
+//!    pose-relative vertex error of §18 ([`pose_scale`]), in the order unanchored first, the
+//!    simpler basis and the stronger ridge first.
 
 use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::DenseCholesky;
@@ -35,6 +39,10 @@ pub const RIDGES: [f64; 8] = [1000.0, 100.0, 10.0, 1.0, 0.1, 0.01, 1e-3, 1e-4];
 
 /// A bone drives a proxy when it carries this share of the proxy's vertices' SSD weight.
 pub const SHARE: f64 = 0.1;
+
+/// The anchors tried for the targets (μ of [`Reduced::best_transforms`], relative to its
+/// normal matrix's mean diagonal), unanchored first.
+pub const ANCHORS: [f64; 3] = [0.0, 1e-3, 1e-2];
 
 /// Below this |det M| a predicted proxy transform is taken as singular: no target there.
 const SINGULAR: f64 = 1e-9;
@@ -68,14 +76,24 @@ pub struct Corrected {
     pub map: Vec<f64>,
 }
 
+/// One setting the cross-validation of [`fit`] scores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Candidate {
+    /// μ of the targets' anchor to the predicted proxies ([`ANCHORS`]; 0: unanchored).
+    pub anchor: f64,
+    pub basis: Basis,
+    /// λ ([`RIDGES`]).
+    pub ridge: f64,
+}
+
 /// What [`fit`] chose: the score (mean, standard error) of the uncorrected proxies, every
-/// candidate's (basis, ridge, score) in the order considered, and the best (None where nothing
-/// beats no correction).
+/// candidate's score in the order considered, and the one kept (None where nothing beats no
+/// correction).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
     pub uncorrected: (f64, f64),
-    pub candidates: Vec<(Basis, f64, (f64, f64))>,
-    pub chosen: Option<(Basis, f64)>,
+    pub candidates: Vec<(Candidate, (f64, f64))>,
+    pub chosen: Option<Candidate>,
     pub correctives: Option<ProxyCorrectives>,
 }
 
@@ -220,13 +238,15 @@ pub fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<u
 /// The training poses as the fit sees them (in `train` order).
 struct Poses {
     predicted: Vec<Vec<Bone>>,
-    /// Per pose and proxy: E*.
-    targets: Vec<Vec<Option<[f64; 12]>>>,
+    /// Per anchor ([`ANCHORS`]), pose and proxy: E*.
+    targets: Vec<Vec<Vec<Option<[f64; 12]>>>>,
     phi: Vec<Vec<[f64; 9]>>,
 }
 
-/// Ridge regression of E* per proxy over the poses `fit` (indices into `poses`).
+/// Ridge regression of E* (the targets of `targets`, an index into [`ANCHORS`]) per proxy over
+/// the poses `fit` (indices into `poses`).
 fn regress(
+    targets: usize,
     basis: Basis,
     drivers: &[Vec<usize>],
     poses: &Poses,
@@ -239,7 +259,7 @@ fn regress(
         let f = d.len() * (9 + out.centres.len());
         let (mut gram, mut rhs) = (vec![0.0; f * f], vec![0.0; f * 12]);
         for &i in fit {
-            let Some(target) = poses.targets[i][e] else {
+            let Some(target) = poses.targets[targets][i][e] else {
                 continue;
             };
             out.features(d, &poses.phi[i], &mut x);
@@ -274,8 +294,8 @@ fn regress(
     out
 }
 
-/// Fits the proxy correctives of `reduced` on the training poses `train`, basis (the kernels
-/// only with `options.proxy_kernels`) and ridge chosen by `options.folds`-fold
+/// Fits the proxy correctives of `reduced` on the training poses `train`, anchor, basis (the
+/// kernels only with `options.proxy_kernels`) and ridge chosen by `options.folds`-fold
 /// cross-validation; `rigid` normalises each held-out pose's error. None is chosen where no
 /// candidate beats the uncorrected proxies.
 pub fn fit(
@@ -289,24 +309,27 @@ pub fn fit(
 ) -> Fit {
     let kernels = options.proxy_kernels;
     let drivers = drivers(set, ssd, reduced);
-    let best = reduced.best_transforms(set, train);
-    let mut poses = Poses {
-        predicted: Vec::new(),
-        targets: Vec::new(),
-        phi: Vec::new(),
+    let predicted: Vec<Vec<Bone>> = (train.iter())
+        .map(|&i| reduced.predict_proxies(set, &feats[i], &set.poses[i].bones))
+        .collect();
+    let targets = ANCHORS
+        .iter()
+        .map(|&mu| {
+            let anchor = (mu > 0.0).then_some((predicted.as_slice(), mu));
+            let best = reduced.best_transforms(set, train, anchor);
+            (predicted.iter().zip(&best))
+                .map(|(p, best)| p.iter().zip(best).map(|(t, b)| target(t, b)).collect())
+                .collect()
+        })
+        .collect();
+    let poses = Poses {
+        targets,
+        phi: train
+            .iter()
+            .map(|&i| corrective::features(set, &feats[i]))
+            .collect(),
+        predicted,
     };
-    for (&i, best) in train.iter().zip(&best) {
-        let predicted = reduced.predict_proxies(set, &feats[i], &set.poses[i].bones);
-        poses.targets.push(
-            predicted
-                .iter()
-                .zip(best)
-                .map(|(t, b)| target(t, b))
-                .collect(),
-        );
-        poses.predicted.push(predicted);
-        poses.phi.push(corrective::features(set, &feats[i]));
-    }
     let all: Vec<usize> = (0..train.len()).collect();
     let folds = options.folds.min(train.len());
     let mut out = Fit {
@@ -339,33 +362,43 @@ pub fn fit(
         true => &[Basis::Linear, Basis::Kernels],
         false => &[Basis::Linear],
     };
-    let grid: Vec<(Basis, f64)> = (bases.iter())
-        .flat_map(|&b| RIDGES.map(|r| (b, r)))
+    let grid: Vec<(usize, Candidate)> = (ANCHORS.iter().enumerate())
+        .flat_map(|(a, &anchor)| {
+            (bases.iter()).flat_map(move |&basis| {
+                RIDGES.map(|ridge| {
+                    let c = Candidate {
+                        anchor,
+                        basis,
+                        ridge,
+                    };
+                    (a, c)
+                })
+            })
+        })
         .collect();
-    for &(basis, ridge) in &grid {
+    for &(a, c) in &grid {
         let mut per_pose = vec![0.0; all.len()];
         for fold in 0..folds {
             let (held, kept): (Vec<usize>, Vec<usize>) =
                 all.iter().partition(|&&k| k % folds == fold);
-            let c = regress(basis, &drivers, &poses, &kept, ridge);
+            let fitted = regress(a, c.basis, &drivers, &poses, &kept, c.ridge);
             for k in held {
-                per_pose[k] = held_error(k, Some(&c));
+                per_pose[k] = held_error(k, Some(&fitted));
             }
         }
         relative.push(per_pose);
     }
     let scores = pose_scale::scores(&relative);
-    out.chosen = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
+    let chosen = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
         .and_then(|c| c.checked_sub(1))
         .map(|c| grid[c]);
-    out.correctives = (out.chosen)
-        .map(|(basis, ridge)| regress(basis, &drivers, &poses, &all, ridge))
+    out.chosen = chosen.map(|(_, c)| c);
+    out.correctives = chosen
+        .map(|(a, c)| regress(a, c.basis, &drivers, &poses, &all, c.ridge))
         .filter(|c| !c.proxies.is_empty());
     out.uncorrected = scores[0];
-    out.candidates = grid
-        .iter()
-        .zip(&scores[1..])
-        .map(|(&(b, r), &s)| (b, r, s))
+    out.candidates = (grid.iter().zip(&scores[1..]))
+        .map(|(&(_, c), &s)| (c, s))
         .collect();
     out
 }

@@ -252,16 +252,26 @@ impl Reduced {
     /// Per pose of `poses`, the P proxy transforms that fit the vertices best with the trained
     /// weights (the bones' share of each vertex is known), by least squares: the ceiling of the
     /// runtime form (docs/method.md §19) and the targets of the proxy correctives.
-    pub fn best_transforms(&self, set: &ExampleSet, poses: &[usize]) -> Vec<Vec<Bone>> {
+    ///
+    /// `anchor`: per pose (in `poses` order) P transforms and a strength μ: a ridge of μ times
+    /// the normal matrix's mean diagonal pulls the solution toward them, so that what the
+    /// vertices leave undetermined (proxies that share their vertices) stays at the anchor
+    /// instead of taking the least-squares noise. None: toward zero, with a weak ridge that only
+    /// keeps proxies without free vertices determined (at zero: they move nothing).
+    pub fn best_transforms(
+        &self,
+        set: &ExampleSet,
+        poses: &[usize],
+        anchor: Option<(&[Vec<Bone>], f64)>,
+    ) -> Vec<Vec<Bone>> {
         let p = self.proxies;
         let n4p = 4 * p;
         let normal = self.proxy_normal_matrix(set);
         let mut gram = Mat::<f64>::from_fn(n4p, n4p, |r, c| normal[r * n4p + c]);
-        // A weak ridge keeps proxies without free vertices determined (at zero: they move
-        // nothing).
         let trace = (0..n4p).map(|d| gram[(d, d)]).sum::<f64>() / n4p.max(1) as f64;
+        let ridge = anchor.map_or(1e-9, |a| a.1.max(1e-9)) * trace.max(1e-300);
         for d in 0..n4p {
-            gram[(d, d)] += 1e-9 * trace.max(1e-300);
+            gram[(d, d)] += ridge;
         }
         let zero = Bone {
             q: DMat3::ZERO,
@@ -272,9 +282,18 @@ impl Reduced {
         };
         poses
             .iter()
-            .map(|&i| {
+            .enumerate()
+            .map(|(k, &i)| {
                 let (targets, _) = self.proxy_targets(set, &set.poses[i]);
-                let rhs = Mat::<f64>::from_fn(n4p, 3, |r, c| targets[r][c]);
+                // Row 4e + x of the unknowns is column x of [M_e | t_e] (x = 3: t_e).
+                let prior = |r: usize, c: usize| match anchor {
+                    None => 0.0,
+                    Some((a, _)) => match r % 4 {
+                        3 => ridge * a[k][r / 4].d[c],
+                        x => ridge * a[k][r / 4].q.col(x)[c],
+                    },
+                };
+                let rhs = Mat::<f64>::from_fn(n4p, 3, |r, c| targets[r][c] + prior(r, c));
                 let t = llt.solve(&rhs);
                 (0..p)
                     .map(|e| Bone {
