@@ -162,8 +162,8 @@ struct TrainArgs {
     #[arg(long)]
     no_proxy_correctives: bool,
     /// Also offer the proxy correctives a kernel per training pose (pose-space RBFs; the
-    /// cross-validation still decides), at a run-time cost per kernel: held out, a few tenths
-    /// better on some rigs and worse on others (docs/experiments.md).
+    /// cross-validation still decides), at a run-time cost per kernel: held out, no better than
+    /// without on the rigs measured and worse on some (docs/experiments.md).
     #[arg(long)]
     proxy_kernels: bool,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
