@@ -140,11 +140,12 @@ pub fn corrective_weights(model: &Model, bones: &[Affine], out: &mut [f64]) -> R
 }
 
 /// The kernel feature of the proxy correctives (docs/method.md §21): `exp(−|φ − z|² / w) −
-/// exp(−|z|² / w)`, zero at φ = 0 (both terms are computed alike, so exactly zero there).
-pub fn kernel_feature(phi: &[f64; 9], z: &[f32; 9], w: f64) -> f64 {
+/// exp(−|z|² / w)`, zero at φ = 0 (both terms are computed alike, so exactly zero there). The
+/// centre z as the model stores it (f32) or as training fits it (f64).
+pub fn kernel_feature<Z: Copy + Into<f64>>(phi: &[f64; 9], z: &[Z; 9], w: f64) -> f64 {
     let (mut d2, mut r2) = (0.0, 0.0);
     for (&f, &z) in phi.iter().zip(z) {
-        let z = f64::from(z);
+        let z: f64 = z.into();
         d2 += (f - z) * (f - z);
         r2 += (0.0 - z) * (0.0 - z);
     }

@@ -132,13 +132,11 @@ impl ProxyCorrectives {
         for &b in drivers {
             out.extend(phi[b]);
             for z in &self.centres {
-                let d2: f64 = z[b]
-                    .iter()
-                    .zip(&phi[b])
-                    .map(|(x, y)| (x - y) * (x - y))
-                    .sum();
-                let w = self.widths[b];
-                out.push((-d2 / w).exp() - (-squared(&z[b]) / w).exp());
+                out.push(rrskin::predict::kernel_feature(
+                    &phi[b],
+                    &z[b],
+                    self.widths[b],
+                ));
             }
         }
     }
