@@ -4,9 +4,8 @@
 
 mod common;
 
-use common::{affine, random_model, random_poses, with_correctives, Spec};
-use rrskin::cpu::CpuEvaluator;
-use rrskin::predict::{corrective_weights, Affine};
+use common::{affine, cpu_reference, random_model, random_poses, with_correctives, Spec};
+use rrskin::predict::corrective_weights;
 use rrskin::{Correctives, Model, ModelParts};
 
 const SPEC: Spec = Spec {
@@ -15,15 +14,6 @@ const SPEC: Spec = Spec {
     proxies: 4,
     influences: 4,
 };
-
-fn evaluate(model: &Model, bones: &[Affine]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-    let n = bones.len() / model.bone_count() * model.vertex_count();
-    let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
-    CpuEvaluator::new(model)
-        .evaluate(bones, &mut p, &mut nrm)
-        .expect("CPU evaluation");
-    (p, nrm)
-}
 
 #[test]
 fn a_zero_map_gives_the_model_without_correctives() {
@@ -37,13 +27,13 @@ fn a_zero_map_gives_the_model_without_correctives() {
         assert_eq!(zero.corrective_count(), 5);
         let bones = random_poses(&plain, 6, 2);
         assert_eq!(
-            evaluate(&zero, &bones),
-            evaluate(&plain, &bones),
+            cpu_reference(&zero, &bones),
+            cpu_reference(&plain, &bones),
             "P = {proxies}"
         );
         // And the non-zero map does change the shape (the comparison above is not vacuous).
-        let (moved, _) = evaluate(&corrected, &bones);
-        let (still, _) = evaluate(&plain, &bones);
+        let (moved, _) = cpu_reference(&corrected, &bones);
+        let (still, _) = cpu_reference(&plain, &bones);
         let largest = (moved.iter().zip(&still))
             .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
             .fold(0.0, f32::max);
@@ -109,7 +99,7 @@ fn one_vertex_and_one_driver_match_the_formula() {
     let x = [1.0 + w * 0.1, 2.0 - w * 0.2, 3.0 + w * 0.3];
     // Q_0 x + d_0 = (−x_y + 1, x_x, x_z).
     let want = [1.0 - x[1], x[0], x[2]];
-    let (p, n) = evaluate(&model, &bones);
+    let (p, n) = cpu_reference(&model, &bones);
     for i in 0..3 {
         assert!(
             (p[0][i] as f64 - want[i]).abs() < 1e-5,

@@ -7,12 +7,12 @@
 mod common;
 
 use common::{
-    affine, joint_blend_pattern, random_model, random_poses, with_proxy_correctives, Spec,
+    affine, cpu_reference, joint_blend_pattern, random_model, random_poses, with_proxy_correctives,
+    Spec,
 };
 use glam::{DMat4, DVec4};
-use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
-use rrskin::predict::{apply_proxy_correctives, kernel_feature, rotation_features, Affine};
+use rrskin::predict::{apply_proxy_correctives, kernel_feature, rotation_features};
 use rrskin::{Error, KeyPredictor, Model, ModelParts, ProxyCorrectives};
 
 const SPEC: Spec = Spec {
@@ -21,15 +21,6 @@ const SPEC: Spec = Spec {
     proxies: 5,
     influences: 4,
 };
-
-fn evaluate(model: &Model, bones: &[Affine]) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-    let n = bones.len() / model.bone_count() * model.vertex_count();
-    let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
-    CpuEvaluator::new(model)
-        .evaluate(bones, &mut p, &mut nrm)
-        .expect("CPU evaluation");
-    (p, nrm)
-}
 
 fn without(model: &Model) -> Model {
     Model::new(ModelParts {
@@ -118,7 +109,7 @@ fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
     assert!(k.abs() > 0.05, "the kernel is not negligible here: {k}");
     // x + A x + b = (1 + gk k + g1 c, 2, 3); Q_0 u + d_0 = (−u_y + 1, u_x, u_z).
     let want = [-1.0, 1.0 + gk as f64 * k + g1 as f64 * c, 3.0];
-    let (p, _) = evaluate(&model, &bones);
+    let (p, _) = cpu_reference(&model, &bones);
     let palette = Palette::new(model.clone()).expect("palette");
     let mut entries = [[0.0f32; 12]; 3];
     palette.compute(&bones, &mut entries).expect("palette");
@@ -224,10 +215,14 @@ fn a_zero_map_changes_nothing_and_the_map_does() {
         c.maps.iter_mut().for_each(|g| *g = 0.0);
         let zero = Model::new(parts).expect("valid");
         let bones = random_poses(&plain, 6, 2);
-        assert_eq!(evaluate(&zero, &bones), evaluate(&plain, &bones), "{what}");
+        assert_eq!(
+            cpu_reference(&zero, &bones),
+            cpu_reference(&plain, &bones),
+            "{what}"
+        );
         // The non-zero map does change the shape (the comparison above is not vacuous).
-        let (moved, _) = evaluate(&corrected, &bones);
-        let (still, _) = evaluate(&plain, &bones);
+        let (moved, _) = cpu_reference(&corrected, &bones);
+        let (still, _) = cpu_reference(&plain, &bones);
         let largest = (moved.iter().zip(&still))
             .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
             .fold(0.0, f32::max);
@@ -247,8 +242,8 @@ fn the_correction_is_exact_at_the_rest_pose() {
         let plain = without(&corrected);
         let rest = vec![REST; corrected.bone_count()];
         assert_eq!(
-            evaluate(&corrected, &rest),
-            evaluate(&plain, &rest),
+            cpu_reference(&corrected, &rest),
+            cpu_reference(&plain, &rest),
             "{what}"
         );
         let n = corrected.proxy_count() + corrected.bone_count();

@@ -27,6 +27,20 @@ pub fn affine(q: [[f64; 3]; 3], d: [f64; 3]) -> rrskin::predict::Affine {
     t
 }
 
+/// Positions and normals of the characters posed by `bones` (J transforms each), by the CPU
+/// reference evaluator.
+pub fn cpu_reference(
+    model: &Model,
+    bones: &[rrskin::predict::Affine],
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let n = bones.len() / model.bone_count() * model.vertex_count();
+    let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+    rrskin::cpu::CpuEvaluator::new(model)
+        .evaluate(bones, &mut p, &mut nrm)
+        .expect("CPU evaluation");
+    (p, nrm)
+}
+
 /// A headless context on the default device with validation + synchronization validation.
 pub fn validated_context() -> Context {
     Context::new(&ContextDesc {
