@@ -94,7 +94,9 @@ fn centre(w: &[(usize, f64)], pairs: &HashMap<(usize, usize), Vec<PairSample>>) 
                     continue;
                 }
                 // Both orders (j, k) and (k, j) of the sum over j ≠ k: the terms are equal.
-                let m = 2.0 * wj * wk * s.wj * s.wk * (-z * z).exp() * s.area;
+                // libm's exp, which inlines here: the platform's, one call per term, was 14x
+                // slower on human_heavy (19.8 s against 1.4 s), for the same figures.
+                let m = 2.0 * wj * wk * s.wj * s.wk * libm::exp(-z * z) * s.area;
                 moment += s.centroid * m;
                 mass += m;
             }
