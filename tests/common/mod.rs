@@ -41,6 +41,25 @@ pub fn cpu_reference(
     (p, nrm)
 }
 
+/// For a model term with a map (correctives, proxy correctives): `zero`, the model with that map
+/// zeroed, poses exactly as `plain` (the model without the term) does, and `corrected` (the map
+/// as it is) moves some vertex by more than 1e-3, so that the first comparison is not vacuous.
+pub fn assert_a_zero_map_changes_nothing(
+    plain: &Model,
+    zero: &Model,
+    corrected: &Model,
+    bones: &[rrskin::predict::Affine],
+    what: &str,
+) {
+    let still = cpu_reference(plain, bones);
+    assert_eq!(cpu_reference(zero, bones), still, "{what}");
+    let (moved, _) = cpu_reference(corrected, bones);
+    let largest = (moved.iter().zip(&still.0))
+        .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
+        .fold(0.0, f32::max);
+    assert!(largest > 1e-3, "{what}: the map moved {largest}");
+}
+
 /// A headless context on the default device with validation + synchronization validation.
 pub fn validated_context() -> Context {
     Context::new(&ContextDesc {
