@@ -578,6 +578,30 @@ fn the_corrective_fit_recovers_known_correctives() {
         fitted.drivers.len()
     );
     assert!(after < 1e-2 * before, "without {before}, with {after}");
+    // The error budget's pose-space ceiling is the same local model unreduced: it meets the
+    // held-out poses' offsets at least as well.
+    let held = corrective::Residuals::of(&set, &trained.feats, &model, &test).expect("evaluates");
+    let offsets = corrective::ceiling(
+        &set,
+        &trained.ssd,
+        &trained.rigid,
+        &train,
+        &residuals,
+        4,
+        &held,
+    );
+    let left = |fitted: &dyn Fn(usize, usize) -> DVec3| -> f64 {
+        let mut sum = 0.0;
+        for k in 0..held.delta.len() {
+            for a in 0..set.vertex_count() {
+                sum += (held.m[k][a] * (held.delta[k][a] - fitted(k, a))).length_squared();
+            }
+        }
+        sum
+    };
+    let (plain, ceiling) = (left(&|_, _| DVec3::ZERO), left(&|k, a| offsets[k][a]));
+    eprintln!("held-out Σ|Δ|²: without {plain:.3e}, pose-space ceiling {ceiling:.3e}");
+    assert!(ceiling < 1e-2 * plain, "without {plain}, ceiling {ceiling}");
 }
 
 #[test]

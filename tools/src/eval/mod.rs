@@ -46,6 +46,9 @@ pub struct Budget {
     pub full_exact: Errors,
     pub reduced_oracle: Errors,
     pub reduced_oracle_keys: Errors,
+    /// The runtime model with the unreduced per-vertex pose-space correction learnt from the
+    /// training poses ([`diagnose::pose_space_meshes`]).
+    pub pose_space: Errors,
 }
 
 #[derive(Debug, Clone)]
@@ -151,6 +154,7 @@ impl Report {
                 "full_exact_gradients": errors(&b.full_exact),
                 "reduced_oracle_proxies": errors(&b.reduced_oracle),
                 "reduced_oracle_keys": errors(&b.reduced_oracle_keys),
+                "pose_space": errors(&b.pose_space),
             })),
             "seconds": {
                 "ssd": self.seconds(&["ssd"]),
@@ -211,7 +215,7 @@ impl Report {
             s += &structure_line(c);
         }
         if let Some(b) = &self.budget {
-            s += "error budget (oracle ceilings):\n";
+            s += "error budget (oracle ceilings, then what the training poses support):\n";
             row(&mut s, "  full model, exact gradients", &b.full_exact);
             row(&mut s, "  runtime form, oracle proxies", &b.reduced_oracle);
             row(
@@ -219,6 +223,7 @@ impl Report {
                 "  runtime form, oracle keys",
                 &b.reduced_oracle_keys,
             );
+            row(&mut s, "  model + per-vertex pose-space", &b.pose_space);
         }
         let chosen = match self.folds {
             0 | 1 => "fixed: too few training poses to cross-validate".to_string(),
@@ -491,18 +496,25 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     let mut rr_reduced = runtime
         .map(|m| runtime_errors(set, m, &train, &test, rigid))
         .transpose()?;
-    let budget = match (&trained.reduced, full, options.diagnose) {
-        (Some(reduced), Some(f), true) => {
+    let budget = match (&trained.reduced, full, runtime, options.diagnose) {
+        (Some(reduced), Some(f), Some(model), true) => {
             let exact = |p: &[usize]| {
                 f.model.reconstruct(set, &trained.ssd, p, |i, k| {
                     let (r, s) = f.prep.polar[i][k];
                     r * s
                 })
             };
+            let folds = options.train.folds;
+            let [fitted, held] =
+                diagnose::pose_space_meshes(set, &trained, model, &train, &test, folds)?;
             Some(Budget {
                 full_exact: errors(&exact),
                 reduced_oracle: errors(&|p| diagnose::oracle_meshes(set, reduced, p)),
                 reduced_oracle_keys: errors(&|p| diagnose::oracle_key_meshes(set, reduced, p)),
+                pose_space: Errors {
+                    train: enveloping_error(set, &train, &fitted, rigid),
+                    test: (!test.is_empty()).then(|| enveloping_error(set, &test, &held, rigid)),
+                },
             })
         }
         _ => None,

@@ -91,9 +91,10 @@ pub fn drivers(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
         .collect()
 }
 
-/// The training poses as the fit sees them: per pose (in `poses` order) the rest-space residuals
-/// δ, the blended 3x3s M and the features.
+/// The training poses as the fit sees them: per pose (in `poses` order) the model's vertices, the
+/// rest-space residuals δ, the blended 3x3s M and the features.
 pub struct Residuals {
+    pub positions: Vec<Vec<DVec3>>,
     pub delta: Vec<Vec<DVec3>>,
     pub m: Vec<Vec<DMat3>>,
     pub phi: Vec<Vec<[f64; 9]>>,
@@ -114,6 +115,7 @@ impl Residuals {
         let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
         let mut entries = vec![[0.0f32; 12]; palette.len()];
         let mut out = Residuals {
+            positions: Vec::new(),
             delta: Vec::new(),
             m: Vec::new(),
             phi: Vec::new(),
@@ -126,15 +128,14 @@ impl Residuals {
             let m: Vec<DMat3> = (0..v)
                 .map(|a| rrskin::predict::rotation_of(&skin.blended(a, &entries)))
                 .collect();
+            let positions: Vec<DVec3> = pos.iter().map(|p| DVec3::from(p.map(f64::from))).collect();
             let delta = (0..v)
                 .map(|a| match m[a].determinant().abs() > SINGULAR {
-                    true => {
-                        m[a].inverse()
-                            * (set.poses[i].vertices[a] - DVec3::from(pos[a].map(f64::from)))
-                    }
+                    true => m[a].inverse() * (set.poses[i].vertices[a] - positions[a]),
                     false => DVec3::ZERO,
                 })
                 .collect();
+            out.positions.push(positions);
             out.delta.push(delta);
             out.m.push(m);
             out.phi.push(features(set, &feats[i]));
@@ -281,6 +282,53 @@ impl Correctives {
     }
 }
 
+/// λ for the local model (step 3) on the training poses `train` (in `r`'s order), by
+/// `folds`-fold cross-validation (module docs): the ridge kept (None: no correction) and every
+/// candidate's score, none first, then [`RIDGES`].
+fn choose_ridge(
+    set: &ExampleSet,
+    drivers: &[Vec<usize>],
+    rigid: &Skinning,
+    train: &[usize],
+    r: &Residuals,
+    folds: usize,
+) -> (Option<f64>, Vec<(f64, f64)>) {
+    let all: Vec<usize> = (0..train.len()).collect();
+    let folds = folds.min(train.len());
+    if folds < 2 {
+        return (None, Vec::new());
+    }
+    let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
+    let held_error = |i: usize, offsets: &[DVec3]| -> f64 {
+        let e: f64 = (r.m[i].iter().zip(&r.delta[i]).zip(offsets))
+            .map(|((m, d), o)| (*m * (*d - *o)).length_squared())
+            .sum();
+        e / normaliser[i]
+    };
+    let zero = vec![DVec3::ZERO; set.vertex_count()];
+    let mut relative = vec![all
+        .iter()
+        .map(|&i| held_error(i, &zero))
+        .collect::<Vec<f64>>()];
+    for &lambda in &RIDGES {
+        let mut per_pose = vec![0.0; all.len()];
+        for fold in 0..folds {
+            let (held, kept): (Vec<usize>, Vec<usize>) =
+                all.iter().partition(|&&i| i % folds == fold);
+            let local = Local::fit(drivers, r, &kept, lambda);
+            for i in held {
+                per_pose[i] = held_error(i, &local.predict(&r.phi[i]));
+            }
+        }
+        relative.push(per_pose);
+    }
+    let scores = pose_scale::scores(&relative);
+    let ridge = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
+        .and_then(|c| c.checked_sub(1))
+        .map(|c| RIDGES[c]);
+    (ridge, scores)
+}
+
 /// Fits at most `n` targets to the residuals `r` of the training poses `train` (in `r`'s
 /// order), the ridge chosen by `folds`-fold cross-validation; `rigid` normalises each held-out
 /// pose's error.
@@ -294,40 +342,11 @@ pub fn fit(
     folds: usize,
 ) -> Fit {
     let drivers = drivers(set, ssd);
+    let (ridge, scores) = match n {
+        0 => (None, Vec::new()),
+        _ => choose_ridge(set, &drivers, rigid, train, r, folds),
+    };
     let all: Vec<usize> = (0..train.len()).collect();
-    let folds = folds.min(train.len());
-    let mut scores = Vec::new();
-    let mut ridge = None;
-    if n > 0 && folds >= 2 {
-        let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
-        let held_error = |i: usize, offsets: &[DVec3]| -> f64 {
-            let e: f64 = (r.m[i].iter().zip(&r.delta[i]).zip(offsets))
-                .map(|((m, d), o)| (*m * (*d - *o)).length_squared())
-                .sum();
-            e / normaliser[i]
-        };
-        let zero = vec![DVec3::ZERO; set.vertex_count()];
-        let mut relative = vec![all
-            .iter()
-            .map(|&i| held_error(i, &zero))
-            .collect::<Vec<f64>>()];
-        for &lambda in &RIDGES {
-            let mut per_pose = vec![0.0; all.len()];
-            for fold in 0..folds {
-                let (held, kept): (Vec<usize>, Vec<usize>) =
-                    all.iter().partition(|&&i| i % folds == fold);
-                let local = Local::fit(&drivers, r, &kept, lambda);
-                for i in held {
-                    per_pose[i] = held_error(i, &local.predict(&r.phi[i]));
-                }
-            }
-            relative.push(per_pose);
-        }
-        scores = pose_scale::scores(&relative);
-        ridge = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
-            .and_then(|c| c.checked_sub(1))
-            .map(|c| RIDGES[c]);
-    }
     let correctives = ridge
         .map(|lambda| Local::fit(&drivers, r, &all, lambda).reduce(r, &all, n))
         .filter(|c| !c.targets.is_empty());
@@ -335,5 +354,30 @@ pub fn fit(
         ridge,
         scores,
         correctives,
+    }
+}
+
+/// The error budget's pose-space ceiling (docs/method.md §10): the local model of step 3 alone,
+/// unreduced, its ridge chosen as [`fit`] chooses it and fitted on all of `train` (residuals
+/// `r`), then evaluated on `poses` (residuals `at`): the rest-space offsets of each pose, zero
+/// where the cross-validation keeps no correction. What the training poses support of any
+/// correction linear in the nearby joints' rotations, whatever it would cost per vertex.
+pub fn ceiling(
+    set: &ExampleSet,
+    ssd: &Skinning,
+    rigid: &Skinning,
+    train: &[usize],
+    r: &Residuals,
+    folds: usize,
+    at: &Residuals,
+) -> Vec<Vec<DVec3>> {
+    let drivers = drivers(set, ssd);
+    let all: Vec<usize> = (0..train.len()).collect();
+    match choose_ridge(set, &drivers, rigid, train, r, folds).0 {
+        Some(lambda) => {
+            let local = Local::fit(&drivers, r, &all, lambda);
+            at.phi.iter().map(|phi| local.predict(phi)).collect()
+        }
+        None => vec![vec![DVec3::ZERO; set.vertex_count()]; at.phi.len()],
     }
 }
