@@ -53,19 +53,27 @@ pub fn pose_space_meshes(
     folds: usize,
 ) -> rrskin::Result<[Vec<Vec<DVec3>>; 2]> {
     let fitted = Residuals::of(set, &trained.feats, model, train)?;
-    let meshes = |at: &Residuals| -> Vec<Vec<DVec3>> {
-        let offsets =
-            corrective::ceiling(set, &trained.ssd, &trained.rigid, train, &fitted, folds, at);
+    let held = Residuals::of(set, &trained.feats, model, test)?;
+    let offsets = corrective::ceiling(
+        set,
+        &trained.ssd,
+        &trained.rigid,
+        train,
+        &fitted,
+        folds,
+        &[&fitted, &held],
+    );
+    let corrected = |at: &Residuals, offsets: &[Vec<DVec3>]| -> Vec<Vec<DVec3>> {
         (at.positions.iter().zip(&at.m).zip(offsets))
             .map(|((y, m), o)| {
                 (y.iter().zip(m).zip(o))
-                    .map(|((y, m), o)| *y + *m * o)
+                    .map(|((y, m), o)| *y + *m * *o)
                     .collect()
             })
             .collect()
     };
     Ok([
-        meshes(&fitted),
-        meshes(&Residuals::of(set, &trained.feats, model, test)?),
+        corrected(&fitted, &offsets[0]),
+        corrected(&held, &offsets[1]),
     ])
 }

@@ -359,9 +359,9 @@ pub fn fit(
 
 /// The error budget's pose-space ceiling (docs/method.md §10): the local model of step 3 alone,
 /// unreduced, its ridge chosen as [`fit`] chooses it and fitted on all of `train` (residuals
-/// `r`), then evaluated on `poses` (residuals `at`): the rest-space offsets of each pose, zero
-/// where the cross-validation keeps no correction. What the training poses support of any
-/// correction linear in the nearby joints' rotations, whatever it would cost per vertex.
+/// `r`), then evaluated on each of `at`: per set, per pose, the rest-space offsets, zero where
+/// the cross-validation keeps no correction. What the training poses support of any correction
+/// linear in the nearby joints' rotations, whatever it would cost per vertex.
 pub fn ceiling(
     set: &ExampleSet,
     ssd: &Skinning,
@@ -369,15 +369,16 @@ pub fn ceiling(
     train: &[usize],
     r: &Residuals,
     folds: usize,
-    at: &Residuals,
-) -> Vec<Vec<DVec3>> {
+    at: &[&Residuals],
+) -> Vec<Vec<Vec<DVec3>>> {
     let drivers = drivers(set, ssd);
     let all: Vec<usize> = (0..train.len()).collect();
-    match choose_ridge(set, &drivers, rigid, train, r, folds).0 {
-        Some(lambda) => {
-            let local = Local::fit(&drivers, r, &all, lambda);
-            at.phi.iter().map(|phi| local.predict(phi)).collect()
-        }
-        None => vec![vec![DVec3::ZERO; set.vertex_count()]; at.phi.len()],
-    }
+    let local = (choose_ridge(set, &drivers, rigid, train, r, folds).0)
+        .map(|lambda| Local::fit(&drivers, r, &all, lambda));
+    (at.iter())
+        .map(|at| match &local {
+            Some(local) => at.phi.iter().map(|phi| local.predict(phi)).collect(),
+            None => vec![vec![DVec3::ZERO; set.vertex_count()]; at.phi.len()],
+        })
+        .collect()
 }
