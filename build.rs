@@ -108,9 +108,15 @@ fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
     for (k, v) in defines {
         options.defines.insert((*k).to_string(), (*v).to_string());
     }
-    let module = glsl::Frontend::default()
+    let mut module = glsl::Frontend::default()
         .parse(&options, source)
         .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(source)));
+    for entry in &mut module.entry_points {
+        workgroup_barriers(&mut entry.function.body);
+    }
+    for (_, function) in module.functions.iter_mut() {
+        workgroup_barriers(&mut function.body);
+    }
     let info = valid::Validator::new(valid::ValidationFlags::all(), valid::Capabilities::all())
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(source)));
@@ -130,4 +136,36 @@ fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
     };
     spv::write_vec(&module, &info, &spv_options, Some(&pipeline))
         .unwrap_or_else(|e| panic!("{}: SPIR-V output: {e}", path.display()))
+}
+
+/// GLSL's `barrier()` as the workgroup barrier it is. naga's GLSL front end reads it as
+/// `Barrier::all()`, SUB_GROUP included, and its SPIR-V back end then gives the
+/// OpControlBarrier a *subgroup* execution scope: where a workgroup spans several subgroups
+/// (64 invocations are two warps on NVIDIA) they do not wait for each other, and a warp with no
+/// columns to multiply runs ahead into the GEMM's next tile of shared memory while another
+/// still reads the last one (a wrong mesh that changes from run to run; lavapipe runs every
+/// barrier across the workgroup, so it never showed). `pass::tests` checks every barrier's
+/// scope in the SPIR-V.
+fn workgroup_barriers(block: &mut naga::Block) {
+    use naga::Statement as S;
+    for statement in block.iter_mut() {
+        match statement {
+            S::ControlBarrier(flags) => flags.remove(naga::Barrier::SUB_GROUP),
+            S::Block(inner) => workgroup_barriers(inner),
+            S::If { accept, reject, .. } => {
+                workgroup_barriers(accept);
+                workgroup_barriers(reject);
+            }
+            S::Loop {
+                body, continuing, ..
+            } => {
+                workgroup_barriers(body);
+                workgroup_barriers(continuing);
+            }
+            S::Switch { cases, .. } => cases
+                .iter_mut()
+                .for_each(|case| workgroup_barriers(&mut case.body)),
+            _ => {}
+        }
+    }
 }

@@ -122,6 +122,24 @@ impl<'m> CpuEvaluator<'m> {
         Ok(())
     }
 
+    /// One character's intermediates as the GPU passes hold them (`q`: its J bone
+    /// transforms): the key gradients `D_ℓ(q)` of pass 1 (P), and the palette
+    /// `[T' (P); q (J)]` (3x4 row-major) after the product and the proxy correctives.
+    pub fn intermediates(&mut self, q: &[Affine]) -> Result<(&[DMat3], &[[f64; 12]])> {
+        let j = self.model.bone_count();
+        if characters(q, j)? != 1 {
+            return Err(Error::WrongLength {
+                what: "bone transforms (one character)",
+                expected: j,
+                actual: q.len(),
+            });
+        }
+        self.palette_of(q);
+        let p = self.model.proxy_count();
+        apply_proxy_correctives(self.model, q, &mut self.palette[..p])?;
+        Ok((&self.gradients, &self.palette))
+    }
+
     /// The P + J palette of one character: proxies by Eq. 5, then the bones themselves.
     fn palette_of(&mut self, q: &[Affine]) {
         let model = self.model;

@@ -4,12 +4,12 @@
 mod common;
 
 use ash::vk;
-use common::engine::Engine;
+use common::engine::{Current, Engine};
 use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, Crowd, EngineDevice, GpuModel};
 use std::ffi::{c_char, CStr};
-use std::sync::{Mutex, OnceLock};
+use std::sync::Mutex;
 
 #[test]
 fn records_into_the_engines_command_buffer_on_the_engines_device() {
@@ -100,8 +100,8 @@ fn records_into_the_engines_command_buffer_on_the_engines_device() {
 }
 
 /// The engine's real loader entry points, behind the filtering ones below.
-static REAL_GIPA: OnceLock<vk::PFN_vkGetInstanceProcAddr> = OnceLock::new();
-static REAL_GDPA: OnceLock<vk::PFN_vkGetDeviceProcAddr> = OnceLock::new();
+static REAL_GIPA: Current<vk::PFN_vkGetInstanceProcAddr> = Current::new();
+static REAL_GDPA: Current<vk::PFN_vkGetDeviceProcAddr> = Current::new();
 /// The function the filters hide.
 static HIDDEN: Mutex<&CStr> = Mutex::new(c"");
 
@@ -130,7 +130,7 @@ unsafe extern "system" fn filtering_gipa(
         });
     }
     // SAFETY: the real loader's entry point, with the caller's arguments.
-    unsafe { REAL_GIPA.get().expect("set")(instance, name) }
+    unsafe { REAL_GIPA.get()(instance, name) }
 }
 
 unsafe extern "system" fn filtering_gdpa(
@@ -141,7 +141,7 @@ unsafe extern "system" fn filtering_gdpa(
         return None;
     }
     // SAFETY: the real device entry point, with the caller's arguments.
-    unsafe { REAL_GDPA.get().expect("set")(device, name) }
+    unsafe { REAL_GDPA.get()(device, name) }
 }
 
 #[test]
@@ -149,8 +149,8 @@ fn a_missing_engine_function_is_an_error_not_a_crash() {
     let messages = Mutex::new(Vec::new());
     let engine = Engine::new(&messages);
     let handles = engine.handles();
-    REAL_GIPA.get_or_init(|| handles.get_instance_proc_addr);
-    REAL_GDPA.get_or_init(|| engine.instance.fp_v1_0().get_device_proc_addr);
+    REAL_GIPA.set(handles.get_instance_proc_addr);
+    REAL_GDPA.set(engine.instance.fp_v1_0().get_device_proc_addr);
     let filtered = EngineDevice {
         get_instance_proc_addr: filtering_gipa,
         ..handles

@@ -12,12 +12,12 @@ mod common;
 
 use ash::vk;
 use common::abi::{load, status};
-use common::engine::Engine;
+use common::engine::{Current, Engine};
 use common::*;
 use rrskin::ffi::*;
 use std::ffi::{c_char, c_void, CStr};
-use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, AtomicUsize, Ordering::SeqCst};
-use std::sync::{Mutex, MutexGuard, OnceLock};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicUsize, Ordering::SeqCst};
+use std::sync::{Mutex, MutexGuard};
 
 // ---- the wrappers' state (global: the tests take turns through `serial`) ----
 
@@ -37,9 +37,9 @@ static EXHAUSTED: AtomicBool = AtomicBool::new(false);
 static INJECTED: Mutex<&CStr> = Mutex::new(c"");
 /// Submissions that reached the real queue.
 static SUBMITTED: AtomicUsize = AtomicUsize::new(0);
-static REAL_GIPA: OnceLock<vk::PFN_vkGetInstanceProcAddr> = OnceLock::new();
-/// The engine's instance (raw handle), to look up the real functions with.
-static INSTANCE: AtomicU64 = AtomicU64::new(0);
+/// The live engine's loader entry point and instance (raw handle), to look up the real
+/// functions with.
+static REAL: Current<(vk::PFN_vkGetInstanceProcAddr, u64)> = Current::new();
 
 /// Vulkan objects made and not yet destroyed, per kind.
 #[derive(Clone, Copy, Debug)]
@@ -99,9 +99,9 @@ fn inject(site: Site, name: &'static CStr) -> Option<vk::Result> {
 
 /// The loader's function `name` (a trampoline that dispatches on its first argument).
 fn real<F>(name: &CStr) -> F {
-    let gipa = REAL_GIPA.get().expect("the engine set it");
+    let (gipa, instance) = REAL.get();
     use vk::Handle;
-    let instance = vk::Instance::from_raw(INSTANCE.load(SeqCst));
+    let instance = vk::Instance::from_raw(instance);
     // SAFETY: a live instance and a NUL-terminated name.
     let f = unsafe { gipa(instance, name.as_ptr()) }.expect("the loader has every function");
     // SAFETY: `F` is the PFN type of `name` (each wrapper names its own).
@@ -362,7 +362,7 @@ unsafe extern "system" fn faulty_gipa(
         });
     }
     // SAFETY: the real loader's entry point, with the caller's arguments.
-    wrapper(asked).or_else(|| unsafe { REAL_GIPA.get().expect("set")(instance, name) })
+    wrapper(asked).or_else(|| unsafe { REAL.get().0(instance, name) })
 }
 
 unsafe extern "system" fn faulty_gdpa(
@@ -396,9 +396,11 @@ struct Faulty {
 impl Faulty {
     fn new(messages: &Mutex<Vec<String>>) -> Faulty {
         let engine = Engine::new(messages);
-        REAL_GIPA.get_or_init(|| engine.entry.static_fn().get_instance_proc_addr);
         use vk::Handle;
-        INSTANCE.store(engine.instance.handle().as_raw(), SeqCst);
+        REAL.set((
+            engine.entry.static_fn().get_instance_proc_addr,
+            engine.instance.handle().as_raw(),
+        ));
         disarm();
         Faulty { engine }
     }

@@ -40,10 +40,20 @@ fn check_poses(
         .expect("CPU evaluation");
 
     let gpu_model = GpuModel::new(ctx, model).expect("upload");
+    // NaN in every buffer before the frame: a pass that reads what none wrote shows here too.
+    let options = CrowdOptions {
+        debug_settings: CrowdDebugSettings {
+            fill_nan: true,
+            ..options.debug_settings
+        },
+        ..options
+    };
     let mut crowd = Crowd::with_options(&gpu_model, characters, options).expect("crowd");
     crowd.set_bones(0, poses).expect("bones");
     let mut batch = Batch::new(ctx).expect("batch");
     batch.run(0, &[&crowd]).expect("run");
+    let intermediates = crowd.read_intermediates().expect("read back");
+    compare_passes(model, poses, gpu_model.fuses_predictors(), &intermediates);
     let rrskin::vk::HostOutput {
         positions: pos,
         normals: nrm,
@@ -165,6 +175,7 @@ fn crowds_split_into_chunks_when_a_binding_would_be_too_large() {
     let options = CrowdOptions {
         debug_settings: CrowdDebugSettings {
             max_binding_bytes: Some(64 * 1024),
+            ..Default::default()
         },
         ..CrowdOptions::default()
     };
@@ -749,6 +760,7 @@ fn previous_positions_and_bounds_across_chunks_match_cpu() {
         bounds: true,
         debug_settings: CrowdDebugSettings {
             max_binding_bytes: Some(64 * 1024),
+            ..Default::default()
         },
         ..CrowdOptions::default()
     };
@@ -776,6 +788,7 @@ fn tangents_of_overlapping_frames_match_cpu() {
         tangents: true,
         debug_settings: CrowdDebugSettings {
             max_binding_bytes: Some(64 * 1024),
+            ..Default::default()
         },
         ..CrowdOptions::default()
     };
@@ -1049,6 +1062,7 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
                 debug_settings: CrowdDebugSettings {
                     // The first crowd in chunks of 4 characters' positions.
                     max_binding_bytes: (i == 0).then_some(4 * v * 12),
+                    fill_nan: true,
                 },
                 ..CrowdOptions::default()
             };
@@ -1161,6 +1175,7 @@ fn proxy_correctives_after_each_product_match_cpu() {
                 debug_settings: CrowdDebugSettings {
                     // The second crowd in chunks of 16 characters' positions.
                     max_binding_bytes: (i == 1).then_some(16 * v * 12),
+                    fill_nan: true,
                 },
                 ..CrowdOptions::default()
             };
@@ -1246,4 +1261,36 @@ fn proxy_correctives_of_overlapping_frames_match_cpu() {
         ..CrowdOptions::default()
     };
     overlapping_frames(&model, 6, options);
+}
+
+/// The debug fill reaches every buffer a frame reads or writes: before any frame, the outputs
+/// and the intermediates read back as NaN (so a pass that reads what none wrote shows as NaN
+/// in the comparison with the CPU reference); a frame then overwrites all of them.
+#[test]
+fn the_debug_fill_puts_nan_in_every_crowd_buffer_until_a_frame_writes_it() {
+    let ctx = validated_context();
+    let model = random_model(RR, 8);
+    let gpu_model = GpuModel::new(&ctx, &model).expect("upload");
+    let options = CrowdOptions {
+        tangents: true,
+        debug_settings: CrowdDebugSettings {
+            fill_nan: true,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let crowd = Crowd::with_options(&gpu_model, 2, options).expect("crowd");
+    let out = crowd.read_back().expect("read back");
+    let inter = crowd.read_intermediates().expect("read back");
+    let floats = [
+        out.positions.as_flattened(),
+        out.normals.as_flattened(),
+        out.tangents.as_flattened(),
+        &inter.rhs,
+        inter.palette.as_flattened(),
+    ];
+    for f in floats {
+        assert!(!f.is_empty() && f.iter().all(|x| x.is_nan()));
+    }
+    check(&ctx, &model, 2, options, 3);
 }

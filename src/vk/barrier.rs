@@ -35,6 +35,10 @@ impl Access {
     }
 }
 
+/// What a pass does to its storage buffers.
+pub(super) const PASS_ACCESSES: [Access; 2] =
+    [Access::ComputeShaderReadStorage, Access::ComputeShaderWrite];
+
 /// The stage and access masks of a global barrier between `previous` and `next`: waits for
 /// every previous stage; only writes need making available, and only after a write must the
 /// next accesses be made visible (a read after a read, or a write after a read, needs no

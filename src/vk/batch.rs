@@ -21,7 +21,7 @@
 //! proxy correctives records neither their phase's barrier nor any dispatch). ts0..ts5 are GPU
 //! timestamps; [`Batch::timings`] turns them into per-phase milliseconds.
 
-use super::barrier::{global_barrier, Access};
+use super::barrier::{global_barrier, Access, PASS_ACCESSES};
 use super::context::{Context, Shared};
 use super::crowd::{Crowd, MAX_FRAMES_IN_FLIGHT};
 use super::passes::Pass;
@@ -54,9 +54,6 @@ const OUTSIDE: [Access; 5] = [
 /// The earlier uses the first barrier waits for: host reads need none (the host reads a slot
 /// before it records that slot again, and a submission orders host work before it).
 const BEFORE: [Access; 4] = [OUTSIDE[0], OUTSIDE[1], OUTSIDE[2], OUTSIDE[4]];
-
-/// What a pass does to its storage buffers.
-const PASS_ACCESSES: [Access; 2] = [Access::ComputeShaderReadStorage, Access::ComputeShaderWrite];
 
 /// Timestamps of one frame slot; the pool holds [`MAX_FRAMES_IN_FLIGHT`] slots.
 const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;

@@ -8,7 +8,7 @@
 //! descriptor sets whose ranges start at chunk offsets aligned to
 //! `minStorageBufferOffsetAlignment`, and the passes dispatch once per chunk.
 
-use super::barrier::{global_barrier, Access};
+use super::barrier::{global_barrier, Access, PASS_ACCESSES};
 use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
@@ -62,6 +62,24 @@ pub struct CrowdDebugSettings {
     /// Largest descriptor range to use, below the device's maxStorageBufferRange: forces smaller
     /// chunks (tests exercise chunking without gigabytes of output).
     pub max_binding_bytes: Option<u64>,
+    /// Fill every buffer the crowd allocates, but the bone input, with NaN (0x7FC00000) once
+    /// at creation, before any pass writes it: a pass that reads what no pass wrote (an
+    /// uninitialised read that a real GPU answers with whatever the memory held) then spreads
+    /// NaN into the outputs, where a comparison with the CPU reference sees it, on any device.
+    pub fill_nan: bool,
+}
+
+/// Intermediates of the frame last run, copied to the host for tests and debugging
+/// ([`Crowd::read_intermediates`]): C characters each, character-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HostIntermediates {
+    /// B = [d; q] of pass 1 per character, C x (3P + 4J) x 3: row r of character ch's
+    /// `[d_c; q_c]` for c = x, y, z at `(ch (3P + 4J) + r) 3 + c` (the GPU keeps each chunk's
+    /// rows for all its characters together). Empty for a plain LBS model (P = 0); a fused
+    /// product writes none of it.
+    pub rhs: Vec<f32>,
+    /// The skinning palette [t (P); q (J)] per character, 3x4 row-major; empty for P = 0.
+    pub palette: Vec<[f32; 12]>,
 }
 
 /// The outputs a recording releases with [`CrowdOptions::release_to_queue_family`], those the
@@ -226,6 +244,9 @@ impl Crowd {
             buffers[b as usize] = (0..crowd_buffer_copies(b, &options))
                 .map(|_| Buffer::new(&shared, name, size(b), usage, location))
                 .collect::<Result<_>>()?;
+        }
+        if options.debug_settings.fill_nan {
+            fill_nan(&shared, &mut buffers)?;
         }
         let mut crowd = Crowd {
             model: model.clone(),
@@ -539,22 +560,71 @@ impl Crowd {
     /// Copies the outputs of the last recorded frame back to the host. Submits and waits: for
     /// tools and tests, not the per-frame path.
     pub fn read_back(&self) -> Result<HostOutput> {
-        let shared = &self.model.inner.context.shared;
         let positions = &self.positions()[self.last.load(Ordering::Relaxed) as usize];
         let normals = &self.copies(CrowdBuffer::Normals)[0];
         let tangents = self.copies(CrowdBuffer::Tangents).first();
-        let size = positions.size;
-        let tangent_bytes = tangents.map_or(0, |t| t.size);
+        let buffers: Vec<&Buffer> = [positions, normals].into_iter().chain(tangents).collect();
+        let mut floats = self.read_floats(&buffers)?.into_iter();
+        let mut next = || floats.next().unwrap_or_default();
+        let (positions, normals, tangents) = (next(), next(), next());
+        Ok(HostOutput {
+            positions: xyz(&positions),
+            normals: xyz(&normals),
+            tangents: (tangents.chunks_exact(4))
+                .map(|p| [p[0], p[1], p[2], p[3]])
+                .collect(),
+        })
+    }
+
+    /// The intermediates of the frame last run (`Batch::run`, or a recorded frame whose
+    /// command buffer completed), copied to the host: for tests that name the first pass
+    /// whose buffer disagrees with the CPU reference, and for debugging. Waits.
+    pub fn read_intermediates(&self) -> Result<HostIntermediates> {
+        if self.dims.proxies == 0 {
+            return Ok(HostIntermediates {
+                rhs: Vec::new(),
+                palette: Vec::new(),
+            });
+        }
+        let buffers = [CrowdBuffer::Rhs, CrowdBuffer::Palette].map(|b| &self.copies(b)[0]);
+        let mut floats = self.read_floats(&buffers)?.into_iter();
+        let chunked = floats.next().unwrap_or_default();
+        let palette = floats.next().unwrap_or_default();
+        let rows = 3 * self.dims.proxies as usize + 4 * self.dims.bones as usize;
+        let mut rhs = Vec::with_capacity(chunked.len());
+        let mut first = 0;
+        for chunk in &self.chunks {
+            // The chunk's B: `rows` rows of 3 x its characters columns, row-major.
+            let cols = 3 * chunk.characters as usize;
+            let b = &chunked[first * rows..][..rows * cols];
+            for ch in 0..chunk.characters as usize {
+                rhs.extend((0..rows).flat_map(|r| &b[r * cols + 3 * ch..][..3]));
+            }
+            first += cols;
+        }
+        Ok(HostIntermediates {
+            rhs,
+            palette: (palette.chunks_exact(12))
+                .map(|t| std::array::from_fn(|i| t[i]))
+                .collect(),
+        })
+    }
+
+    /// The whole of each of `buffers` as f32, in one submission (waits): after the compute
+    /// writes, through a host-visible staging copy.
+    fn read_floats(&self, buffers: &[&Buffer]) -> Result<Vec<Vec<f32>>> {
+        let shared = &self.model.inner.context.shared;
+        let total = buffers.iter().map(|b| b.size).sum();
         let mut staging = Buffer::new(
             shared,
             "read-back",
-            2 * size + tangent_bytes,
+            total,
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
         shared.record_and_submit(|cmd| {
             let device = &shared.device;
-            // SAFETY: cmd is recording; the buffers are alive.
+            // SAFETY: cmd is recording; the buffers are alive and have TRANSFER_SRC.
             unsafe {
                 global_barrier(
                     device,
@@ -562,42 +632,32 @@ impl Crowd {
                     &[Access::ComputeShaderWrite],
                     &[Access::TransferRead],
                 );
-                let copies = [(positions, 0), (normals, size)]
-                    .into_iter()
-                    .chain(tangents.map(|t| (t, 2 * size)));
-                for (src, at) in copies {
+                let mut at = 0;
+                for src in buffers {
                     let region = [vk::BufferCopy {
                         src_offset: 0,
                         dst_offset: at,
                         size: src.size,
                     }];
                     device.cmd_copy_buffer(cmd, src.handle, staging.handle, &region);
+                    at += src.size;
                 }
                 transfer_to_host_barrier(device, cmd);
             }
             Ok(())
         })?;
-        let n = self.characters as usize * self.model.vertex_count() * 3;
-        let t = tangents.map_or(0, |_| n / 3 * 4);
         let mapped = staging.mapped()?;
-        let floats: Vec<f32> = mapped[..(2 * n + t) * 4]
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
-        let xyz = |s: &[f32]| {
-            s.chunks_exact(3)
-                .map(|p| [p[0], p[1], p[2]])
-                .collect::<Vec<_>>()
-        };
-        // The buffers hold exactly the floats read (positions and normals are 12 bytes a
-        // vertex, tangents 16), so each region starts where the last ended.
-        Ok(HostOutput {
-            positions: xyz(&floats[..n]),
-            normals: xyz(&floats[n..2 * n]),
-            tangents: (floats[2 * n..].chunks_exact(4))
-                .map(|p| [p[0], p[1], p[2], p[3]])
-                .collect(),
-        })
+        let mut at = 0usize;
+        Ok(buffers
+            .iter()
+            .map(|b| {
+                let bytes = &mapped[at..at + b.size as usize];
+                at += b.size as usize;
+                (bytes.chunks_exact(4))
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect()
+            })
+            .collect())
     }
 
     pub(crate) fn shared(&self) -> &Arc<Shared> {
@@ -681,22 +741,66 @@ fn write_rest_pose(bytes: &mut [u8]) {
     }
 }
 
-/// The debug name, usage and memory of crowd buffer `b`.
+/// Consecutive triples of floats.
+fn xyz(floats: &[f32]) -> Vec<[f32; 3]> {
+    (floats.chunks_exact(3))
+        .map(|p| [p[0], p[1], p[2]])
+        .collect()
+}
+
+/// NaN in every crowd buffer but the bones (`CrowdDebugSettings::fill_nan`): the host-visible
+/// ones through their mapping, the device-local ones by `vkCmdFillBuffer`, made visible to
+/// every later pass.
+fn fill_nan(shared: &Arc<Shared>, buffers: &mut [Vec<Buffer>; CrowdBuffer::COUNT]) -> Result<()> {
+    const NAN: u32 = 0x7FC0_0000;
+    for b in CrowdBuffer::ALL
+        .into_iter()
+        .filter(|&b| b != CrowdBuffer::Bones)
+    {
+        if kind(b).2 == MemoryLocation::GpuOnly {
+            continue;
+        }
+        for buffer in &mut buffers[b as usize] {
+            for word in buffer.mapped()?.chunks_exact_mut(4) {
+                word.copy_from_slice(&NAN.to_le_bytes());
+            }
+        }
+    }
+    shared.record_and_submit(|cmd| {
+        let device = &shared.device;
+        let on_device = (CrowdBuffer::ALL.into_iter())
+            .filter(|&b| kind(b).2 == MemoryLocation::GpuOnly)
+            .flat_map(|b| &buffers[b as usize]);
+        // SAFETY: cmd is recording; the buffers are alive, unused, and have TRANSFER_DST.
+        unsafe {
+            for buffer in on_device {
+                device.cmd_fill_buffer(cmd, buffer.handle, 0, vk::WHOLE_SIZE, NAN);
+            }
+            global_barrier(device, cmd, &[Access::TransferWrite], &PASS_ACCESSES);
+        }
+        Ok(())
+    })
+}
+
+/// The debug name, usage and memory of crowd buffer `b`. Every device-local buffer can be
+/// filled (`CrowdDebugSettings::fill_nan`) and copied to the host (outputs and intermediates
+/// alike: [`Crowd::read_back`], [`Crowd::read_intermediates`]).
 pub(super) fn kind(b: CrowdBuffer) -> (&'static str, vk::BufferUsageFlags, MemoryLocation) {
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let output = storage | vk::BufferUsageFlags::VERTEX_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
+    let copies = vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
+    let output = storage | vk::BufferUsageFlags::VERTEX_BUFFER | copies;
     let gpu = MemoryLocation::GpuOnly;
     // Host-visible and coherent: the host writes bones and reads bounds without flushes.
     let host = MemoryLocation::CpuToGpu;
     match b {
         CrowdBuffer::Bones => ("crowd bones", storage, host),
-        CrowdBuffer::Rhs => ("crowd rhs", storage, gpu),
-        CrowdBuffer::Palette => ("crowd palette", storage, gpu),
+        CrowdBuffer::Rhs => ("crowd rhs", storage | copies, gpu),
+        CrowdBuffer::Palette => ("crowd palette", storage | copies, gpu),
         CrowdBuffer::Positions => ("crowd positions", output, gpu),
         CrowdBuffer::Normals => ("crowd normals", output, gpu),
         CrowdBuffer::Bounds => ("crowd bounds", storage, host),
         CrowdBuffer::Tangents => ("crowd tangents", output, gpu),
-        CrowdBuffer::CorrectiveWeights => ("crowd corrective weights", storage, gpu),
+        CrowdBuffer::CorrectiveWeights => ("crowd corrective weights", storage | copies, gpu),
     }
 }
 

@@ -38,8 +38,8 @@ pub use ash;
 pub use batch::{Batch, PassTimings};
 pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits};
 pub use crowd::{
-    Aabb, Crowd, CrowdDebugSettings, CrowdOptions, CrowdOutput, HostOutput, BOUNDS_STRIDE,
-    MAX_FRAMES_IN_FLIGHT, TANGENT_STRIDE,
+    Aabb, Crowd, CrowdDebugSettings, CrowdOptions, CrowdOutput, HostIntermediates, HostOutput,
+    BOUNDS_STRIDE, MAX_FRAMES_IN_FLIGHT, TANGENT_STRIDE,
 };
 pub use gpu_model::GpuModel;
 pub use memory::{crowd_bytes, crowd_largest_buffer_bytes, model_bytes, ModelSizes};

@@ -445,6 +445,50 @@ mod tests {
         }
     }
 
+    /// The execution scope of every OpControlBarrier of `spirv`: the values of the constants
+    /// its first operand names (SPIR-V: a 5-word header, then instructions whose first word is
+    /// word count << 16 | opcode).
+    fn barrier_scopes(spirv: &[u8]) -> Vec<u32> {
+        const OP_CONSTANT: u32 = 43;
+        const OP_CONTROL_BARRIER: u32 = 224;
+        let words: Vec<u32> = (spirv.chunks_exact(4))
+            .map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]))
+            .collect();
+        let mut instructions = Vec::new();
+        let mut at = 5;
+        while at < words.len() {
+            let count = (words[at] >> 16) as usize;
+            instructions.push(&words[at..at + count.max(1)]);
+            at += count.max(1);
+        }
+        let constant = |id: u32| {
+            (instructions.iter())
+                .find(|i| i[0] & 0xFFFF == OP_CONSTANT && i[2] == id)
+                .map_or(u32::MAX, |i| i[3])
+        };
+        (instructions.iter())
+            .filter(|i| i[0] & 0xFFFF == OP_CONTROL_BARRIER)
+            .map(|i| constant(i[1]))
+            .collect()
+    }
+
+    /// GLSL's `barrier()` waits for the whole workgroup. naga's SPIR-V gave it a subgroup
+    /// scope (build.rs `workgroup_barriers`), which let the GEMM's warps race on its shared
+    /// tile on a real GPU; lavapipe cannot show that race, so the SPIR-V is checked here.
+    #[test]
+    fn every_barrier_waits_for_the_whole_workgroup() {
+        const WORKGROUP: u32 = 2;
+        let dense = barrier_scopes(Pass::DenseProduct.desc().shader.spirv);
+        assert!(dense.len() >= 2, "the GEMM's tile barriers: {dense:?}");
+        for pass in Pass::ALL {
+            let scopes = barrier_scopes(pass.desc().shader.spirv);
+            assert!(
+                scopes.iter().all(|&s| s == WORKGROUP),
+                "{pass:?}: barrier execution scopes {scopes:?} (2 = Workgroup, 3 = Subgroup)"
+            );
+        }
+    }
+
     #[test]
     fn passes_are_listed_in_declaration_order() {
         for (i, pass) in Pass::ALL.into_iter().enumerate() {

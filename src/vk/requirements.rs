@@ -77,6 +77,7 @@ const DEVICE_FUNCTIONS: &[&CStr] = &[
     c"vkCmdBindDescriptorSets",
     c"vkCmdBindPipeline",
     c"vkCmdCopyBuffer",
+    c"vkCmdFillBuffer",
     c"vkCmdDispatch",
     c"vkCmdPipelineBarrier",
     c"vkCmdPushConstants",

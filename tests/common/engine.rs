@@ -122,3 +122,29 @@ impl Engine {
         }
     }
 }
+
+/// The entry points of the engine that a test's wrapping `vkGetInstanceProcAddr` forwards to,
+/// set anew for each engine. Each [`Engine`] loads libvulkan through its own `ash::Entry`, and
+/// dropping the entry unloads the library (and destroying the instance its layers): a pointer
+/// kept from an earlier test's engine points into a library that is gone, or was mapped again
+/// at an address that depends on what else the process mapped meanwhile. Kept once, in a
+/// `OnceLock`, it crashed the suite now and then under load.
+pub struct Current<T: Copy>(Mutex<Option<T>>);
+
+impl<T: Copy> Current<T> {
+    pub const fn new() -> Current<T> {
+        Current(Mutex::new(None))
+    }
+
+    /// The engine now alive: its entry points replace the last engine's.
+    pub fn set(&self, value: T) {
+        *self.0.lock().unwrap_or_else(|p| p.into_inner()) = Some(value);
+    }
+
+    pub fn get(&self) -> T {
+        self.0
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .expect("the test's engine set it")
+    }
+}

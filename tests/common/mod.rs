@@ -395,3 +395,60 @@ pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed:
     };
     Model::new(parts).expect("a model with valid proxy correctives")
 }
+
+/// The first pass of a frame whose GPU buffer disagrees with the CPU reference's intermediates,
+/// in pass order: the key predictors (B's rows of D, where pass 1 ran: `fused` false), the
+/// product (the palette's proxies; with proxy correctives, as they corrected them), the palette's
+/// bone entries; then [`compare`]'s positions and normals. `bones`: C x J. Panics naming the
+/// pass, the character and the entry, so that a failing GPU test says where the frame went wrong.
+pub fn compare_passes(
+    model: &Model,
+    bones: &[rrskin::predict::Affine],
+    fused: bool,
+    gpu: &rrskin::vk::HostIntermediates,
+) {
+    let (p, j) = (model.proxy_count(), model.bone_count());
+    if p == 0 {
+        return;
+    }
+    let mut cpu = rrskin::cpu::CpuEvaluator::new(model);
+    let product = if model.proxy_correctives().is_some() {
+        "product and proxy correctives (the palette's proxies)"
+    } else {
+        "product (the palette's proxies)"
+    };
+    for ch in 0..bones.len() / j {
+        let (gradients, palette) = (cpu.intermediates(&bones[ch * j..(ch + 1) * j]))
+            .expect("the CPU reference's intermediates");
+        if !fused {
+            for (l, d) in gradients.iter().enumerate() {
+                // B[3l + k][3ch + r] = D_l[r][k]
+                let gpu_d =
+                    |r: usize, k: usize| gpu.rhs[(ch * (3 * p + 4 * j) + 3 * l + k) * 3 + r];
+                let err = (0..9)
+                    .map(|i| (gpu_d(i / 3, i % 3) as f64 - d.row(i / 3)[i % 3]).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    err <= 1e-4 * d.abs().to_cols_array().iter().fold(1.0, |m, x| x.max(m)),
+                    "predictors: key {l} of character {ch} differs by {err}: cpu {d:?}"
+                );
+            }
+        }
+        for (e, cpu_t) in palette.iter().enumerate() {
+            let gpu_t = gpu.palette[ch * (p + j) + e];
+            let scale = cpu_t.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+            let err = (cpu_t.iter().zip(gpu_t))
+                .map(|(a, b)| (a - b as f64).abs())
+                .fold(0.0, f64::max);
+            let pass = if e < p {
+                product
+            } else {
+                "palette (the bones' entries)"
+            };
+            assert!(
+                err <= POSITION_TOLERANCE as f64 * scale,
+                "{pass}: entry {e} of character {ch} differs by {err}: cpu {cpu_t:?} gpu {gpu_t:?}"
+            );
+        }
+    }
+}
