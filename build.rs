@@ -48,8 +48,8 @@ fn list(text: &str) -> Vec<Shader<'_>> {
 }
 
 /// Compiles each shader of `dir/shaders.txt` to `OUT_DIR/<output name>.spv` and lists them in
-/// `OUT_DIR/shaders.rs` as `pub const NAME: Shader = Shader { glsl, spirv };` (`glsl` in test
-/// builds only). A build script fails by panicking: the message names the file and gives
+/// `OUT_DIR/shaders.rs` as `pub const NAME: Shader = Shader { glsl, defines, spirv };` (`glsl`
+/// and `defines` in test builds only). A build script fails by panicking: the message names the file and gives
 /// naga's diagnostic.
 pub fn build(dir: &Path) {
     let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
@@ -70,7 +70,7 @@ pub fn build(dir: &Path) {
         let upper = name.to_uppercase();
         writeln!(
             consts,
-            "pub const {upper}: Shader = Shader {{ #[cfg(test)] glsl: {src:?}, spirv: include_bytes!({spv:?}) }};"
+            "pub const {upper}: Shader = Shader {{ #[cfg(test)] glsl: {src:?}, #[cfg(test)] defines: &{defines:?}, spirv: include_bytes!({spv:?}) }};"
         )
         .expect("writing to a String");
     }

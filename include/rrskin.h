@@ -90,9 +90,9 @@
  * | palette [t; q] | compute write (passes 1, 2, 3), then read (passes 3, 4, 6) | device-local, internal |
  * | positions (this frame's buffer) | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
  * | previous positions | not touched | the buffer the last recorded frame wrote |
- * | normals | compute write (pass 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
+ * | normals | compute write (passes 4, 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
  * | bounds, slot f | compute write (pass 5) | host-visible, storage |
- * | tangents | compute write (pass 6) | device-local, vertex + storage + transfer-src |
+ * | tangents | compute write (passes 4, 6) | device-local, vertex + storage + transfer-src |
  * | corrective weights | compute write (pass 1), then read (pass 4) | device-local, internal (models with correctives) |
  *
  * It binds compute pipelines, descriptor set 0 and push constants (bytes 0..24) at
@@ -259,6 +259,12 @@ typedef struct rrskin_crowd_options {
   // for the engine to acquire there. Nothing needs to come back.
   uint32_t release_outputs;
   uint32_t release_queue_family;
+  // How normals (and tangents) are made: RRSKIN_NORMALS_RECOMPUTED (0, the default) from the
+  // skinned positions over each vertex's 1-ring by a pass of their own, or
+  // RRSKIN_NORMALS_TRANSFORMED (1) in the skinning pass, the rest normal through the
+  // cofactor of the vertex's blended matrix (one pass a frame, as engines skin); any other
+  // value is RRSKIN_STATUS_ERROR_OUT_OF_RANGE.
+  uint32_t normals;
 } rrskin_crowd_options;
 
 // A Vulkan context (headless, or wrapping an engine's device).

@@ -3,8 +3,9 @@
 //!
 //! Per character: (1) key gradients `d = D_ℓ(q)`; (2) proxy transforms `t_c = C1 d_c + C2 q_c`
 //! for c = x, y, z (Eq. 5 in the separable form of docs/method.md §8); (3) palette skinning over
-//! `[t (P); q (J)]` with K influences; (4) normals: area-weighted sum of incident triangle
-//! normals, normalised (zero where the sum vanishes); (5) with [`CpuEvaluator::evaluate_with_tangents`],
+//! `[t (P); q (J)]` with K influences; (4) normals as [`NormalMode`] says (`crate::normals`):
+//! recomputed, the area-weighted sum of incident triangle normals, normalised (zero where the sum
+//! vanishes), or transformed, the rest normal through the cofactor of the blended matrix; (5) with [`CpuEvaluator::evaluate_with_tangents`],
 //! tangents: the rest tangent through the blended palette matrix's 3x3, made orthogonal to the
 //! normal and normalised (zero where it vanishes), w kept. With pose-space correctives
 //! (paper §8), step (3) skins `ŷ_a + Σ_n w_n targets[n V + a]`, `w` =
@@ -14,12 +15,16 @@
 
 use crate::error::{Error, Result};
 use crate::model::Model;
+use crate::normals::{area_weighted, cofactor_times, NormalMode};
 use crate::predict::{apply_proxy_correctives, corrective_weights, key_gradient, Affine};
 use glam::{DMat3, DVec3};
 
 /// Evaluates C characters of one model. Holds its scratch, so repeated frames allocate nothing.
 pub struct CpuEvaluator<'m> {
     model: &'m Model,
+    normals: NormalMode,
+    /// The model's rest normals where normals are transformed (else empty).
+    rest_normals: Vec<DVec3>,
     /// `[C1 | C2]`, 4P x (3P + 4J), row-major.
     c1_c2: Vec<f64>,
     /// Right-hand side of the GEMM for one character and coordinate: `[d_c; q_c]`, 3P + 4J.
@@ -33,10 +38,24 @@ pub struct CpuEvaluator<'m> {
 }
 
 impl<'m> CpuEvaluator<'m> {
+    /// Normals recomputed from the skinned positions ([`NormalMode::Recomputed`]).
     pub fn new(model: &'m Model) -> Self {
+        Self::with_normals(model, NormalMode::Recomputed)
+    }
+
+    /// Normals made as `mode` says (and so the tangents, orthogonal to them).
+    pub fn with_normals(model: &'m Model, mode: NormalMode) -> Self {
         let (p, j) = (model.proxy_count(), model.bone_count());
+        let rest_normals = match mode {
+            NormalMode::Recomputed => Vec::new(),
+            NormalMode::Transformed => (model.rest_normals().iter())
+                .map(|n| DVec3::from(n.map(f64::from)))
+                .collect(),
+        };
         CpuEvaluator {
             model,
+            normals: mode,
+            rest_normals,
             c1_c2: model.c1_c2().into_iter().map(f64::from).collect(),
             rhs: vec![0.0; 3 * p + 4 * j],
             palette: vec![[0.0; 12]; p + j],
@@ -219,43 +238,20 @@ impl<'m> CpuEvaluator<'m> {
     }
 
     fn normals_into(&self, out: &mut [[f32; 3]]) {
-        let tris = &self.model.parts().triangles;
-        let (offsets, incident) = self.model.incidence();
-        for (a, n) in out.iter_mut().enumerate() {
-            let mut sum = DVec3::ZERO;
-            for &k in &incident[offsets[a] as usize..offsets[a + 1] as usize] {
-                let [i, j, l] = tris[k as usize].map(|x| self.positions[x as usize]);
-                sum += (j - i).cross(l - i);
+        let normals = match self.normals {
+            NormalMode::Recomputed => {
+                let (offsets, incident) = self.model.incidence();
+                let tris = &self.model.parts().triangles;
+                area_weighted(&self.positions, tris, offsets, incident)
             }
-            let len = sum.length();
-            *n = if len > 0.0 {
-                (sum / len).as_vec3().to_array()
-            } else {
-                [0.0; 3]
-            };
+            NormalMode::Transformed => (self.rest_normals.iter().enumerate())
+                .map(|(a, &n)| cofactor_times(&self.blended(a), n).normalize_or_zero())
+                .collect(),
+        };
+        for (out, n) in out.iter_mut().zip(normals) {
+            *out = n.as_vec3().to_array();
         }
     }
-}
-
-/// Unit area-weighted vertex normals of a mesh, as the normals pass makes them: per vertex the
-/// sum of (b − a) × (c − a) over the triangles around it, normalised (zero where it vanishes).
-/// Where `group` maps vertices to shared ones (welded corners), the sums are per group.
-pub fn area_weighted_normals(
-    positions: &[DVec3],
-    triangles: &[[usize; 3]],
-    group: impl Fn(usize) -> usize,
-) -> Vec<DVec3> {
-    let mut sums = vec![DVec3::ZERO; positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i]);
-        let area_normal = (b - a).cross(c - a);
-        for &v in t {
-            sums[group(v)] += area_normal;
-        }
-    }
-    (0..positions.len())
-        .map(|v| sums[group(v)].normalize_or_zero())
-        .collect()
 }
 
 /// The median of `values` (of an even count, the upper of the two middle values; NaN sorts

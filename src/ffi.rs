@@ -46,6 +46,7 @@ pub use palette::*;
 
 use crate::error::Error;
 use crate::model::Model;
+use crate::normals::NormalMode;
 use crate::predict::Affine;
 use crate::vk::{
     ash::vk, Aabb, Batch, Context, ContextDesc, Crowd, CrowdOptions, EngineDevice, GpuModel,
@@ -179,7 +180,18 @@ pub struct RrskinCrowdOptions {
     /// for the engine to acquire there. Nothing needs to come back.
     pub release_outputs: u32,
     pub release_queue_family: u32,
+    /// How normals (and tangents) are made: RRSKIN_NORMALS_RECOMPUTED (0, the default) from the
+    /// skinned positions over each vertex's 1-ring by a pass of their own, or
+    /// RRSKIN_NORMALS_TRANSFORMED (1) in the skinning pass, the rest normal through the
+    /// cofactor of the vertex's blended matrix (one pass a frame, as engines skin); any other
+    /// value is RRSKIN_STATUS_ERROR_OUT_OF_RANGE.
+    pub normals: u32,
 }
+
+/// `rrskin_crowd_options.normals`: recomputed from the skinned positions (paper §6).
+pub const RRSKIN_NORMALS_RECOMPUTED: u32 = 0;
+/// `rrskin_crowd_options.normals`: transformed in the skinning pass.
+pub const RRSKIN_NORMALS_TRANSFORMED: u32 = 1;
 
 /// Where the engine finds one frame slot's outputs: character c, vertex a is at
 /// `offset + c * character_stride + a * vertex_stride` bytes in the positions and normals, as
@@ -605,7 +617,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             CrowdOptions::default()
         } else {
             // SAFETY: non-null and readable (the function's contract).
-            crowd_options(unsafe { &*options })
+            crowd_options(unsafe { &*options })?
         };
         let crowd = crate::vk::crowd_bytes(&sizes, characters as usize, &options)?;
         // SAFETY: as the function's contract requires.
@@ -893,21 +905,33 @@ pub unsafe extern "C" fn rrskin_crowd_create_with_options(
             return Err(Failure::null("options"));
         }
         // SAFETY: non-null, and readable by the function's contract.
-        let options = unsafe { crowd_options(&*options) };
+        let options = crowd_options(unsafe { &*options })?;
         // SAFETY: `out` as the function's contract requires.
         unsafe { add_crowd(model, characters, options, out) }
     })
 }
 
-fn crowd_options(o: &RrskinCrowdOptions) -> CrowdOptions {
-    CrowdOptions {
+fn crowd_options(o: &RrskinCrowdOptions) -> Result<CrowdOptions, Failure> {
+    let normals = match o.normals {
+        RRSKIN_NORMALS_RECOMPUTED => NormalMode::Recomputed,
+        RRSKIN_NORMALS_TRANSFORMED => NormalMode::Transformed,
+        other => {
+            return Err(Failure::from(Error::OutOfRange {
+                what: "options->normals (RRSKIN_NORMALS_RECOMPUTED or _TRANSFORMED)",
+                index: other as usize,
+                count: 2,
+            }))
+        }
+    };
+    Ok(CrowdOptions {
         frames_in_flight: o.frames_in_flight as usize,
         previous_positions: o.previous_positions != 0,
         bounds: o.bounds != 0,
         tangents: o.tangents != 0,
+        normals,
         release_to_queue_family: (o.release_outputs != 0).then_some(o.release_queue_family),
         ..CrowdOptions::default()
-    }
+    })
 }
 
 /// Makes a crowd of `model` and hands out its handle.

@@ -20,6 +20,11 @@
 //! 6. optionally tangent frames (models with rest tangents): each rest tangent through its
 //!    vertex's blended palette matrix, made orthogonal to the normal.
 //!
+//! With transformed normals ([`NormalMode::Transformed`], [`vk::CrowdOptions::normals`]), pass
+//! 4 also writes the normals (the rest normal through the cofactor of the blended matrix) and
+//! the tangents, and passes 5 (but for the bounds) and 6 do not run: one pass a frame, as
+//! engines skin.
+//!
 //! [`cpu::CpuEvaluator`] runs them on the CPU in `f64` (the reference); [`vk`] runs them as
 //! Vulkan compute passes, recorded for all crowds into one command buffer. For an engine that
 //! skins with its own shaders, [`palette::Palette`] runs steps 1–3 on the CPU in `f32`: bones in,
@@ -74,9 +79,9 @@
 //! | palette [t; q] | compute write (passes 1, 2, 3), then read (passes 3, 4, 6) | device-local, internal |
 //! | positions (this frame's buffer) | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
 //! | previous positions | not touched | the buffer the last recorded frame wrote |
-//! | normals | compute write (pass 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
+//! | normals | compute write (passes 4, 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
 //! | bounds, slot f | compute write (pass 5) | host-visible, storage |
-//! | tangents | compute write (pass 6) | device-local, vertex + storage + transfer-src |
+//! | tangents | compute write (passes 4, 6) | device-local, vertex + storage + transfer-src |
 //! | corrective weights | compute write (pass 1), then read (pass 4) | device-local, internal (models with correctives) |
 //!
 //! It binds compute pipelines, descriptor set 0 and push constants (bytes 0..24) at
@@ -127,9 +132,11 @@ pub mod cpu;
 pub mod error;
 pub mod ffi;
 pub mod model;
+pub mod normals;
 pub mod palette;
 pub mod predict;
 pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};
 pub use model::{Correctives, KeyPredictor, Model, ModelParts, ProxyCorrectives, SecondBone};
+pub use normals::NormalMode;

@@ -387,8 +387,17 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         tangents: 1,
         release_outputs: 0,
         release_queue_family: 0,
+        normals: RRSKIN_NORMALS_RECOMPUTED,
+    };
+    let unknown = RrskinCrowdOptions {
+        normals: 7,
+        ..options
     };
     let mut bounded = RrskinCrowd { id: 0 };
+    // SAFETY: live values and valid pointers.
+    let refused =
+        unsafe { rrskin_crowd_create_with_options(m, characters, &unknown, &mut bounded) };
+    assert_eq!(refused, RrskinStatus::ErrorOutOfRange);
     let mut boxes = vec![0.0f32; characters as usize * 6];
     // SAFETY: live values and valid lengths.
     unsafe {

@@ -9,7 +9,7 @@ use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::ash::vk;
 use rrskin::vk::{Aabb, Batch, Context, Crowd, CrowdDebugSettings, CrowdOptions, GpuModel};
-use rrskin::{Error, Model};
+use rrskin::{Error, Model, NormalMode};
 use rrskin_render::synthetic::renumber_bones;
 
 /// Evaluates `characters` random poses on the CPU and in `crowds` crowds on the GPU (one batch,
@@ -35,7 +35,7 @@ fn check_poses(
     let v = model.vertex_count();
     let mut cpu_pos = vec![[0.0; 3]; characters * v];
     let mut cpu_nrm = vec![[0.0; 3]; characters * v];
-    CpuEvaluator::new(model)
+    CpuEvaluator::with_normals(model, options.normals)
         .evaluate(poses, &mut cpu_pos, &mut cpu_nrm)
         .expect("CPU evaluation");
 
@@ -614,7 +614,7 @@ fn overlapping_frames(model: &Model, characters: usize, options: CrowdOptions) {
         d.set_event(event).expect("set event");
         d.wait_for_fences(&fences, true, u64::MAX).expect("wait");
     }
-    let mut cpu = CpuEvaluator::new(model);
+    let mut cpu = CpuEvaluator::with_normals(model, options.normals);
     let mut previous: Option<Vec<[f32; 3]>> = None;
     for frame in 0..f {
         let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
@@ -794,6 +794,73 @@ fn tangents_of_overlapping_frames_match_cpu() {
     };
     let model = joint_blend_pattern(&random_model(k8, 52), 1);
     overlapping_frames(&model, 40, chunked);
+}
+
+/// Transformed normals (the skinning pass writes normals and tangents, no normals or tangents
+/// pass runs) against the CPU reference's: both K, plain LBS, dense, block-sparse and fused
+/// products, with pose-space and proxy correctives, with tangents over overlapping frames and
+/// across chunks.
+#[test]
+fn transformed_normals_and_tangents_match_cpu() {
+    let ctx = validated_context();
+    let transformed = CrowdOptions {
+        normals: NormalMode::Transformed,
+        ..CrowdOptions::default()
+    };
+    let k8 = Spec {
+        influences: 8,
+        ..RR
+    };
+    let models = [
+        random_model(LBS, 61),
+        random_model(RR, 62),
+        random_model(k8, 63),
+        joint_blend_pattern(&random_model(k8, 64), 1),
+        joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 65), 2),
+        with_correctives(&random_model(RR, 66), 3, 2),
+        with_proxy_correctives(&random_model(RR, 67), true, 2, 3),
+    ];
+    for model in &models {
+        check(&ctx, model, 7, transformed, 5);
+    }
+    // The two modes differ (so the comparison tells which one the GPU ran).
+    let poses = random_poses(&models[1], 7, 5);
+    let n = 7 * models[1].vertex_count();
+    let normals = |mode| {
+        let (mut p, mut nrm) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        (CpuEvaluator::with_normals(&models[1], mode).evaluate(&poses, &mut p, &mut nrm))
+            .expect("cpu");
+        nrm
+    };
+    let (a, b) = (
+        normals(NormalMode::Recomputed),
+        normals(NormalMode::Transformed),
+    );
+    let largest = (a.iter().zip(&b))
+        .map(|(x, y)| (0..3).map(|i| (x[i] - y[i]).abs()).fold(0.0, f32::max))
+        .fold(0.0, f32::max);
+    assert!(
+        largest > 10.0 * NORMAL_TOLERANCE,
+        "the modes differ by {largest}"
+    );
+    let frames = CrowdOptions {
+        frames_in_flight: 3,
+        previous_positions: true,
+        bounds: true,
+        tangents: true,
+        ..transformed
+    };
+    overlapping_frames(&models[1], 5, frames);
+    let chunked = CrowdOptions {
+        frames_in_flight: 2,
+        tangents: true,
+        debug_settings: CrowdDebugSettings {
+            max_binding_bytes: Some(64 * 1024),
+            ..Default::default()
+        },
+        ..transformed
+    };
+    overlapping_frames(&models[3], 40, chunked);
 }
 
 #[test]
@@ -978,9 +1045,9 @@ fn requirements_are_known_before_any_device_and_met_here() {
     assert_eq!(r.api_version, vk::API_VERSION_1_1);
     assert!(r.instance_extensions.is_empty() && r.device_extensions.is_empty());
     assert_eq!(r.queue_flags, vk::QueueFlags::COMPUTE);
-    // The fused product and the tangents pass bind 7 storage buffers (skinning 6), beyond
-    // Vulkan's guaranteed 4.
-    assert_eq!(r.storage_buffers_per_stage, 7);
+    // Skinning with transformed normals and tangents binds 10 storage buffers (the fused
+    // product and the tangents pass 7), beyond Vulkan's guaranteed 4.
+    assert_eq!(r.storage_buffers_per_stage, 10);
     let ctx = validated_context();
     // SAFETY: the context's live instance and physical device.
     let props = unsafe {

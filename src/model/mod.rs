@@ -349,6 +349,19 @@ impl Model {
         (&self.incident_offsets, &self.incident_triangles)
     }
 
+    /// The rest mesh's unit area-weighted normals (V; welded seams share theirs), what
+    /// transformed normals start from ([`crate::NormalMode::Transformed`]).
+    pub fn rest_normals(&self) -> Vec<[f32; 3]> {
+        let rest: Vec<glam::DVec3> = (self.parts.rest_positions.iter())
+            .map(|p| glam::DVec3::from(p.map(f64::from)))
+            .collect();
+        let (offsets, incident) = self.incidence();
+        crate::normals::area_weighted(&rest, &self.parts.triangles, offsets, incident)
+            .iter()
+            .map(|n| n.as_vec3().to_array())
+            .collect()
+    }
+
     /// Whether the model carries rest tangents (so crowds can output tangent frames).
     pub fn has_tangents(&self) -> bool {
         !self.parts.rest_tangents.is_empty()

@@ -35,7 +35,14 @@ pub(super) const SCHEDULE: [&[Pass]; 6] = [
     &[Pass::Predict, Pass::CorrectiveWeights],
     &[Pass::DenseProduct, Pass::SparseProduct, Pass::FusedProduct],
     &[Pass::ProxyCorrectives],
-    &[Pass::SkinK4, Pass::SkinK8],
+    &[
+        Pass::SkinK4,
+        Pass::SkinK8,
+        Pass::SkinNormalsK4,
+        Pass::SkinNormalsK8,
+        Pass::SkinFramesK4,
+        Pass::SkinFramesK8,
+    ],
     &[Pass::Normals, Pass::Bounds],
     &[Pass::TangentsK4, Pass::TangentsK8],
 ];

@@ -18,6 +18,7 @@ use super::passes::Pass;
 use super::pipelines::PassPipeline;
 use crate::cpu::check_finite;
 use crate::error::{Error, Result};
+use crate::normals::NormalMode;
 use crate::predict::Affine;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -45,6 +46,11 @@ pub struct CrowdOptions {
     /// Write a tangent frame per vertex every frame ([`CrowdOutput::tangents`]): for
     /// normal-mapped materials. Only for models with rest tangents (`NotInModel` otherwise).
     pub tangents: bool,
+    /// How normals (and tangents, orthogonal to them) are made: recomputed from the skinned
+    /// positions over each vertex's 1-ring by a pass of their own (paper §6, the default), or
+    /// transformed in the skinning pass by the cofactor of each vertex's blended matrix, as
+    /// engines skin (one pass a frame; `rrskin eval` reports what each costs in angular error).
+    pub normals: NormalMode,
     /// Release each frame's outputs (its positions, the normals, its bounds, the tangents: those
     /// the crowd has) to this queue family at the end of the recording: a queue family ownership release barrier, which the engine matches with
     /// an acquire on its queue (same buffers, whole range, families reversed); see the crate's
@@ -99,6 +105,7 @@ impl Default for CrowdOptions {
             previous_positions: false,
             bounds: false,
             tangents: false,
+            normals: NormalMode::Recomputed,
             release_to_queue_family: None,
             debug_settings: CrowdDebugSettings::default(),
         }
@@ -221,6 +228,7 @@ impl Crowd {
         let dims = Dims {
             bounds: options.bounds,
             tangents: options.tangents,
+            normals: options.normals,
             ..m.dims
         };
         let bytes = crowd_bytes(&m.sizes, characters, &options)?;

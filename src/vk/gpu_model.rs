@@ -8,6 +8,7 @@ use super::pass::{Dims, ModelBuffer};
 use super::passes::Pass;
 use crate::error::Result;
 use crate::model::{predictor_words, Model};
+use crate::normals::NormalMode;
 use ash::vk;
 use std::sync::Arc;
 
@@ -32,7 +33,7 @@ struct UploadData<'m> {
     predictors: Vec<u32>,
     /// [C1 | C2] row-major where the model stays dense, else empty.
     dense: Vec<f32>,
-    /// The rest positions, then the corrective targets: (1 + N) x V x 3.
+    /// The rest positions, the corrective targets, then the rest normals: (2 + N) x V x 3.
     rest: Vec<f32>,
     /// The proxy correctives' corrected proxies, driver offsets and drivers, one after the other.
     proxy_topology: Vec<u32>,
@@ -48,7 +49,10 @@ impl UploadData<'_> {
         let floats = bytemuck::cast_slice::<f32, u8>;
         let (offsets, incident) = self.model.incidence();
         match b {
-            ModelBuffer::Rest => ("rest positions and corrective targets", floats(&self.rest)),
+            ModelBuffer::Rest => (
+                "rest positions, corrective targets and rest normals",
+                floats(&self.rest),
+            ),
             ModelBuffer::SkinIndex => ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
             ModelBuffer::SkinWeight => ("skin weights", floats(&parts.skin_weights)),
             ModelBuffer::Parents => ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
@@ -106,6 +110,7 @@ impl GpuModel {
             influences: model.influences(),
             bounds: false,
             tangents: false,
+            normals: NormalMode::Recomputed,
             sparse: sparse.is_some(),
             fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
             correctives: model.corrective_count() as u32,
@@ -117,10 +122,15 @@ impl GpuModel {
         };
         let parts = model.parts();
         let targets = parts.correctives.as_ref().map_or(&[][..], |c| &c.targets);
-        let rest = (parts.rest_positions.iter().chain(targets))
-            .flatten()
-            .copied()
-            .collect();
+        let rest_normals = model.rest_normals();
+        let rest = (parts
+            .rest_positions
+            .iter()
+            .chain(targets)
+            .chain(&rest_normals))
+        .flatten()
+        .copied()
+        .collect();
         let data = UploadData {
             model,
             predictors: (model.parts().predictors.iter())

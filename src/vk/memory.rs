@@ -88,6 +88,7 @@ impl ModelSizes {
             influences: self.influences,
             bounds: options.bounds,
             tangents: options.tangents,
+            normals: options.normals,
             sparse: self.product_columns > 0,
             // No crowd buffer's size depends on it (B stays allocated, unused, for a fused
             // model: the sizes do not tell the two apart).
@@ -120,8 +121,8 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
     let features = 9 * u64::from(s.proxy_corrective_linear) + kernels;
     let sparse = n > 0;
     4 * match b {
-        // The rest positions, then the N corrective targets.
-        ModelBuffer::Rest => 3 * v * (1 + corr),
+        // The rest positions, the N corrective targets, then the rest normals.
+        ModelBuffer::Rest => 3 * v * (2 + corr),
         ModelBuffer::SkinIndex | ModelBuffer::SkinWeight => k * v,
         ModelBuffer::Parents => j,
         ModelBuffer::Predictors => PREDICTOR_WORDS as u64 * p,

@@ -4,6 +4,7 @@
 //! passes themselves are listed in `passes.rs`.
 
 use crate::error::{Error, Result};
+use crate::normals::NormalMode;
 
 /// The sizes of a model that passes are dispatched and parameterised over, and the optional
 /// outputs of the crowd being dispatched.
@@ -22,6 +23,9 @@ pub struct Dims {
     /// Whether the crowd writes tangent frames (false for a GPU model itself; only for models
     /// with rest tangents).
     pub tangents: bool,
+    /// How the crowd's normals are made (recomputed for a GPU model itself): recomputed by the
+    /// normals pass (and tangents by theirs), or transformed in the skinning pass.
+    pub normals: NormalMode,
     /// Whether the model stores C1|C2 block-sparse per proxy (the sparse product runs instead
     /// of the dense GEMM; see `GpuModel::new`).
     pub sparse: bool,
@@ -62,8 +66,8 @@ indexed_enum! {
     /// A buffer of the GPU model, uploaded once and only ever read; sized by
     /// `memory::model_buffer_bytes`, filled by `gpu_model::upload_bytes`.
     pub enum ModelBuffer {
-        /// (1 + N) x V x 3 f32: the rest positions, then the N corrective targets (one buffer,
-        /// so that skinning binds no more storage buffers than the widest pass already does)
+        /// (2 + N) x V x 3 f32: the rest positions, the N corrective targets, then the rest
+        /// normals (one buffer, so that skinning binds fewer storage buffers)
         Rest,
         SkinIndex,
         SkinWeight,
@@ -268,6 +272,9 @@ pub struct Shader {
     /// The source in `glsl/` (the table's test checks the bindings and push block against it).
     #[cfg(test)]
     pub glsl: &'static str,
+    /// The `NAME=value` defines of its line in `glsl/shaders.txt` (`#ifdef` blocks).
+    #[cfg(test)]
+    pub defines: &'static [(&'static str, &'static str)],
     /// Built by build.rs from `glsl`, with the line's defines.
     pub spirv: &'static [u8],
 }
@@ -364,6 +371,8 @@ mod tests {
             shader: Shader {
                 #[cfg(test)]
                 glsl: "",
+                #[cfg(test)]
+                defines: &[],
                 spirv: &[],
             },
             bindings: &[],
@@ -380,6 +389,7 @@ mod tests {
         influences: 4,
         bounds: false,
         tangents: false,
+        normals: NormalMode::Recomputed,
         sparse: false,
         fused: false,
         correctives: 0,

@@ -9,6 +9,7 @@ use super::pass::Extent::{
 };
 use super::pass::ModelBuffer as M;
 use super::pass::{indexed_enum, over, Axis, Dims, PassDesc, PushWord as W, ONE};
+use crate::normals::NormalMode;
 
 /// The SPIR-V of `glsl/shaders.txt`, one [`Shader`] constant a line (build.rs writes them).
 mod shaders {
@@ -30,6 +31,10 @@ indexed_enum! {
         FusedProduct,
         SkinK4,
         SkinK8,
+        SkinNormalsK4,
+        SkinNormalsK8,
+        SkinFramesK4,
+        SkinFramesK8,
         Normals,
         Bounds,
         TangentsK4,
@@ -48,6 +53,10 @@ impl Pass {
             Pass::FusedProduct => &FUSED_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
+            Pass::SkinNormalsK4 => &SKIN_NORMALS_K4,
+            Pass::SkinNormalsK8 => &SKIN_NORMALS_K8,
+            Pass::SkinFramesK4 => &SKIN_FRAMES_K4,
+            Pass::SkinFramesK8 => &SKIN_FRAMES_K8,
             Pass::Normals => &NORMALS,
             Pass::Bounds => &BOUNDS,
             Pass::TangentsK4 => &TANGENTS_K4,
@@ -109,26 +118,31 @@ fn plain_model_kinds() -> impl Iterator<Item = Dims> {
         (3, true, true),
     ];
     let kinds = crate::model::SUPPORTED_INFLUENCES.map(|k| products.map(|(p, s, f)| (k, p, s, f)));
-    let outputs = [(false, false), (true, false), (false, true), (true, true)];
+    let outputs = [(false, false), (true, false), (false, true), (true, true)]
+        .into_iter()
+        .flat_map(|o| [NormalMode::Recomputed, NormalMode::Transformed].map(|n| (o, n)));
     kinds
         .into_iter()
         .flatten()
         .flat_map(move |(k, proxies, sparse, fused)| {
-            outputs.map(|(bounds, tangents)| Dims {
-                vertices: 10,
-                proxies,
-                bones: 2,
-                influences: k as usize,
-                bounds,
-                tangents,
-                sparse,
-                fused,
-                correctives: 0,
-                drivers: 0,
-                corrected_proxies: 0,
-                kernels: 0,
-                linear_features: false,
-            })
+            outputs
+                .clone()
+                .map(move |((bounds, tangents), normals)| Dims {
+                    vertices: 10,
+                    proxies,
+                    bones: 2,
+                    influences: k as usize,
+                    bounds,
+                    tangents,
+                    normals,
+                    sparse,
+                    fused,
+                    correctives: 0,
+                    drivers: 0,
+                    corrected_proxies: 0,
+                    kernels: 0,
+                    linear_features: false,
+                })
         })
 }
 
@@ -270,16 +284,69 @@ const SKIN_K4: PassDesc = PassDesc {
         W::Correctives,
     ],
     groups: PER_VERTEX,
-    runs: |d| d.influences == 4,
+    runs: |d| d.influences == 4 && d.normals == NormalMode::Recomputed,
 };
 
 const SKIN_K8: PassDesc = PassDesc {
     shader: shaders::SKIN_K8,
-    runs: |d| d.influences == 8,
+    runs: |d| d.influences == 8 && d.normals == NormalMode::Recomputed,
     ..SKIN_K4
 };
 
-/// Normals gathered from each vertex's incident triangles (no atomics).
+/// Skinning with transformed normals (`crate::normals`): the rest normals, stored after the
+/// rest positions and targets, through the cofactor of each vertex's blended matrix, written
+/// beside the positions, so that neither the normals pass nor the tangents pass runs; one
+/// pipeline per K. Crowds without tangents.
+const SKIN_NORMALS_K4: PassDesc = PassDesc {
+    shader: shaders::SKIN_NORMALS_K4,
+    bindings: &[
+        Model(M::Rest),
+        Model(M::SkinIndex),
+        Model(M::SkinWeight),
+        Reads(Crowd::Palette),
+        Reads(Crowd::Bones),
+        Writes(Crowd::Positions),
+        Reads(Crowd::CorrectiveWeights),
+        Writes(Crowd::Normals),
+    ],
+    runs: |d| d.influences == 4 && d.normals == NormalMode::Transformed && !d.tangents,
+    ..SKIN_K4
+};
+
+const SKIN_NORMALS_K8: PassDesc = PassDesc {
+    shader: shaders::SKIN_NORMALS_K8,
+    runs: |d| d.influences == 8 && d.normals == NormalMode::Transformed && !d.tangents,
+    ..SKIN_NORMALS_K4
+};
+
+/// As [`SKIN_NORMALS_K4`], and the tangent frames: the rest tangent through the blended 3x3,
+/// made orthogonal to the transformed normal. Crowds with tangents.
+const SKIN_FRAMES_K4: PassDesc = PassDesc {
+    shader: shaders::SKIN_FRAMES_K4,
+    bindings: &[
+        Model(M::Rest),
+        Model(M::SkinIndex),
+        Model(M::SkinWeight),
+        Reads(Crowd::Palette),
+        Reads(Crowd::Bones),
+        Writes(Crowd::Positions),
+        Reads(Crowd::CorrectiveWeights),
+        Writes(Crowd::Normals),
+        Model(M::RestTangents),
+        Writes(Crowd::Tangents),
+    ],
+    runs: |d| d.influences == 4 && d.normals == NormalMode::Transformed && d.tangents,
+    ..SKIN_K4
+};
+
+const SKIN_FRAMES_K8: PassDesc = PassDesc {
+    shader: shaders::SKIN_FRAMES_K8,
+    runs: |d| d.influences == 8 && d.normals == NormalMode::Transformed && d.tangents,
+    ..SKIN_FRAMES_K4
+};
+
+/// Normals gathered from each vertex's incident triangles (no atomics). Crowds with
+/// recomputed normals.
 const NORMALS: PassDesc = PassDesc {
     shader: shaders::NORMALS,
     bindings: &[
@@ -291,7 +358,7 @@ const NORMALS: PassDesc = PassDesc {
     ],
     push: &[W::Vertices, W::Characters],
     groups: PER_VERTEX,
-    runs: |_| true,
+    runs: |d| d.normals == NormalMode::Recomputed,
 };
 
 /// Per-character axis-aligned boxes of the positions: one workgroup per character reduces its
@@ -305,7 +372,8 @@ const BOUNDS: PassDesc = PassDesc {
 };
 
 /// Tangent frames: each vertex's rest tangent through its blended palette matrix, made
-/// orthogonal to its normal; one pipeline per K. Crowds created with tangents only.
+/// orthogonal to its normal; one pipeline per K. Crowds created with tangents and recomputed
+/// normals (with transformed normals, skinning writes them).
 const TANGENTS_K4: PassDesc = PassDesc {
     shader: shaders::TANGENTS_K4,
     bindings: &[
@@ -319,12 +387,12 @@ const TANGENTS_K4: PassDesc = PassDesc {
     ],
     push: &[W::Vertices, W::Proxies, W::Bones, W::Characters],
     groups: PER_VERTEX,
-    runs: |d| d.tangents && d.influences == 4,
+    runs: |d| d.tangents && d.influences == 4 && d.normals == NormalMode::Recomputed,
 };
 
 const TANGENTS_K8: PassDesc = PassDesc {
     shader: shaders::TANGENTS_K8,
-    runs: |d| d.tangents && d.influences == 8,
+    runs: |d| d.tangents && d.influences == 8 && d.normals == NormalMode::Recomputed,
     ..TANGENTS_K4
 };
 
@@ -338,9 +406,26 @@ mod tests {
 
     /// (binding index, declared `readonly`, block name) of every storage buffer, and the push
     /// block's member names, in source order.
-    fn interface(source: &str) -> (Vec<(usize, bool, String)>, Vec<String>) {
-        let buffers = source
-            .lines()
+    fn interface(
+        source: &str,
+        defines: &[(&str, &str)],
+    ) -> (Vec<(usize, bool, String)>, Vec<String>) {
+        // The lines of this variant: those of `#ifdef NAME .. #endif` blocks only where NAME is
+        // defined (no nesting, no #else in these shaders).
+        let mut kept = true;
+        let lines = source.lines().filter(|line| {
+            let line = line.trim();
+            if let Some(name) = line.strip_prefix("#ifdef ") {
+                kept = defines.iter().any(|(d, _)| *d == name.trim());
+                return false;
+            }
+            if line.starts_with("#endif") {
+                kept = true;
+                return false;
+            }
+            kept
+        });
+        let buffers = lines
             .filter_map(|line| {
                 let at = line.find("binding = ")? + "binding = ".len();
                 let digits: String = line[at..]
@@ -424,7 +509,7 @@ mod tests {
                 .join("glsl")
                 .join(d.shader.glsl);
             let source = std::fs::read_to_string(&path).expect("the pass's shader");
-            let (buffers, push) = interface(&source);
+            let (buffers, push) = interface(&source, d.shader.defines);
             let expected: Vec<(usize, bool, String)> = (d.bindings.iter().enumerate())
                 .map(|(i, &b)| {
                     (
@@ -544,6 +629,7 @@ mod tests {
             influences: 4,
             bounds: false,
             tangents: false,
+            normals: NormalMode::Recomputed,
             sparse: false,
             fused: false,
             correctives: 0,

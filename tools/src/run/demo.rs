@@ -147,7 +147,7 @@ impl HeldOut {
         };
         let (e_ssd, e_rr) = (errors(&ssd.0), errors(&rr.0));
         let truth_normals =
-            rrskin::cpu::area_weighted_normals(&set.poses[pose].vertices, &set.faces, |v| v)
+            rrskin::normals::area_weighted_grouped(&set.poses[pose].vertices, &set.faces, |v| v)
                 .iter()
                 .map(|n| n.as_vec3().to_array())
                 .collect();
