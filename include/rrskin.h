@@ -237,6 +237,10 @@ typedef struct rrskin_model_info {
   uint32_t proxy_corrective_kernels;
   // Nonzero: the proxy correctives have the 9 linear features per driver.
   uint32_t proxy_corrective_linear;
+  // Entries of the 1-ring fans the recomputed-normals pass reads (about 3 x triangles +
+  // 2 x vertices for a closed mesh): what `rrskin_model_get_info` reports, needed for
+  // `rrskin_query_memory`'s model bytes.
+  uint32_t normal_fan_entries;
 } rrskin_model_info;
 
 // How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses

@@ -156,6 +156,10 @@ pub struct RrskinModelInfo {
     pub proxy_corrective_kernels: u32,
     /// Nonzero: the proxy correctives have the 9 linear features per driver.
     pub proxy_corrective_linear: u32,
+    /// Entries of the 1-ring fans the recomputed-normals pass reads (about 3 x triangles +
+    /// 2 x vertices for a closed mesh): what `rrskin_model_get_info` reports, needed for
+    /// `rrskin_query_memory`'s model bytes.
+    pub normal_fan_entries: u32,
 }
 
 /// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses
@@ -612,6 +616,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             proxy_corrective_drivers: i.proxy_corrective_drivers as usize,
             proxy_corrective_kernels: i.proxy_corrective_kernels as usize,
             proxy_corrective_linear: i.proxy_corrective_linear != 0,
+            normal_fans: i.normal_fan_entries as usize,
         };
         let options = if options.is_null() {
             CrowdOptions::default()
@@ -858,6 +863,7 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             proxy_corrective_drivers: sizes.proxy_corrective_drivers as u32,
             proxy_corrective_kernels: sizes.proxy_corrective_kernels as u32,
             proxy_corrective_linear: u32::from(sizes.proxy_corrective_linear),
+            normal_fan_entries: sizes.normal_fans as u32,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }

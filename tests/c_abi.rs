@@ -473,6 +473,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         proxy_corrective_drivers: 4,
         proxy_corrective_kernels: 2,
         proxy_corrective_linear: 1,
+        normal_fan_entries: model.normal_fans().entries.len() as u32,
     };
     let mut reported = RrskinModelInfo::default();
     // SAFETY: `out` points to a live value.
@@ -486,6 +487,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         ),
         (info.blend_columns, 1, 4, 3)
     );
+    assert_eq!(reported.normal_fan_entries, info.normal_fan_entries);
     assert_eq!(
         (
             reported.proxy_correctives,

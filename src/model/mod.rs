@@ -362,6 +362,15 @@ impl Model {
             .collect()
     }
 
+    /// The triangles around each vertex as 1-ring fans ([`crate::normals::Fans`]), pivoted in
+    /// the vertex's normal group: what the GPU's recomputed-normals pass reads.
+    pub fn normal_fans(&self) -> crate::normals::Fans {
+        let groups = &self.parts.normal_groups;
+        let group = |v: u32| groups.get(v as usize).copied().unwrap_or(v);
+        let (offsets, incident) = self.incidence();
+        crate::normals::Fans::new(&self.parts.triangles, offsets, incident, group)
+    }
+
     /// Whether the model carries rest tangents (so crowds can output tangent frames).
     pub fn has_tangents(&self) -> bool {
         !self.parts.rest_tangents.is_empty()

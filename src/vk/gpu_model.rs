@@ -8,7 +8,7 @@ use super::pass::{Dims, ModelBuffer};
 use super::passes::Pass;
 use crate::error::Result;
 use crate::model::{predictor_words, Model};
-use crate::normals::NormalMode;
+use crate::normals::{Fans, NormalMode, FAN_PIVOT};
 use ash::vk;
 use std::sync::Arc;
 
@@ -35,6 +35,8 @@ struct UploadData<'m> {
     dense: Vec<f32>,
     /// The rest positions, the corrective targets, then the rest normals: (2 + N) x V x 3.
     rest: Vec<f32>,
+    /// The 1-ring fans of the normals pass.
+    fans: Fans,
     /// The proxy correctives' corrected proxies, driver offsets and drivers, one after the other.
     proxy_topology: Vec<u32>,
     /// The proxy correctives' kernel centres (C x J x 9), then their widths (J).
@@ -47,7 +49,6 @@ impl UploadData<'_> {
     fn of(&self, b: ModelBuffer) -> (&'static str, &[u8]) {
         let parts = self.model.parts();
         let floats = bytemuck::cast_slice::<f32, u8>;
-        let (offsets, incident) = self.model.incidence();
         match b {
             ModelBuffer::Rest => (
                 "rest positions, corrective targets and rest normals",
@@ -67,10 +68,11 @@ impl UploadData<'_> {
             ModelBuffer::ProductValues => {
                 ("C1|C2 values", floats(self.blocks.values.as_flattened()))
             }
-            ModelBuffer::IncidentOffsets => ("incident offsets", bytemuck::cast_slice(offsets)),
-            ModelBuffer::IncidentTriangles => {
-                ("incident triangles", bytemuck::cast_slice(incident))
-            }
+            ModelBuffer::FanOffsets => (
+                "normal fan offsets",
+                bytemuck::cast_slice(&self.fans.offsets),
+            ),
+            ModelBuffer::Fans => ("normal fans", bytemuck::cast_slice(&self.fans.entries)),
             ModelBuffer::Triangles => (
                 "triangles",
                 bytemuck::cast_slice(parts.triangles.as_flattened()),
@@ -120,6 +122,13 @@ impl GpuModel {
                 .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
             linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
         };
+        if model.vertex_count() as u64 >= u64::from(FAN_PIVOT) {
+            return Err(crate::Error::DeviceLimit {
+                what: "vertices (the normal fans flag a pivot in bit 31)",
+                needed: model.vertex_count() as u64,
+                limit: u64::from(FAN_PIVOT) - 1,
+            });
+        }
         let parts = model.parts();
         let targets = parts.correctives.as_ref().map_or(&[][..], |c| &c.targets);
         let rest_normals = model.rest_normals();
@@ -141,6 +150,7 @@ impl GpuModel {
                 None => model.c1_c2(),
             },
             rest,
+            fans: model.normal_fans(),
             proxy_topology: (model.proxy_correctives())
                 .map(|c| [&c.proxies, &c.driver_offsets, &c.drivers].map(|a| a.iter()))
                 .into_iter()
@@ -156,7 +166,8 @@ impl GpuModel {
                 .collect(),
             blocks: sparse.unwrap_or_default(),
         };
-        let sizes = ModelSizes::with_product_columns(model, data.blocks.columns.len());
+        let sizes =
+            ModelSizes::with_layout(model, data.blocks.columns.len(), data.fans.entries.len());
         let items = ModelBuffer::ALL.map(|b| data.of(b));
         let limit = context.limits().max_storage_buffer_range;
         for (b, (what, bytes)) in ModelBuffer::ALL.into_iter().zip(&items) {

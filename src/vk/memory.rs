@@ -31,6 +31,9 @@ pub struct ModelSizes {
     /// any of a proxy's 4 rows is non-zero), 0 where the model keeps the dense matrix. What
     /// [`ModelSizes::of`] finds (the layout `GpuModel::new` chooses, [`super::GpuModel::is_block_sparse`]).
     pub product_columns: usize,
+    /// Entries of the 1-ring fans the normals pass reads ([`Model::normal_fans`]): about
+    /// 3T + 2V for a closed manifold mesh, what [`ModelSizes::of`] counts.
+    pub normal_fans: usize,
     /// Whether the model carries rest tangents (uploaded, and crowds may output tangents).
     pub tangents: bool,
     /// N, the pose-space corrective targets (0 without correctives).
@@ -50,12 +53,14 @@ pub struct ModelSizes {
 impl ModelSizes {
     pub fn of(model: &Model) -> ModelSizes {
         let columns = super::gpu_model::BlockSparse::of(model).map_or(0, |b| b.columns.len());
-        ModelSizes::with_product_columns(model, columns)
+        ModelSizes::with_layout(model, columns, model.normal_fans().entries.len())
     }
 
-    /// The sizes of `model` once its block-sparse C1|C2 (if any) stores `columns` columns.
-    pub(crate) fn with_product_columns(model: &Model, columns: usize) -> ModelSizes {
+    /// The sizes of `model` once its block-sparse C1|C2 (if any) stores `columns` columns and
+    /// its normal fans `fans` entries.
+    pub(crate) fn with_layout(model: &Model, columns: usize, fans: usize) -> ModelSizes {
         ModelSizes {
+            normal_fans: fans,
             vertices: model.vertex_count(),
             triangles: model.triangle_count(),
             bones: model.bone_count(),
@@ -132,8 +137,9 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::ProductOffsets => 0,
         ModelBuffer::ProductColumns => n,
         ModelBuffer::ProductValues => 4 * n,
-        ModelBuffer::IncidentOffsets => v + 1,
-        ModelBuffer::IncidentTriangles | ModelBuffer::Triangles => 3 * t,
+        ModelBuffer::FanOffsets => v + 1,
+        ModelBuffer::Fans => s.normal_fans as u64,
+        ModelBuffer::Triangles => 3 * t,
         ModelBuffer::RestTangents if s.tangents => 4 * v,
         ModelBuffer::RestTangents => 0,
         ModelBuffer::CorrectiveDrivers => drivers,

@@ -81,8 +81,10 @@ indexed_enum! {
         ProductColumns,
         /// one vec4 per stored column: rows 4e .. 4e + 3 of [C1 | C2] at that column
         ProductValues,
-        IncidentOffsets,
-        IncidentTriangles,
+        /// V + 1 u32: vertex a's 1-ring fans are entries offsets[a] .. offsets[a + 1]
+        FanOffsets,
+        /// u32 per entry, the fans' pivots flagged (`crate::normals::Fans`)
+        Fans,
         Triangles,
         /// V x vec4 rest tangents (xyz, handedness w); empty for a model without them
         RestTangents,

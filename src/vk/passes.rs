@@ -345,15 +345,14 @@ const SKIN_FRAMES_K8: PassDesc = PassDesc {
     ..SKIN_FRAMES_K4
 };
 
-/// Normals gathered from each vertex's incident triangles (no atomics). Crowds with
-/// recomputed normals.
+/// Normals gathered from each vertex's 1-ring fans (`crate::normals::Fans`; no atomics).
+/// Crowds with recomputed normals.
 const NORMALS: PassDesc = PassDesc {
     shader: shaders::NORMALS,
     bindings: &[
         Reads(Crowd::Positions),
-        Model(M::IncidentOffsets),
-        Model(M::IncidentTriangles),
-        Model(M::Triangles),
+        Model(M::FanOffsets),
+        Model(M::Fans),
         Writes(Crowd::Normals),
     ],
     push: &[W::Vertices, W::Characters],
@@ -464,8 +463,8 @@ mod tests {
                 M::ProductOffsets => "ProductOffsets",
                 M::ProductColumns => "ProductColumns",
                 M::ProductValues => "ProductValues",
-                M::IncidentOffsets => "Offsets",
-                M::IncidentTriangles => "Incident",
+                M::FanOffsets => "FanOffsets",
+                M::Fans => "Fans",
                 M::Triangles => "Triangles",
                 M::RestTangents => "RestTangents",
                 M::CorrectiveDrivers => "Drivers",

@@ -8,10 +8,12 @@
 //! palette [t; q] (P > 0)           2 · 48 C (P + J)     written by the product, read by skinning
 //! skinning                         12 V + 8 K V         rest and weights, once for all characters
 //!                                  + 12 C V             positions written
-//! normals                          12 C V + 12 C V      positions read, normals written
-//!                                  + 4 (V + 1) + 24 T   topology, once
+//! recomputed normals               12 C V + 12 C V      positions read, normals written
+//!                                  + 4 (V + 1) + 4 F    1-ring fans (F entries, ~3T + 2V), once
+//!   tangents (option)              16 V + 8 K V + 48 C (P + J) + 12 C V + 16 C V
+//! transformed normals, in skinning 12 V + 12 C V        rest normals, normals written
+//!   tangents (option)              16 V + 16 C V        rest tangents, tangents written
 //! bounds (option)                  12 C V + 32 C
-//! tangents (option)                16 V + 8 K V + 48 C (P + J) + 12 C V + 16 C V
 //! ```
 //!
 //! Every per-character array is read or written once, every model array read once (its reuse
@@ -20,15 +22,15 @@
 //! reaches is bound / measured time.
 
 use rrskin::vk::CrowdOptions;
-use rrskin::Model;
+use rrskin::{Model, NormalMode};
 
 /// The bytes above for a crowd of `characters` of `model` made with `options`; `fused`: the
 /// product evaluates the predictors itself (no B round trip).
 pub fn frame_bytes(model: &Model, characters: usize, options: &CrowdOptions, fused: bool) -> u64 {
-    let (c, v, t) = (
+    let (c, v, fans) = (
         characters as u64,
         model.vertex_count() as u64,
-        model.triangle_count() as u64,
+        model.normal_fans().entries.len() as u64,
     );
     let (j, p, k) = (
         model.bone_count() as u64,
@@ -42,17 +44,21 @@ pub fn frame_bytes(model: &Model, characters: usize, options: &CrowdOptions, fus
         0
     };
     let skinning = 12 * v + 8 * k * v + 12 * c * v;
-    let normals = 24 * c * v + 4 * (v + 1) + 24 * t;
+    let tangents = u64::from(options.tangents);
+    let normals = match options.normals {
+        NormalMode::Recomputed => {
+            24 * c * v
+                + 4 * (v + 1 + fans)
+                + tangents * (16 * v + 8 * k * v + 48 * c * (p + j) + 28 * c * v)
+        }
+        NormalMode::Transformed => 12 * v + 12 * c * v + tangents * (16 * v + 16 * c * v),
+    };
     let bounds = if options.bounds {
         12 * c * v + 32 * c
     } else {
         0
     };
-    let tangents = match options.tangents {
-        true => 16 * v + 8 * k * v + 48 * c * (p + j) + 28 * c * v,
-        false => 0,
-    };
-    48 * c * j + rhs + 2 * palette + skinning + normals + bounds + tangents
+    48 * c * j + rhs + 2 * palette + skinning + normals + bounds
 }
 
 #[cfg(test)]
@@ -102,5 +108,19 @@ mod tests {
         };
         let extra = bytes(&rr, &tangents, true) - bytes(&rr, &plain, true);
         assert_eq!(extra, 16 * v + 32 * v + 48 * c * (p + j) + 28 * c * v);
+        // Transformed normals: no positions read back, no fans, no second palette read.
+        let transformed = |o: CrowdOptions| CrowdOptions {
+            normals: NormalMode::Transformed,
+            ..o
+        };
+        let fans = rr.normal_fans().entries.len() as u64;
+        assert_eq!(
+            bytes(&rr, &plain, true) - bytes(&rr, &transformed(plain), true),
+            24 * c * v + 4 * (v + 1 + fans) - (12 * v + 12 * c * v)
+        );
+        assert_eq!(
+            bytes(&rr, &transformed(tangents), true) - bytes(&rr, &transformed(plain), true),
+            16 * v + 16 * c * v
+        );
     }
 }
