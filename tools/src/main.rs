@@ -537,6 +537,12 @@ fn bench(args: &RunArgs) -> Outcome {
         b.pair_ratios.len(),
         b.paired_ratio()
     );
+    out!(
+        "  transformed normals: RR {:.3} ms, engine baseline (SSD, one pass) {:.3} ms, RR / engine {:.2}",
+        b.rr_transformed.profile.total_ms,
+        b.engine.total_ms,
+        b.rr_vs_engine()
+    );
     let options = [
         ("previous positions", Some(&b.previous_positions)),
         ("bounds", Some(&b.bounds)),

@@ -522,9 +522,19 @@ fn a_trained_model_file_evaluates_as_trained() {
         "previous_positions_ratio",
         "bounds_ms",
         "bounds_ratio",
+        "engine_ms",
+        "engine_passes",
+        "rr_transformed_ms",
+        "rr_vs_engine",
     ] {
         assert!(!b[key].is_null(), "{key} missing in {b}");
     }
+    assert!(
+        b["rr_vs_engine"]
+            .as_f64()
+            .is_some_and(|r| r > 0.0 && r.is_finite()),
+        "{b}"
+    );
     // The options' ratios are medians of per-frame ratios to the same frame's plain RR (not
     // the ratio of the medians); a model trained from the NumPy layout has no tangents.
     for option in ["previous_positions", "bounds"] {

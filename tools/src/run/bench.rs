@@ -1,11 +1,12 @@
 //! `rrskin bench`: the whole per-frame pipeline of rotational regression against plain
-//! matrix-palette skinning, and the cost of the runtime's optional outputs, from GPU timestamps
+//! matrix-palette skinning (with recomputed normals, and as engines skin: one pass with
+//! transformed normals), and the cost of the runtime's optional outputs, from GPU timestamps
 //! (the frames are `run/profile.rs`'s).
 
 use super::profile::{context, poses, profile, Profile, Runner, WARM_UP_FRAMES};
 use crate::progress::Progress;
 use rrskin::vk::{CrowdOptions, DeviceChoice, PassTimings};
-use rrskin::Model;
+use rrskin::{Model, NormalMode};
 
 /// The whole per-frame pipeline of rotational regression against plain matrix-palette skinning
 /// (the model's SSD baseline: same mesh, its NNLS weights), both on one device in one run, from
@@ -20,6 +21,14 @@ pub struct Bench {
     pub ssd: Profile,
     /// RR frame time over SSD frame time, per frame.
     pub pair_ratios: Vec<f64>,
+    /// The engine baseline: plain palette skinning with the model's SSD weights and transformed
+    /// normals, one pass a frame (what a skin cache runs: Unreal's GPU skin cache, Godot's and
+    /// Unity's compute skinning).
+    pub engine: Profile,
+    /// RR with transformed normals, its ratio to the plain RR frame.
+    pub rr_transformed: OptionCost,
+    /// RR with transformed normals over the engine baseline, per frame: like for like.
+    pub engine_ratios: Vec<f64>,
     pub previous_positions: OptionCost,
     pub bounds: OptionCost,
     /// For models with rest tangents.
@@ -62,10 +71,14 @@ impl Bench {
             f(&mut o);
             o
         };
-        // RR first, SSD second, then the options: the order of `Bench`'s fields.
+        let transformed = with(|o| o.normals = NormalMode::Transformed);
+        // RR first, SSD second, the engine baseline, RR with transformed normals, then the
+        // options: the order of `Bench`'s fields.
         let mut variants = vec![
             (model, plain),
             (&baseline, plain),
+            (&baseline, transformed),
+            (model, transformed),
             (model, with(|o| o.previous_positions = true)),
             (model, with(|o| o.bounds = true)),
         ];
@@ -77,7 +90,7 @@ impl Bench {
             .collect::<Result<Vec<_>, _>>()?;
         let n = runners.len();
         let progress = Progress::new(
-            "RR, SSD and RR with each option",
+            "RR, SSD, the engine baseline and RR in each mode",
             WARM_UP_FRAMES + frames,
             quiet,
         );
@@ -105,7 +118,7 @@ impl Bench {
                 .map(|(t, rr)| t / rr)
                 .collect::<Vec<_>>()
         };
-        let costs = (2..n)
+        let costs = (3..n)
             .map(|i| -> Result<OptionCost, Box<dyn std::error::Error>> {
                 Ok(OptionCost {
                     profile: profile(&ctx, &runners[i], model, characters, &samples[i])?,
@@ -114,7 +127,9 @@ impl Bench {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let mut costs = costs.into_iter();
-        let (Some(previous_positions), Some(bounds)) = (costs.next(), costs.next()) else {
+        let (Some(rr_transformed), Some(previous_positions), Some(bounds)) =
+            (costs.next(), costs.next(), costs.next())
+        else {
             return Err("an optional output was not measured".into());
         };
         let tangents = costs.next();
@@ -124,6 +139,11 @@ impl Bench {
             pair_ratios: (rr_totals.iter().zip(total(&samples[1])))
                 .map(|(rr, ssd)| rr / ssd)
                 .collect(),
+            engine: profile(&ctx, &runners[2], &baseline, characters, &samples[2])?,
+            engine_ratios: (total(&samples[3]).iter().zip(total(&samples[2])))
+                .map(|(rr, engine)| rr / engine)
+                .collect(),
+            rr_transformed,
             previous_positions,
             bounds,
             tangents,
@@ -134,6 +154,12 @@ impl Bench {
     /// measures at least one).
     pub fn paired_ratio(&self) -> f64 {
         median(&self.pair_ratios)
+    }
+
+    /// The median of the per-frame ratios of RR with transformed normals to the engine
+    /// baseline.
+    pub fn rr_vs_engine(&self) -> f64 {
+        median(&self.engine_ratios)
     }
 
     /// `bandwidth_gbps`: the device's peak memory bandwidth, if known, for the fraction of the
@@ -160,6 +186,18 @@ impl Bench {
             "ratio": self.rr.total_ms / self.ssd.total_ms,
             "paired_ratio": self.paired_ratio(),
             "pairs": self.pair_ratios.len(),
+            // Plain palette skinning with SSD weights and transformed normals, one pass; RR
+            // with transformed normals, and its paired ratio to that baseline.
+            "engine_ms": self.engine.total_ms,
+            "engine_passes": passes(&self.engine),
+            "rr_transformed_ms": self.rr_transformed.profile.total_ms,
+            "rr_transformed_passes": passes(&self.rr_transformed.profile),
+            "rr_transformed_ratio": self.rr_transformed.ratio(),
+            "rr_vs_engine": self.rr_vs_engine(),
+            "engine_bytes_per_frame": self.engine.bytes,
+            "rr_transformed_bytes_per_frame": self.rr_transformed.profile.bytes,
+            "engine_bandwidth_fraction": fraction(&self.engine),
+            "rr_transformed_bandwidth_fraction": fraction(&self.rr_transformed.profile),
             "rr_passes": passes(&self.rr),
             "ssd_passes": passes(&self.ssd),
             "rr_mverts_per_s": mverts(&self.rr),
