@@ -6,6 +6,11 @@
 // neither written nor read and pass 1 does not run. One invocation per (character, proxy); the
 // invocations of a workgroup share the proxy, hence its predictor and its column loop; rows
 // e >= P of workgroups copy bone e - P into the skinning palette [t; q].
+// Built with CORRECTIVES for a model with proxy correctives: a corrected proxy's invocation
+// applies T (I + E) before it stores T (proxy_correction.glsl, one character), so the frame
+// needs no proxy-correctives pass (one dispatch and one barrier fewer: the fixed cost of small
+// crowds). The inverse of the corrected proxies' list (P entries, ~0u where uncorrected) follows
+// the drivers in ProxyTopology.
 layout(local_size_x = 64) in;
 
 #include "predictor_types.glsl"
@@ -17,10 +22,22 @@ layout(std430, set = 0, binding = 3) readonly buffer Bones { Affine bones[]; }; 
 layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J
 layout(std430, set = 0, binding = 5) readonly buffer Predictors { Predictor preds[]; }; // P
 layout(std430, set = 0, binding = 6) buffer Palette { vec4 proxies[]; };  // chars x (P + J) x 3 rows
+#ifdef CORRECTIVES
+layout(std430, set = 0, binding = 7) readonly buffer ProxyTopology { uint topology[]; };    // E, E + 1, sum D_i, P
+layout(std430, set = 0, binding = 8) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J
+layout(std430, set = 0, binding = 9) readonly buffer ProxyMaps { vec4 maps[]; };            // sum F_i x 3 (x 4)
 
+layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;
+#endif
+#ifdef PLAIN
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
+#endif
 
 #include "predictor.glsl"
+#ifdef CORRECTIVES
+#include "joint_features.glsl"
+#include "proxy_correction.glsl"
+#endif
 
 void main() {
     uint ch = gl_GlobalInvocationID.x;
@@ -61,6 +78,19 @@ void main() {
         acc1 += v * b.y;
         acc2 += v * b.z;
     }
+#ifdef CORRECTIVES
+    // T' = T (I + E): row r of T plus T[r][0] E row 0 + T[r][1] E row 1 + T[r][2] E row 2.
+    uint i = topology[2u * pc.E + 1u + topology[2u * pc.E] + e];
+    if (i != ~0u) {
+        vec4 e0;
+        vec4 e1;
+        vec4 e2;
+        correction(ch, i, e0, e1, e2);
+        acc0 += acc0.x * e0 + acc0.y * e1 + acc0.z * e2;
+        acc1 += acc1.x * e0 + acc1.y * e1 + acc1.z * e2;
+        acc2 += acc2.x * e0 + acc2.y * e1 + acc2.z * e2;
+    }
+#endif
     proxies[out_at] = acc0;
     proxies[out_at + 1u] = acc1;
     proxies[out_at + 2u] = acc2;

@@ -14,7 +14,8 @@
 // vec4 x_f, and their E rows accumulate as the columns of three mat4 (E_r += outer(G_f row r,
 // x_f)). A workgroup's invocations share the proxy, so loop bounds and map loads are uniform.
 // Characters of an invocation are 64 apart (adjacent invocations read adjacent characters).
-// Models with proxy correctives only.
+// Models with proxy correctives whose product is not fused (a fused product applies them itself:
+// fused_product.comp with CORRECTIVES).
 layout(local_size_x = 64) in;
 
 struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
@@ -29,14 +30,7 @@ layout(std430, set = 0, binding = 5) buffer Palette { Affine proxies[]; };      
 layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;
 
 #include "joint_features.glsl"
-
-// |phi - z|^2 of one character, z the 9 floats of a kernel centre from z.
-float distance2(mat3 phi, uint z) {
-    vec3 d0 = phi[0] - vec3(kernels[z], kernels[z + 1u], kernels[z + 2u]);
-    vec3 d1 = phi[1] - vec3(kernels[z + 3u], kernels[z + 4u], kernels[z + 5u]);
-    vec3 d2 = phi[2] - vec3(kernels[z + 6u], kernels[z + 7u], kernels[z + 8u]);
-    return dot(d0, d0) + dot(d1, d1) + dot(d2, d2);
-}
+#include "proxy_correction.glsl"
 
 // E_r += outer(G_f row r, x): map row f (its 3 vec4 from m) times the four characters' x_f.
 void add(inout mat4 e0, inout mat4 e1, inout mat4 e2, uint m, vec4 x) {

@@ -16,7 +16,9 @@
 //! A model with proxy correctives (docs/method.md §21) corrects some proxies in place, per
 //! character, before they are returned: [`Palette::compute`] gives `T'_e = T_e (I + E_e)`, with
 //! `E_e = Σ_f x_f G_ef` from the drivers' rotations (see [`crate::ProxyCorrectives`]), so the
-//! palette keeps its P + J entries and an engine's skinning does not change.
+//! palette keeps its P + J entries and an engine's skinning does not change. It evaluates them
+//! in `f32` as `glsl/proxy_correctives.comp` does: each driver's features once per character,
+//! whichever proxies it drives.
 //!
 //! A [`Palette`] is immutable after [`Palette::new`]: any number of threads may call
 //! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
@@ -24,8 +26,8 @@
 
 use crate::cpu::{characters, CpuEvaluator};
 use crate::error::{Error, Result};
-use crate::model::Model;
-use crate::predict::{self, Affine, NEAR_PI_SIN, SMALL_ANGLE};
+use crate::model::{Model, ProxyCorrectives};
+use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
 
@@ -48,6 +50,38 @@ pub struct Palette {
     rest_normals: Vec<[f32; 3]>,
     /// The corrective drivers (bone, parent), in the order of the map's columns.
     drivers: Vec<(usize, usize)>,
+    /// The proxy correctives, compiled (none corrected without them).
+    proxy: ProxyTerms,
+}
+
+/// A model's proxy correctives (docs/method.md §21, [`crate::ProxyCorrectives`]) compiled for
+/// `f32` evaluation, as `glsl/proxy_correctives.comp`: D distinct drivers over the E corrected
+/// proxies, F = 9·L + C features each (φ_b if L, then C kernels), computed once per character
+/// into scratch `x: (D x F)`, then per proxy `E_e = Σ_f x_f G_ef` over its `D_i F` rows.
+#[derive(Debug, Clone, Default)]
+struct ProxyTerms {
+    /// `(D)` the distinct drivers (bone, parent), ascending: slot s's features are
+    /// `x[s * F..(s + 1) * F]`.
+    drivers: Vec<(usize, usize)>,
+    /// F, the features of one driver.
+    features: usize,
+    linear: bool,
+    /// `(D x C)` kernel centres, slot s's kernel c at `s * C + c`.
+    centres: Vec<[f32; 9]>,
+    /// `(D)` kernel widths `w_b` (empty without kernels).
+    widths: Vec<f32>,
+    /// `(D x C)` each kernel's `exp(−|z|² / w)` at rest, computed as per character (so a
+    /// kernel feature is exactly zero at the rest pose).
+    at_rest: Vec<f32>,
+    /// `(E)` the corrected proxies.
+    proxies: Vec<u32>,
+    /// `(E + 1)` CSR offsets: proxy i's rows are `rows[offsets[i]..offsets[i + 1]]`.
+    offsets: Vec<u32>,
+    /// `G: (Σ D_i F x 12)`, the model's maps: row f of a proxy is its `G_ef`, `[A | b]`
+    /// row-major.
+    rows: Vec<[f32; 12]>,
+    /// `(Σ D_i F)` the feature each row multiplies: `x[index[r]]`.
+    index: Vec<u32>,
 }
 
 /// One key predictor, compiled: `D = Q_parent exp(uW θ~_bone) [exp(u₂W₂ θ~_second)] S`, with
@@ -105,6 +139,8 @@ struct Scratch {
     theta: Vec<Vec3>,
     /// The product's right-hand side: 3P key columns, then 4J bone columns, each (x, y, z).
     rhs: Vec<Vec3>,
+    /// The proxy correctives' features `x: (D x F)` ([`ProxyTerms`]).
+    features: Vec<f32>,
 }
 
 thread_local! {
@@ -156,6 +192,9 @@ impl Palette {
         let drivers = (model.correctives().map_or(&[][..], |c| &c.drivers).iter())
             .map(|&d| (d as usize, model.parent(d as usize).unwrap_or(d as usize)))
             .collect();
+        let proxy = model
+            .proxy_correctives()
+            .map_or_else(ProxyTerms::default, |c| ProxyTerms::new(&model, c));
         Ok(Palette {
             model,
             keys,
@@ -165,6 +204,7 @@ impl Palette {
             values,
             rest_normals,
             drivers,
+            proxy,
         })
     }
 
@@ -374,27 +414,123 @@ impl Palette {
             }
             *t = bytemuck::cast(acc);
         }
-        if let Some(c) = self.model.proxy_correctives() {
-            // The reference's own f64 form (a few hundred multiply-adds a proxy, no allocation),
-            // rounded once to f32: one formula for both evaluators.
-            for (i, &e) in c.proxies.iter().enumerate() {
-                let t = &mut out[e as usize];
-                let e = predict::proxy_correction(&self.model, q, i);
-                *t = predict::corrected(&t.map(f64::from), &e).map(|x| x as f32);
-            }
-        }
+        self.proxy.features(q, &mut scratch.features);
+        self.proxy.correct(&scratch.features, &mut out[..p]);
         out[p..].copy_from_slice(q);
     }
 }
 
 /// The corrective weights' `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major, in `f32`
-/// ([`predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]` (row-major 3x4
+/// ([`crate::predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]` (row-major 3x4
 /// transforms).
 fn phi_f32(qp: &Affine, qb: &Affine) -> [f32; 9] {
     std::array::from_fn(|e| {
         let (r, c) = (e / 3, e % 3);
         let dot: f32 = (0..3).map(|k| qp[4 * k + r] * qb[4 * k + c]).sum();
         dot - f32::from(u8::from(r == c))
+    })
+}
+
+impl ProxyTerms {
+    /// Compiles `c`, the proxy correctives of `model` (validated: drivers have parents, widths
+    /// cover the drivers when C > 0, each map has `D_i F` rows of 12).
+    fn new(model: &Model, c: &ProxyCorrectives) -> ProxyTerms {
+        let j = model.bone_count();
+        let kernels = c.kernel_count(j);
+        let mut bones = c.drivers.clone();
+        bones.sort_unstable();
+        bones.dedup();
+        let drivers: Vec<(usize, usize)> = (bones.iter())
+            .map(|&b| (b as usize, model.parent(b as usize).unwrap_or(b as usize)))
+            .collect();
+        let f = c.features_per_driver(j);
+        let index = (c.drivers.iter())
+            .map(|b| bones.partition_point(|x| x < b))
+            .flat_map(|s| (s * f..(s + 1) * f).map(|x| x as u32))
+            .collect();
+        let centres: Vec<[f32; 9]> = (drivers.iter())
+            .flat_map(|&(b, _)| (0..kernels).map(move |k| c.centres[k * j + b]))
+            .collect();
+        let widths: Vec<f32> = if kernels > 0 {
+            drivers.iter().map(|&(b, _)| c.widths[b]).collect()
+        } else {
+            Vec::new()
+        };
+        let at_rest = (centres.iter().enumerate())
+            .map(|(k, z)| kernel(&[0.0; 9], z, widths[k / kernels]))
+            .collect();
+        ProxyTerms {
+            drivers,
+            features: f,
+            linear: c.linear,
+            centres,
+            widths,
+            at_rest,
+            proxies: c.proxies.clone(),
+            offsets: c.driver_offsets.iter().map(|&k| k * f as u32).collect(),
+            rows: (c.maps.chunks_exact(12))
+                .map(|g| std::array::from_fn(|k| g[k]))
+                .collect(),
+            index,
+        }
+    }
+
+    /// The features of one character's J bones `q` into `x: (D x F)`: per driver slot, φ_b
+    /// (if linear), then `exp(−|φ_b − z_c|² / w_b) − exp(−|z_c|² / w_b)` for its C kernels.
+    fn features(&self, q: &[Affine], x: &mut Vec<f32>) {
+        let (f, kernels) = (self.features, self.features - 9 * usize::from(self.linear));
+        x.resize(self.drivers.len() * f, 0.0);
+        for (s, &(b, p)) in self.drivers.iter().enumerate() {
+            let phi = phi_f32(&q[p], &q[b]);
+            let (linear, x) = x[s * f..(s + 1) * f].split_at_mut(f - kernels);
+            linear.copy_from_slice(&phi[..linear.len()]);
+            for (c, x) in x.iter_mut().enumerate() {
+                let k = s * kernels + c;
+                *x = kernel(&phi, &self.centres[k], self.widths[s]) - self.at_rest[k];
+            }
+        }
+    }
+
+    /// Corrects one character's P proxies `out` in place, `T'_e = T_e (I + E_e)`, from its
+    /// features `x: (D x F)` ([`ProxyTerms::features`]). Rows alternate between two sums (the
+    /// adds of one do not wait on the other's).
+    fn correct(&self, x: &[f32], out: &mut [Affine]) {
+        for (i, &e) in self.proxies.iter().enumerate() {
+            let range = self.offsets[i] as usize..self.offsets[i + 1] as usize;
+            let (rows, index) = (&self.rows[range.clone()], &self.index[range]);
+            let (mut even, mut odd) = ([0.0f32; 12], [0.0f32; 12]);
+            let pairs = rows.chunks_exact(2).zip(index.chunks_exact(2));
+            for (g, k) in pairs {
+                axpy(&mut even, x[k[0] as usize], &g[0]);
+                axpy(&mut odd, x[k[1] as usize], &g[1]);
+            }
+            if let (Some(g), Some(&k)) = (rows.chunks_exact(2).remainder().first(), index.last()) {
+                axpy(&mut even, x[k as usize], g);
+            }
+            even.iter_mut().zip(odd).for_each(|(e, o)| *e += o);
+            let t = &mut out[e as usize];
+            *t = corrected(t, &even);
+        }
+    }
+}
+
+/// `g += x row` for 3x4 row-major `g` and `row`.
+fn axpy(g: &mut [f32; 12], x: f32, row: &[f32; 12]) {
+    g.iter_mut().zip(row).for_each(|(g, r)| *g += x * r);
+}
+
+/// `exp(−|φ − z|² / w)`, one term of [`crate::predict::kernel_feature`] in `f32`.
+fn kernel(phi: &[f32; 9], z: &[f32; 9], w: f32) -> f32 {
+    let d2: f32 = phi.iter().zip(z).map(|(f, z)| (f - z) * (f - z)).sum();
+    (-d2 / w).exp()
+}
+
+/// `T (I + E)` for 3x4 row-major `T = [M | t]` and `E = [A | b]`: `[M + M A | t + M b]`
+/// ([`crate::predict::corrected`] in `f32`).
+fn corrected(t: &Affine, e: &Affine) -> Affine {
+    std::array::from_fn(|i| {
+        let (r, c) = (i / 4, i % 4);
+        t[i] + t[4 * r] * e[c] + t[4 * r + 1] * e[4 + c] + t[4 * r + 2] * e[8 + c]
     })
 }
 

@@ -33,7 +33,12 @@ use std::sync::Arc;
 /// timestamp per phase, reported by [`PassTimings`]).
 pub(super) const SCHEDULE: [&[Pass]; 6] = [
     &[Pass::Predict, Pass::CorrectiveWeights],
-    &[Pass::DenseProduct, Pass::SparseProduct, Pass::FusedProduct],
+    &[
+        Pass::DenseProduct,
+        Pass::SparseProduct,
+        Pass::FusedProduct,
+        Pass::FusedCorrectedProduct,
+    ],
     &[Pass::ProxyCorrectives],
     &[
         Pass::SkinK4,
@@ -66,7 +71,8 @@ const BEFORE: [Access; 4] = [OUTSIDE[0], OUTSIDE[1], OUTSIDE[2], OUTSIDE[4]];
 const TIMESTAMPS: u32 = SCHEDULE.len() as u32 + 1;
 
 /// GPU time per pass of a recorded frame, in milliseconds (the bounds count with the normals; a
-/// fused product's predictors with the product; the corrective weights with the predictors).
+/// fused product's predictors and proxy correctives with the product; the corrective weights
+/// with the predictors; transformed normals and their tangents with the skinning).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PassTimings {
     /// The key predictors and the pose-space corrective weights.

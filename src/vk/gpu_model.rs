@@ -37,7 +37,8 @@ struct UploadData<'m> {
     rest: Vec<f32>,
     /// The 1-ring fans of the normals pass.
     fans: Fans,
-    /// The proxy correctives' corrected proxies, driver offsets and drivers, one after the other.
+    /// The proxy correctives' corrected proxies, driver offsets and drivers, one after the
+    /// other, then each proxy's index among the corrected (`u32::MAX` where uncorrected).
     proxy_topology: Vec<u32>,
     /// The proxy correctives' kernel centres (C x J x 9), then their widths (J).
     proxy_kernels: Vec<f32>,
@@ -151,13 +152,7 @@ impl GpuModel {
             },
             rest,
             fans: model.normal_fans(),
-            proxy_topology: (model.proxy_correctives())
-                .map(|c| [&c.proxies, &c.driver_offsets, &c.drivers].map(|a| a.iter()))
-                .into_iter()
-                .flatten()
-                .flatten()
-                .copied()
-                .collect(),
+            proxy_topology: proxy_topology(model),
             proxy_kernels: (model.proxy_correctives())
                 .map(|c| c.centres.as_flattened().iter().chain(&c.widths))
                 .into_iter()
@@ -290,6 +285,22 @@ pub(crate) struct BlockSparse {
     pub offsets: Vec<u32>,
     pub columns: Vec<u32>,
     pub values: Vec<[f32; 4]>,
+}
+
+/// [`UploadData::proxy_topology`] (empty without proxy correctives).
+fn proxy_topology(model: &Model) -> Vec<u32> {
+    let Some(c) = model.proxy_correctives() else {
+        return Vec::new();
+    };
+    let mut index = vec![u32::MAX; model.proxy_count()];
+    for (i, &e) in c.proxies.iter().enumerate() {
+        index[e as usize] = i as u32;
+    }
+    [&c.proxies, &c.driver_offsets, &c.drivers, &index]
+        .into_iter()
+        .flatten()
+        .copied()
+        .collect()
 }
 
 /// The block-sparse layout is chosen when the stored columns are fewer than this fraction of

@@ -145,7 +145,9 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::CorrectiveDrivers => drivers,
         ModelBuffer::CorrectiveMap => corr * 9 * drivers,
         // The corrected proxies, their driver offsets, the drivers.
-        ModelBuffer::ProxyTopology if corrected > 0 => 2 * corrected + 1 + proxy_drivers,
+        // The corrected proxies, their driver offsets, the drivers, then each proxy's index
+        // among the corrected (~0 where uncorrected: the fused product's lookup).
+        ModelBuffer::ProxyTopology if corrected > 0 => 2 * corrected + 1 + proxy_drivers + p,
         ModelBuffer::ProxyTopology => 0,
         // The centres, then the widths (only with kernels).
         ModelBuffer::ProxyKernels if kernels > 0 => kernels * j * 9 + j,

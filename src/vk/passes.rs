@@ -29,6 +29,7 @@ indexed_enum! {
         DenseProduct,
         SparseProduct,
         FusedProduct,
+        FusedCorrectedProduct,
         SkinK4,
         SkinK8,
         SkinNormalsK4,
@@ -51,6 +52,7 @@ impl Pass {
             Pass::DenseProduct => &DENSE_PRODUCT,
             Pass::SparseProduct => &SPARSE_PRODUCT,
             Pass::FusedProduct => &FUSED_PRODUCT,
+            Pass::FusedCorrectedProduct => &FUSED_CORRECTED_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
             Pass::SkinNormalsK4 => &SKIN_NORMALS_K4,
@@ -213,7 +215,36 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
     push: &[W::Proxies, W::Bones, W::Characters],
     // As the sparse product's, and a row per bone (copied into the palette).
     groups: [over(Characters, 64), over(PredictorsAndBones, 1), ONE],
-    runs: |d| d.proxies > 0 && d.fused,
+    runs: |d| d.proxies > 0 && d.fused && d.corrected_proxies == 0,
+};
+
+/// The fused product of a model with proxy correctives: each corrected proxy's invocation
+/// applies `T_e (I + E_e)` (as the proxy-correctives pass does) before it stores `T_e`, so that
+/// the frame runs one dispatch and one barrier fewer (what small crowds pay for).
+const FUSED_CORRECTED_PRODUCT: PassDesc = PassDesc {
+    shader: shaders::FUSED_CORRECTED_PRODUCT,
+    bindings: &[
+        Model(M::ProductOffsets),
+        Model(M::ProductColumns),
+        Model(M::ProductValues),
+        Reads(Crowd::Bones),
+        Model(M::Parents),
+        Model(M::Predictors),
+        Writes(Crowd::Palette),
+        Model(M::ProxyTopology),
+        Model(M::ProxyKernels),
+        Model(M::ProxyMaps),
+    ],
+    push: &[
+        W::Proxies,
+        W::Bones,
+        W::Characters,
+        W::CorrectedProxies,
+        W::Kernels,
+        W::LinearFeatures,
+    ],
+    runs: |d| d.proxies > 0 && d.fused && d.corrected_proxies > 0,
+    ..FUSED_PRODUCT
 };
 
 /// Pose-space corrective weights w = map · φ(q) for every (target, character), from the
@@ -259,7 +290,7 @@ const PROXY_CORRECTIVES: PassDesc = PassDesc {
     // local_size_x = 64, four characters an invocation (256 a workgroup), one row of
     // groups per corrected proxy.
     groups: [over(Characters, 256), over(CorrectedProxies, 1), ONE],
-    runs: |d| d.corrected_proxies > 0,
+    runs: |d| d.corrected_proxies > 0 && !d.fused,
 };
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
@@ -412,7 +443,7 @@ mod tests {
         // The lines of this variant: those of `#ifdef NAME .. #endif` blocks only where NAME is
         // defined (no nesting, no #else in these shaders).
         let mut kept = true;
-        let lines = source.lines().filter(|line| {
+        let variant: Vec<&str> = (source.lines().filter(|line| {
             let line = line.trim();
             if let Some(name) = line.strip_prefix("#ifdef ") {
                 kept = defines.iter().any(|(d, _)| *d == name.trim());
@@ -423,8 +454,9 @@ mod tests {
                 return false;
             }
             kept
-        });
-        let buffers = lines
+        }))
+        .collect();
+        let buffers = (variant.iter())
             .filter_map(|line| {
                 let at = line.find("binding = ")? + "binding = ".len();
                 let digits: String = line[at..]
@@ -437,7 +469,7 @@ mod tests {
                 Some((index, line.contains(") readonly buffer"), name))
             })
             .collect();
-        let push = source
+        let push = (variant.join("\n"))
             .split_once("layout(push_constant) uniform Push {")
             .and_then(|(_, rest)| rest.split_once('}'))
             .map(|(block, _)| {
@@ -608,7 +640,8 @@ mod tests {
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
                         let expected = match b {
                             CrowdBuffer::Palette => {
-                                1 + usize::from(!d.fused) + usize::from(d.corrected_proxies > 0)
+                                let separate = d.corrected_proxies > 0 && !d.fused;
+                                1 + usize::from(!d.fused) + usize::from(separate)
                             }
                             _ => 1,
                         };
@@ -637,53 +670,65 @@ mod tests {
             kernels: 0,
             linear_features: false,
         };
-        // skin (7 buffers) and normals (5)
-        assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 12));
+        // skin (7 buffers) and normals (4)
+        assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
         let bounded = Dims {
             bounds: true,
             ..lbs
         };
         // + bounds (2)
-        assert_eq!(Pass::descriptors_per_chunk(&bounded), (3, 14));
+        assert_eq!(Pass::descriptors_per_chunk(&bounded), (3, 13));
         let reduced = Dims {
             proxies: 3,
             influences: 8,
             ..lbs
         };
         // + predict (5) and the GEMM (3)
-        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 20));
+        assert_eq!(Pass::descriptors_per_chunk(&reduced), (4, 19));
         let sparse = Dims {
             sparse: true,
             ..reduced
         };
         // + predict (5) and the sparse product (5)
-        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 22));
+        assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 21));
         let fused = Dims {
             fused: true,
             ..sparse
         };
         // + the fused product (7)
-        assert_eq!(Pass::descriptors_per_chunk(&fused), (3, 19));
+        assert_eq!(Pass::descriptors_per_chunk(&fused), (3, 18));
         let tangents = Dims {
             tangents: true,
             ..fused
         };
         // + tangents (7)
-        assert_eq!(Pass::descriptors_per_chunk(&tangents), (4, 26));
+        assert_eq!(Pass::descriptors_per_chunk(&tangents), (4, 25));
         let corrected = Dims {
             correctives: 3,
             drivers: 2,
             ..tangents
         };
         // + the corrective weights (5)
-        assert_eq!(Pass::descriptors_per_chunk(&corrected), (5, 31));
+        assert_eq!(Pass::descriptors_per_chunk(&corrected), (5, 30));
         let proxy_corrected = Dims {
             corrected_proxies: 2,
             kernels: 3,
             linear_features: true,
             ..corrected
         };
-        // + the proxy correctives (6)
-        assert_eq!(Pass::descriptors_per_chunk(&proxy_corrected), (6, 37));
+        // the fused product with the proxy correctives (10) instead of the fused product (7)
+        assert_eq!(Pass::descriptors_per_chunk(&proxy_corrected), (5, 33));
+        let separate = Dims {
+            fused: false,
+            ..proxy_corrected
+        };
+        // predict (5), the sparse product (5) and the proxy correctives (6) instead
+        assert_eq!(Pass::descriptors_per_chunk(&separate), (7, 39));
+        let transformed = Dims {
+            normals: NormalMode::Transformed,
+            ..separate
+        };
+        // skinning with normals and tangents (10) instead of skin (7), normals (4), tangents (7)
+        assert_eq!(Pass::descriptors_per_chunk(&transformed), (5, 31));
     }
 }

@@ -1,0 +1,52 @@
+// The proxy correctives' features and one character's E (docs/method.md §21), shared by
+// proxy_correctives.comp (four characters an invocation, its own accumulation) and
+// fused_product.comp built with CORRECTIVES (one). Reads the including shader's `topology`,
+// `kernels`, `maps` (ProxyTopology, ProxyKernels, ProxyMaps), `bones`, `parents` and the push
+// words J, E, C, L; needs joint_features.glsl before it.
+
+// |phi - z|^2 of one character, z the 9 floats of a kernel centre from z.
+float distance2(mat3 phi, uint z) {
+    vec3 d0 = phi[0] - vec3(kernels[z], kernels[z + 1u], kernels[z + 2u]);
+    vec3 d1 = phi[1] - vec3(kernels[z + 3u], kernels[z + 4u], kernels[z + 5u]);
+    vec3 d2 = phi[2] - vec3(kernels[z + 6u], kernels[z + 7u], kernels[z + 8u]);
+    return dot(d0, d0) + dot(d1, d1) + dot(d2, d2);
+}
+
+// E = sum_f x_f G_f of corrected proxy i for character ch: its rows e0, e1, e2 (the bottom row
+// is zero). The features driver after driver: the 9 linear phi_b entries 3r + c where L, then
+// the C kernels exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b); each one map row (3 vec4).
+void correction(uint ch, uint i, out vec4 e0, out vec4 e1, out vec4 e2) {
+    e0 = vec4(0.0);
+    e1 = vec4(0.0);
+    e2 = vec4(0.0);
+    uint first = topology[pc.E + i];
+    uint last = topology[pc.E + i + 1u];
+    uint m = 3u * first * (9u * pc.L + pc.C);
+    uint widths = 9u * pc.C * pc.J;
+    for (uint k = first; k < last; k++) {
+        uint b = topology[2u * pc.E + 1u + k];
+        mat3 f = joint_features(ch, b);
+        if (pc.L != 0u) {
+            for (uint r = 0u; r < 3u; r++) {
+                for (uint c = 0u; c < 3u; c++) {
+                    float x = f[r][c];
+                    e0 += maps[m] * x;
+                    e1 += maps[m + 1u] * x;
+                    e2 += maps[m + 2u] * x;
+                    m += 3u;
+                }
+            }
+        }
+        if (pc.C > 0u) {
+            float w = kernels[widths + b];
+            for (uint c = 0u; c < pc.C; c++) {
+                uint z = (c * pc.J + b) * 9u;
+                float x = exp(-distance2(f, z) / w) - exp(-distance2(mat3(0.0), z) / w);
+                e0 += maps[m] * x;
+                e1 += maps[m + 1u] * x;
+                e2 += maps[m + 2u] * x;
+                m += 3u;
+            }
+        }
+    }
+}
