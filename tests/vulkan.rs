@@ -768,14 +768,15 @@ fn previous_positions_and_bounds_across_chunks_match_cpu() {
 }
 
 /// Tangents with every other output of three frames in flight, K = 4 and a reduced model;
-/// K = 8, block-sparse with the predictors fused in (the shipped models), across chunks.
-#[test]
-fn tangents_of_overlapping_frames_match_cpu() {
+/// K = 8, block-sparse with the predictors fused in (the shipped models), across chunks; the
+/// normals made as `normals` says.
+fn tangents_of_overlapping_frames(normals: NormalMode) {
     let options = CrowdOptions {
         frames_in_flight: 3,
         previous_positions: true,
         bounds: true,
         tangents: true,
+        normals,
         ..CrowdOptions::default()
     };
     overlapping_frames(&random_model(RR, 51), 5, options);
@@ -786,6 +787,7 @@ fn tangents_of_overlapping_frames_match_cpu() {
     let chunked = CrowdOptions {
         frames_in_flight: 2,
         tangents: true,
+        normals,
         debug_settings: CrowdDebugSettings {
             max_binding_bytes: Some(64 * 1024),
             ..Default::default()
@@ -794,6 +796,11 @@ fn tangents_of_overlapping_frames_match_cpu() {
     };
     let model = joint_blend_pattern(&random_model(k8, 52), 1);
     overlapping_frames(&model, 40, chunked);
+}
+
+#[test]
+fn tangents_of_overlapping_frames_match_cpu() {
+    tangents_of_overlapping_frames(NormalMode::Recomputed);
 }
 
 /// Transformed normals (the skinning pass writes normals and tangents, no normals or tangents
@@ -843,24 +850,7 @@ fn transformed_normals_and_tangents_match_cpu() {
         largest > 10.0 * NORMAL_TOLERANCE,
         "the modes differ by {largest}"
     );
-    let frames = CrowdOptions {
-        frames_in_flight: 3,
-        previous_positions: true,
-        bounds: true,
-        tangents: true,
-        ..transformed
-    };
-    overlapping_frames(&models[1], 5, frames);
-    let chunked = CrowdOptions {
-        frames_in_flight: 2,
-        tangents: true,
-        debug_settings: CrowdDebugSettings {
-            max_binding_bytes: Some(64 * 1024),
-            ..Default::default()
-        },
-        ..transformed
-    };
-    overlapping_frames(&models[3], 40, chunked);
+    tangents_of_overlapping_frames(NormalMode::Transformed);
 }
 
 #[test]

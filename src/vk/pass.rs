@@ -142,6 +142,23 @@ pub enum Binding {
     Updates(CrowdBuffer),
 }
 
+/// `base` then `extra`, as one array of `O` = N + extra's length bindings (a variant of a pass
+/// binds its base's buffers and more, in the order of its shader). Evaluated in const context,
+/// where a wrong `O` fails the build.
+pub const fn extended<const N: usize, const O: usize>(
+    base: [Binding; N],
+    extra: &[Binding],
+) -> [Binding; O] {
+    assert!(N + extra.len() == O, "the extended binding count");
+    let mut out = [Binding::Model(ModelBuffer::Rest); O];
+    let mut i = 0;
+    while i < O {
+        out[i] = if i < N { base[i] } else { extra[i - N] };
+        i += 1;
+    }
+    out
+}
+
 /// One `uint` of a pass's push-constant block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PushWord {

@@ -8,7 +8,9 @@ use super::pass::Extent::{
     ProxyRows, Vertices,
 };
 use super::pass::ModelBuffer as M;
-use super::pass::{indexed_enum, over, Axis, Dims, PassDesc, PushWord as W, ONE};
+use super::pass::{
+    extended, indexed_enum, over, Axis, Binding, Dims, PassDesc, PushWord as W, ONE,
+};
 use crate::normals::NormalMode;
 
 /// The SPIR-V of `glsl/shaders.txt`, one [`Shader`] constant a line (build.rs writes them).
@@ -203,15 +205,7 @@ const SPARSE_PRODUCT: PassDesc = PassDesc {
 /// as it makes them, so neither the predictor pass nor B's round trip through memory remain.
 const FUSED_PRODUCT: PassDesc = PassDesc {
     shader: shaders::FUSED_PRODUCT,
-    bindings: &[
-        Model(M::ProductOffsets),
-        Model(M::ProductColumns),
-        Model(M::ProductValues),
-        Reads(Crowd::Bones),
-        Model(M::Parents),
-        Model(M::Predictors),
-        Writes(Crowd::Palette),
-    ],
+    bindings: &FUSED_BINDINGS,
     push: &[W::Proxies, W::Bones, W::Characters],
     // As the sparse product's, and a row per bone (copied into the palette).
     groups: [over(Characters, 64), over(PredictorsAndBones, 1), ONE],
@@ -223,26 +217,8 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
 /// the frame runs one dispatch and one barrier fewer (what small crowds pay for).
 const FUSED_CORRECTED_PRODUCT: PassDesc = PassDesc {
     shader: shaders::FUSED_CORRECTED_PRODUCT,
-    bindings: &[
-        Model(M::ProductOffsets),
-        Model(M::ProductColumns),
-        Model(M::ProductValues),
-        Reads(Crowd::Bones),
-        Model(M::Parents),
-        Model(M::Predictors),
-        Writes(Crowd::Palette),
-        Model(M::ProxyTopology),
-        Model(M::ProxyKernels),
-        Model(M::ProxyMaps),
-    ],
-    push: &[
-        W::Proxies,
-        W::Bones,
-        W::Characters,
-        W::CorrectedProxies,
-        W::Kernels,
-        W::LinearFeatures,
-    ],
+    bindings: &extended::<7, 10>(FUSED_BINDINGS, &PROXY_CORRECTIVE_DATA),
+    push: &PROXY_CORRECTIVE_PUSH,
     runs: |d| d.proxies > 0 && d.fused && d.corrected_proxies > 0,
     ..FUSED_PRODUCT
 };
@@ -271,22 +247,11 @@ const CORRECTIVE_WEIGHTS: PassDesc = PassDesc {
 /// skinning. Models with proxy correctives only.
 const PROXY_CORRECTIVES: PassDesc = PassDesc {
     shader: shaders::PROXY_CORRECTIVES,
-    bindings: &[
-        Reads(Crowd::Bones),
-        Model(M::Parents),
-        Model(M::ProxyTopology),
-        Model(M::ProxyKernels),
-        Model(M::ProxyMaps),
-        Updates(Crowd::Palette),
-    ],
-    push: &[
-        W::Proxies,
-        W::Bones,
-        W::Characters,
-        W::CorrectedProxies,
-        W::Kernels,
-        W::LinearFeatures,
-    ],
+    bindings: &extended::<2, 6>(
+        [Reads(Crowd::Bones), Model(M::Parents)],
+        &extended::<3, 4>(PROXY_CORRECTIVE_DATA, &[Updates(Crowd::Palette)]),
+    ),
+    push: &PROXY_CORRECTIVE_PUSH,
     // local_size_x = 64, four characters an invocation (256 a workgroup), one row of
     // groups per corrected proxy.
     groups: [over(Characters, 256), over(CorrectedProxies, 1), ONE],
@@ -298,15 +263,7 @@ const PROXY_CORRECTIVES: PassDesc = PassDesc {
 /// With correctives (N > 0), the rest position plus the weighted targets is skinned.
 const SKIN_K4: PassDesc = PassDesc {
     shader: shaders::SKIN_K4,
-    bindings: &[
-        Model(M::Rest),
-        Model(M::SkinIndex),
-        Model(M::SkinWeight),
-        Reads(Crowd::Palette),
-        Reads(Crowd::Bones),
-        Writes(Crowd::Positions),
-        Reads(Crowd::CorrectiveWeights),
-    ],
+    bindings: &SKIN_BINDINGS,
     push: &[
         W::Vertices,
         W::Proxies,
@@ -330,16 +287,7 @@ const SKIN_K8: PassDesc = PassDesc {
 /// pipeline per K. Crowds without tangents.
 const SKIN_NORMALS_K4: PassDesc = PassDesc {
     shader: shaders::SKIN_NORMALS_K4,
-    bindings: &[
-        Model(M::Rest),
-        Model(M::SkinIndex),
-        Model(M::SkinWeight),
-        Reads(Crowd::Palette),
-        Reads(Crowd::Bones),
-        Writes(Crowd::Positions),
-        Reads(Crowd::CorrectiveWeights),
-        Writes(Crowd::Normals),
-    ],
+    bindings: &SKIN_NORMALS_BINDINGS,
     runs: |d| d.influences == 4 && d.normals == NormalMode::Transformed && !d.tangents,
     ..SKIN_K4
 };
@@ -354,18 +302,10 @@ const SKIN_NORMALS_K8: PassDesc = PassDesc {
 /// made orthogonal to the transformed normal. Crowds with tangents.
 const SKIN_FRAMES_K4: PassDesc = PassDesc {
     shader: shaders::SKIN_FRAMES_K4,
-    bindings: &[
-        Model(M::Rest),
-        Model(M::SkinIndex),
-        Model(M::SkinWeight),
-        Reads(Crowd::Palette),
-        Reads(Crowd::Bones),
-        Writes(Crowd::Positions),
-        Reads(Crowd::CorrectiveWeights),
-        Writes(Crowd::Normals),
-        Model(M::RestTangents),
-        Writes(Crowd::Tangents),
-    ],
+    bindings: &extended::<8, 10>(
+        SKIN_NORMALS_BINDINGS,
+        &[Model(M::RestTangents), Writes(Crowd::Tangents)],
+    ),
     runs: |d| d.influences == 4 && d.normals == NormalMode::Transformed && d.tangents,
     ..SKIN_K4
 };
@@ -425,6 +365,50 @@ const TANGENTS_K8: PassDesc = PassDesc {
     runs: |d| d.tangents && d.influences == 8 && d.normals == NormalMode::Recomputed,
     ..TANGENTS_K4
 };
+
+/// The fused product's: the block-sparse [C1 | C2], the bones and the predictors in, the
+/// palette out.
+const FUSED_BINDINGS: [Binding; 7] = [
+    Model(M::ProductOffsets),
+    Model(M::ProductColumns),
+    Model(M::ProductValues),
+    Reads(Crowd::Bones),
+    Model(M::Parents),
+    Model(M::Predictors),
+    Writes(Crowd::Palette),
+];
+
+/// The proxy correctives' model data (glsl/proxy_correction.glsl).
+const PROXY_CORRECTIVE_DATA: [Binding; 3] = [
+    Model(M::ProxyTopology),
+    Model(M::ProxyKernels),
+    Model(M::ProxyMaps),
+];
+
+/// The push words of the passes that apply the proxy correctives.
+const PROXY_CORRECTIVE_PUSH: [W; 6] = [
+    W::Proxies,
+    W::Bones,
+    W::Characters,
+    W::CorrectedProxies,
+    W::Kernels,
+    W::LinearFeatures,
+];
+
+/// Skinning's: the rest positions (and targets, and normals), the influences, the palette
+/// (or, for P = 0, the bones) and the corrective weights in, the positions out.
+const SKIN_BINDINGS: [Binding; 7] = [
+    Model(M::Rest),
+    Model(M::SkinIndex),
+    Model(M::SkinWeight),
+    Reads(Crowd::Palette),
+    Reads(Crowd::Bones),
+    Writes(Crowd::Positions),
+    Reads(Crowd::CorrectiveWeights),
+];
+
+/// Skinning with transformed normals: the normals out too.
+const SKIN_NORMALS_BINDINGS: [Binding; 8] = extended(SKIN_BINDINGS, &[Writes(Crowd::Normals)]);
 
 /// local_size_x = 64 over vertices, one row of groups per character.
 const PER_VERTEX: [Axis; 3] = [over(Vertices, 64), over(Characters, 1), ONE];
