@@ -368,7 +368,9 @@ typedef struct rrskin_palette_skin {
   const float *weights;
   // V x 3.
   const float *rest_positions;
-  // V x 3 unit normals of the rest mesh, as the Vulkan path computes them.
+  // V x 3 unit normals of the rest mesh (area-weighted, welded seams shared): the shader
+  // takes each through the cofactor of the vertex's blended 3x3, `n.x (c1 x c2) + n.y (c2 x
+  // c0) + n.z (c0 x c1)` for its columns c, normalised (the runtime's transformed normals).
   const float *rest_normals;
   // V x 4 (xyz unit, w = +-1 as glTF's TANGENT), or NULL for a model without rest tangents.
   const float *rest_tangents;

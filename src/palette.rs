@@ -6,7 +6,14 @@
 //! `T_e = Σ_ℓ D_ℓ(q) A_eℓ + Σ_b Q_b B_eb`, where `A_eℓ: (3 x 4)` and `B_eb: (4 x 4)` are the
 //! rows 4e..4e + 4 of C1 and C2 seen per key and per bone, then the bones themselves. A vertex
 //! shader blends the K entries the [`Skin`] names: `x = Σ_k w_k M_{i_k} [x̂; 1]`, which is
-//! [`Palette::skin`].
+//! [`Palette::skin`]. Normals: the rest normal ([`Skin::rest_normals`]) through the cofactor of
+//! M's 3x3, `cof(M) n̂ = n̂.x (c1 × c2) + n̂.y (c2 × c0) + n̂.z (c0 × c1)` for its columns c,
+//! normalised (not through M itself: the proxies scale and shear, and only the cofactor keeps a
+//! normal perpendicular to the surface then); the tangent through M's 3x3, made orthogonal to
+//! that normal. That is the Vulkan runtime's transformed mode
+//! ([`crate::NormalMode::Transformed`]; [`crate::cpu::CpuEvaluator::with_normals`] gives the
+//! reference), whose angular error against normals recomputed from the skinned mesh `rrskin
+//! eval` reports.
 //!
 //! A model with pose-space correctives (paper §8) adds, per character, N weights
 //! ([`Palette::corrective_weights`], linear in the driver joints' rotations) of N rest-space
@@ -24,7 +31,7 @@
 //! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
 //! call for a model of that size), so a frame allocates nothing.
 
-use crate::cpu::{characters, CpuEvaluator};
+use crate::cpu::characters;
 use crate::error::{Error, Result};
 use crate::model::{Model, ProxyCorrectives};
 use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
@@ -106,8 +113,8 @@ pub struct Skin<'a> {
     /// V x K weights, >= 0, summing to 1 per vertex.
     pub weights: &'a [f32],
     pub rest_positions: &'a [[f32; 3]],
-    /// The rest mesh's unit normals, as the runtime computes them (area-weighted, shared
-    /// across welded seams).
+    /// The rest mesh's unit normals (area-weighted, shared across welded seams:
+    /// [`Model::rest_normals`]), for the shader to take through the cofactor of M.
     pub rest_normals: &'a [[f32; 3]],
     /// V rest tangents (xyz, handedness w), or empty where the model has none.
     pub rest_tangents: &'a [[f32; 4]],
@@ -188,7 +195,7 @@ impl Palette {
             }
             offsets.push(columns.len() as u32);
         }
-        let rest_normals = rest_normals(&model)?;
+        let rest_normals = model.rest_normals();
         let drivers = (model.correctives().map_or(&[][..], |c| &c.drivers).iter())
             .map(|&d| (d as usize, model.parent(d as usize).unwrap_or(d as usize)))
             .collect();
@@ -420,9 +427,9 @@ impl Palette {
     }
 }
 
-/// The corrective weights' `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major, in `f32`
-/// ([`crate::predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]` (row-major 3x4
-/// transforms).
+/// The features `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major, of both correctives in
+/// `f32` ([`crate::predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]`
+/// (row-major 3x4 transforms).
 fn phi_f32(qp: &Affine, qb: &Affine) -> [f32; 9] {
     std::array::from_fn(|e| {
         let (r, c) = (e / 3, e % 3);
@@ -499,12 +506,12 @@ impl ProxyTerms {
             let range = self.offsets[i] as usize..self.offsets[i + 1] as usize;
             let (rows, index) = (&self.rows[range.clone()], &self.index[range]);
             let (mut even, mut odd) = ([0.0f32; 12], [0.0f32; 12]);
-            let pairs = rows.chunks_exact(2).zip(index.chunks_exact(2));
-            for (g, k) in pairs {
+            let pairs = rows.len() / 2 * 2;
+            for (g, k) in rows[..pairs].chunks_exact(2).zip(index.chunks_exact(2)) {
                 axpy(&mut even, x[k[0] as usize], &g[0]);
                 axpy(&mut odd, x[k[1] as usize], &g[1]);
             }
-            if let (Some(g), Some(&k)) = (rows.chunks_exact(2).remainder().first(), index.last()) {
+            if let (Some(g), Some(&k)) = (rows.get(pairs), index.get(pairs)) {
                 axpy(&mut even, x[k as usize], g);
             }
             even.iter_mut().zip(odd).for_each(|(e, o)| *e += o);
@@ -608,13 +615,4 @@ fn exp_rotation(w: Vec3) -> Mat3 {
         Vec3::new(-sw.z + cw.y * w.x, cos + cw.y * w.y, sw.x + cw.y * w.z),
         Vec3::new(sw.y + cw.z * w.x, -sw.x + cw.z * w.y, cos + cw.z * w.z),
     )
-}
-
-/// The runtime's normals of the rest pose (the CPU reference at the identity).
-fn rest_normals(model: &Model) -> Result<Vec<[f32; 3]>> {
-    let v = model.vertex_count();
-    let (mut positions, mut normals) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v]);
-    let rest = vec![REST; model.bone_count()];
-    CpuEvaluator::new(model).evaluate(&rest, &mut positions, &mut normals)?;
-    Ok(normals)
 }

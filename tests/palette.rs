@@ -12,7 +12,7 @@ use common::{
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
 use rrskin::predict::Affine;
-use rrskin::{Error, Model};
+use rrskin::{Error, Model, NormalMode};
 use rrskin_render::synthetic::{palette_error, PALETTE_TOLERANCE};
 
 fn models() -> Vec<(&'static str, Model)> {
@@ -93,13 +93,8 @@ fn the_rest_pose_gives_the_rest_mesh_and_the_runtimes_normals() {
     let (_, model) = models().swap_remove(0);
     let palette = Palette::new(model.clone()).expect("palette");
     let v = model.vertex_count();
-    let (mut p, mut n) = (vec![[0.0; 3]; v], vec![[0.0; 3]; v]);
-    let rest = vec![REST; model.bone_count()];
-    CpuEvaluator::new(&model)
-        .evaluate(&rest, &mut p, &mut n)
-        .expect("reference");
     let skin = palette.skin();
-    assert_eq!(skin.rest_normals, &n[..]);
+    assert_eq!(skin.rest_normals, &model.rest_normals()[..]);
     assert_eq!(skin.rest_positions, &model.parts().rest_positions[..]);
     assert_eq!(
         skin.rest_tangents.len(),
@@ -530,5 +525,39 @@ fn renumbered_bones_keep_both_correctives() {
             .flat_map(|(x, y)| x.iter().zip(y).map(|(x, y)| (x - y).abs()))
             .fold(0.0f32, f32::max);
         assert!(worst <= 1e-5, "renumbered model off by {worst}");
+    }
+}
+
+/// The normals the palette's documentation gives an engine (the rest normal through the
+/// cofactor of the blended 3x3, normalised) are the CPU reference's transformed normals, within
+/// the GPU tests' normal tolerance (2e-3), for every kind of model.
+#[test]
+fn cofactor_normals_from_the_palette_are_the_references_transformed_normals() {
+    for (what, model) in models() {
+        let palette = Palette::new(model.clone()).expect("palette");
+        let (j, v) = (model.bone_count(), model.vertex_count());
+        let bones = random_poses(&model, 3, 9);
+        let n = 3 * v;
+        let (mut p, mut expected) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
+        CpuEvaluator::with_normals(&model, NormalMode::Transformed)
+            .evaluate(&bones, &mut p, &mut expected)
+            .expect("reference");
+        let skin = palette.skin();
+        let mut entries = vec![REST; palette.len()];
+        for ch in 0..3 {
+            palette
+                .compute(&bones[ch * j..(ch + 1) * j], &mut entries)
+                .expect("palette");
+            for a in 0..v {
+                let m = skin.blended(a, &entries).map(f64::from);
+                let rest = glam::DVec3::from(skin.rest_normals[a].map(f64::from));
+                let got = rrskin::normals::cofactor_times(&m, rest).normalize_or_zero();
+                let want = glam::DVec3::from(expected[ch * v + a].map(f64::from));
+                assert!(
+                    (got - want).length() < 2e-3,
+                    "{what}: character {ch} vertex {a}: {got} vs {want}"
+                );
+            }
+        }
     }
 }

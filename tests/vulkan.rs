@@ -8,7 +8,9 @@ mod common;
 use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::ash::vk;
-use rrskin::vk::{Aabb, Batch, Context, Crowd, CrowdDebugSettings, CrowdOptions, GpuModel};
+use rrskin::vk::{
+    Aabb, Batch, Context, Crowd, CrowdDebugSettings, CrowdOptions, GpuModel, GpuModelDebugSettings,
+};
 use rrskin::{Error, Model, NormalMode};
 use rrskin_render::synthetic::renumber_bones;
 
@@ -1181,9 +1183,9 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
 /// tolerances of `compare`: positions within `POSITION_TOLERANCE` = 2e-4 of max(1, |p|),
 /// normals within `NORMAL_TOLERANCE` = 2e-3), with the validation layer and synchronization
 /// validation on. The corrections move the mesh (without them the CPU reference differs), and
-/// at the rest pose the corrected models render the uncorrected rest mesh.
-#[test]
-fn proxy_correctives_after_each_product_match_cpu() {
+/// at the rest pose the corrected models render the uncorrected rest mesh. `in_product`: the
+/// fused product applies them itself (what GPUs run) or their own pass does (CPU devices).
+fn proxy_correctives_after_each_product(in_product: bool) {
     let ctx = validated_context();
     let k8 = Spec {
         influences: 8,
@@ -1198,10 +1200,15 @@ fn proxy_correctives_after_each_product_match_cpu() {
         random_model(RR, 64),
         random_model(LBS, 65),
     ];
+    let settings = GpuModelDebugSettings {
+        correctives_in_product: Some(in_product),
+    };
     let gpu: Vec<GpuModel> = models
         .iter()
-        .map(|m| GpuModel::new(&ctx, m).expect("upload"))
+        .map(|m| GpuModel::with_debug_settings(&ctx, m, settings).expect("upload"))
         .collect();
+    assert_eq!(gpu[2].applies_correctives_in_product(), in_product);
+    assert!(!gpu[1].applies_correctives_in_product());
     let kinds: Vec<(bool, bool, usize)> = (gpu.iter())
         .map(|g| {
             (
@@ -1297,6 +1304,16 @@ fn proxy_correctives_after_each_product_match_cpu() {
         compare(model, (&p, &nrm), (&out.positions, &out.normals));
     }
     assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn proxy_correctives_in_their_own_pass_after_each_product_match_cpu() {
+    proxy_correctives_after_each_product(false);
+}
+
+#[test]
+fn proxy_correctives_in_the_fused_product_match_cpu() {
+    proxy_correctives_after_each_product(true);
 }
 
 /// A proxy-corrected model recorded into the test's own command buffers with three frames in

@@ -39,7 +39,9 @@ pub struct RrskinPaletteSkin {
     pub weights: *const f32,
     /// V x 3.
     pub rest_positions: *const f32,
-    /// V x 3 unit normals of the rest mesh, as the Vulkan path computes them.
+    /// V x 3 unit normals of the rest mesh (area-weighted, welded seams shared): the shader
+    /// takes each through the cofactor of the vertex's blended 3x3, `n.x (c1 x c2) + n.y (c2 x
+    /// c0) + n.z (c0 x c1)` for its columns c, normalised (the runtime's transformed normals).
     pub rest_normals: *const f32,
     /// V x 4 (xyz unit, w = +-1 as glTF's TANGENT), or NULL for a model without rest tangents.
     pub rest_tangents: *const f32,

@@ -65,6 +65,10 @@ pub struct Limits {
     pub queue_family_count: u32,
     /// Nanoseconds per timestamp tick; `None` if the queue has no timestamps.
     pub timestamp_period_ns: Option<f64>,
+    /// The device is a CPU implementation (lavapipe): it pays a buffer load once per lane even
+    /// where every lane of a workgroup reads the same address, which GPUs broadcast; passes that
+    /// differ only in how they share such loads choose by it.
+    pub cpu_device: bool,
 }
 
 /// A shared handle to the Vulkan device the runtime uses.
@@ -221,6 +225,7 @@ impl Context {
             queue_family_count: physical.queue_families().len() as u32,
             timestamp_period_ns: (family.timestamp_valid_bits > 0)
                 .then_some(props.limits.timestamp_period as f64),
+            cpu_device: props.device_type == vk::PhysicalDeviceType::CPU,
         };
         let device_name = props
             .device_name_as_c_str()

@@ -102,9 +102,27 @@ impl UploadData<'_> {
     }
 }
 
+/// Choices the upload makes by itself, forced for testing the runtime (as
+/// [`super::CrowdDebugSettings`]); not for engines (default: none).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GpuModelDebugSettings {
+    /// Whether a fused product applies the proxy correctives itself (`None`: where the device
+    /// is a GPU, not on a CPU implementation; see `Dims::correctives_in_product`).
+    pub correctives_in_product: Option<bool>,
+}
+
 impl GpuModel {
     /// Uploads `model` (submits a copy on the context's queue and waits).
     pub fn new(context: &Context, model: &Model) -> Result<GpuModel> {
+        Self::with_debug_settings(context, model, GpuModelDebugSettings::default())
+    }
+
+    /// [`GpuModel::new`] with the upload's own choices forced.
+    pub fn with_debug_settings(
+        context: &Context,
+        model: &Model,
+        settings: GpuModelDebugSettings,
+    ) -> Result<GpuModel> {
         let sparse = BlockSparse::of(model);
         let dims = Dims {
             vertices: model.vertex_count() as u32,
@@ -116,6 +134,8 @@ impl GpuModel {
             normals: NormalMode::Recomputed,
             sparse: sparse.is_some(),
             fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
+            correctives_in_product: (settings.correctives_in_product)
+                .unwrap_or(!context.limits().cpu_device),
             correctives: model.corrective_count() as u32,
             drivers: model.corrective_driver_count() as u32,
             corrected_proxies: model.proxy_corrective_count() as u32,
@@ -229,6 +249,14 @@ impl GpuModel {
     /// predictor pass does not run.
     pub fn fuses_predictors(&self) -> bool {
         self.inner.dims.fused
+    }
+
+    /// Whether the fused product applies the proxy correctives itself, so that their pass does
+    /// not run (models whose product is fused and that have them; see
+    /// [`GpuModelDebugSettings`]).
+    pub fn applies_correctives_in_product(&self) -> bool {
+        let d = &self.inner.dims;
+        d.fused && d.corrected_proxies > 0 && d.correctives_in_product
     }
 
     /// N, the model's pose-space corrective targets (0 without correctives).

@@ -98,6 +98,7 @@ impl ModelSizes {
             // No crowd buffer's size depends on it (B stays allocated, unused, for a fused
             // model: the sizes do not tell the two apart).
             fused: false,
+            correctives_in_product: false,
             correctives: word("corrective targets", self.correctives)?,
             drivers: word("corrective drivers", self.corrective_drivers)?,
             corrected_proxies: word("corrected proxies", self.proxy_correctives)?,

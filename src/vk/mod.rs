@@ -41,6 +41,6 @@ pub use crowd::{
     Aabb, Crowd, CrowdDebugSettings, CrowdOptions, CrowdOutput, HostIntermediates, HostOutput,
     BOUNDS_STRIDE, MAX_FRAMES_IN_FLIGHT, TANGENT_STRIDE,
 };
-pub use gpu_model::GpuModel;
+pub use gpu_model::{GpuModel, GpuModelDebugSettings};
 pub use memory::{crowd_bytes, crowd_largest_buffer_bytes, model_bytes, ModelSizes};
 pub use requirements::{requirements, Requirements};

@@ -33,6 +33,11 @@ pub struct Dims {
     /// evaluates its predictors itself (the fused product runs instead of the predictor pass
     /// and the sparse product; see `GpuModel::new`). Implies `sparse`.
     pub fused: bool,
+    /// Whether a fused product applies the proxy correctives itself (one dispatch fewer; on a
+    /// GPU their map loads are the same for the whole workgroup), rather than their own pass
+    /// doing so four characters an invocation (what a CPU driver, paying every load per lane,
+    /// needs). Meaningful for fused models with proxy correctives; see `GpuModel::new`.
+    pub correctives_in_product: bool,
     /// N, the pose-space corrective targets (0: none; the weights pass does not run and
     /// skinning adds nothing).
     pub correctives: u32,
@@ -411,6 +416,7 @@ mod tests {
         normals: NormalMode::Recomputed,
         sparse: false,
         fused: false,
+        correctives_in_product: false,
         correctives: 0,
         drivers: 0,
         corrected_proxies: 0,

@@ -90,7 +90,7 @@ impl Pass {
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
 /// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
 /// with and without bounds, with and without tangents, with and without correctives, and (of
-/// reduced models) with and without proxy correctives.
+/// reduced models) with and without proxy correctives, applied in a fused product or not.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
     let corrected = plain_model_kinds().flat_map(|d| {
@@ -104,11 +104,14 @@ pub fn model_kinds() -> impl Iterator<Item = Dims> {
         let proxies = [(0, 0, false), (2, 3, true), (1, 0, true), (2, 4, false)];
         (proxies.into_iter())
             .filter(move |&(e, _, _)| e <= d.proxies)
-            .map(move |(corrected_proxies, kernels, linear_features)| Dims {
-                corrected_proxies,
-                kernels,
-                linear_features,
-                ..d
+            .flat_map(move |(corrected_proxies, kernels, linear_features)| {
+                [false, true].map(|correctives_in_product| Dims {
+                    corrected_proxies,
+                    kernels,
+                    linear_features,
+                    correctives_in_product,
+                    ..d
+                })
             })
     })
 }
@@ -141,6 +144,7 @@ fn plain_model_kinds() -> impl Iterator<Item = Dims> {
                     normals,
                     sparse,
                     fused,
+                    correctives_in_product: false,
                     correctives: 0,
                     drivers: 0,
                     corrected_proxies: 0,
@@ -209,7 +213,7 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
     push: &[W::Proxies, W::Bones, W::Characters],
     // As the sparse product's, and a row per bone (copied into the palette).
     groups: [over(Characters, 64), over(PredictorsAndBones, 1), ONE],
-    runs: |d| d.proxies > 0 && d.fused && d.corrected_proxies == 0,
+    runs: |d| d.proxies > 0 && d.fused && !(d.corrected_proxies > 0 && d.correctives_in_product),
 };
 
 /// The fused product of a model with proxy correctives: each corrected proxy's invocation
@@ -219,7 +223,7 @@ const FUSED_CORRECTED_PRODUCT: PassDesc = PassDesc {
     shader: shaders::FUSED_CORRECTED_PRODUCT,
     bindings: &extended::<7, 10>(FUSED_BINDINGS, &PROXY_CORRECTIVE_DATA),
     push: &PROXY_CORRECTIVE_PUSH,
-    runs: |d| d.proxies > 0 && d.fused && d.corrected_proxies > 0,
+    runs: |d| d.proxies > 0 && d.fused && d.corrected_proxies > 0 && d.correctives_in_product,
     ..FUSED_PRODUCT
 };
 
@@ -255,7 +259,7 @@ const PROXY_CORRECTIVES: PassDesc = PassDesc {
     // local_size_x = 64, four characters an invocation (256 a workgroup), one row of
     // groups per corrected proxy.
     groups: [over(Characters, 256), over(CorrectedProxies, 1), ONE],
-    runs: |d| d.corrected_proxies > 0 && !d.fused,
+    runs: |d| d.corrected_proxies > 0 && !(d.fused && d.correctives_in_product),
 };
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
@@ -624,7 +628,8 @@ mod tests {
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
                         let expected = match b {
                             CrowdBuffer::Palette => {
-                                let separate = d.corrected_proxies > 0 && !d.fused;
+                                let separate = d.corrected_proxies > 0
+                                    && !(d.fused && d.correctives_in_product);
                                 1 + usize::from(!d.fused) + usize::from(separate)
                             }
                             _ => 1,
@@ -648,6 +653,7 @@ mod tests {
             normals: NormalMode::Recomputed,
             sparse: false,
             fused: false,
+            correctives_in_product: false,
             correctives: 0,
             drivers: 0,
             corrected_proxies: 0,
@@ -677,6 +683,7 @@ mod tests {
         assert_eq!(Pass::descriptors_per_chunk(&sparse), (4, 21));
         let fused = Dims {
             fused: true,
+            correctives_in_product: true,
             ..sparse
         };
         // + the fused product (7)
@@ -704,6 +711,7 @@ mod tests {
         assert_eq!(Pass::descriptors_per_chunk(&proxy_corrected), (5, 33));
         let separate = Dims {
             fused: false,
+            correctives_in_product: false,
             ..proxy_corrected
         };
         // predict (5), the sparse product (5) and the proxy correctives (6) instead
