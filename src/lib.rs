@@ -13,7 +13,8 @@
 //!    ([`vk::GpuModel::fuses_predictors`]);
 //! 3. for a model with proxy correctives (docs/method.md §21, [`ProxyCorrectives`]), each
 //!    corrected proxy `T_e ← T_e (I + E_e)`, `E_e = Σ_f x_f G_ef` from its drivers' rotations,
-//!    in the palette (a fused product applies them itself, and this pass does not run);
+//!    in the palette (on a GPU a fused product applies them itself, and this pass does not
+//!    run: [`vk::GpuModel::applies_correctives_in_product`]);
 //! 4. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences
 //!    (of the rest position plus the N weighted corrective targets, where the model has them);
 //! 5. normals, gathered from incident triangles;

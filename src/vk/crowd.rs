@@ -243,19 +243,8 @@ impl Crowd {
 
         let c = characters as u64;
         let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&dims, b));
-        let size = |b: CrowdBuffer| c * per_character[b as usize];
         let chunk_characters = chunk_size(&shared, &dims, &per_character, c, options)?;
-
-        let mut buffers: [Vec<Buffer>; CrowdBuffer::COUNT] = Default::default();
-        for b in CrowdBuffer::ALL {
-            let (name, usage, location) = kind(b);
-            buffers[b as usize] = (0..crowd_buffer_copies(b, &options))
-                .map(|_| Buffer::new(&shared, name, size(b), usage, location))
-                .collect::<Result<_>>()?;
-        }
-        if options.debug_settings.fill_nan {
-            fill_nan(&shared, &mut buffers)?;
-        }
+        let buffers = create_buffers(&shared, &per_character, c, &options)?;
         let mut crowd = Crowd {
             model: model.clone(),
             dims,
@@ -747,6 +736,28 @@ fn write_rest_pose(bytes: &mut [u8]) {
     for slot in bytes.chunks_exact_mut(48) {
         slot.copy_from_slice(bytemuck::cast_slice(&identity));
     }
+}
+
+/// Every buffer of a crowd of `characters` made with `options` (`per_character`: bytes a
+/// character of each kind), NaN-filled where the options' debug settings ask.
+fn create_buffers(
+    shared: &Arc<Shared>,
+    per_character: &[u64; CrowdBuffer::COUNT],
+    characters: u64,
+    options: &CrowdOptions,
+) -> Result<[Vec<Buffer>; CrowdBuffer::COUNT]> {
+    let mut buffers: [Vec<Buffer>; CrowdBuffer::COUNT] = Default::default();
+    for b in CrowdBuffer::ALL {
+        let (name, usage, location) = kind(b);
+        let size = characters * per_character[b as usize];
+        buffers[b as usize] = (0..crowd_buffer_copies(b, options))
+            .map(|_| Buffer::new(shared, name, size, usage, location))
+            .collect::<Result<_>>()?;
+    }
+    if options.debug_settings.fill_nan {
+        fill_nan(shared, &mut buffers)?;
+    }
+    Ok(buffers)
 }
 
 /// Consecutive triples of floats.

@@ -124,25 +124,8 @@ impl GpuModel {
         settings: GpuModelDebugSettings,
     ) -> Result<GpuModel> {
         let sparse = BlockSparse::of(model);
-        let dims = Dims {
-            vertices: model.vertex_count() as u32,
-            proxies: model.proxy_count() as u32,
-            bones: model.bone_count() as u32,
-            influences: model.influences(),
-            bounds: false,
-            tangents: false,
-            normals: NormalMode::Recomputed,
-            sparse: sparse.is_some(),
-            fused: sparse.as_ref().is_some_and(BlockSparse::one_key_per_proxy),
-            correctives_in_product: (settings.correctives_in_product)
-                .unwrap_or(!context.limits().cpu_device),
-            correctives: model.corrective_count() as u32,
-            drivers: model.corrective_driver_count() as u32,
-            corrected_proxies: model.proxy_corrective_count() as u32,
-            kernels: (model.proxy_correctives())
-                .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
-            linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
-        };
+        let in_product = (settings.correctives_in_product).unwrap_or(!context.limits().cpu_device);
+        let dims = model_dims(model, sparse.as_ref(), in_product);
         if model.vertex_count() as u64 >= u64::from(FAN_PIVOT) {
             return Err(crate::Error::DeviceLimit {
                 what: "vertices (the normal fans flag a pivot in bit 31)",
@@ -313,6 +296,30 @@ pub(crate) struct BlockSparse {
     pub offsets: Vec<u32>,
     pub columns: Vec<u32>,
     pub values: Vec<[f32; 4]>,
+}
+
+/// The sizes and choices a model's passes run with (a crowd adds its options'): `sparse` the
+/// block-sparse [C1 | C2] where chosen, `in_product` whether a fused product applies the proxy
+/// correctives.
+fn model_dims(model: &Model, sparse: Option<&BlockSparse>, in_product: bool) -> Dims {
+    Dims {
+        vertices: model.vertex_count() as u32,
+        proxies: model.proxy_count() as u32,
+        bones: model.bone_count() as u32,
+        influences: model.influences(),
+        bounds: false,
+        tangents: false,
+        normals: NormalMode::Recomputed,
+        sparse: sparse.is_some(),
+        fused: sparse.is_some_and(BlockSparse::one_key_per_proxy),
+        correctives_in_product: in_product,
+        correctives: model.corrective_count() as u32,
+        drivers: model.corrective_driver_count() as u32,
+        corrected_proxies: model.proxy_corrective_count() as u32,
+        kernels: (model.proxy_correctives())
+            .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
+        linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
+    }
 }
 
 /// [`UploadData::proxy_topology`] (empty without proxy correctives).
