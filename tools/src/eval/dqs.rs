@@ -33,6 +33,15 @@ pub fn deform(rest: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Bone]) 
         .collect()
 }
 
+/// Each of `normals` rotated by its vertex's blended dual quaternion's rotation: DQS's normal
+/// transform (a rigid motion's; a vertex without weight keeps its normal).
+pub fn rotate(normals: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Bone]) -> Vec<DVec3> {
+    let dq: Vec<DualQuat> = bones.iter().map(DualQuat::of).collect();
+    (normals.iter().zip(influences))
+        .map(|(&n, inf)| blended(&dq, inf).map_or(n, |b| b.real * n))
+        .collect()
+}
+
 /// `p` moved by the normalised weighted sum of `dq` (see [`blended`]).
 fn blend(dq: &[DualQuat], inf: &[(usize, f64)], p: DVec3) -> DVec3 {
     let Some(DualQuat { real, dual }) = blended(dq, inf) else {

@@ -10,6 +10,7 @@ pub mod cor;
 pub mod ddm;
 pub mod diagnose;
 pub mod dqs;
+pub mod normals;
 
 use crate::import::example_set::ExampleSet;
 use crate::train::proxy_corrective;
@@ -80,6 +81,9 @@ pub struct Report {
     /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
     pub structure: Option<Chosen>,
     pub budget: Option<Budget>,
+    /// The normals' held-out angular error per method and mode ([`normals`]; empty without
+    /// test poses).
+    pub normal_error: normals::NormalErrors,
     /// The runtime model trained here (None with `Options::model` or P = 0).
     pub model: Option<rrskin::Model>,
     /// The full model's F percentile, ridge and fallback chosen by cross-validation, and the
@@ -150,6 +154,7 @@ impl Report {
                     .map(|(c, (score, se))| serde_json::json!({"anchor": c.anchor, "basis": basis_name(c.basis), "ridge": c.ridge, "score": score, "standard_error": se}))
                     .collect::<Vec<_>>(),
             })),
+            "normal_error": normals::to_json(&self.normal_error),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
                 "full_exact_gradients": errors(&b.full_exact),
                 "reduced_oracle_proxies": errors(&b.reduced_oracle),
@@ -225,6 +230,7 @@ impl Report {
             );
             row(&mut s, "  model + per-vertex pose-space", &b.pose_space);
         }
+        s += &normals::lines(&self.normal_error);
         let chosen = match self.folds {
             0 | 1 => "fixed: too few training poses to cross-validate".to_string(),
             k => format!("chosen by {k}-fold cross-validation on the training poses"),
@@ -519,6 +525,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         }
         _ => None,
     };
+    let normal_error = normals::held_out(set, &trained.ssd, runtime, &test)?;
     stages.push(("evaluation", start.elapsed().as_secs_f64()));
     if options.loocv {
         let start = std::time::Instant::now();
@@ -555,6 +562,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         cor: cor_e,
         ddm: ddm_e,
         ddm_params: baselines.ddm_params,
+        normal_error,
         rig_lbs: rig_lbs.map(fitted_nothing),
         rig_dqs: rig_dqs.map(fitted_nothing),
         rig_cor: rig_cor.map(fitted_nothing),
