@@ -15,7 +15,7 @@
 
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::normals::{area_weighted, cofactor_times, NormalMode};
+use crate::normals::{area_weighted_sums, cofactor_times, NormalMode};
 use crate::predict::{apply_proxy_correctives, corrective_weights, key_gradient, Affine};
 use glam::{DMat3, DVec3};
 
@@ -25,6 +25,8 @@ pub struct CpuEvaluator<'m> {
     normals: NormalMode,
     /// The model's rest normals where normals are transformed (else empty).
     rest_normals: Vec<DVec3>,
+    /// The area normals summed per normal group (V), where normals are recomputed.
+    normal_sums: Vec<DVec3>,
     /// `[C1 | C2]`, 4P x (3P + 4J), row-major.
     c1_c2: Vec<f64>,
     /// Right-hand side of the GEMM for one character and coordinate: `[d_c; q_c]`, 3P + 4J.
@@ -56,6 +58,7 @@ impl<'m> CpuEvaluator<'m> {
             model,
             normals: mode,
             rest_normals,
+            normal_sums: Vec::new(),
             c1_c2: model.c1_c2().into_iter().map(f64::from).collect(),
             rhs: vec![0.0; 3 * p + 4 * j],
             palette: vec![[0.0; 12]; p + j],
@@ -121,9 +124,7 @@ impl<'m> CpuEvaluator<'m> {
         }
         for ch in 0..c {
             let q = &bones[ch * j..(ch + 1) * j];
-            self.palette_of(q);
-            let p = self.model.proxy_count();
-            apply_proxy_correctives(self.model, q, &mut self.palette[..p])?;
+            self.corrected_palette_of(q)?;
             corrective_weights(self.model, q, &mut self.weights)?;
             self.skin();
             let normals = &mut normals[ch * v..(ch + 1) * v];
@@ -153,10 +154,15 @@ impl<'m> CpuEvaluator<'m> {
                 actual: q.len(),
             });
         }
+        self.corrected_palette_of(q)?;
+        Ok((&self.gradients, &self.palette))
+    }
+
+    /// The palette of one character with its proxies corrected (`T_e (I + E_e)`).
+    fn corrected_palette_of(&mut self, q: &[Affine]) -> Result<()> {
         self.palette_of(q);
         let p = self.model.proxy_count();
-        apply_proxy_correctives(self.model, q, &mut self.palette[..p])?;
-        Ok((&self.gradients, &self.palette))
+        apply_proxy_correctives(self.model, q, &mut self.palette[..p])
     }
 
     /// The P + J palette of one character: proxies by Eq. 5, then the bones themselves.
@@ -237,19 +243,23 @@ impl<'m> CpuEvaluator<'m> {
         }
     }
 
-    fn normals_into(&self, out: &mut [[f32; 3]]) {
-        let normals = match self.normals {
+    fn normals_into(&mut self, out: &mut [[f32; 3]]) {
+        let model = self.model;
+        let normal = |n: DVec3| n.normalize_or_zero().as_vec3().to_array();
+        match self.normals {
             NormalMode::Recomputed => {
-                let (offsets, incident) = self.model.incidence();
-                let tris = &self.model.parts().triangles;
-                area_weighted(&self.positions, tris, offsets, incident)
+                let group = |v| model.normal_group(v);
+                let sums = &mut self.normal_sums;
+                area_weighted_sums(&self.positions, model.triangle_corners(), group, sums);
+                for (a, n) in out.iter_mut().enumerate() {
+                    *n = normal(self.normal_sums[group(a)]);
+                }
             }
-            NormalMode::Transformed => (self.rest_normals.iter().enumerate())
-                .map(|(a, &n)| cofactor_times(&self.blended(a), n).normalize_or_zero())
-                .collect(),
-        };
-        for (out, n) in out.iter_mut().zip(normals) {
-            *out = n.as_vec3().to_array();
+            NormalMode::Transformed => {
+                for (a, n) in out.iter_mut().enumerate() {
+                    *n = normal(cofactor_times(&self.blended(a), self.rest_normals[a]));
+                }
+            }
         }
     }
 }

@@ -26,45 +26,36 @@ pub enum NormalMode {
     Transformed,
 }
 
-/// Unit area-weighted normals of `positions` (one mesh, V) over the CSR lists of the triangles
-/// around each vertex (`offsets`: V + 1, `incident`: triangle ids; a model's
-/// [`crate::Model::incidence`], normal groups included).
-pub fn area_weighted(
+/// Per vertex a, into `sums[group(a)]`, the sum of `(b − a) × (c − a)` over the triangles
+/// around it (`sums`: V, cleared first; its allocation is reused): the area normals of a mesh's
+/// triangles, each added to the normal group of each of its corners (`group`: vertex to group,
+/// a vertex index; the identity where no vertices are welded). Vertex a's unit normal is
+/// `sums[group(a)]` normalised (zero where it vanishes): what the normals pass computes.
+pub fn area_weighted_sums(
     positions: &[DVec3],
-    triangles: &[[u32; 3]],
-    offsets: &[u32],
-    incident: &[u32],
-) -> Vec<DVec3> {
-    (0..positions.len())
-        .map(|a| {
-            let around = &incident[offsets[a] as usize..offsets[a + 1] as usize];
-            let sum: DVec3 = (around.iter())
-                .map(|&t| {
-                    let [i, j, k] = triangles[t as usize].map(|x| positions[x as usize]);
-                    (j - i).cross(k - i)
-                })
-                .sum();
-            sum.normalize_or_zero()
-        })
-        .collect()
-}
-
-/// Unit area-weighted vertex normals of a mesh, as the normals pass makes them: per vertex the
-/// sum of (b − a) × (c − a) over the triangles around it, normalised (zero where it vanishes).
-/// Where `group` maps vertices to shared ones (welded corners), the sums are per group.
-pub fn area_weighted_grouped(
-    positions: &[DVec3],
-    triangles: &[[usize; 3]],
+    triangles: impl IntoIterator<Item = [usize; 3]>,
     group: impl Fn(usize) -> usize,
-) -> Vec<DVec3> {
-    let mut sums = vec![DVec3::ZERO; positions.len()];
+    sums: &mut Vec<DVec3>,
+) {
+    sums.clear();
+    sums.resize(positions.len(), DVec3::ZERO);
     for t in triangles {
         let [a, b, c] = t.map(|i| positions[i]);
         let area_normal = (b - a).cross(c - a);
-        for &v in t {
+        for v in t {
             sums[group(v)] += area_normal;
         }
     }
+}
+
+/// Unit area-weighted vertex normals of a mesh ([`area_weighted_sums`], normalised).
+pub fn area_weighted_grouped(
+    positions: &[DVec3],
+    triangles: impl IntoIterator<Item = [usize; 3]>,
+    group: impl Fn(usize) -> usize,
+) -> Vec<DVec3> {
+    let mut sums = Vec::new();
+    area_weighted_sums(positions, triangles, &group, &mut sums);
     (0..positions.len())
         .map(|v| sums[group(v)].normalize_or_zero())
         .collect()
@@ -77,7 +68,7 @@ pub const FAN_PIVOT: u32 = 1 << 31;
 /// pass reads (`glsl/normals.comp`): vertex a's entries `entries[offsets[a]..offsets[a + 1]]`
 /// are fans `[pivot | FAN_PIVOT, r_0, r_1, …, r_n]`, each standing for the n triangles
 /// `(pivot, r_i, r_i+1)`, whose area normals `(p_{r_i} − p_pivot) × (p_{r_i+1} − p_pivot)` sum
-/// to [`area_weighted`]'s (the area normal of a triangle is the same from any corner). Around an
+/// to [`area_weighted_sums`]'s (the area normal of a triangle is the same from any corner). Around an
 /// interior vertex of a manifold mesh one fan of valence + 2 entries replaces the triangles'
 /// ids and their 3 corners each: about 8 index and 8 position loads instead of 24 and 18.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -135,27 +126,6 @@ fn chain(terms: &mut Vec<[u32; 3]>, out: &mut Vec<u32>) {
     }
 }
 
-/// Unit area-weighted normals from [`Fans`]: what the GPU's normals pass computes, in `f64`.
-pub fn from_fans(positions: &[DVec3], fans: &Fans) -> Vec<DVec3> {
-    (fans.offsets.windows(2))
-        .map(|w| {
-            let (mut sum, mut pivot, mut last) = (DVec3::ZERO, DVec3::ZERO, None);
-            for &e in &fans.entries[w[0] as usize..w[1] as usize] {
-                if e & FAN_PIVOT != 0 {
-                    (pivot, last) = (positions[(e & !FAN_PIVOT) as usize], None);
-                    continue;
-                }
-                let r = positions[e as usize] - pivot;
-                if let Some(previous) = last {
-                    sum += DVec3::cross(previous, r);
-                }
-                last = Some(r);
-            }
-            sum.normalize_or_zero()
-        })
-        .collect()
-}
-
 /// `cof(M) n`, unnormalised, for the 3x3 of a 3x4 row-major `m`: with M's columns `c0, c1, c2`,
 /// `cof(M) = [c1 × c2 | c2 × c0 | c0 × c1]`.
 pub fn cofactor_times(m: &[f64; 12], n: DVec3) -> DVec3 {
@@ -168,6 +138,27 @@ pub fn cofactor_times(m: &[f64; 12], n: DVec3) -> DVec3 {
 mod tests {
     use super::*;
     use glam::DMat3;
+
+    /// Unit area-weighted normals from [`Fans`]: what the GPU's normals pass computes, in `f64`.
+    fn from_fans(positions: &[DVec3], fans: &Fans) -> Vec<DVec3> {
+        (fans.offsets.windows(2))
+            .map(|w| {
+                let (mut sum, mut pivot, mut last) = (DVec3::ZERO, DVec3::ZERO, None);
+                for &e in &fans.entries[w[0] as usize..w[1] as usize] {
+                    if e & FAN_PIVOT != 0 {
+                        (pivot, last) = (positions[(e & !FAN_PIVOT) as usize], None);
+                        continue;
+                    }
+                    let r = positions[e as usize] - pivot;
+                    if let Some(previous) = last {
+                        sum += DVec3::cross(previous, r);
+                    }
+                    last = Some(r);
+                }
+                sum.normalize_or_zero()
+            })
+            .collect()
+    }
 
     /// A grid of n x n vertices, two triangles a cell, with its incidence lists.
     fn grid(n: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
@@ -186,6 +177,10 @@ mod tests {
             }
         }
         (positions, triangles)
+    }
+
+    fn usize_triangles(triangles: &[[u32; 3]]) -> impl Iterator<Item = [usize; 3]> + '_ {
+        triangles.iter().map(|t| t.map(|x| x as usize))
     }
 
     fn incidence(v: usize, triangles: &[[u32; 3]]) -> (Vec<u32>, Vec<u32>) {
@@ -212,7 +207,7 @@ mod tests {
         triangles.push(triangles[5]);
         let (offsets, incident) = incidence(positions.len(), &triangles);
         let fans = Fans::new(&triangles, &offsets, &incident, |v| v);
-        let expected = area_weighted(&positions, &triangles, &offsets, &incident);
+        let expected = area_weighted_grouped(&positions, usize_triangles(&triangles), |v| v);
         for (a, (got, want)) in from_fans(&positions, &fans)
             .iter()
             .zip(&expected)
@@ -262,7 +257,9 @@ mod tests {
         at_one.sort();
         assert_eq!(at_one, [1, 4]);
         let sums = from_fans(&positions, &fans);
-        let want = area_weighted(&positions, &triangles, &offsets, &incident);
+        let want = area_weighted_grouped(&positions, usize_triangles(&triangles), |v| {
+            group(v as u32) as usize
+        });
         assert!((sums[1] - want[1]).length() < 1e-12 && (sums[4] - sums[1]).length() < 1e-12);
     }
 

@@ -355,18 +355,28 @@ impl Model {
         let rest: Vec<glam::DVec3> = (self.parts.rest_positions.iter())
             .map(|p| glam::DVec3::from(p.map(f64::from)))
             .collect();
-        let (offsets, incident) = self.incidence();
-        crate::normals::area_weighted(&rest, &self.parts.triangles, offsets, incident)
+        let group = |v| self.normal_group(v);
+        crate::normals::area_weighted_grouped(&rest, self.triangle_corners(), group)
             .iter()
             .map(|n| n.as_vec3().to_array())
             .collect()
     }
 
+    /// The normal group of vertex `v` (a vertex index): vertices of one group share a normal
+    /// (welded seams); `v` itself where the model has no groups.
+    pub fn normal_group(&self, v: usize) -> usize {
+        group_of(&self.parts.normal_groups, v)
+    }
+
+    /// The triangles' corners as `usize` indices.
+    pub fn triangle_corners(&self) -> impl Iterator<Item = [usize; 3]> + '_ {
+        (self.parts.triangles.iter()).map(|t| t.map(|i| i as usize))
+    }
+
     /// The triangles around each vertex as 1-ring fans ([`crate::normals::Fans`]), pivoted in
     /// the vertex's normal group: what the GPU's recomputed-normals pass reads.
     pub fn normal_fans(&self) -> crate::normals::Fans {
-        let groups = &self.parts.normal_groups;
-        let group = |v: u32| groups.get(v as usize).copied().unwrap_or(v);
+        let group = |v: u32| self.normal_group(v as usize) as u32;
         let (offsets, incident) = self.incidence();
         crate::normals::Fans::new(&self.parts.triangles, offsets, incident, group)
     }
@@ -448,16 +458,16 @@ impl Model {
     }
 }
 
+/// Vertex `v`'s normal group in `groups` (V or empty: then `v` itself).
+fn group_of(groups: &[u32], v: usize) -> usize {
+    groups.get(v).map_or(v, |&g| g as usize)
+}
+
 /// Per-vertex incident-triangle lists (CSR): the triangles around each vertex's normal group
 /// (around the vertex itself when `groups` is empty). Shape: offsets V + 1.
+
 fn incidence(vertex_count: usize, triangles: &[[u32; 3]], groups: &[u32]) -> (Vec<u32>, Vec<u32>) {
-    let group = |v: usize| {
-        if groups.is_empty() {
-            v
-        } else {
-            groups[v] as usize
-        }
-    };
+    let group = |v: usize| group_of(groups, v);
     // Triangles around each group (CSR over group ids).
     let mut count = vec![0u32; vertex_count + 1];
     for tri in triangles {

@@ -98,9 +98,8 @@ pub fn held_out(
     if test.is_empty() {
         return Ok(Vec::new());
     }
-    let groups = runtime.map_or(&[][..], |m| &m.parts().normal_groups);
-    let group = |v: usize| groups.get(v).map_or(v, |&g| g as usize);
-    let area = |positions: &[DVec3]| area_weighted_grouped(positions, &set.faces, group);
+    let group = |v: usize| runtime.map_or(v, |m| m.normal_group(v));
+    let area = |p: &[DVec3]| area_weighted_grouped(p, set.faces.iter().copied(), group);
     let truth: Vec<Vec<DVec3>> = test.iter().map(|&i| area(&set.poses[i].vertices)).collect();
     let rest_normals = area(&set.rest);
     let of_poses = |f: &dyn Fn(usize) -> Vec<DVec3>| -> Vec<Vec<DVec3>> {

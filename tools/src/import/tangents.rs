@@ -33,7 +33,8 @@ pub fn rest_tangents(
         return Some((file.to_vec(), Source::File));
     }
     // The runtime's normals at rest, over each welded group.
-    let normals = rrskin::normals::area_weighted_grouped(rest, triangles, |v| groups[v]);
+    let normals =
+        rrskin::normals::area_weighted_grouped(rest, triangles.iter().copied(), |v| groups[v]);
     let mut mesh = Mesh {
         rest,
         triangles,

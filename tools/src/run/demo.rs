@@ -146,11 +146,14 @@ impl HeldOut {
             p.iter().zip(&truth).map(|(a, b)| distance(a, b)).collect()
         };
         let (e_ssd, e_rr) = (errors(&ssd.0), errors(&rr.0));
-        let truth_normals =
-            rrskin::normals::area_weighted_grouped(&set.poses[pose].vertices, &set.faces, |v| v)
-                .iter()
-                .map(|n| n.as_vec3().to_array())
-                .collect();
+        let truth_normals = rrskin::normals::area_weighted_grouped(
+            &set.poses[pose].vertices,
+            set.faces.iter().copied(),
+            |v| v,
+        )
+        .iter()
+        .map(|n| n.as_vec3().to_array())
+        .collect();
         Ok(HeldOut {
             pose,
             truth,
