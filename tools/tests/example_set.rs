@@ -10,9 +10,12 @@ use support::{temp_dir, write_f32, write_i32};
 const V: usize = 4;
 const N: usize = 3;
 
-/// 4 vertices, 2 triangles, 2 bones (1 child of 0), 3 poses (the last a test pose).
+const REST: [f32; V * 3] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+
+/// 4 vertices, 2 triangles, 2 bones (1 child of 0), 3 poses (the last a test pose): bone 1
+/// turned 90° about z in pose 1, bone 0 in pose 2; the vertices at rest in every pose.
 fn write_valid(dir: &Path) {
-    let rest = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+    let rest = REST;
     write_f32(&dir.join("rest_vertices.npy"), &[V, 3], &rest);
     write_i32(&dir.join("faces.npy"), &[2, 3], &[0, 1, 2, 0, 2, 3]);
     write_i32(&dir.join("bone_parents.npy"), &[2], &[-1, 0]);
@@ -23,6 +26,25 @@ fn write_valid(dir: &Path) {
     let vertices: Vec<f32> = rest.iter().cycle().take(N * V * 3).copied().collect();
     write_f32(&dir.join("pose_vertices.npy"), &[N, V, 3], &vertices);
     write_i32(&dir.join("split.npy"), &[N], &[0, 0, 1]);
+}
+
+/// The poses' vertices as linear blend skinning with `weights` (V x 2) makes them from
+/// [`write_valid`]'s rest mesh and transforms.
+fn skinned_by(weights: &[f32]) -> Vec<f32> {
+    let turned = |p: &[f32]| [0.5 - p[1], p[0], p[2]];
+    let still = |p: &[f32]| [p[0], p[1], p[2]];
+    let poses: [[&dyn Fn(&[f32]) -> [f32; 3]; 2]; N] =
+        [[&still, &still], [&still, &turned], [&turned, &still]];
+    (poses.iter())
+        .flat_map(|bones| {
+            REST.chunks(3)
+                .zip(weights.chunks(2))
+                .flat_map(move |(p, w)| {
+                    let [a, b] = bones.map(|bone| bone(p));
+                    [0, 1, 2].map(|c| w[0] * a[c] + w[1] * b[c])
+                })
+        })
+        .collect()
 }
 
 /// Loads a valid set with one file broken by `breaking`; returns the error text.
@@ -204,6 +226,15 @@ fn the_rigs_own_weights_load_when_present() {
     assert_eq!(ExampleSet::load(&dir).expect("valid").rig_weights, None);
     let weights = [1.0, 0.0, 0.25, 0.75, 0.0, 1.0, 0.5, 0.5];
     write_f32(&dir.join("skin_weights.npy"), &[V, 2], &weights);
+    // The rig's skin moves the vertices where it weights the bone moved in pose 1: the poses'
+    // vertices must be that skin's (else the set is not the rig's motion, and is refused).
+    let e = ExampleSet::load(&dir).expect_err("static vertices of a moving bone");
+    assert_names(&e.to_string(), "skin_weights.npy", "not this rig's motion");
+    write_f32(
+        &dir.join("pose_vertices.npy"),
+        &[N, V, 3],
+        &skinned_by(&weights),
+    );
     let set = ExampleSet::load(&dir).expect("valid");
     std::fs::remove_dir_all(&dir).ok();
     let w = set.rig_weights.expect("weights");

@@ -3,6 +3,7 @@
 //! the index of what is wrong; oddities that do not stop training (degenerate triangles,
 //! unreferenced vertices) are collected as warnings.
 
+use crate::import::preflight::check_rig_motion;
 use glam::{DMat3, DVec3};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -332,19 +333,6 @@ fn poses(
     Ok(poses)
 }
 
-/// Refuses a set whose rig weights skin the poses no better than rigid bones: its vertices
-/// are not those of its transforms (the error names `weights_path`).
-fn check_rig_skin(set: &ExampleSet, weights_path: &Path) -> Result<(), InputError> {
-    let limit = crate::import::preflight::RIG_SKIN_LIMIT;
-    match crate::import::preflight::rig_skin_error(set).filter(|&e| e >= limit) {
-        Some(e) => Err(bad(
-            weights_path,
-            format!("linear blend skinning with these weights follows pose_vertices.npy no better than rigid bones ({e:.1} % of the rigid error on the training poses; a rig's own weights are far below {limit} %): pose_vertices.npy is not in the space, vertex order or poses of pose_transforms.npy and rest_vertices.npy"),
-        )),
-        None => Ok(()),
-    }
-}
-
 fn read_ints(path: &Path) -> Result<Array<i64>, InputError> {
     read_array::<i64, i32, i64>(path, "an int32/int64")
 }
@@ -416,7 +404,8 @@ impl ExampleSet {
             warnings: Vec::new(),
         };
         set.warnings = set.mesh_warnings(&faces_path);
-        check_rig_skin(&set, &weights_path)?;
+        let fix = "pose_vertices.npy is not in the space, units, vertex order or poses of pose_transforms.npy and rest_vertices.npy (by the rig's weights in skin_weights.npy)";
+        check_rig_motion(&mut set, &weights_path, fix)?;
         Ok(set)
     }
 

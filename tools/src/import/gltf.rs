@@ -12,7 +12,7 @@ use crate::import::example_set::{
 };
 use crate::import::gltf_rig::Rig;
 use crate::import::point_cache::PointCache;
-use crate::import::preflight::{rig_skin_error, RIG_SKIN_LIMIT};
+use crate::import::preflight::check_rig_motion;
 use crate::import::tangents::{rest_tangents, Source};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -126,7 +126,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
             rig_path.display()
         )],
     };
-    let set = ExampleSet {
+    let mut set = ExampleSet {
         rest: representative.iter().map(|&g| rig.rest[g]).collect(),
         faces,
         parents: rig.parents.clone(),
@@ -141,12 +141,8 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         ),
         warnings,
     };
-    if let Some(e) = rig_skin_error(&set).filter(|&e| e >= RIG_SKIN_LIMIT) {
-        return Err(bad(format!(
-            "the glTF's own skin follows this cache no better than rigid bones (its LBS at {e:.1} % of the rigid error on the training poses; a rig's own skin is far below {RIG_SKIN_LIMIT} %): the cache is not this rig's motion as {} exports it. Bake the cache from this rig and clip, in world space (PC2: 'Export into Worldspace'), in the glTF's Y-up or Blender's Z-up, over the clip's frames",
-            rig_path.display()
-        )));
-    }
+    let fix = format!("the cache is not this rig's motion as {} exports it. Bake the cache from this rig and clip, in world space (PC2: 'Export into Worldspace'), in the glTF's Y-up or Blender's Z-up, in the rig's units, over the clip's frames", rig_path.display());
+    check_rig_motion(&mut set, &options.cache, &fix)?;
     let notes = (rig
         .notes
         .iter()

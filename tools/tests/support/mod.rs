@@ -3,6 +3,8 @@
 
 use std::path::Path;
 
+pub mod limb;
+
 pub fn write_f32(path: &Path, shape: &[usize], data: &[f32]) {
     rrskin_tools::import::npy::write_f32(path, shape, data).expect("write .npy");
 }
