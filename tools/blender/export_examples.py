@@ -5,8 +5,10 @@ Writes, from an armature and the mesh it deforms, the NumPy example-set layout t
 
     rest_vertices.npy    (V,3)     f4  the evaluated mesh at pose 0 (the bind/rest pose)
     faces.npy            (T,3)     i4  the evaluated mesh's triangles (loop_triangles)
-    bone_parents.npy     (J,)      i4  nearest deform-bone ancestor, -1 for a root
-    bone_names.json      [J]           the deform bones, in the armature's bone order
+    bone_parents.npy     (J,)      i4  nearest written ancestor, -1 for a root
+    bone_names.json      [J]           the deform bones the mesh's skin weights (its vertex
+                                       groups; every deform bone where none has weight), in the
+                                       armature's bone order
     pose_transforms.npy  (N,J,3,4) f4  per deform bone posed_world @ inv(rest_world), top 3 rows,
                                        world = armature.matrix_world @ bone matrix
     pose_vertices.npy    (N,V,3)   f4  the evaluated mesh (every modifier, shape key and driver)
@@ -15,7 +17,8 @@ Writes, from an armature and the mesh it deforms, the NumPy example-set layout t
     skin_weights.npy     (V,J)     f4  the mesh's vertex-group weights of the deform bones, rows
                                        normalised to 1 (a vertex with none goes to the root)
 
-Poses: 0 = the rest pose; 1..P = random range-of-motion poses (per deform bone, except the
+Poses: 0 = the rest pose; 1..P = random range-of-motion poses (per deform bone, written or not
+(a deform bone the skin does not weight still moves the rig), except the
 roots, a swing of up to --swing degrees about a random axis perpendicular to the bone's Y
 axis, times a twist of up to +-twist degrees about it; numpy Generator seeded by --seed);
 then, with --test-action NAME, every frame of that action as held-out poses (split 1).
@@ -156,10 +159,16 @@ def find_action(name, arm):
 
 
 def deform_bones(arm):
-    """Deform bones in the armature's order, and each one's nearest deform ancestor."""
+    """Deform bones in the armature's order (the bones the random poses turn), and each one's
+    nearest deform ancestor."""
     bones = [b for b in arm.data.bones if b.use_deform]
     if not bones:
         raise UserError(f"armature {arm.name!r} has no deform bones")
+    return bones, nearest_parents(bones)
+
+
+def nearest_parents(bones):
+    """Each bone's nearest ancestor among `bones` (index), -1 for none."""
     index = {b.name: i for i, b in enumerate(bones)}
     parents = []
     for b in bones:
@@ -167,7 +176,20 @@ def deform_bones(arm):
         while p is not None and p.name not in index:
             p = p.parent
         parents.append(-1 if p is None else index[p.name])
-    return bones, parents
+    return parents
+
+
+def skinning_bones(mesh_obj, bones):
+    """The bones of `bones` that the mesh's own skin uses: a vertex group of that name gives some
+    vertex weight (all of `bones` where none does, as for a mesh deformed through a cage). A
+    deform bone without weight (an IK pole, a foot control, an attachment slot left with
+    Blender's default Deform on) deforms nothing: written, it is only a bone the model must
+    learn to ignore."""
+    names = {g.index: g.name for g in mesh_obj.vertex_groups}
+    weighted = {names[g.group] for v in mesh_obj.data.vertices for g in v.groups
+                if g.weight > 0.0 and g.group in names}
+    chosen = [b for b in bones if b.name in weighted]
+    return chosen or bones
 
 
 def random_rotations(rng, count, bones, parents, swing_deg, twist_deg):
@@ -350,11 +372,14 @@ def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0
     scene = context.scene
     arm, mesh_obj = choose_rig(context, armature, mesh)
     action = find_action(test_action, arm) if test_action else None
-    bones, parents = deform_bones(arm)
-    say(log, f"rig: armature {arm.name!r} ({len(bones)} deform bones), mesh {mesh_obj.name!r}")
+    posed, posed_parents = deform_bones(arm)
+    bones = skinning_bones(mesh_obj, posed)
+    parents = nearest_parents(bones)
+    say(log, f"rig: armature {arm.name!r} ({len(posed)} deform bones posed, the {len(bones)} that "
+             f"the mesh's skin weights written), mesh {mesh_obj.name!r}")
 
     rng = np.random.default_rng(seed)
-    rotations = random_rotations(rng, poses, bones, parents, swing, twist)
+    rotations = random_rotations(rng, poses, posed, posed_parents, swing, twist)
     test_frames = []
     if action is not None:
         start, end = action.frame_range
@@ -370,7 +395,7 @@ def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0
         def set_pose():
             clear_animation(arm)
             reset_pose(arm)
-            for j, b in enumerate(bones):
+            for j, b in enumerate(posed):
                 arm.pose.bones[b.name].rotation_quaternion = rotations[i, j]
             context.view_layer.update()
         return set_pose

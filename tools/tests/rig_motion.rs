@@ -9,7 +9,7 @@ mod support;
 
 use blender::{eval_json, figure};
 use rrskin_tools::import::example_set::ExampleSet;
-use support::limb::{limb_animation, limb_set};
+use support::limb::{limb_animation, limb_set, limb_with_controls};
 use support::temp_dir;
 
 /// The low-poly limb (DQS, wide twists, a driven bulge, a smoothing pass) trains, and the rig's
@@ -86,6 +86,45 @@ fn poses_a_frame_out_of_step_are_named_on_one_line() {
             usize::from(warned),
             "{name}: {:?}",
             loaded.warnings
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Bones that deform nothing and that the training poses leave at rest (an IK pole, an
+/// attachment slot) get no weight and no predictor term: moving them in the held-out poses
+/// changes no figure, and the set says so on one line, naming them. With the rig's weights
+/// (no weight: they deform nothing) and without them (they never move in training).
+#[test]
+fn bones_that_training_never_moves_get_nothing() {
+    let dir = temp_dir("limb-controls");
+    for weights in [true, false] {
+        let mut figures = Vec::new();
+        for moved in [false, true] {
+            let mut set = limb_with_controls(40, 20, moved);
+            if !weights {
+                set.rig_weights = None;
+            }
+            let at = dir.join(format!("{weights}-{moved}"));
+            set.save(&at).expect("save");
+            let at = at.to_str().expect("utf-8");
+            let e = eval_json(&["eval", at, "--json"]);
+            let out = blender::rrskin(&["eval", at]);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            let named = stderr
+                .lines()
+                .filter(|l| l.contains("IKPole, HandSlot"))
+                .count();
+            assert_eq!(
+                named,
+                usize::from(moved),
+                "weights {weights}, moved {moved}:\n{stderr}"
+            );
+            figures.push(["ssd", "rr_full", "rr_reduced"].map(|m| figure(&e, m, "test")));
+        }
+        assert_eq!(
+            figures[0], figures[1],
+            "weights {weights}: held out, still / moved"
         );
     }
     std::fs::remove_dir_all(&dir).ok();

@@ -404,6 +404,9 @@ impl ExampleSet {
             warnings: Vec::new(),
         };
         set.warnings = set.mesh_warnings(&faces_path);
+        let bones = set.inactive_bone_warning();
+        set.warnings
+            .extend(bones.map(|w| format!("{}: {w}", transforms_path.display())));
         let fix = "pose_vertices.npy is not in the space, units, vertex order or poses of pose_transforms.npy and rest_vertices.npy (by the rig's weights in skin_weights.npy)";
         check_rig_motion(&mut set, &weights_path, fix)?;
         Ok(set)
@@ -515,6 +518,11 @@ impl ExampleSet {
             let path = dir.join("skin_weights.npy");
             crate::import::npy::write_f32(&path, &[v, j], &dense)
                 .map_err(|e| bad(&path, format!("cannot write: {e}")))?;
+        }
+        if let Some(names) = &self.bone_names {
+            let path = dir.join("bone_names.json");
+            let text = serde_json::to_string(names).map_err(|e| bad(&path, e.to_string()))?;
+            std::fs::write(&path, text).map_err(|e| bad(&path, format!("cannot write: {e}")))?;
         }
         Ok(())
     }

@@ -143,6 +143,9 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     };
     let fix = format!("the cache is not this rig's motion as {} exports it. Bake the cache from this rig and clip, in world space (PC2: 'Export into Worldspace'), in the glTF's Y-up or Blender's Z-up, in the rig's units, over the clip's frames", rig_path.display());
     check_rig_motion(&mut set, &options.cache, &fix)?;
+    let bones = set.inactive_bone_warning();
+    set.warnings
+        .extend(bones.map(|w| format!("{}: {w}", rig_path.display())));
     let notes = (rig
         .notes
         .iter()

@@ -1,5 +1,6 @@
 //! Example sets: N pairs (skeleton pose q_i, deformed mesh y_i) from a black-box rig.
 
+pub mod active_bones;
 pub mod align;
 pub mod example_set;
 pub mod gltf;

@@ -72,9 +72,11 @@ pub fn features(set: &ExampleSet, f: &PoseFeatures) -> Vec<[f64; 9]> {
         .collect()
 }
 
-/// N(a) per vertex: its SSD bones and their children, roots left out, ascending.
+/// N(a) per vertex: its SSD bones and their children, roots and inactive bones
+/// ([`ExampleSet::active_bones`]) left out, ascending.
 pub fn drivers(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
     let children = set.children();
+    let active = set.active_bones();
     ssd.influences
         .iter()
         .map(|inf| {
@@ -82,7 +84,7 @@ pub fn drivers(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
                 .iter()
                 .filter(|&&(_, w)| w > 0.0)
                 .flat_map(|&(b, _)| std::iter::once(b).chain(children[b].iter().copied()))
-                .filter(|&b| set.parents[b].is_some())
+                .filter(|&b| set.parents[b].is_some() && active[b])
                 .collect();
             d.sort_unstable();
             d.dedup();

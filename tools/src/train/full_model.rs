@@ -76,10 +76,12 @@ pub fn fit(
 pub struct Rotations(pub Vec<Option<RotationPredictor>>);
 
 /// Candidate bones of each triangle: those skinning its vertices in SSD, their parents and their
-/// children. Nearby bones only (docs/method.md §2: all bones sometimes pair a shoulder with a leg).
+/// children, if active ([`ExampleSet::active_bones`]). Nearby bones only (docs/method.md §2: all
+/// bones sometimes pair a shoulder with a leg).
 pub fn nearby_bones(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
     let j = set.bone_count();
     let children = set.children();
+    let active = set.active_bones();
     set.faces
         .iter()
         .map(|tri| {
@@ -93,7 +95,7 @@ pub fn nearby_bones(set: &ExampleSet, ssd: &Skinning) -> Vec<Vec<usize>> {
                     children[b].iter().for_each(|&c| near[c] = true);
                 }
             }
-            (0..j).filter(|&b| near[b]).collect()
+            (0..j).filter(|&b| near[b] && active[b]).collect()
         })
         .collect()
 }

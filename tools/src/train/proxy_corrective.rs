@@ -210,6 +210,7 @@ fn target(t: &Bone, best: &Bone) -> Option<[f64; 12]> {
 /// The drivers of each proxy (module docs, step 2).
 pub fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<usize>> {
     let children = set.children();
+    let active = set.active_bones();
     let mut mass = vec![vec![0.0; set.bone_count()]; reduced.proxies];
     for (a, inf) in reduced.skin.iter().enumerate() {
         for &(e, w) in inf.iter().filter(|x| x.0 < reduced.proxies) {
@@ -224,7 +225,7 @@ pub fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<u
             let mut d: Vec<usize> = (0..m.len())
                 .filter(|&b| total > 0.0 && m[b] >= SHARE * total)
                 .flat_map(|b| std::iter::once(b).chain(children[b].iter().copied()))
-                .filter(|&b| set.parents[b].is_some())
+                .filter(|&b| set.parents[b].is_some() && active[b])
                 .collect();
             d.sort_unstable();
             d.dedup();

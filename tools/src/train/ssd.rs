@@ -85,12 +85,18 @@ pub fn rigid_bones(errors: &[Vec<f64>]) -> Vec<usize> {
         .collect()
 }
 
-/// SSD weights with at most `k` influences per vertex, fitted on `poses`.
+/// SSD weights with at most `k` influences per vertex, fitted on `poses`, over the active bones
+/// ([`ExampleSet::active_bones`]; all of them if none is).
 pub fn fit(set: &ExampleSet, poses: &[usize], errors: &[Vec<f64>], k: usize) -> Skinning {
+    let active = set.active_bones();
+    let bones: Vec<usize> = match active.contains(&true) {
+        true => (0..set.bone_count()).filter(|&b| active[b]).collect(),
+        false => (0..set.bone_count()).collect(),
+    };
     let influences = (0..set.vertex_count())
         .into_par_iter()
         .map(|a| {
-            let mut order: Vec<usize> = (0..set.bone_count()).collect();
+            let mut order = bones.clone();
             order.sort_by(|&x, &y| errors[a][x].total_cmp(&errors[a][y]));
             order.truncate(CANDIDATES);
             let moved = |n: usize, b: usize| set.poses[poses[n]].bones[b].apply(set.rest[a]);

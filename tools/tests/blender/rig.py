@@ -48,6 +48,36 @@ def build_rig(glb, corrective_key=True, keep_animations=False):
     return arm, mesh
 
 
+def add_controls(arm, action):
+    """Adds what rigs carry beside the deforming bones, each with Blender's default Deform on
+    and no vertex group: `IKPole` (a root) and `HelmetSlot` (an attachment slot, a child of the
+    armature's last leaf bone), and keys both moving in `action` (the held-out animation)."""
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode='EDIT')
+    bones = arm.data.edit_bones
+    leaf = [b for b in bones if not b.children][-1]
+    pole = bones.new("IKPole")
+    pole.head, pole.tail = (0.3, -0.5, 0.5), (0.3, -0.5, 0.6)
+    slot = bones.new("HelmetSlot")
+    slot.parent = leaf
+    slot.head = leaf.tail
+    slot.tail = leaf.tail + (leaf.tail - leaf.head).normalized() * 0.1
+    bpy.ops.object.mode_set(mode='OBJECT')
+    kept = arm.animation_data.action
+    arm.animation_data.action = action
+    start, end = (int(round(f)) for f in action.frame_range)
+    for frame in range(start, end + 1, 4):
+        t = 0.2 * (frame - start)
+        pb = arm.pose.bones["IKPole"]
+        pb.location = (0.2 * math.sin(t), 0.1 * math.cos(t), 0.0)
+        pb.keyframe_insert("location", frame=frame)
+        pb = arm.pose.bones["HelmetSlot"]
+        pb.rotation_mode = 'QUATERNION'
+        pb.rotation_quaternion = (math.cos(t), math.sin(t), 0.0, 0.0)
+        pb.keyframe_insert("rotation_quaternion", frame=frame)
+    arm.animation_data.action = kept
+
+
 def second_material(mesh):
     """The mesh's right half (x < 0) in a second material: its glTF then has two primitives,
     each holding the vertices of its faces (the seam between them duplicated)."""

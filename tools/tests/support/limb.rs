@@ -169,3 +169,34 @@ fn smooth(moved: &[DVec3], neighbours: &[Vec<usize>]) -> Vec<DVec3> {
     }
     d
 }
+
+/// [`limb_set`] with two bones that deform nothing, as rigs have: `IKPole` (a root) and
+/// `HandSlot` (an attachment slot, a child of the hand). The training poses leave them at rest
+/// (relative to their parents); the held-out poses move them if `moved`.
+pub fn limb_with_controls(poses: usize, test: usize, moved: bool) -> ExampleSet {
+    let mut set = limb_set(poses, test);
+    set.parents.extend([None, Some(2)]);
+    (set.bone_names.as_mut().expect("names")).extend(["IKPole", "HandSlot"].map(String::from));
+    for (i, pose) in set.poses.iter_mut().enumerate() {
+        let hand = pose.bones[2];
+        let (pole, slot) = match i >= poses && moved {
+            false => (DMat3::IDENTITY, DMat3::IDENTITY),
+            true => (
+                DMat3::from_rotation_y(0.7 + 0.1 * i as f64),
+                DMat3::from_rotation_x(1.2 - 0.05 * i as f64),
+            ),
+        };
+        let tip = DVec3::new(3.0, 0.0, 0.0);
+        pose.bones.push(Bone {
+            q: pole,
+            d: DVec3::new(0.0, 0.5, 0.0) - pole * DVec3::new(0.0, 0.5, 0.0),
+        });
+        // The slot turned about the hand's tip, after the hand's motion.
+        let q = hand.q * slot;
+        pose.bones.push(Bone {
+            q,
+            d: hand.apply(tip) - q * tip,
+        });
+    }
+    set
+}

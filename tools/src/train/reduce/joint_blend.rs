@@ -90,16 +90,18 @@ pub fn fit(
     assemble(set, &kept, skin, ssd)
 }
 
-/// The joints (bone, parent) that move in the `train` poses: each has a proxy per fraction.
+/// The active joints (bone, parent) that move in the `train` poses: each has a proxy per
+/// fraction ([`ExampleSet::active_bones`]).
 fn moving_joints<'a>(
     set: &'a ExampleSet,
     feats: &'a [PoseFeatures],
     train: &'a [usize],
 ) -> impl Iterator<Item = (usize, usize)> + 'a {
     let moving = |b: usize| train.iter().any(|&i| feats[i].theta[b].length() > 1e-6);
+    let active = set.active_bones();
     (0..set.bone_count())
         .filter_map(|b| set.parents[b].map(|p| (b, p)))
-        .filter(move |&(b, _)| moving(b))
+        .filter(move |&(b, _)| active[b] && moving(b))
 }
 
 /// How many candidate proxies [`fit`] chooses its P from: one per moving joint and fraction.
