@@ -263,45 +263,47 @@ impl RunArgs {
     }
 }
 
-/// SET: a NumPy example-set folder, or a glTF rig (.glb/.gltf) with a point cache.
+/// SET: a NumPy example-set folder, or a rig (.glb/.gltf/.fbx) with a point cache.
 #[derive(clap::Args)]
 struct SetArgs {
-    /// An example-set folder (NumPy layout) or a glTF rig (.glb / .gltf).
+    /// An example-set folder (NumPy layout) or a rig (.glb / .gltf / .fbx).
     set: PathBuf,
-    /// glTF rig: the animation that poses the rig at the cache's samples.
+    /// Rig: the animation (glTF) or animation stack (FBX) that poses the rig at the cache's
+    /// samples.
     #[arg(long)]
     clip: Option<String>,
-    /// glTF rig: the point cache (.pc2 or .mdd) of the black-box rig's vertices, in the glTF's
-    /// vertex order or the DCC's own (mapped), world or object space, Y-up or Z-up (detected).
+    /// Rig: the point cache (.pc2, .mdd or Alembic .abc) of the black-box rig's vertices, in
+    /// the rig's vertex order or the DCC's own (mapped), world or object space, Y-up or Z-up
+    /// (detected).
     #[arg(long)]
     cache: Option<PathBuf>,
-    /// glTF rig: the clip's frames per second (glTF key time x fps = the DCC's frame number;
-    /// PC2 frames become times with it, MDD times frames).
+    /// Rig: the clip's frames per second (glTF key time x fps = the DCC's frame number;
+    /// PC2 frames become times with it, MDD and Alembic times frames).
     #[arg(long, default_value_t = 24.0)]
     fps: f64,
-    /// glTF rig: frames held out as test poses, e.g. 41..60 (inclusive; the DCC's frame
+    /// Rig: frames held out as test poses, e.g. 41..60 (inclusive; the DCC's frame
     /// numbers, after any shift of the cache onto the clip).
     #[arg(long)]
     test_frames: Option<String>,
 }
 
 impl SetArgs {
-    fn is_gltf(&self) -> bool {
+    fn is_rig(&self) -> bool {
         let ext = self
             .set
             .extension()
             .and_then(|e| e.to_str())
             .unwrap_or("")
             .to_ascii_lowercase();
-        ext == "glb" || ext == "gltf"
+        ext == "glb" || ext == "gltf" || ext == "fbx"
     }
 
     /// The example set, and for a glTF rig what maps it back to the file's vertices.
     fn load(&self) -> Result<(ExampleSet, Option<Imported>), Box<dyn std::error::Error>> {
-        if !self.is_gltf() {
+        if !self.is_rig() {
             if self.clip.is_some() || self.cache.is_some() || self.test_frames.is_some() {
                 return Err(format!(
-                    "{}: --clip, --cache and --test-frames apply to a glTF rig (.glb/.gltf)",
+                    "{}: --clip, --cache and --test-frames apply to a rig (.glb/.gltf/.fbx)",
                     self.set.display()
                 )
                 .into());
@@ -310,7 +312,7 @@ impl SetArgs {
         }
         let (Some(clip), Some(cache)) = (&self.clip, &self.cache) else {
             return Err(format!(
-                "{}: a glTF rig needs --clip NAME and --cache FILE.pc2|FILE.mdd",
+                "{}: a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc",
                 self.set.display()
             )
             .into());

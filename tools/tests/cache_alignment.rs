@@ -270,7 +270,7 @@ fn mdd_times_are_whole_frames_and_another_sample_rate_is_named() {
     assert!(
         e.contains("sampled at 25.000 fps")
             && e.contains("1/24 s apart")
-            && e.contains("--fps only numbers its frames"),
+            && e.contains("--fps only numbers their frames"),
         "{e}"
     );
     std::fs::remove_dir_all(&dir).ok();

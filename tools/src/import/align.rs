@@ -170,7 +170,7 @@ pub fn align(
             cache.frames[0],
             match cache.format {
                 Format::Mdd => " (MDD times start at 0, whatever the scene's first frame)",
-                Format::Pc2 => "",
+                Format::Pc2 | Format::Alembic => "",
             },
             best.offset,
             if best.offset.abs() == 1.0 { "" } else { "s" }
@@ -292,8 +292,8 @@ fn off_the_keys(rig_path: &Path, cache: &PointCache, keys: &[f64], clip: &str, f
         .filter(|r| (r - r.round()).abs() < 1e-3)
         .map(f64::round);
     let hint = match (cache.format, key_fps, cache.sample_rate()) {
-        (Format::Mdd, Some(k), Some(c)) if (c - k).abs() > 1e-3 * k => format!(
-            "; the cache was sampled at {c:.3} fps (its samples are 1/{c:.3} s apart) and the clip's keys are 1/{k} s apart: bake the cache at the clip's {k} fps (an MDD stores seconds: --fps only numbers its frames)"
+        (Format::Mdd | Format::Alembic, Some(k), Some(c)) if (c - k).abs() > 1e-3 * k => format!(
+            "; the cache was sampled at {c:.3} fps (its samples are 1/{c:.3} s apart) and the clip's keys are 1/{k} s apart: bake the cache at the clip's {k} fps (MDD and Alembic store seconds: --fps only numbers their frames)"
         ),
         (Format::Pc2, Some(k), _) if k != fps => format!("; the keys are 1/{k} s apart: is it --fps {k}?"),
         _ => "; no whole-frame shift of the cache fits either: bake the cache at the clip's keys".into(),

@@ -1,4 +1,5 @@
-//! An example set from a glTF rig and a point cache.
+//! An example set from a rig (glTF, or FBX through `fbx_rig`) and a point cache (PC2, MDD or
+//! Alembic).
 //!
 //! glTF splits vertices along UV and normal seams. Vertices at the same rest position whose
 //! cache trajectories agree are welded into one training vertex, so the mesh is connected for
@@ -122,7 +123,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     let warnings = match tangents {
         Some(_) => Vec::new(),
         None => vec![format!(
-            "{}: no TANGENT or TEXCOORD_0 on every primitive (or MikkTSpace failed): the model has no tangents",
+            "{}: no per-vertex UVs or tangents (glTF: TANGENT or TEXCOORD_0 on every primitive, or MikkTSpace failed; FBX: UVs are not read): the model has no tangents",
             rig_path.display()
         )],
     };

@@ -3,7 +3,8 @@
 //! joints as bones (parent = nearest ancestor that is a joint), the rest mesh = the mesh skinned
 //! at the nodes' default pose and default morph weights (mesh-space POSITIONs are not always the
 //! rest pose), and per time `T_b = W_b(t) · W_b(default)⁻¹` from a sampled animation clip. A
-//! clip's morph weight channels are not played: the cache carries their effect.
+//! clip's morph weight channels are not played: the cache carries their effect. An FBX rig
+//! loads into the same [`Rig`] through `fbx_rig`.
 
 use crate::import::example_set::{Bone, InputError};
 use glam::{DMat4, DQuat, DVec3, DVec4};
@@ -81,6 +82,26 @@ pub struct Rig {
     /// What the user should know about the file that is not an error (morph targets), a line
     /// each.
     pub notes: Vec<String>,
+    /// How the clip poses the bones.
+    pub(crate) motion: Motion,
+}
+
+/// How a rig's clip poses its bones.
+#[derive(Debug, Clone)]
+pub(crate) enum Motion {
+    /// A glTF clip: channels on the node tree, played at any time.
+    Channels(Channels),
+    /// Bones at sampled times (an FBX stack, evaluated by ufbx at each frame): a time between
+    /// samples takes the nearest one.
+    Sampled {
+        times: Vec<f64>,
+        bones: Vec<Vec<Bone>>,
+    },
+}
+
+/// A glTF clip on the node tree.
+#[derive(Debug, Clone)]
+pub(crate) struct Channels {
     /// Node of each bone.
     joints: Vec<usize>,
     node_parents: Vec<Option<usize>>,
@@ -95,6 +116,10 @@ impl Rig {
     /// for every skinned mesh), the skeleton, the rest mesh with its tangents, the clip's
     /// channels.
     pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
+        let fbx = (path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
+        if fbx {
+            return crate::import::fbx_rig::load(path, clip);
+        }
         let (gltf, buffers) = read_file(path)?;
         let doc = &gltf.document;
         let nodes: Vec<gltf::Node> = doc.nodes().collect();
@@ -118,17 +143,24 @@ impl Rig {
             triangles: mesh.triangles,
             names: skeleton.names,
             parents: skeleton.parents,
-            joints: skeleton.joints,
-            node_parents: tree.parents,
-            defaults: tree.defaults,
-            default_inverse: skeleton.default_inverse,
-            channels,
+            motion: Motion::Channels(Channels {
+                joints: skeleton.joints,
+                node_parents: tree.parents,
+                defaults: tree.defaults,
+                default_inverse: skeleton.default_inverse,
+                channels,
+            }),
         })
     }
 
-    /// The clip's key times (seconds) over all its channels, increasing, without repeats.
+    /// The clip's key times (seconds) over all its channels, increasing, without repeats (an
+    /// FBX stack: its frames).
     pub fn key_times(&self) -> Vec<f64> {
-        let mut times: Vec<f64> = self.channels.iter().flat_map(|c| c.times.clone()).collect();
+        let channels = match &self.motion {
+            Motion::Channels(c) => &c.channels,
+            Motion::Sampled { times, .. } => return times.clone(),
+        };
+        let mut times: Vec<f64> = channels.iter().flat_map(|c| c.times.clone()).collect();
         times.sort_by(f64::total_cmp);
         times.dedup_by(|a, b| (*a - *b).abs() <= TIME_SLACK);
         times
@@ -136,9 +168,12 @@ impl Rig {
 
     /// Whether every channel of the clip holds its keys (STEP): the clip is a series of poses.
     pub fn holds_keys(&self) -> bool {
-        self.channels
-            .iter()
-            .all(|c| c.interpolation == Interpolation::Step)
+        match &self.motion {
+            Motion::Channels(c) => {
+                (c.channels.iter()).all(|c| c.interpolation == Interpolation::Step)
+            }
+            Motion::Sampled { .. } => false,
+        }
     }
 
     /// The rest mesh under the rig's own skin (linear blend skinning with its weights).
@@ -161,6 +196,21 @@ impl Rig {
 
     /// Every bone's transform at `time` (seconds) relative to the rest pose.
     pub fn bones_at(&self, time: f64) -> Vec<Bone> {
+        match &self.motion {
+            Motion::Channels(c) => c.bones_at(time),
+            Motion::Sampled { times, bones } => {
+                let k = times.partition_point(|&t| t < time);
+                let nearest = [k.saturating_sub(1), k.min(times.len() - 1)]
+                    .into_iter()
+                    .min_by(|&a, &b| (times[a] - time).abs().total_cmp(&(times[b] - time).abs()));
+                nearest.map_or_else(Vec::new, |k| bones[k].clone())
+            }
+        }
+    }
+}
+
+impl Channels {
+    fn bones_at(&self, time: f64) -> Vec<Bone> {
         let mut locals = self.defaults.clone();
         for ch in &self.channels {
             let trs = &mut locals[ch.node];

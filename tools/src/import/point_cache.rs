@@ -5,6 +5,8 @@
 //!   `start + s · rate`; its time is frame / fps.
 //! - MDD (big-endian): frames i32, points i32, frames f32 times (seconds), then
 //!   frames x points x 3 f32.
+//! - Alembic (`.abc`, Ogawa): the one animated PolyMesh's positions in world space, at its time
+//!   sampling's times in seconds ([`crate::import::alembic`]).
 //!
 //! Frame numbers are the DCC's: a sample whose frame is within float32's reach of a whole
 //! number is that whole frame (MDD's f32 seconds put Blender's frame 59 at 58.99999809), so a
@@ -20,6 +22,8 @@ pub enum Format {
     Pc2,
     /// Times in seconds per sample: `--fps` only numbers their frames.
     Mdd,
+    /// Times in seconds per sample, as MDD.
+    Alembic,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -55,23 +59,28 @@ fn bad(file: &Path, message: impl Into<String>) -> InputError {
 }
 
 impl PointCache {
-    /// Reads a .pc2 or .mdd file (by extension); `fps` turns PC2 frames into seconds and MDD
-    /// seconds into frames.
+    /// Reads a .pc2, .mdd or .abc file (by extension); `fps` turns PC2 frames into seconds and
+    /// MDD and Alembic seconds into frames.
     pub fn load(path: &Path, fps: f64) -> Result<PointCache, InputError> {
-        let bytes = std::fs::read(path).map_err(|e| bad(path, format!("cannot read: {e}")))?;
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
             .unwrap_or("")
             .to_ascii_lowercase();
+        let bytes = || std::fs::read(path).map_err(|e| format!("cannot read: {e}"));
         let cache = match ext.as_str() {
-            "pc2" => Self::from_pc2(&bytes, fps),
-            "mdd" => Self::from_mdd(&bytes, fps),
+            "pc2" => bytes().and_then(|b| Self::from_pc2(&b, fps)),
+            "mdd" => bytes().and_then(|b| Self::from_mdd(&b, fps)),
+            "abc" => crate::import::alembic::read(path)
+                .map(|c| Self::from_seconds(Format::Alembic, &c.times, c.positions, fps)),
             _ => Err(format!(
-                "unknown point cache extension '.{ext}' (expected .pc2 or .mdd)"
+                "unknown point cache extension '.{ext}' (expected .pc2, .mdd or .abc)"
             )),
         }
         .map_err(|m| bad(path, m))?;
+        if let Some(s) = (cache.positions.iter()).position(|p| p.len() != cache.point_count()) {
+            return Err(bad(path, format!("sample {s} has {} points, sample 0 {}: the mesh's vertex count must not change over the cache", cache.positions[s].len(), cache.point_count())));
+        }
         if let Some((s, a)) = cache
             .positions
             .iter()
@@ -139,18 +148,28 @@ impl PointCache {
             .map(|c| f32::from_be_bytes([c[0], c[1], c[2], c[3]]) as f64)
             .collect();
         let positions = read_points(&body[4 * samples..], points, samples, f32::from_be_bytes)?;
+        Ok(Self::from_seconds(Format::Mdd, &times, positions, fps))
+    }
+
+    /// A cache of samples at `times` (seconds), numbered in frames at `fps`.
+    fn from_seconds(
+        format: Format,
+        times: &[f64],
+        positions: Vec<Vec<DVec3>>,
+        fps: f64,
+    ) -> PointCache {
         let frames: Vec<f64> = times.iter().map(|t| whole(t * fps)).collect();
-        Ok(PointCache {
-            format: Format::Mdd,
+        PointCache {
+            format,
             // A whole frame's time is exact: the f32 seconds' rounding would miss keys.
             times: frames
                 .iter()
-                .zip(&times)
+                .zip(times)
                 .map(|(f, t)| if f.fract() == 0.0 { f / fps } else { *t })
                 .collect(),
             frames,
             positions,
-        })
+        }
     }
 
     /// The PC2 image of this cache (frames must be evenly spaced).
