@@ -143,11 +143,21 @@ def scale_character(arm, mesh, factor=100.0):
     bpy.context.view_layer.update()
 
 
+def point_cache_addons():
+    """Enables the MDD and PC2 exporters where Blender bundles them (3.x; 4.2 and later moved
+    them to the extensions platform): whether it could."""
+    try:
+        for module in ("io_shape_mdd", "io_export_pc2"):
+            bpy.ops.preferences.addon_enable(module=module)
+        return hasattr(bpy.ops.export_shape, "mdd") and hasattr(bpy.ops.export_shape, "pc2")
+    except (RuntimeError, AttributeError):
+        return False
+
+
 def build_scene(args, variant):
     arm, mesh = rig.build_rig(args.glb)
     # read_factory_settings (in build_rig) resets the preferences: enable the add-ons here.
-    for module in ("io_shape_mdd", "io_export_pc2"):
-        bpy.ops.preferences.addon_enable(module=module)
+    args.point_caches = point_cache_addons()
     if variant == "scaled":
         scale_character(arm, mesh)
     start = 1 if variant == "start1" else 0
@@ -175,7 +185,9 @@ def export_variant(args, variant, manifest):
     indexed = os.path.join(out, f".indexed{suffix}.glb")
     bpy.ops.export_scene.gltf(filepath=indexed, export_attributes=True)
     mesh.data.attributes.remove(mesh.data.attributes["_blender_index"])
-    order = gltf_attribute(indexed, "__BLENDER_INDEX")[:, 0]
+    # Blender 3.4's exporter names the attribute `__BLENDER_INDEX`, 4.x `_BLENDER_INDEX`.
+    name = "__BLENDER_INDEX" if bpy.app.version < (4, 0, 0) else "_BLENDER_INDEX"
+    order = gltf_attribute(indexed, name)[:, 0]
     plain_positions = gltf_attribute(os.path.join(out, glb), "POSITION")
     if not np.array_equal(gltf_attribute(indexed, "POSITION"), plain_positions):
         raise SystemExit(f"scenarios: error: {glb}: the indexed export's POSITIONs differ")
@@ -203,6 +215,19 @@ def export_variant(args, variant, manifest):
                            frames=frames, space=space, up=up, vertex_order="blender",
                            vertices=blender_vertices, **kw))
 
+    if variant == "start0":
+        dcc_exports(out, scene, start, end, glb, cache, manifest)
+        numpy_reference(os.path.join(out, "numpy"), scene, arm, mesh, start, end, test_first)
+    if not args.point_caches:
+        scene.frame_set(start)
+        manifest["rigs"][glb] = dict(start_frame=start, end_frame=end, clips=clips,
+                                     test_frames=f"{test_first}..{end}", gltf_vertices=len(order),
+                                     blender_vertices=blender_vertices)
+        manifest["caches"].extend(caches)
+        manifest["blender_vertices"] = blender_vertices
+        manifest["gltf_vertices"] = len(order)
+        manifest["clip"] = clips[0] if clips else None
+        return
     if variant in ("start0", "start1"):
         name = f"mdd{suffix or '_start0'}.mdd"
         bpy.ops.export_shape.mdd(filepath=os.path.join(out, name), fps=FPS, frame_start=start,
@@ -237,6 +262,52 @@ def export_variant(args, variant, manifest):
     log(f"{variant}: {glb} ({len(order)} glTF vertices, {blender_vertices} Blender vertices, "
         f"clips {clips}, frames {start}..{end}) and {', '.join(c['file'] for c in caches)} "
         f"in {time.time() - t0:.1f} s")
+
+
+def dcc_exports(out, scene, start, end, glb, cache, manifest):
+    """The studio pair, each with its exporter's defaults: the rig as FBX (`rig.fbx`: cm, leaf
+    bones added, the animation baked and simplified) and, where Blender has Alembic (4.x from
+    PyPI; Debian's 3.4 has not), the deformed mesh as an Alembic cache over the scene's range
+    (`cache.abc`: Y-up, world transforms above the mesh, Blender's vertex order)."""
+    bpy.ops.export_scene.fbx(filepath=os.path.join(out, "rig.fbx"))
+    manifest["fbx"] = "rig.fbx"
+    if bpy.app.build_options.alembic:
+        scene.frame_start, scene.frame_end = start, end
+        bpy.ops.wm.alembic_export(filepath=os.path.join(out, "cache.abc"))
+        cache("cache.abc", "abc", "world", "Y", times="seconds")
+
+
+def numpy_reference(out, scene, arm, mesh, start, end, test_first):
+    """The NumPy route of the same rig and frames (export_examples.py's layout, bones and axes):
+    the reference of the FBX and Alembic routes, in Blender's vertex order. Pose 0 is the bind
+    pose on frame `start`; frames from `test_first` on are held out."""
+    ex = rig.export_examples
+    bones = ex.skinning_bones(mesh, ex.deform_bones(arm)[0])
+    parents = ex.nearest_parents(bones)
+    context = bpy.context
+    to_y = np.eye(4)
+    to_y[:3, :3] = Y_UP
+    transforms, vertices = [], []
+    scene.frame_set(start)
+    rest_inv = np.linalg.inv(ex.bone_worlds(context, arm, bones)[1])
+    for frame in range(start, end + 1):
+        scene.frame_set(frame)
+        posed, _ = ex.bone_worlds(context, arm, bones)
+        transforms.append((to_y @ posed @ rest_inv @ np.linalg.inv(to_y))[:, :3, :])
+        vertices.append(ex.evaluated_vertices(context, mesh) @ Y_UP.T)
+    scene.frame_set(start)
+    os.makedirs(out, exist_ok=True)
+    f4, i4 = np.dtype("<f4"), np.dtype("<i4")
+    save = lambda name, a, t: np.save(os.path.join(out, name), np.ascontiguousarray(a, dtype=t))
+    save("rest_vertices.npy", vertices[0], f4)
+    save("faces.npy", ex.evaluated_faces(context, mesh), i4)
+    save("bone_parents.npy", parents, i4)
+    save("pose_transforms.npy", np.array(transforms), f4)
+    save("pose_vertices.npy", np.array(vertices), f4)
+    save("split.npy", [int(f >= test_first) for f in range(start, end + 1)], i4)
+    save("skin_weights.npy", ex.skin_weights(mesh, bones, parents, len(vertices[0])), f4)
+    with open(os.path.join(out, "bone_names.json"), "w") as f:
+        json.dump([b.name for b in bones], f)
 
 
 def main(argv):

@@ -1,5 +1,5 @@
-//! Running Blender headless and the `rrskin` binary, for tests/blender.rs and
-//! tests/blender_exports.rs (included with `#[path]`).
+//! Running Blender headless (Debian's 3.4, and 4.5 as the `bpy` module) and the `rrskin`
+//! binary, for the Blender tests (included with `#[path]`).
 #![allow(dead_code)] // each test binary uses a different subset
 
 use std::path::{Path, PathBuf};
@@ -44,6 +44,35 @@ pub fn blender_script(script: &Path, args: &[&str]) -> Output {
     assert!(
         out.status.success(),
         "blender {} failed ({}):\n{}\n{}",
+        script.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Runs `SCRIPT -- ARGS` in the Python of Blender 4.5's `bpy` module (`.ci/install-deps` puts
+/// it in tools/tests/blender45/venv), and panics with its output unless it succeeds. Fails
+/// (never skips) when that Python is missing.
+pub fn bpy_script(script: &Path, args: &[&str]) -> Output {
+    let python = repo().join("tools/tests/blender45/venv/bin/python");
+    assert!(
+        python.is_file(),
+        "{} is missing: run .ci/install-deps (it installs Blender 4.5's bpy module from PyPI)",
+        python.display()
+    );
+    let out = Command::new(&python)
+        .arg(script)
+        .arg("--")
+        .args(args)
+        .env("PYTHONDONTWRITEBYTECODE", "1")
+        .output()
+        .expect("run the bpy Python");
+    assert!(
+        out.status.success(),
+        "{} {} failed ({}):\n{}\n{}",
+        python.display(),
         script.display(),
         out.status,
         String::from_utf8_lossy(&out.stdout),
