@@ -193,6 +193,26 @@ fn without_a_bind_pose_points_are_matched_by_trajectory_or_refused() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A cache in centimetres against the rig's metres (Alembic stores no units: Maya writes its
+/// centimetres where its FBX, converted on load, is in metres), Z-up too, is scaled with one
+/// line and gives the aligned examples.
+#[test]
+fn a_cache_in_centimetres_is_scaled() {
+    let dir = temp_dir("align-units");
+    let cm = transformed(
+        &aligned_cache(),
+        DMat4::from_scale(DVec3::splat(100.0)) * to_z_up(),
+    );
+    let got = imported(&write(&dir, "cm.pc2", &cm));
+    assert_same_examples(&got, &reference(), 0);
+    let note = notes(&got);
+    assert!(
+        note.contains("centimetres") && note.contains("Z-up"),
+        "{note}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn a_z_up_mdd_and_an_object_space_pc2_are_converted() {
     let dir = temp_dir("align-space");

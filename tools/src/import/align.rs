@@ -8,7 +8,9 @@
 //!   `frame_s + o` (MDD's times start at 0 whatever the scene's first frame).
 //! - **Space**: the cache in the rig's world, Y-up (as glTF), or Z-up (Blender's MDD), or in
 //!   the mesh's object space (PC2's default), which the mesh node's world matrix (or the skin's
-//!   bind matrix) takes to the world.
+//!   bind matrix) takes to the world; in the rig's units, or in centimetres or metres against
+//!   them (Alembic stores no units: Maya's caches are in centimetres where its FBX, converted
+//!   on load, is in metres).
 //! - **Vertex order**: the glTF's, or the DCC's own ([`vertex_map`]).
 //!
 //! The frames and the space are told apart without knowing the vertex order: each hypothesis is
@@ -53,7 +55,14 @@ pub struct Aligned {
 struct Space {
     z_up: bool,
     object: Option<(DMat4, &'static str)>,
+    /// Cache units to the rig's: 1, or 0.01 (a cache in centimetres), or 100 (in metres against
+    /// a rig in centimetres).
+    units: f64,
 }
+
+/// The unit factors tried: the same units, centimetres against metres, metres against
+/// centimetres.
+const UNITS: [f64; 3] = [1.0, 0.01, 100.0];
 
 impl Space {
     /// Cache coordinates to the rig's world.
@@ -63,11 +72,22 @@ impl Space {
             true => DMat4::from_mat3(DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y)),
             false => DMat4::IDENTITY,
         };
-        self.object.map_or(DMat4::IDENTITY, |o| o.0) * up
+        self.object.map_or(DMat4::IDENTITY, |o| o.0)
+            * up
+            * DMat4::from_scale(DVec3::splat(self.units))
     }
 
-    fn note(self) -> Option<String> {
-        match (self.z_up, self.object) {
+    fn note(self) -> Vec<String> {
+        let units = match self.units {
+            u if u == 0.01 => {
+                Some("cache is in centimetres against the rig's metres: scaled by 0.01".to_string())
+            }
+            u if u == 100.0 => {
+                Some("cache is in metres against the rig's centimetres: scaled by 100".to_string())
+            }
+            _ => None,
+        };
+        let space = match (self.z_up, self.object) {
             (false, None) => None,
             (true, None) => Some("cache is Z-up: converted to the glTF's Y-up".into()),
             (false, Some((_, by))) => Some(format!(
@@ -76,16 +96,21 @@ impl Space {
             (true, Some((_, by))) => Some(format!(
                 "cache is Z-up and in the mesh's object space: converted to the glTF's Y-up world space by {by}"
             )),
-        }
+        };
+        space.into_iter().chain(units).collect()
     }
 
     fn describe(self) -> String {
         format!(
-            "{}, {}",
+            "{}, {}{}",
             self.object.map_or("world space".into(), |(_, by)| format!(
                 "object space ({by})"
             )),
-            if self.z_up { "Z-up" } else { "Y-up" }
+            if self.z_up { "Z-up" } else { "Y-up" },
+            match self.units {
+                1.0 => String::new(),
+                u => format!(", scaled by {u}"),
+            }
         )
     }
 }
@@ -137,7 +162,14 @@ pub fn align(
     }
     let spaces: Vec<Space> = std::iter::once(None)
         .chain(objects.into_iter().map(Some))
-        .flat_map(|object| [false, true].map(|z_up| Space { z_up, object }))
+        .flat_map(|object| [false, true].map(|z_up| (z_up, object)))
+        .flat_map(|(z_up, object)| {
+            UNITS.map(|units| Space {
+                z_up,
+                object,
+                units,
+            })
+        })
         .collect();
     let mut hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
     hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));
@@ -160,7 +192,7 @@ pub fn align(
         )));
     }
 
-    let mut notes: Vec<String> = best.space.note().into_iter().collect();
+    let mut notes: Vec<String> = best.space.note();
     let frames: Vec<f64> = cache.frames.iter().map(|f| f + best.offset).collect();
     let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
     if best.offset != 0.0 {
