@@ -9,7 +9,8 @@
 //! at UV and normal seams), Z-up (MDD), object space (PC2 defaults; for `rig_scaled.glb` in the
 //! cm of an armature object at scale 0.01), times from 0 for a scene starting at frame 1 (MDD).
 //! Every one must give the reference's figures, with one line on stderr saying what was
-//! detected and fixed.
+//! detected and fixed. The same caches with the rig as Blender's default FBX must give the
+//! figures of the NumPy route of the same frames (`numpy/`, also written by scenarios.py).
 
 #[path = "support/blender.rs"]
 mod blender;
@@ -265,6 +266,49 @@ fn default_mdd_of_a_range_after_the_bind_frame() {
         &["Z-up", "mapped by trajectory", "shifted"],
         1,
     );
+}
+
+/// The rig as Blender 3.4's default FBX (centimetres, leaf bones, the animation simplified)
+/// with the MDD and the PC2s above: the figures of the NumPy route of the same rig and frames
+/// (`numpy/`, Blender's own evaluation in its vertex order), each conversion on one line.
+#[test]
+fn an_fbx_rig_with_each_default_cache() {
+    let eval = |args: &[String]| -> (serde_json::Value, String) {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = rrskin(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "rrskin {}:\n{stderr}", args.join(" "));
+        (serde_json::from_slice(&out.stdout).expect("JSON"), stderr)
+    };
+    let numpy = ["eval", &path("numpy"), "--proxies", "0", "--json"].map(String::from);
+    let (expected, _) = eval(&numpy);
+    let cases = [
+        ("mdd_start0.mdd", "Z-up"),
+        ("pc2_world.pc2", "centimetres"),
+        ("pc2_object.pc2", "object space"),
+    ];
+    for (cache, note) in cases {
+        let mut args = eval_args(cache);
+        args[1] = path("rig.fbx");
+        args.extend(["--proxies".to_string(), "0".to_string()]);
+        let (e, stderr) = eval(&args);
+        for key in ["vertices", "bones", "train_poses", "test_poses"] {
+            assert_eq!(count(&e, key), count(&expected, key), "{cache}: {key}");
+        }
+        for method in ["rigid", "ssd", "rig_lbs"] {
+            for split in ["train", "test"] {
+                let (got, want) = (figure(&e, method, split), figure(&expected, method, split));
+                assert!(
+                    (got - want).abs() <= TOLERANCE,
+                    "FBX + {cache}: {method} {split} {got:.4} against the NumPy route's {want:.4}"
+                );
+            }
+        }
+        assert!(
+            stderr.lines().any(|l| l.contains(note)),
+            "FBX + {cache}: no line says {note:?}:\n{stderr}"
+        );
+    }
 }
 
 /// The scenario files are what the manifest says (sizes from the headers), so a change in

@@ -49,11 +49,22 @@ pub struct Aligned {
     pub notes: Vec<String>,
 }
 
+/// The cache's up axis against the frame it is taken to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Up {
+    Same,
+    /// A Z-up cache (Blender's MDD) for a Y-up frame.
+    Z,
+    /// A Y-up cache for a Z-up frame: a PC2 in object space converted to Y-up ("Convert to
+    /// Y-up", its default) of a mesh whose FBX object frame is Blender's Z-up.
+    Y,
+}
+
 /// Where the cache's coordinates are: Y-up or Z-up, in the world or in an object space (the
 /// matrix that takes it to the world, and what that matrix is).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Space {
-    z_up: bool,
+    up: Up,
     object: Option<(DMat4, &'static str)>,
     /// Cache units to the rig's: 1, or 0.01 (a cache in centimetres), or 100 (in metres against
     /// a rig in centimetres).
@@ -67,10 +78,12 @@ const UNITS: [f64; 3] = [1.0, 0.01, 100.0];
 impl Space {
     /// Cache coordinates to the rig's world.
     fn matrix(self) -> DMat4 {
-        // Blender's Z-up to glTF's Y-up: (x, y, z) → (x, z, −y).
-        let up = match self.z_up {
-            true => DMat4::from_mat3(DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y)),
-            false => DMat4::IDENTITY,
+        // Blender's Z-up to glTF's Y-up: (x, y, z) → (x, z, −y); and back.
+        let z_to_y = DMat4::from_mat3(DMat3::from_cols(DVec3::X, -DVec3::Z, DVec3::Y));
+        let up = match self.up {
+            Up::Same => DMat4::IDENTITY,
+            Up::Z => z_to_y,
+            Up::Y => z_to_y.transpose(),
         };
         self.object.map_or(DMat4::IDENTITY, |o| o.0)
             * up
@@ -87,14 +100,18 @@ impl Space {
             }
             _ => None,
         };
-        let space = match (self.z_up, self.object) {
-            (false, None) => None,
-            (true, None) => Some("cache is Z-up: converted to the glTF's Y-up".into()),
-            (false, Some((_, by))) => Some(format!(
+        let space = match (self.up, self.object) {
+            (Up::Same, None) => None,
+            (Up::Z, None) => Some("cache is Z-up: converted to the glTF's Y-up".into()),
+            (Up::Y, None) => Some("cache is Y-up against the rig's Z-up: converted".into()),
+            (Up::Same, Some((_, by))) => Some(format!(
                 "cache is in the mesh's object space: converted to world space by {by}"
             )),
-            (true, Some((_, by))) => Some(format!(
+            (Up::Z, Some((_, by))) => Some(format!(
                 "cache is Z-up and in the mesh's object space: converted to the glTF's Y-up world space by {by}"
+            )),
+            (Up::Y, Some((_, by))) => Some(format!(
+                "cache is in the mesh's object space, converted to Y-up against the object's Z-up: converted to world space by {by}"
             )),
         };
         space.into_iter().chain(units).collect()
@@ -106,7 +123,11 @@ impl Space {
             self.object.map_or("world space".into(), |(_, by)| format!(
                 "object space ({by})"
             )),
-            if self.z_up { "Z-up" } else { "Y-up" },
+            match self.up {
+                Up::Same => "the rig's up",
+                Up::Z => "Z-up",
+                Up::Y => "Y-up against a Z-up frame",
+            },
             match self.units {
                 1.0 => String::new(),
                 u => format!(", scaled by {u}"),
@@ -162,14 +183,8 @@ pub fn align(
     }
     let spaces: Vec<Space> = std::iter::once(None)
         .chain(objects.into_iter().map(Some))
-        .flat_map(|object| [false, true].map(|z_up| (z_up, object)))
-        .flat_map(|(z_up, object)| {
-            UNITS.map(|units| Space {
-                z_up,
-                object,
-                units,
-            })
-        })
+        .flat_map(|object| [Up::Same, Up::Z, Up::Y].map(|up| (up, object)))
+        .flat_map(|(up, object)| UNITS.map(|units| Space { up, object, units }))
         .collect();
     let mut hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
     hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));

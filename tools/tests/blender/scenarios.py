@@ -218,16 +218,24 @@ def export_variant(args, variant, manifest):
     if variant == "start0":
         dcc_exports(out, scene, start, end, glb, cache, manifest)
         numpy_reference(os.path.join(out, "numpy"), scene, arm, mesh, start, end, test_first)
-    if not args.point_caches:
-        scene.frame_set(start)
-        manifest["rigs"][glb] = dict(start_frame=start, end_frame=end, clips=clips,
-                                     test_frames=f"{test_first}..{end}", gltf_vertices=len(order),
-                                     blender_vertices=blender_vertices)
-        manifest["caches"].extend(caches)
-        manifest["blender_vertices"] = blender_vertices
-        manifest["gltf_vertices"] = len(order)
-        manifest["clip"] = clips[0] if clips else None
-        return
+    if args.point_caches:
+        point_caches(out, variant, suffix, start, end, frames, glb, blender_vertices, cache, caches)
+    scene.frame_set(start)
+
+    manifest["rigs"][glb] = dict(start_frame=start, end_frame=end, clips=clips,
+                                 test_frames=f"{test_first}..{end}", gltf_vertices=len(order),
+                                 blender_vertices=blender_vertices)
+    manifest["caches"].extend(caches)
+    manifest["blender_vertices"] = blender_vertices
+    manifest["gltf_vertices"] = len(order)
+    manifest["clip"] = clips[0] if clips else None
+    log(f"{variant}: {glb} ({len(order)} glTF vertices, {blender_vertices} Blender vertices, "
+        f"clips {clips}, frames {start}..{end}) and {', '.join(c['file'] for c in caches)} "
+        f"in {time.time() - t0:.1f} s")
+
+
+def point_caches(out, variant, suffix, start, end, frames, glb, blender_vertices, cache, caches):
+    """The MDD and PC2 exports of a variant (Blender 3.x's bundled add-ons)."""
     if variant in ("start0", "start1"):
         name = f"mdd{suffix or '_start0'}.mdd"
         bpy.ops.export_shape.mdd(filepath=os.path.join(out, name), fps=FPS, frame_start=start,
@@ -250,18 +258,6 @@ def export_variant(args, variant, manifest):
         bpy.ops.export_shape.pc2(filepath=os.path.join(out, name), range_start=start,
                                  range_end=end)
         cache(name, "pc2", "object", "Y")
-    scene.frame_set(start)
-
-    manifest["rigs"][glb] = dict(start_frame=start, end_frame=end, clips=clips,
-                                 test_frames=f"{test_first}..{end}", gltf_vertices=len(order),
-                                 blender_vertices=blender_vertices)
-    manifest["caches"].extend(caches)
-    manifest["blender_vertices"] = blender_vertices
-    manifest["gltf_vertices"] = len(order)
-    manifest["clip"] = clips[0] if clips else None
-    log(f"{variant}: {glb} ({len(order)} glTF vertices, {blender_vertices} Blender vertices, "
-        f"clips {clips}, frames {start}..{end}) and {', '.join(c['file'] for c in caches)} "
-        f"in {time.time() - t0:.1f} s")
 
 
 def dcc_exports(out, scene, start, end, glb, cache, manifest):
