@@ -157,3 +157,44 @@ fn the_exporter_runs_on_blender_4_headless_and_as_an_add_on() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Truncated and corrupted copies of Blender's FBX and Alembic files are refused, naming the
+/// file, and never panic through the loaders.
+#[test]
+fn broken_fbx_and_alembic_files_are_refused_naming_the_file() {
+    use rrskin_tools::import::gltf_rig::Rig;
+    use rrskin_tools::import::point_cache::PointCache;
+    let dir = temp_dir("blender45-broken");
+    for (file, load) in [
+        (
+            "cache.abc",
+            (&|p: &Path| PointCache::load(p, 24.0).map(|_| ())) as &dyn Fn(&Path) -> _,
+        ),
+        ("rig.fbx", &|p: &Path| Rig::load(p, "rom").map(|_| ())),
+    ] {
+        let bytes = std::fs::read(scenarios().join(file)).expect(file);
+        let mut x: u64 = 7;
+        let mut next = |n: usize| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (x >> 33) as usize % n
+        };
+        for case in 0..40 {
+            let mut broken = bytes.clone();
+            match case % 2 {
+                0 => broken.truncate(next(bytes.len())),
+                _ => (0..8).for_each(|_| {
+                    let at = next(broken.len());
+                    broken[at] ^= 1 << next(8);
+                }),
+            }
+            let path = dir.join(format!("{case}-{file}"));
+            std::fs::write(&path, &broken).expect("write");
+            if let Err(e) = load(&path) {
+                assert!(e.to_string().contains(&format!("{case}-{file}")), "{e}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -36,8 +36,20 @@ struct PolyMesh {
     group: GroupChunk,
 }
 
-/// Reads `path`; errors are messages about the file.
+/// Reads `path`; errors are messages about the file. A fault of the reader on a malformed file
+/// (ogawa-rs panics on some, as on the allocation of a corrupt size) is an error too.
 pub fn read(path: &Path) -> Result<Cache, String> {
+    std::panic::catch_unwind(|| read_file(path)).unwrap_or_else(|panic| {
+        let why = (panic.downcast_ref::<String>().cloned())
+            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_default();
+        Err(format!(
+            "a malformed Alembic file (the reader failed: {why})"
+        ))
+    })
+}
+
+fn read_file(path: &Path) -> Result<Cache, String> {
     let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let mut reader = MemMappedReader::new(file).map_err(|e| format!("not an Alembic file: {e}"))?;
     let archive = Archive::new(&mut reader).map_err(|e| {
