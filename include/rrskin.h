@@ -189,10 +189,6 @@ typedef int32_t rrskin_status;
 #endif // __STDC_VERSION__ >= 202311L
 #endif // __cplusplus
 
-// A model loaded for CPU palette evaluation (opaque). Immutable: every call but
-// `rrskin_palette_model_destroy` may run on one from many threads at once.
-typedef struct rrskin_palette_model rrskin_palette_model;
-
 // What the runtime needs of a Vulkan implementation (`rrskin_get_requirements`): no device
 // feature beyond core Vulkan 1.1 is enabled or used.
 typedef struct rrskin_requirements {
@@ -344,6 +340,12 @@ typedef struct rrskin_pass_timings {
   // 0 without tangents.
   double tangents_ms;
 } rrskin_pass_timings;
+
+// A model loaded for CPU palette evaluation. Immutable: every call may run on one from many
+// threads at once.
+typedef struct rrskin_palette_model {
+  uint64_t id;
+} rrskin_palette_model;
 
 // What an engine skins with, borrowed from a palette model (valid until it is destroyed).
 // Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
@@ -618,46 +620,47 @@ rrskin_status rrskin_context_get_timings(struct rrskin_context context,
 //
 // # Safety
 // `path` is NULL or a NUL-terminated string readable during the call; `out` is NULL or points
-// to writable memory for one pointer.
-rrskin_status rrskin_palette_model_load_file(const char *path, struct rrskin_palette_model **out);
+// to writable memory for one `rrskin_palette_model`.
+rrskin_status rrskin_palette_model_load_file(const char *path, struct rrskin_palette_model *out);
 
 // Validates a `.rrs` image of `size` bytes for CPU palette evaluation (the bytes are copied).
 //
 // # Safety
 // `data` is NULL or points to `size` readable bytes; `out` is NULL or points to writable memory
-// for one pointer.
+// for one `rrskin_palette_model`.
 rrskin_status rrskin_palette_model_load_memory(const uint8_t *data,
                                                size_t size,
-                                               struct rrskin_palette_model **out);
+                                               struct rrskin_palette_model *out);
 
 // The model's sizes and skin.
 //
 // # Safety
-// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+// `out` is NULL or points to writable memory for one
 // `rrskin_palette_skin`.
-rrskin_status rrskin_palette_model_get_skin(const struct rrskin_palette_model *model,
+rrskin_status rrskin_palette_model_get_skin(struct rrskin_palette_model model,
                                             struct rrskin_palette_skin *out);
 
 // N, the pose-space corrective weights of a character (0 for a model without correctives):
 // the floats per character `rrskin_palette_compute_corrective_weights` writes.
 //
 // # Safety
-// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+// `out` is NULL or points to writable memory for one
 // `uint32_t`.
-rrskin_status rrskin_palette_model_get_corrective_count(const struct rrskin_palette_model *model,
+rrskin_status rrskin_palette_model_get_corrective_count(struct rrskin_palette_model model,
                                                         uint32_t *out);
 
 // The pose-space corrective weights of `characters` characters on the calling thread: `bones`
 // as `rrskin_palette_compute`'s (`bone_floats` = characters * J * 12), `out` characters x N
 // floats (`out_floats`; N from `rrskin_palette_model_get_corrective_count`), each character's
 // N weights of the skin's `corrective_targets`. For a model without correctives N = 0 and
-// `out_floats` must be 0 (`out` may then be NULL). Allocates nothing and takes no lock.
+// `out_floats` must be 0 (`out` may then be NULL). Allocates nothing; takes only the handle
+// registry's read lock, to find the model.
 //
 // # Safety
-// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+// `bones` is NULL or points to `bone_floats`
 // readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
 // overlap.
-rrskin_status rrskin_palette_compute_corrective_weights(const struct rrskin_palette_model *model,
+rrskin_status rrskin_palette_compute_corrective_weights(struct rrskin_palette_model model,
                                                         const float *bones,
                                                         size_t bone_floats,
                                                         float *out,
@@ -668,13 +671,14 @@ rrskin_status rrskin_palette_compute_corrective_weights(const struct rrskin_pale
 // to the rest pose), `out` characters x (P + J) palette matrices (`out_floats` floats, same
 // layout), proxies first (corrected by the model's proxy correctives where it has them:
 // nothing more to apply). Allocates nothing (after a thread's first call for a model of that
-// size) and takes no lock: call it from an engine's worker threads on disjoint characters.
+// size) and takes only the handle registry's read lock, to find the model: call it from an
+// engine's worker threads on disjoint characters.
 //
 // # Safety
-// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+// `bones` is NULL or points to `bone_floats`
 // readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
 // overlap.
-rrskin_status rrskin_palette_compute(const struct rrskin_palette_model *model,
+rrskin_status rrskin_palette_compute(struct rrskin_palette_model model,
                                      const float *bones,
                                      size_t bone_floats,
                                      float *out,
@@ -685,18 +689,16 @@ rrskin_status rrskin_palette_compute(const struct rrskin_palette_model *model,
 //
 // # Safety
 // As `rrskin_palette_compute`.
-rrskin_status rrskin_palette_compute_parallel(const struct rrskin_palette_model *model,
+rrskin_status rrskin_palette_compute_parallel(struct rrskin_palette_model model,
                                               const float *bones,
                                               size_t bone_floats,
                                               float *out,
                                               size_t out_floats,
                                               uint32_t threads);
 
-// Destroys a palette model (NULL: nothing). No call may be using it.
-//
-// # Safety
-// `model` is NULL or a live palette model that no other thread is using; it is invalid after.
-rrskin_status rrskin_palette_model_destroy(struct rrskin_palette_model *model);
+// Destroys a palette model handle; a call running on it on another thread finishes first (it
+// holds the model), and the skin that `rrskin_palette_model_get_skin` lent is invalid after.
+rrskin_status rrskin_palette_model_destroy(struct rrskin_palette_model model);
 
 #ifdef __cplusplus
 }  // extern "C"

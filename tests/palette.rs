@@ -135,7 +135,7 @@ fn the_c_abi_palette_matches_the_rust_one() {
     palette.compute_batch(&bones, &mut want).expect("palette");
 
     let ok = RrskinStatus::Ok;
-    let mut m: *mut RrskinPaletteModel = std::ptr::null_mut();
+    let mut m = RrskinPaletteModel { id: 0 };
     // SAFETY: valid pointers and lengths (so in every call below).
     unsafe {
         assert_eq!(
@@ -192,14 +192,14 @@ fn the_c_abi_palette_matches_the_rust_one() {
         assert_eq!(wrong, RrskinStatus::ErrorWrongLength);
         let message = std::ffi::CStr::from_ptr(rrskin_last_error()).to_string_lossy();
         assert!(message.contains("bone floats"), "{message}");
-        let null = rrskin_palette_compute(
-            std::ptr::null(),
+        let never = rrskin_palette_compute(
+            RrskinPaletteModel { id: 0 },
             floats.as_ptr(),
             j * 12,
             got.as_mut_ptr(),
             got.len(),
         );
-        assert_eq!(null, RrskinStatus::ErrorNullPointer);
+        assert_eq!(never, RrskinStatus::ErrorInvalidHandle);
         assert_eq!(
             rrskin_palette_compute(m, floats.as_ptr(), j * 12, got.as_mut_ptr(), got.len()),
             ok
@@ -209,14 +209,19 @@ fn the_c_abi_palette_matches_the_rust_one() {
             b"",
             "a success clears the message"
         );
-        let mut bad: *mut RrskinPaletteModel = std::ptr::null_mut();
+        let mut bad = RrskinPaletteModel { id: 0 };
         assert_eq!(
             rrskin_palette_model_load_memory(bytes.as_ptr(), 20, &mut bad),
             RrskinStatus::ErrorBadModel
         );
-        assert!(bad.is_null());
+        assert_eq!(bad.id, 0);
         assert_eq!(rrskin_palette_model_destroy(m), ok);
-        assert_eq!(rrskin_palette_model_destroy(std::ptr::null_mut()), ok);
+        // A stale handle is a status: destroyed twice, used after destroy.
+        let stale = RrskinStatus::ErrorInvalidHandle;
+        assert_eq!(rrskin_palette_model_destroy(m), stale);
+        let after = rrskin_palette_compute(m, floats.as_ptr(), j * 12, got.as_mut_ptr(), got.len());
+        assert_eq!(after, stale);
+        assert_eq!(rrskin_palette_model_get_skin(m, &mut skin), stale);
     }
 }
 
@@ -357,7 +362,7 @@ fn the_c_abi_gives_the_corrective_weights_and_targets() {
         .expect("weights");
     let ok = RrskinStatus::Ok;
     let floats = bones.as_flattened();
-    let mut m: *mut RrskinPaletteModel = std::ptr::null_mut();
+    let mut m = RrskinPaletteModel { id: 0 };
     // SAFETY: valid pointers and lengths (so in every call below).
     unsafe {
         assert_eq!(
@@ -419,13 +424,13 @@ fn the_c_abi_gives_the_corrective_weights_and_targets() {
         );
         assert_eq!(
             rrskin_palette_compute_corrective_weights(
-                std::ptr::null(),
+                RrskinPaletteModel { id: 0 },
                 floats.as_ptr(),
                 j * 12,
                 got.as_mut_ptr(),
                 4
             ),
-            RrskinStatus::ErrorNullPointer
+            RrskinStatus::ErrorInvalidHandle
         );
         assert_eq!(rrskin_palette_model_destroy(m), ok);
         // A model without correctives: N = 0, no targets, no floats to write.

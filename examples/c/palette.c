@@ -81,7 +81,7 @@ int main(int argc, char **argv) {
         return 2;
     }
     size_t frames = strtoul(argv[4], NULL, 10), characters = strtoul(argv[5], NULL, 10);
-    rrskin_palette_model *model = NULL;
+    rrskin_palette_model model = {0};
     if (rrskin_palette_model_load_file(argv[1], &model) != RRSKIN_STATUS_OK) {
         fprintf(stderr, "load: %s\n", rrskin_last_error());
         return 1;
@@ -140,18 +140,27 @@ int main(int argc, char **argv) {
     check(rrskin_palette_compute(model, poses, 13, palette, palette_floats) ==
               RRSKIN_STATUS_ERROR_WRONG_LENGTH,
           "a bone count that is not whole matrices is refused");
-    check(rrskin_palette_compute(NULL, poses, bone_floats, palette, palette_floats) ==
-              RRSKIN_STATUS_ERROR_NULL_POINTER,
-          "a NULL model is refused");
+    rrskin_palette_model never = {0};
+    check(rrskin_palette_compute(never, poses, bone_floats, palette, palette_floats) ==
+              RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "a handle never made is refused");
     check(rrskin_palette_compute_corrective_weights(model, poses, bone_floats, weights,
                                                     weight_floats + 1) ==
               RRSKIN_STATUS_ERROR_WRONG_LENGTH,
           "corrective weights of the wrong length are refused");
-    rrskin_palette_model *missing = NULL;
+    rrskin_palette_model missing = {0};
     check(rrskin_palette_model_load_file("/nonexistent/model.rrs", &missing) == RRSKIN_STATUS_ERROR_IO &&
-              missing == NULL,
+              missing.id == 0,
           "a missing file is an I/O error");
     check(rrskin_palette_model_destroy(model) == RRSKIN_STATUS_OK, "destroy");
+    /* A stale handle is a status, not undefined behaviour: destroyed twice, used after. */
+    check(rrskin_palette_model_destroy(model) == RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "a second destroy is refused");
+    check(rrskin_palette_compute(model, poses, bone_floats, palette, palette_floats) ==
+              RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "a destroyed model is refused");
+    check(rrskin_palette_model_get_skin(model, &skin) == RRSKIN_STATUS_ERROR_INVALID_HANDLE,
+          "a destroyed model's skin is refused");
     free(poses);
     free(expected);
     free(palette);

@@ -1,17 +1,32 @@
 //! The CPU palette through the C ABI ([`crate::palette`]): for an engine that skins with its
-//! own shaders. No Vulkan, no handle registry: a palette model is an opaque pointer, and no
-//! call on it takes a lock, so threads run palettes of one model (or many) in parallel.
+//! own shaders. No Vulkan. A palette model is a generational handle like the runtime's (a
+//! destroyed or never-made one gives `RRSKIN_STATUS_ERROR_INVALID_HANDLE`); its registry is a
+//! reader-writer lock held only to find the model, so threads run palettes of one model (or
+//! many) in parallel, and a model destroyed while a call runs lives until that call returns.
 
-use super::{guard, put, slice, utf8_path, Failure, RrskinStatus};
+use super::{guard, put, slice, utf8_path, Failure, RrskinStatus, Slots};
 use crate::model::Model;
 use crate::palette::Palette;
 use crate::predict::Affine;
 use std::ffi::c_char;
+use std::sync::{Arc, RwLock};
 
-/// A model loaded for CPU palette evaluation (opaque). Immutable: every call but
-/// `rrskin_palette_model_destroy` may run on one from many threads at once.
+/// A model loaded for CPU palette evaluation. Immutable: every call may run on one from many
+/// threads at once.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RrskinPaletteModel {
-    palette: Palette,
+    pub id: u64,
+}
+
+static PALETTES: RwLock<Slots<Arc<Palette>>> = RwLock::new(Slots::new(4));
+
+/// The palette behind a handle, found under the registry's read lock and used after it.
+fn palette_of(model: RrskinPaletteModel) -> Result<Arc<Palette>, Failure> {
+    let slots = PALETTES
+        .read()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    slots.get(model.id).cloned()
 }
 
 /// What an engine skins with, borrowed from a palette model (valid until it is destroyed).
@@ -59,11 +74,11 @@ pub struct RrskinPaletteSkin {
 ///
 /// # Safety
 /// `path` is NULL or a NUL-terminated string readable during the call; `out` is NULL or points
-/// to writable memory for one pointer.
+/// to writable memory for one `rrskin_palette_model`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_model_load_file(
     path: *const c_char,
-    out: *mut *mut RrskinPaletteModel,
+    out: *mut RrskinPaletteModel,
 ) -> RrskinStatus {
     guard(|| {
         // SAFETY: `path` and `out` as the function's contract requires.
@@ -75,25 +90,30 @@ pub unsafe extern "C" fn rrskin_palette_model_load_file(
 ///
 /// # Safety
 /// `data` is NULL or points to `size` readable bytes; `out` is NULL or points to writable memory
-/// for one pointer.
+/// for one `rrskin_palette_model`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_model_load_memory(
     data: *const u8,
     size: usize,
-    out: *mut *mut RrskinPaletteModel,
+    out: *mut RrskinPaletteModel,
 ) -> RrskinStatus {
     // SAFETY: `data` and `out` as the function's contract requires.
     guard(|| unsafe { give(Model::from_bytes(slice(data, size, "data")?)?, out) })
 }
 
 /// # Safety
-/// `out` is NULL or valid for writing one pointer.
-unsafe fn give(model: Model, out: *mut *mut RrskinPaletteModel) -> Result<(), Failure> {
+/// `out` is NULL or valid for writing one `rrskin_palette_model`.
+unsafe fn give(model: Model, out: *mut RrskinPaletteModel) -> Result<(), Failure> {
     if out.is_null() {
         return Err(Failure::null("out"));
     }
-    let palette = Palette::new(model)?;
-    let model = Box::into_raw(Box::new(RrskinPaletteModel { palette }));
+    let palette = Arc::new(Palette::new(model)?);
+    let mut slots = PALETTES
+        .write()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    let model = RrskinPaletteModel {
+        id: slots.insert(palette),
+    };
     // SAFETY: non-null, and valid for the write by the function's contract.
     unsafe { put(out, model, "out") }
 }
@@ -101,18 +121,15 @@ unsafe fn give(model: Model, out: *mut *mut RrskinPaletteModel) -> Result<(), Fa
 /// The model's sizes and skin.
 ///
 /// # Safety
-/// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+/// `out` is NULL or points to writable memory for one
 /// `rrskin_palette_skin`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_model_get_skin(
-    model: *const RrskinPaletteModel,
+    model: RrskinPaletteModel,
     out: *mut RrskinPaletteSkin,
 ) -> RrskinStatus {
     guard(|| {
-        // SAFETY: NULL or live, as the caller guarantees.
-        let palette = &unsafe { model.as_ref() }
-            .ok_or(Failure::null("model"))?
-            .palette;
+        let palette = palette_of(model)?;
         let (m, skin) = (palette.model(), palette.skin());
         let info = RrskinPaletteSkin {
             vertices: m.vertex_count() as u32,
@@ -145,18 +162,15 @@ pub unsafe extern "C" fn rrskin_palette_model_get_skin(
 /// the floats per character `rrskin_palette_compute_corrective_weights` writes.
 ///
 /// # Safety
-/// `model` is NULL or a live palette model; `out` is NULL or points to writable memory for one
+/// `out` is NULL or points to writable memory for one
 /// `uint32_t`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_model_get_corrective_count(
-    model: *const RrskinPaletteModel,
+    model: RrskinPaletteModel,
     out: *mut u32,
 ) -> RrskinStatus {
     guard(|| {
-        // SAFETY: NULL or live, as the caller guarantees.
-        let palette = &unsafe { model.as_ref() }
-            .ok_or(Failure::null("model"))?
-            .palette;
+        let palette = palette_of(model)?;
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, palette.corrective_count() as u32, "out") }
     })
@@ -166,25 +180,23 @@ pub unsafe extern "C" fn rrskin_palette_model_get_corrective_count(
 /// as `rrskin_palette_compute`'s (`bone_floats` = characters * J * 12), `out` characters x N
 /// floats (`out_floats`; N from `rrskin_palette_model_get_corrective_count`), each character's
 /// N weights of the skin's `corrective_targets`. For a model without correctives N = 0 and
-/// `out_floats` must be 0 (`out` may then be NULL). Allocates nothing and takes no lock.
+/// `out_floats` must be 0 (`out` may then be NULL). Allocates nothing; takes only the handle
+/// registry's read lock, to find the model.
 ///
 /// # Safety
-/// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+/// `bones` is NULL or points to `bone_floats`
 /// readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
 /// overlap.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_compute_corrective_weights(
-    model: *const RrskinPaletteModel,
+    model: RrskinPaletteModel,
     bones: *const f32,
     bone_floats: usize,
     out: *mut f32,
     out_floats: usize,
 ) -> RrskinStatus {
     guard(|| {
-        // SAFETY: NULL or live, as the caller guarantees.
-        let palette = &unsafe { model.as_ref() }
-            .ok_or(Failure::null("model"))?
-            .palette;
+        let palette = palette_of(model)?;
         let count = transforms(bone_floats, "bone floats")?;
         // SAFETY: `bones` points to `bone_floats` floats, as the caller guarantees.
         let bones = unsafe { slice(bones.cast::<Affine>(), count, "bones") }?;
@@ -204,15 +216,16 @@ pub unsafe extern "C" fn rrskin_palette_compute_corrective_weights(
 /// to the rest pose), `out` characters x (P + J) palette matrices (`out_floats` floats, same
 /// layout), proxies first (corrected by the model's proxy correctives where it has them:
 /// nothing more to apply). Allocates nothing (after a thread's first call for a model of that
-/// size) and takes no lock: call it from an engine's worker threads on disjoint characters.
+/// size) and takes only the handle registry's read lock, to find the model: call it from an
+/// engine's worker threads on disjoint characters.
 ///
 /// # Safety
-/// `model` is NULL or a live palette model; `bones` is NULL or points to `bone_floats`
+/// `bones` is NULL or points to `bone_floats`
 /// readable floats; `out` is NULL or points to `out_floats` writable floats; the two do not
 /// overlap.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_compute(
-    model: *const RrskinPaletteModel,
+    model: RrskinPaletteModel,
     bones: *const f32,
     bone_floats: usize,
     out: *mut f32,
@@ -229,7 +242,7 @@ pub unsafe extern "C" fn rrskin_palette_compute(
 /// As `rrskin_palette_compute`.
 #[no_mangle]
 pub unsafe extern "C" fn rrskin_palette_compute_parallel(
-    model: *const RrskinPaletteModel,
+    model: RrskinPaletteModel,
     bones: *const f32,
     bone_floats: usize,
     out: *mut f32,
@@ -243,17 +256,14 @@ pub unsafe extern "C" fn rrskin_palette_compute_parallel(
 /// # Safety
 /// As `rrskin_palette_compute`.
 unsafe fn compute(
-    model: *const RrskinPaletteModel,
+    model: RrskinPaletteModel,
     bones: *const f32,
     bone_floats: usize,
     out: *mut f32,
     out_floats: usize,
     threads: usize,
 ) -> Result<(), Failure> {
-    // SAFETY: NULL or live, as the caller guarantees.
-    let palette = &unsafe { model.as_ref() }
-        .ok_or(Failure::null("model"))?
-        .palette;
+    let palette = palette_of(model)?;
     let (count, entries) = (
         transforms(bone_floats, "bone floats")?,
         transforms(out_floats, "palette floats")?,
@@ -283,20 +293,14 @@ fn transforms(floats: usize, what: &'static str) -> Result<usize, Failure> {
     Ok(floats / 12)
 }
 
-/// Destroys a palette model (NULL: nothing). No call may be using it.
-///
-/// # Safety
-/// `model` is NULL or a live palette model that no other thread is using; it is invalid after.
+/// Destroys a palette model handle; a call running on it on another thread finishes first (it
+/// holds the model), and the skin that `rrskin_palette_model_get_skin` lent is invalid after.
 #[no_mangle]
-pub unsafe extern "C" fn rrskin_palette_model_destroy(
-    model: *mut RrskinPaletteModel,
-) -> RrskinStatus {
+pub extern "C" fn rrskin_palette_model_destroy(model: RrskinPaletteModel) -> RrskinStatus {
     guard(|| {
-        if !model.is_null() {
-            // SAFETY: made by `Box::into_raw` in `give`, destroyed once, as the caller
-            // guarantees.
-            drop(unsafe { Box::from_raw(model) });
-        }
-        Ok(())
+        let mut slots = PALETTES
+            .write()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        slots.remove(model.id).map(drop)
     })
 }
