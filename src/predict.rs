@@ -1,5 +1,5 @@
 //! Key-predictor evaluation `D_ℓ(q)` (paper §3, Eq. 3–4; docs/method.md §2–3) and the rotation
-//! math it needs, in `f64`. `glsl/predict.comp` mirrors these functions line for line in `f32`
+//! math it needs, in `f64`. `glsl/predictor.glsl` mirrors these functions line for line in `f32`
 //! (same branch thresholds), so the two agree away from the rotation log's branch cut at π.
 
 use crate::error::{Error, Result};
@@ -10,9 +10,9 @@ use glam::{DMat3, DVec3};
 pub type Affine = [f32; 12];
 
 /// Below this `sin θ` with `cos θ < 0`, `log` takes the axis from the symmetric part of R
-/// (the antisymmetric part vanishes at π). Shared with `glsl/predict.comp`.
+/// (the antisymmetric part vanishes at π). Shared with `glsl/predictor.glsl`.
 pub const NEAR_PI_SIN: f64 = 1e-2;
-/// Below this angle, `log` and `exp` use Taylor series. Shared with `glsl/predict.comp`.
+/// Below this angle, `log` and `exp` use Taylor series. Shared with `glsl/predictor.glsl`.
 pub const SMALL_ANGLE: f64 = 1e-4;
 
 /// The rotation part Q of a bone transform.

@@ -69,7 +69,7 @@ pub(crate) use indexed_enum;
 
 indexed_enum! {
     /// A buffer of the GPU model, uploaded once and only ever read; sized by
-    /// `memory::model_buffer_bytes`, filled by `gpu_model::upload_bytes`.
+    /// `memory::model_buffer_bytes`, filled from `gpu_model::UploadData::of`.
     pub enum ModelBuffer {
         /// (2 + N) x V x 3 f32: the rest positions, the N corrective targets, then the rest
         /// normals (one buffer, so that skinning binds fewer storage buffers)
