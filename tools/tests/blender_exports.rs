@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
-use blender::{blender_script, count, figure, repo, rrskin, temp_dir};
+use blender::{assert_same_figures, blender_script, count, figure, repo, rrskin, temp_dir};
 
 /// Allowed gap between a scenario's `rigid`/`ssd`/`rig_lbs` EE (%) and its reference's. The
 /// caches hold the very same float32 positions (checked in scenarios.py to 1.2e-7), so mapping
@@ -168,15 +168,12 @@ fn same_as_reference(cache: &str, notes: &[&str], missing: u64) {
     for key in ["test_poses", "vertices", "triangles", "bones"] {
         assert_eq!(count(&e, key), count(&expected, key), "{cache}: {key}");
     }
-    for method in ["rigid", "ssd", "rig_lbs"] {
-        for split in ["train", "test"] {
-            let (got, want) = (figure(&e, method, split), figure(&expected, method, split));
-            assert!(
-                (got - want).abs() <= TOLERANCE,
-                "{cache}: {method} {split} {got:.4} against the reference's {want:.4}"
-            );
-        }
-    }
+    assert_same_figures(
+        &e,
+        &expected,
+        TOLERANCE,
+        &format!("{cache} against the reference"),
+    );
     for note in notes {
         assert!(
             lower.lines().any(|l| l.contains(&note.to_lowercase())),
@@ -295,15 +292,8 @@ fn an_fbx_rig_with_each_default_cache() {
         for key in ["vertices", "bones", "train_poses", "test_poses"] {
             assert_eq!(count(&e, key), count(&expected, key), "{cache}: {key}");
         }
-        for method in ["rigid", "ssd", "rig_lbs"] {
-            for split in ["train", "test"] {
-                let (got, want) = (figure(&e, method, split), figure(&expected, method, split));
-                assert!(
-                    (got - want).abs() <= TOLERANCE,
-                    "FBX + {cache}: {method} {split} {got:.4} against the NumPy route's {want:.4}"
-                );
-            }
-        }
+        let what = format!("FBX + {cache} against the NumPy route");
+        assert_same_figures(&e, &expected, TOLERANCE, &what);
         assert!(
             stderr.lines().any(|l| l.contains(note)),
             "FBX + {cache}: no line says {note:?}:\n{stderr}"

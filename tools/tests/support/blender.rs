@@ -114,6 +114,25 @@ pub fn figure(e: &serde_json::Value, method: &str, split: &str) -> f64 {
         .unwrap_or_else(|| panic!("no {method}.{split} in {e}"))
 }
 
+/// `got`'s rigid, SSD and rig-LBS EE on both splits within `tolerance` points of `want`'s
+/// (`what`: the case, in the message).
+pub fn assert_same_figures(
+    got: &serde_json::Value,
+    want: &serde_json::Value,
+    tolerance: f64,
+    what: &str,
+) {
+    for method in ["rigid", "ssd", "rig_lbs"] {
+        for split in ["train", "test"] {
+            let (g, w) = (figure(got, method, split), figure(want, method, split));
+            assert!(
+                (g - w).abs() <= tolerance,
+                "{what}: {method} {split} {g:.4} against {w:.4}"
+            );
+        }
+    }
+}
+
 pub fn count(e: &serde_json::Value, key: &str) -> u64 {
     e[key].as_u64().unwrap_or_else(|| panic!("no {key} in {e}"))
 }
