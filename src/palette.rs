@@ -33,7 +33,7 @@
 
 use crate::cpu::characters;
 use crate::error::{Error, Result};
-use crate::model::{Model, ProxyCorrectives};
+use crate::model::{BlockSparse, Model, ProxyCorrectives};
 use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
@@ -48,12 +48,8 @@ pub struct Palette {
     keys: Vec<Key>,
     /// Bones whose joint rotation some key reads.
     rotations: Vec<u32>,
-    /// Proxy e's stored columns of `[C1 | C2]` are `columns[offsets[e]..offsets[e + 1]]`; a
-    /// column below 3P is column j of key ℓ = k / 3 (j = k % 3), above it column k' % 4 of
-    /// bone k' / 4 (k' = k − 3P); `values` holds its 4 rows (T_e's columns 0..4).
-    offsets: Vec<u32>,
-    columns: Vec<u32>,
-    values: Vec<[f32; 4]>,
+    /// `[C1 | C2]` by proxy, zero columns left out.
+    blocks: BlockSparse,
     rest_normals: Vec<[f32; 3]>,
     /// The corrective drivers (bone, parent), in the order of the map's columns.
     drivers: Vec<(usize, usize)>,
@@ -159,7 +155,7 @@ impl Palette {
     /// (the product then costs what the model's sparsity allows: joint-blend proxies read a
     /// few columns each).
     pub fn new(model: Model) -> Result<Palette> {
-        let (p, j) = (model.proxy_count(), model.bone_count());
+        let j = model.bone_count();
         let keys: Vec<Key> = model
             .parts()
             .predictors
@@ -183,18 +179,7 @@ impl Palette {
             }
         }
         let rotations = (0..j as u32).filter(|&b| read[b as usize]).collect();
-        let (width, a) = (3 * p + 4 * j, model.c1_c2());
-        let (mut offsets, mut columns, mut values) = (vec![0u32], Vec::new(), Vec::new());
-        for e in 0..p {
-            for k in 0..width {
-                let column = [0, 1, 2, 3].map(|r| a[(4 * e + r) * width + k]);
-                if column.iter().any(|&x| x != 0.0) {
-                    columns.push(k as u32);
-                    values.push(column);
-                }
-            }
-            offsets.push(columns.len() as u32);
-        }
+        let blocks = BlockSparse::of(&model);
         let rest_normals = model.rest_normals();
         let drivers = (model.correctives().map_or(&[][..], |c| &c.drivers).iter())
             .map(|&d| (d as usize, model.parent(d as usize).unwrap_or(d as usize)))
@@ -206,9 +191,7 @@ impl Palette {
             model,
             keys,
             rotations,
-            offsets,
-            columns,
-            values,
+            blocks,
             rest_normals,
             drivers,
             proxy,
@@ -411,9 +394,9 @@ impl Palette {
             }
         }
         for (e, t) in out[..p].iter_mut().enumerate() {
-            let range = self.offsets[e] as usize..self.offsets[e + 1] as usize;
+            let (columns, values) = self.blocks.of_proxy(e);
             let mut acc = [[0.0f32; 4]; 3];
-            for (&k, v) in self.columns[range.clone()].iter().zip(&self.values[range]) {
+            for (&k, v) in columns.iter().zip(values) {
                 let x = scratch.rhs[k as usize];
                 for (row, xc) in acc.iter_mut().zip([x.x, x.y, x.z]) {
                     row.iter_mut().zip(v).for_each(|(a, v)| *a += v * xc);

@@ -47,9 +47,11 @@
 //! (see [`ProxyCorrectives`]); the palette keeps its P + J entries and skinning is unchanged.
 //! They vanish at the rest pose (every bone the identity), where T' = T exactly.
 
+mod block_sparse;
 mod file;
 mod validate;
 
+pub(crate) use block_sparse::BlockSparse;
 pub use file::{predictor_words, FORMAT_VERSION, MAGIC, PREDICTOR_WORDS};
 
 use crate::error::{Error, Result};

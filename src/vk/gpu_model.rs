@@ -7,7 +7,7 @@ use super::memory::{model_buffer_bytes, ModelSizes};
 use super::pass::{Dims, ModelBuffer};
 use super::passes::Pass;
 use crate::error::Result;
-use crate::model::{predictor_words, Model};
+use crate::model::{predictor_words, BlockSparse, Model};
 use crate::normals::{Fans, NormalMode, FAN_PIVOT};
 use ash::vk;
 use std::sync::Arc;
@@ -123,7 +123,7 @@ impl GpuModel {
         model: &Model,
         settings: GpuModelDebugSettings,
     ) -> Result<GpuModel> {
-        let sparse = BlockSparse::of(model);
+        let sparse = sparse_layout(model);
         let in_product = (settings.correctives_in_product).unwrap_or(!context.limits().cpu_device);
         let dims = model_dims(model, sparse.as_ref(), in_product);
         if model.vertex_count() as u64 >= u64::from(FAN_PIVOT) {
@@ -222,7 +222,7 @@ impl GpuModel {
     }
 
     /// Whether [C1 | C2] was stored block-sparse (the sparse product runs) rather than dense
-    /// (the tiled GEMM runs): see [`BlockSparse::of`].
+    /// (the tiled GEMM runs): see [`sparse_layout`].
     pub fn is_block_sparse(&self) -> bool {
         self.inner.dims.sparse
     }
@@ -286,18 +286,6 @@ impl GpuModel {
     }
 }
 
-/// [C1 | C2] stored per proxy: proxy e's 4 rows (4e .. 4e + 3) keep only the columns where
-/// one of them is non-zero, each as its column index and the vec4 of the 4 rows' values. A
-/// joint-blend proxy touches its own key's 3 columns and its 2-3 bones' 4 each (~11 of
-/// 3P + 4J); the paper's reduction and synthetic models are dense.
-#[derive(Debug, Default, PartialEq)]
-pub(crate) struct BlockSparse {
-    /// P + 1: proxy e's columns are `columns[offsets[e]..offsets[e + 1]]`.
-    pub offsets: Vec<u32>,
-    pub columns: Vec<u32>,
-    pub values: Vec<[f32; 4]>,
-}
-
 /// The sizes and choices a model's passes run with (a crowd adds its options'): `sparse` the
 /// block-sparse [C1 | C2] where chosen, `in_product` whether a fused product applies the proxy
 /// correctives.
@@ -343,45 +331,13 @@ fn proxy_topology(model: &Model) -> Vec<u32> {
 /// against 16 a dense one).
 pub(crate) const MAX_SPARSE_DENSITY: f64 = 0.25;
 
-impl BlockSparse {
-    /// The layout of `model`'s [C1 | C2], or `None` where it should stay dense (no proxies,
-    /// density at or above [`MAX_SPARSE_DENSITY`], or an all-zero matrix).
-    pub fn of(model: &Model) -> Option<BlockSparse> {
-        let (p, j) = (model.proxy_count(), model.bone_count());
-        let width = 3 * p + 4 * j;
-        let a = model.c1_c2();
-        let mut blocks = BlockSparse {
-            offsets: Vec::with_capacity(p + 1),
-            ..BlockSparse::default()
-        };
-        blocks.offsets.push(0);
-        for e in 0..p {
-            for k in 0..width {
-                let column = [0, 1, 2, 3].map(|i| a[(4 * e + i) * width + k]);
-                if column.iter().any(|&x| x != 0.0) {
-                    blocks.columns.push(k as u32);
-                    blocks.values.push(column);
-                }
-            }
-            blocks.offsets.push(blocks.columns.len() as u32);
-        }
-        let stored = blocks.columns.len() as f64;
-        (stored > 0.0 && stored < MAX_SPARSE_DENSITY * (p * width) as f64).then_some(blocks)
-    }
-
-    /// Whether each proxy's stored columns below 3P (its key columns) are those of one key:
-    /// then its invocation of the fused product evaluates that key's D_ℓ(q) and nothing else
-    /// (glsl/fused_product.comp). True of joint-blend proxies (key e, its parent bone).
-    pub fn one_key_per_proxy(&self) -> bool {
-        let keys = 3 * (self.offsets.len().saturating_sub(1)) as u32;
-        self.offsets.windows(2).all(|w| {
-            let stored = self.columns.get(w[0] as usize..w[1] as usize);
-            let mut key_columns = (stored.unwrap_or_default().iter())
-                .filter(|&&k| k < keys)
-                .map(|k| k / 3);
-            key_columns
-                .next()
-                .is_none_or(|first| key_columns.all(|k| k == first))
-        })
-    }
+/// The block-sparse layout of `model`'s [C1 | C2] the product runs on, or `None` where it
+/// should stay dense (no proxies, density at or above [`MAX_SPARSE_DENSITY`], or an all-zero
+/// matrix).
+pub(crate) fn sparse_layout(model: &Model) -> Option<BlockSparse> {
+    let width = 3 * model.proxy_count() + 4 * model.bone_count();
+    let blocks = BlockSparse::of(model);
+    let stored = blocks.columns.len() as f64;
+    let dense = (model.proxy_count() * width) as f64;
+    (stored > 0.0 && stored < MAX_SPARSE_DENSITY * dense).then_some(blocks)
 }
