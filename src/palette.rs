@@ -34,7 +34,7 @@
 use crate::cpu::characters;
 use crate::error::{Error, Result};
 use crate::model::{BlockSparse, Model, ProxyCorrectives};
-use crate::predict::{Affine, NEAR_PI_SIN, SMALL_ANGLE};
+use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation, Affine};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
 
@@ -551,51 +551,5 @@ fn rotation_of(t: &Affine) -> Mat3 {
         Vec3::new(t[0], t[4], t[8]),
         Vec3::new(t[1], t[5], t[9]),
         Vec3::new(t[2], t[6], t[10]),
-    )
-}
-
-/// [`crate::predict::log_rotation`] in `f32` (the same branches as `glsl/predictor.glsl`).
-fn log_rotation(r: Mat3) -> Vec3 {
-    let (c0, c1, c2) = (r.x_axis, r.y_axis, r.z_axis);
-    let v = Vec3::new(c1.z - c2.y, c2.x - c0.z, c0.y - c1.x);
-    let s = 0.5 * v.length();
-    let c = 0.5 * (c0.x + c1.y + c2.z - 1.0);
-    let angle = s.atan2(c);
-    if angle < SMALL_ANGLE as f32 {
-        return v * (0.5 * (1.0 + angle * angle / 6.0));
-    }
-    if s < NEAR_PI_SIN as f32 && c < 0.0 {
-        let sym = (r + r.transpose()) * 0.5 - Mat3::from_diagonal(Vec3::splat(c));
-        let b = [sym.x_axis, sym.y_axis, sym.z_axis];
-        let i = if b[0].x >= b[1].y && b[0].x >= b[2].z {
-            0
-        } else if b[1].y >= b[2].z {
-            1
-        } else {
-            2
-        };
-        let axis = b[i].normalize();
-        return if axis.dot(v) < 0.0 { -axis } else { axis } * angle;
-    }
-    v * (angle / (2.0 * s))
-}
-
-/// [`crate::predict::exp_rotation`] in `f32`, in the closed form `cos θ I + sin θ/θ [w]ₓ +
-/// (1 − cos θ)/θ² w wᵀ` (Rodrigues without the matrix product `[w]ₓ²`).
-fn exp_rotation(w: Vec3) -> Mat3 {
-    let a2 = w.length_squared();
-    let a = a2.sqrt();
-    let (s, c) = if a < SMALL_ANGLE as f32 {
-        (1.0 - a2 / 6.0, 0.5 - a2 / 24.0)
-    } else {
-        let (sin, cos) = a.sin_cos();
-        (sin / a, (1.0 - cos) / a2)
-    };
-    let cos = 1.0 - c * a2;
-    let (sw, cw) = (w * s, w * c);
-    Mat3::from_cols(
-        Vec3::new(cos + cw.x * w.x, sw.z + cw.x * w.y, -sw.y + cw.x * w.z),
-        Vec3::new(-sw.z + cw.y * w.x, cos + cw.y * w.y, sw.x + cw.y * w.z),
-        Vec3::new(sw.y + cw.z * w.x, -sw.x + cw.z * w.y, cos + cw.z * w.z),
     )
 }

@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::model::{KeyPredictor, Mat3Rows, Model};
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec3, Mat3, Vec3};
 
 /// A bone transform relative to the rest pose, 3x4 row-major: `x ↦ Q x + d`.
 pub type Affine = [f32; 12];
@@ -29,54 +29,83 @@ pub fn mat3_of_rows(w: &Mat3Rows) -> DMat3 {
     DMat3::from_cols_array(&w.map(|x| x as f64)).transpose()
 }
 
-/// `log: SO(3) → R³`, the axis-angle vector with angle in [0, π].
-pub fn log_rotation(r: DMat3) -> DVec3 {
-    let (c0, c1, c2) = (r.x_axis, r.y_axis, r.z_axis);
-    // vee(R − Rᵀ) = 2 sin θ · axis
-    let v = DVec3::new(c1.z - c2.y, c2.x - c0.z, c0.y - c1.x);
-    let s = 0.5 * v.length();
-    let c = 0.5 * (c0.x + c1.y + c2.z - 1.0);
-    let angle = s.atan2(c);
-    if angle < SMALL_ANGLE {
-        return v * (0.5 * (1.0 + angle * angle / 6.0));
-    }
-    if s < NEAR_PI_SIN && c < 0.0 {
-        // (R + Rᵀ)/2 − cos θ I = (1 − cos θ) a aᵀ: take the axis from its column with the largest
-        // diagonal, oriented like the (tiny) antisymmetric part.
-        let sym = (r + r.transpose()) * 0.5 - DMat3::from_diagonal(DVec3::splat(c));
-        let b = [sym.x_axis, sym.y_axis, sym.z_axis];
-        let diag = [b[0].x, b[1].y, b[2].z];
-        let i = if diag[0] >= diag[1] && diag[0] >= diag[2] {
-            0
-        } else if diag[1] >= diag[2] {
-            1
-        } else {
-            2
-        };
-        let mut axis = b[i].normalize();
-        if axis.dot(v) < 0.0 {
-            axis = -axis;
+/// `log: SO(3) → R³` in one body for `f64` (the CPU reference, training) and `f32` (the CPU
+/// palette), with the branches and thresholds of `glsl/predictor.glsl`.
+macro_rules! rotation_log {
+    ($log:ident, $mat:ident, $vec:ident, $f:ty) => {
+        /// `log: SO(3) → R³`, the axis-angle vector with angle in [0, π].
+        pub fn $log(r: $mat) -> $vec {
+            let (c0, c1, c2) = (r.x_axis, r.y_axis, r.z_axis);
+            // vee(R − Rᵀ) = 2 sin θ · axis
+            let v = $vec::new(c1.z - c2.y, c2.x - c0.z, c0.y - c1.x);
+            let s = 0.5 * v.length();
+            let c = 0.5 * (c0.x + c1.y + c2.z - 1.0);
+            let angle = s.atan2(c);
+            if angle < SMALL_ANGLE as $f {
+                return v * (0.5 * (1.0 + angle * angle / 6.0));
+            }
+            if s < NEAR_PI_SIN as $f && c < 0.0 {
+                // (R + Rᵀ)/2 − cos θ I = (1 − cos θ) a aᵀ: the axis from its column with the
+                // largest diagonal, oriented like the (tiny) antisymmetric part.
+                let sym = (r + r.transpose()) * 0.5 - $mat::from_diagonal($vec::splat(c));
+                let b = [sym.x_axis, sym.y_axis, sym.z_axis];
+                let i = if b[0].x >= b[1].y && b[0].x >= b[2].z {
+                    0
+                } else if b[1].y >= b[2].z {
+                    1
+                } else {
+                    2
+                };
+                let axis = b[i].normalize();
+                return if axis.dot(v) < 0.0 { -axis } else { axis } * angle;
+            }
+            v * (angle / (2.0 * s))
         }
-        return axis * angle;
-    }
-    v * (angle / (2.0 * s))
+    };
 }
 
-/// `exp: R³ → SO(3)` (Rodrigues).
+rotation_log!(log_rotation, DMat3, DVec3, f64);
+rotation_log!(log_rotation_f32, Mat3, Vec3, f32);
+
+/// `sin θ/θ` and `(1 − cos θ)/θ²` of `exp` for `θ² = a2`, by Taylor series below
+/// [`SMALL_ANGLE`].
+macro_rules! exp_coefficients {
+    ($a2:expr, $f:ty) => {{
+        let a2 = $a2;
+        let a = a2.sqrt();
+        if a < SMALL_ANGLE as $f {
+            (1.0 - a2 / 6.0, 0.5 - a2 / 24.0)
+        } else {
+            let (sin, cos) = a.sin_cos();
+            (sin / a, (1.0 - cos) / a2)
+        }
+    }};
+}
+
+/// `exp: R³ → SO(3)` (Rodrigues), `I + sin θ/θ K + (1 − cos θ)/θ² K²` with `K = [w]ₓ`: the form
+/// the models were trained with (an algebraically equal form moves their bytes by round-off).
 pub fn exp_rotation(w: DVec3) -> DMat3 {
-    let a2 = w.length_squared();
-    let a = a2.sqrt();
-    let (s, c) = if a < SMALL_ANGLE {
-        (1.0 - a2 / 6.0, 0.5 - a2 / 24.0)
-    } else {
-        (a.sin() / a, (1.0 - a.cos()) / a2)
-    };
+    let (s, c) = exp_coefficients!(w.length_squared(), f64);
     let k = DMat3::from_cols(
         DVec3::new(0.0, w.z, -w.y),
         DVec3::new(-w.z, 0.0, w.x),
         DVec3::new(w.y, -w.x, 0.0),
     );
     DMat3::IDENTITY + k * s + k * k * c
+}
+
+/// [`exp_rotation`] in `f32` for the CPU palette, in the closed form `cos θ I + sin θ/θ [w]ₓ +
+/// (1 − cos θ)/θ² w wᵀ` (no matrix product `K²`: the palette evaluates one a key per frame).
+pub fn exp_rotation_f32(w: Vec3) -> Mat3 {
+    let a2 = w.length_squared();
+    let (s, c) = exp_coefficients!(a2, f32);
+    let cos = 1.0 - c * a2;
+    let (sw, cw) = (w * s, w * c);
+    Mat3::from_cols(
+        Vec3::new(cos + cw.x * w.x, sw.z + cw.x * w.y, -sw.y + cw.x * w.z),
+        Vec3::new(-sw.z + cw.y * w.x, cos + cw.y * w.y, sw.x + cw.y * w.z),
+        Vec3::new(sw.y + cw.z * w.x, -sw.x + cw.z * w.y, cos + cw.z * w.z),
+    )
 }
 
 /// Joint rotation of bone b in rest-world coordinates: `θ~_b = log(Q_p(b)ᵀ Q_b)` (docs/method.md
