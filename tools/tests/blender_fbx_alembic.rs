@@ -195,3 +195,38 @@ fn broken_fbx_and_alembic_files_are_refused_naming_the_file() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The other mix: the bundled glTF rig with an Alembic cache of its clip `examples` from
+/// Blender 4.5's importer and exporter at their defaults (plain LBS, so the rig's own skin
+/// reproduces it), on the held-out frames as on the training ones.
+#[test]
+fn a_gltf_rig_with_blenders_alembic_of_its_clip() {
+    let dir = temp_dir("blender45-gltf-abc");
+    let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
+    let (glb, abc) = (glb.to_str().expect("utf-8"), dir.join("examples.abc"));
+    let abc = abc.to_str().expect("utf-8");
+    bpy_script(
+        &repo().join("tools/tests/blender/alembic_of_glb.py"),
+        &[glb, "examples", abc],
+    );
+    let args = ["eval", glb, "--clip", "examples", "--cache", abc];
+    let (e, _) = eval(
+        &[
+            &args[..],
+            &["--test-frames", "41..60", "--proxies", "0", "--json"],
+        ]
+        .concat(),
+    );
+    assert_eq!(
+        (count(&e, "train_poses"), count(&e, "test_poses")),
+        (41, 20)
+    );
+    for split in ["train", "test"] {
+        let lbs = figure(&e, "rig_lbs", split);
+        assert!(
+            lbs < 0.05,
+            "rig_lbs {split} {lbs}: the cache is not the glTF's own skin"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
