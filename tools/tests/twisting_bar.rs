@@ -3,6 +3,8 @@
 //! twist (it collapses toward 180°); rotational regression learns it from three poses and
 //! predicts an unseen one.
 
+mod support;
+
 use glam::{DMat3, DVec3};
 use rrskin_tools::eval;
 use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
@@ -22,22 +24,7 @@ fn share(x: f64) -> f64 {
 }
 
 fn bar_set(train_degrees: &[f64], test_degrees: &[f64]) -> ExampleSet {
-    let mut rest = Vec::new();
-    for r in 0..RINGS {
-        let x = 2.0 * r as f64 / (RINGS - 1) as f64;
-        for s in 0..SEGMENTS {
-            let a = std::f64::consts::TAU * s as f64 / SEGMENTS as f64;
-            rest.push(DVec3::new(x, 0.2 * a.cos(), 0.2 * a.sin()));
-        }
-    }
-    let mut faces = Vec::new();
-    for r in 0..RINGS - 1 {
-        for s in 0..SEGMENTS {
-            let (a, b) = (r * SEGMENTS + s, r * SEGMENTS + (s + 1) % SEGMENTS);
-            faces.push([a, b, b + SEGMENTS]);
-            faces.push([a, b + SEGMENTS, a + SEGMENTS]);
-        }
-    }
+    let (rest, faces) = support::tube(RINGS, SEGMENTS, 2.0, 0.2);
     let degrees: Vec<(f64, bool)> = train_degrees
         .iter()
         .map(|&d| (d, false))

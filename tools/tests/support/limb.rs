@@ -86,22 +86,7 @@ pub fn limb_animation(frames: usize) -> ExampleSet {
 /// The limb posed by `angles`, the first `train` poses for training; deformed by DQS, then, if
 /// `rich`, the bulge and the smoothing pass.
 fn limb_of(angles: &[Angles], train: usize, rich: bool) -> ExampleSet {
-    let mut rest = Vec::new();
-    for r in 0..RINGS {
-        let x = 3.0 * r as f64 / (RINGS - 1) as f64;
-        for s in 0..SEGMENTS {
-            let a = std::f64::consts::TAU * s as f64 / SEGMENTS as f64;
-            rest.push(DVec3::new(x, RADIUS * a.cos(), RADIUS * a.sin()));
-        }
-    }
-    let mut faces = Vec::new();
-    for r in 0..RINGS - 1 {
-        for s in 0..SEGMENTS {
-            let (a, b) = (r * SEGMENTS + s, r * SEGMENTS + (s + 1) % SEGMENTS);
-            faces.push([a, b, b + SEGMENTS]);
-            faces.push([a, b + SEGMENTS, a + SEGMENTS]);
-        }
-    }
+    let (rest, faces) = super::tube(RINGS, SEGMENTS, 3.0, RADIUS);
     let mut neighbours = vec![Vec::new(); rest.len()];
     for t in &faces {
         for k in 0..3 {

@@ -38,3 +38,30 @@ pub fn cesiumman_options(cache: &Path) -> rrskin_tools::import::gltf::Options {
         test_frames: Some((41.0, 60.0)),
     }
 }
+
+/// A tube along x from 0 to `length`: `rings` rings of `segments` vertices of `radius`, two
+/// triangles a quad between rings (open ends). Vertex `r * segments + s` is ring r, segment s.
+pub fn tube(
+    rings: usize,
+    segments: usize,
+    length: f64,
+    radius: f64,
+) -> (Vec<glam::DVec3>, Vec<[usize; 3]>) {
+    let mut rest = Vec::new();
+    for r in 0..rings {
+        let x = length * r as f64 / (rings - 1) as f64;
+        for s in 0..segments {
+            let a = std::f64::consts::TAU * s as f64 / segments as f64;
+            rest.push(glam::DVec3::new(x, radius * a.cos(), radius * a.sin()));
+        }
+    }
+    let mut faces = Vec::new();
+    for r in 0..rings - 1 {
+        for s in 0..segments {
+            let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
+            faces.push([a, b, b + segments]);
+            faces.push([a, b + segments, a + segments]);
+        }
+    }
+    (rest, faces)
+}
