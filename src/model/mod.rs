@@ -467,7 +467,6 @@ fn group_of(groups: &[u32], v: usize) -> usize {
 
 /// Per-vertex incident-triangle lists (CSR): the triangles around each vertex's normal group
 /// (around the vertex itself when `groups` is empty). Shape: offsets V + 1.
-
 fn incidence(vertex_count: usize, triangles: &[[u32; 3]], groups: &[u32]) -> (Vec<u32>, Vec<u32>) {
     let group = |v: usize| group_of(groups, v);
     // Triangles around each group (CSR over group ids).

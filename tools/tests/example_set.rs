@@ -31,10 +31,10 @@ fn write_valid(dir: &Path) {
 /// The poses' vertices as linear blend skinning with `weights` (V x 2) makes them from
 /// [`write_valid`]'s rest mesh and transforms.
 fn skinned_by(weights: &[f32]) -> Vec<f32> {
+    type Transform<'a> = &'a dyn Fn(&[f32]) -> [f32; 3];
     let turned = |p: &[f32]| [0.5 - p[1], p[0], p[2]];
     let still = |p: &[f32]| [p[0], p[1], p[2]];
-    let poses: [[&dyn Fn(&[f32]) -> [f32; 3]; 2]; N] =
-        [[&still, &still], [&still, &turned], [&turned, &still]];
+    let poses: [[Transform; 2]; N] = [[&still, &still], [&still, &turned], [&turned, &still]];
     (poses.iter())
         .flat_map(|bones| {
             REST.chunks(3)

@@ -24,8 +24,6 @@ pub struct Cache {
     pub times: Vec<f64>,
     /// [sample][point], in world space.
     pub positions: Vec<Vec<DVec3>>,
-    /// The mesh's object path, for the user.
-    pub mesh: String,
 }
 
 type Found = (String, Vec<DMat4>, PolyMesh);
@@ -93,11 +91,7 @@ fn read_file(path: &Path) -> Result<Cache, String> {
                 .collect())
         })
         .collect::<Result<Vec<Vec<DVec3>>, String>>()?;
-    Ok(Cache {
-        times,
-        positions,
-        mesh,
-    })
+    Ok(Cache { times, positions })
 }
 
 /// Every PolyMesh under `object`, with its world matrices per sample (`parents`: the matrices

@@ -98,10 +98,10 @@ impl Space {
 
     fn note(self) -> Vec<String> {
         let units = match self.units {
-            u if u == 0.01 => {
+            0.01 => {
                 Some("cache is in centimetres against the rig's metres: scaled by 0.01".to_string())
             }
-            u if u == 100.0 => {
+            100.0 => {
                 Some("cache is in metres against the rig's centimetres: scaled by 100".to_string())
             }
             _ => None,

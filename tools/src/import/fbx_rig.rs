@@ -62,7 +62,7 @@ pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
         &mut notes,
     )?;
     Ok(Rig {
-        primitives: vec![0..rest.len()],
+        primitives: std::iter::once(0..rest.len()).collect(),
         triangles: triangles(mesh),
         weights: weights(skin, &skeleton.of_cluster),
         rest,
@@ -259,7 +259,7 @@ fn sample(
         ));
     };
     let fps = scene.settings.frames_per_second;
-    if !(fps > 0.0) {
+    if fps.is_nan() || fps <= 0.0 {
         return Err(bad(path, "the file has no frame rate"));
     }
     let (first, last) = (
