@@ -240,7 +240,7 @@ fn rig_source(
     model: &Model,
     buffer: &mut Buffer,
 ) -> Result<(Geometry, Vec<Clip>)> {
-    if (path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("fbx")) {
+    if crate::import::fbx_rig::is_fbx(path) {
         return Err(input(path, "--rig takes the glTF of the rig (its materials and UVs come from there; FBX rigs are read for training only): export the rig as glTF from the DCC (Blender: File > Export > glTF 2.0) and train from that glb, or export without --rig (docs/export.md)"));
     }
     let bytes = std::fs::read(path).map_err(|e| input(path, format!("cannot read: {e}")))?;

@@ -16,6 +16,7 @@ impl ExampleSet {
     /// driver. A bone is active when the rig's weights give it weight somewhere (or are not
     /// known) and it moves relative to its parent (a root: at all) across the training poses,
     /// or is an ancestor of such a bone (a still hip or root carries the moving bones below it).
+    /// Every bone where none is (nothing moves: nothing to leave out).
     pub fn active_bones(&self) -> Vec<bool> {
         let weighted = self.weighted_bones();
         let moving = self.moving_bones(&self.train());
@@ -34,6 +35,9 @@ impl ExampleSet {
                 up = self.parents[p];
             }
         }
+        if !active.contains(&true) {
+            active.fill(true);
+        }
         active
     }
 
@@ -41,16 +45,21 @@ impl ExampleSet {
     /// held-out poses move: the model gives them nothing, so what they do to the rig's mesh is
     /// not followed. None where there are none.
     pub fn inactive_bone_warning(&self) -> Option<String> {
-        let (train, test) = (self.train(), self.test());
-        let active = self.active_bones();
-        let weighted = self.weighted_bones();
+        // A bone still in training that moves in a held-out pose moves across the first
+        // training pose and the held-out ones.
+        let poses: Vec<usize> = self
+            .train()
+            .into_iter()
+            .take(1)
+            .chain(self.test())
+            .collect();
+        let (active, weighted, moving) = (
+            self.active_bones(),
+            self.weighted_bones(),
+            self.moving_bones(&poses),
+        );
         let moved: Vec<usize> = (0..self.bone_count())
-            .filter(|&b| !active[b])
-            .filter(|&b| {
-                let reference = self.local(train[0], b);
-                test.iter()
-                    .any(|&i| !same(self.local(i, b), reference, self.size()))
-            })
+            .filter(|&b| !active[b] && moving[b])
             .collect();
         if moved.is_empty() {
             return None;

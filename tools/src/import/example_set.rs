@@ -3,7 +3,7 @@
 //! the index of what is wrong; oddities that do not stop training (degenerate triangles,
 //! unreferenced vertices) are collected as warnings.
 
-use crate::import::preflight::check_rig_motion;
+use crate::import::preflight;
 use glam::{DMat3, DVec3};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -404,11 +404,8 @@ impl ExampleSet {
             warnings: Vec::new(),
         };
         set.warnings = set.mesh_warnings(&faces_path);
-        let bones = set.inactive_bone_warning();
-        set.warnings
-            .extend(bones.map(|w| format!("{}: {w}", transforms_path.display())));
         let fix = "pose_vertices.npy is not in the space, units, vertex order or poses of pose_transforms.npy and rest_vertices.npy (by the rig's weights in skin_weights.npy)";
-        check_rig_motion(&mut set, &weights_path, fix)?;
+        preflight::check(&mut set, &weights_path, fix, &transforms_path)?;
         Ok(set)
     }
 

@@ -31,6 +31,11 @@ fn mat4(m: &ufbx::Matrix) -> DMat4 {
     )
 }
 
+/// Whether `path` names an FBX file (by its extension).
+pub fn is_fbx(path: &Path) -> bool {
+    (path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("fbx"))
+}
+
 /// Loads the rig and the animation stack named `clip` (or `ARMATURE|clip`, as Blender names
 /// its stacks), sampled at every frame of the stack at the file's frame rate.
 pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {

@@ -13,7 +13,7 @@ use crate::import::example_set::{
 };
 use crate::import::gltf_rig::Rig;
 use crate::import::point_cache::PointCache;
-use crate::import::preflight::check_rig_motion;
+use crate::import::preflight;
 use crate::import::tangents::{rest_tangents, Source};
 use glam::DVec3;
 use std::collections::HashMap;
@@ -143,10 +143,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         warnings,
     };
     let fix = format!("the cache is not this rig's motion as {} exports it. Bake the cache from this rig and clip, in world space (PC2: 'Export into Worldspace'), in the glTF's Y-up or Blender's Z-up, in the rig's units, over the clip's frames", rig_path.display());
-    check_rig_motion(&mut set, &options.cache, &fix)?;
-    let bones = set.inactive_bone_warning();
-    set.warnings
-        .extend(bones.map(|w| format!("{}: {w}", rig_path.display())));
+    preflight::check(&mut set, &options.cache, &fix, rig_path)?;
     let notes = (rig
         .notes
         .iter()

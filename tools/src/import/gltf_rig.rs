@@ -116,8 +116,7 @@ impl Rig {
     /// for every skinned mesh), the skeleton, the rest mesh with its tangents, the clip's
     /// channels.
     pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
-        let fbx = (path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("fbx"));
-        if fbx {
+        if crate::import::fbx_rig::is_fbx(path) {
             return crate::import::fbx_rig::load(path, clip);
         }
         let (gltf, buffers) = read_file(path)?;

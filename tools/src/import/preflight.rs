@@ -28,10 +28,26 @@ pub const PAIRING_LIMIT: f64 = 0.3;
 /// random poses 7 or more, an animation in step 1.7, the same a frame late 0.57.
 pub const STEP_LIMIT: f64 = 0.75;
 
+/// What every loader checks last: that the set is its rig's motion ([`check_rig_motion`],
+/// naming `motion_file` and `fix`), then a warning naming `bones_file` where the held-out poses
+/// move bones training leaves out ([`ExampleSet::inactive_bone_warning`]).
+pub fn check(
+    set: &mut ExampleSet,
+    motion_file: &Path,
+    fix: &str,
+    bones_file: &Path,
+) -> Result<(), InputError> {
+    check_rig_motion(set, motion_file, fix)?;
+    let bones = set.inactive_bone_warning();
+    set.warnings
+        .extend(bones.map(|w| format!("{}: {w}", bones_file.display())));
+    Ok(())
+}
+
 /// Refuses a set whose vertices are not its rig's motion ([`RigFit::refusal`]), naming `file`
 /// and, after why, `fix`: what to export differently. Adds a warning where the poses are out of
 /// step ([`RigFit::warning`]).
-pub fn check_rig_motion(set: &mut ExampleSet, file: &Path, fix: &str) -> Result<(), InputError> {
+fn check_rig_motion(set: &mut ExampleSet, file: &Path, fix: &str) -> Result<(), InputError> {
     let Some(fit) = RigFit::of(set) else {
         return Ok(());
     };

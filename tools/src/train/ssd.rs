@@ -86,13 +86,10 @@ pub fn rigid_bones(errors: &[Vec<f64>]) -> Vec<usize> {
 }
 
 /// SSD weights with at most `k` influences per vertex, fitted on `poses`, over the active bones
-/// ([`ExampleSet::active_bones`]; all of them if none is).
+/// ([`ExampleSet::active_bones`]).
 pub fn fit(set: &ExampleSet, poses: &[usize], errors: &[Vec<f64>], k: usize) -> Skinning {
     let active = set.active_bones();
-    let bones: Vec<usize> = match active.contains(&true) {
-        true => (0..set.bone_count()).filter(|&b| active[b]).collect(),
-        false => (0..set.bone_count()).collect(),
-    };
+    let bones: Vec<usize> = (0..set.bone_count()).filter(|&b| active[b]).collect();
     let influences = (0..set.vertex_count())
         .into_par_iter()
         .map(|a| {
