@@ -30,7 +30,7 @@ fn module_doc(file: &str) -> Vec<String> {
 fn preamble() -> String {
     let contract = module_doc("src/lib.rs");
     let contract = contract.iter().skip_while(|l| *l != "## Contract");
-    let ffi = module_doc("src/ffi.rs");
+    let ffi = module_doc("src/ffi/mod.rs");
     let blank = String::new();
     let lines = ffi.iter().chain([&blank]).chain(contract);
     let mut out = String::from("/*\n");
