@@ -1,9 +1,9 @@
 /*
  * rrskin: the C ABI of the rrskin runtime (real-time enveloping with rotational regression).
- * `include/rrskin.h` is generated from `src/ffi.rs` by cbindgen: do not edit it
- * (`RRSKIN_BLESS=1 cargo test --test c_abi` regenerates it). Its preamble is the conventions
- * below followed by the crate's contract (`src/lib.rs`, "## Contract"); `tests/c_abi.rs` puts
- * them together.
+ * `include/rrskin.h` is generated from `src/ffi/` (this module and its files, one a concern) by
+ * cbindgen: do not edit it (`RRSKIN_BLESS=1 cargo test --test c_abi` regenerates it). Its
+ * preamble is the conventions below followed by the crate's contract (`src/lib.rs`,
+ * "## Contract"); `tests/c_abi.rs` puts them together.
  *
  * ## Conventions of every function
  *
@@ -44,7 +44,7 @@
  * ## Contract
  *
  * This section is the contract of the Rust crate and of the C ABI alike: the C header's
- * preamble is made from it (and from the C conventions atop `src/ffi.rs`) by
+ * preamble is made from it (and from the C conventions atop `src/ffi/mod.rs`) by
  * `tests/c_abi.rs`, and tests check its lists against the code. Where the C names differ they
  * are given beside the Rust ones.
  *

@@ -34,7 +34,7 @@
 //! ## Contract
 //!
 //! This section is the contract of the Rust crate and of the C ABI alike: the C header's
-//! preamble is made from it (and from the C conventions atop `src/ffi.rs`) by
+//! preamble is made from it (and from the C conventions atop `src/ffi/mod.rs`) by
 //! `tests/c_abi.rs`, and tests check its lists against the code. Where the C names differ they
 //! are given beside the Rust ones.
 //!

@@ -1,4 +1,4 @@
-//! The C ABI from C: the committed header is what cbindgen generates from src/ffi.rs, and the
+//! The C ABI from C: the committed header is what cbindgen generates from src/ffi/, and the
 //! C example (examples/c/crowd.c), compiled by the system C compiler against that header and
 //! the static library, runs on lavapipe with the validation layer on, checks positions against
 //! the Rust CPU evaluator, and checks the bad-input behaviour of the ABI.
@@ -25,7 +25,7 @@ fn module_doc(file: &str) -> Vec<String> {
         .collect()
 }
 
-/// The header's preamble: the C conventions atop src/ffi.rs, then the contract of src/lib.rs
+/// The header's preamble: the C conventions atop src/ffi/mod.rs, then the contract of src/lib.rs
 /// (its `## Contract` section), as one C comment with rustdoc's links and bold as plain text.
 fn preamble() -> String {
     let contract = module_doc("src/lib.rs");
@@ -60,7 +60,7 @@ fn generated_header() -> String {
         .with_crate(root())
         .with_config(config)
         .generate()
-        .expect("cbindgen parses src/ffi.rs")
+        .expect("cbindgen parses src/ffi/")
         .write(&mut out);
     String::from_utf8(out).expect("UTF-8 header")
 }

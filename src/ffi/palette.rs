@@ -4,7 +4,9 @@
 //! reader-writer lock held only to find the model, so threads run palettes of one model (or
 //! many) in parallel, and a model destroyed while a call runs lives until that call returns.
 
-use super::{guard, put, slice, utf8_path, Failure, RrskinStatus, Slots};
+use super::guard::{guard, put, slice, utf8_path, Failure};
+use super::handles::Slots;
+use super::types::RrskinStatus;
 use crate::model::Model;
 use crate::palette::Palette;
 use crate::predict::Affine;

@@ -112,8 +112,8 @@ fn the_contract_and_the_options_name_the_released_outputs() {
             include_str!("crowd.rs").to_string(),
         ),
         (
-            "ffi/mod.rs (RrskinCrowdOptions)",
-            include_str!("../ffi/mod.rs").to_string(),
+            "ffi/types.rs (RrskinCrowdOptions)",
+            include_str!("../ffi/types.rs").to_string(),
         ),
     ] {
         assert!(
