@@ -68,99 +68,7 @@ const CORR: [u8; 4] = *b"CORR";
 const PCOR: [u8; 4] = *b"PCOR";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
-    let (v, t, j, p) = (
-        m.rest_positions.len(),
-        m.triangles.len(),
-        m.bone_parents.len(),
-        m.predictors.len(),
-    );
-    let mut pred = Vec::with_capacity(p * PREDICTOR_WORDS * 4);
-    for k in &m.predictors {
-        push_u32s(&mut pred, &predictor_words(k));
-    }
-    let mut sections: Vec<([u8; 4], Vec<u8>)> = Vec::new();
-    let mut dims = Vec::new();
-    push_u32s(
-        &mut dims,
-        &[v as u32, t as u32, j as u32, p as u32, m.influences],
-    );
-    sections.push((DIMS, dims));
-    let mut rest = Vec::new();
-    push_f32s(&mut rest, m.rest_positions.as_flattened());
-    sections.push((REST, rest));
-    let mut tris = Vec::new();
-    push_u32s(&mut tris, m.triangles.as_flattened());
-    sections.push((TRIS, tris));
-    let mut parents = Vec::new();
-    m.bone_parents
-        .iter()
-        .for_each(|x| parents.extend_from_slice(&x.to_le_bytes()));
-    sections.push((PRNT, parents));
-    let mut skix = Vec::new();
-    push_u32s(&mut skix, &m.skin_indices);
-    sections.push((SKIX, skix));
-    let mut skiw = Vec::new();
-    push_f32s(&mut skiw, &m.skin_weights);
-    sections.push((SKIW, skiw));
-    sections.push((PRED, pred));
-    let mut c1 = Vec::new();
-    push_f32s(&mut c1, &m.c1);
-    sections.push((C1, c1));
-    let mut c2 = Vec::new();
-    push_f32s(&mut c2, &m.c2);
-    sections.push((C2, c2));
-    if !m.normal_groups.is_empty() {
-        let mut groups = Vec::new();
-        push_u32s(&mut groups, &m.normal_groups);
-        sections.push((NGRP, groups));
-    }
-    if !m.baseline_indices.is_empty() {
-        let (mut indices, mut weights) = (Vec::new(), Vec::new());
-        push_u32s(&mut indices, &m.baseline_indices);
-        push_f32s(&mut weights, &m.baseline_weights);
-        sections.push((SSDI, indices));
-        sections.push((SSDW, weights));
-    }
-    if !m.animation.is_empty() {
-        let mut animation = Vec::new();
-        push_f32s(&mut animation, m.animation.as_flattened());
-        sections.push((ANIM, animation));
-    }
-    if !m.rest_tangents.is_empty() {
-        let mut tangents = Vec::new();
-        push_f32s(&mut tangents, m.rest_tangents.as_flattened());
-        sections.push((TANG, tangents));
-    }
-    if let Some(c) = &m.correctives {
-        let mut corr = Vec::new();
-        let n = c.targets.len() / v.max(1);
-        push_u32s(&mut corr, &[n as u32, c.drivers.len() as u32]);
-        push_u32s(&mut corr, &c.drivers);
-        push_f32s(&mut corr, &c.map);
-        push_f32s(&mut corr, c.targets.as_flattened());
-        sections.push((CORR, corr));
-    }
-    if let Some(c) = &m.proxy_correctives {
-        let mut pcor = Vec::new();
-        let kernels = c.kernel_count(j);
-        push_u32s(
-            &mut pcor,
-            &[
-                c.proxies.len() as u32,
-                kernels as u32,
-                u32::from(c.linear),
-                c.drivers.len() as u32,
-            ],
-        );
-        push_u32s(&mut pcor, &c.proxies);
-        push_u32s(&mut pcor, &c.driver_offsets);
-        push_u32s(&mut pcor, &c.drivers);
-        push_f32s(&mut pcor, c.centres.as_flattened());
-        push_f32s(&mut pcor, &c.widths);
-        push_f32s(&mut pcor, &c.maps);
-        sections.push((PCOR, pcor));
-    }
-
+    let sections = sections(m);
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC);
     push_u32s(&mut out, &[FORMAT_VERSION, sections.len() as u32]);
@@ -184,6 +92,91 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
     out
 }
 
+/// The model's sections in file order, tag and payload: the required ones, then the optional
+/// ones it has.
+fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
+    let (v, t, j, p) = (
+        m.rest_positions.len(),
+        m.triangles.len(),
+        m.bone_parents.len(),
+        m.predictors.len(),
+    );
+    let mut pred = Vec::with_capacity(p * PREDICTOR_WORDS * 4);
+    for k in &m.predictors {
+        push_u32s(&mut pred, &predictor_words(k));
+    }
+    let mut parents = Vec::new();
+    m.bone_parents
+        .iter()
+        .for_each(|x| parents.extend_from_slice(&x.to_le_bytes()));
+    let dims = [v as u32, t as u32, j as u32, p as u32, m.influences];
+    let mut sections = vec![
+        (DIMS, u32_bytes(&dims)),
+        (REST, f32_bytes(m.rest_positions.as_flattened())),
+        (TRIS, u32_bytes(m.triangles.as_flattened())),
+        (PRNT, parents),
+        (SKIX, u32_bytes(&m.skin_indices)),
+        (SKIW, f32_bytes(&m.skin_weights)),
+        (PRED, pred),
+        (C1, f32_bytes(&m.c1)),
+        (C2, f32_bytes(&m.c2)),
+    ];
+    if !m.normal_groups.is_empty() {
+        sections.push((NGRP, u32_bytes(&m.normal_groups)));
+    }
+    if !m.baseline_indices.is_empty() {
+        sections.push((SSDI, u32_bytes(&m.baseline_indices)));
+        sections.push((SSDW, f32_bytes(&m.baseline_weights)));
+    }
+    if !m.animation.is_empty() {
+        sections.push((ANIM, f32_bytes(m.animation.as_flattened())));
+    }
+    if !m.rest_tangents.is_empty() {
+        sections.push((TANG, f32_bytes(m.rest_tangents.as_flattened())));
+    }
+    if let Some(c) = &m.correctives {
+        sections.push((CORR, correctives_bytes(c, v)));
+    }
+    if let Some(c) = &m.proxy_correctives {
+        sections.push((PCOR, proxy_correctives_bytes(c, j)));
+    }
+    sections
+}
+
+/// The CORR payload: N, D, the drivers, the map, the targets.
+fn correctives_bytes(c: &Correctives, v: usize) -> Vec<u8> {
+    let mut corr = Vec::new();
+    let n = c.targets.len() / v.max(1);
+    push_u32s(&mut corr, &[n as u32, c.drivers.len() as u32]);
+    push_u32s(&mut corr, &c.drivers);
+    push_f32s(&mut corr, &c.map);
+    push_f32s(&mut corr, c.targets.as_flattened());
+    corr
+}
+
+/// The PCOR payload: E, C, the linear flag, D, then the proxies, driver offsets, drivers,
+/// centres, widths and maps.
+fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
+    let mut pcor = Vec::new();
+    let kernels = c.kernel_count(j);
+    push_u32s(
+        &mut pcor,
+        &[
+            c.proxies.len() as u32,
+            kernels as u32,
+            u32::from(c.linear),
+            c.drivers.len() as u32,
+        ],
+    );
+    push_u32s(&mut pcor, &c.proxies);
+    push_u32s(&mut pcor, &c.driver_offsets);
+    push_u32s(&mut pcor, &c.drivers);
+    push_f32s(&mut pcor, c.centres.as_flattened());
+    push_f32s(&mut pcor, &c.widths);
+    push_f32s(&mut pcor, &c.maps);
+    pcor
+}
+
 /// A predictor as the 85 words of its PRED record; `glsl/predict.comp` reads the same layout.
 pub fn predictor_words(k: &KeyPredictor) -> [u32; PREDICTOR_WORDS] {
     let (b2, u2, w2) = match &k.second {
@@ -203,47 +196,7 @@ pub fn predictor_words(k: &KeyPredictor) -> [u32; PREDICTOR_WORDS] {
 }
 
 pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
-    need(bytes.len(), 0, HEADER_BYTES, "the header")?;
-    if bytes[..8] != MAGIC {
-        return Err(ModelProblem::BadMagic);
-    }
-    let version = le_u32(bytes, 8);
-    if !(1..=FORMAT_VERSION).contains(&version) {
-        return Err(ModelProblem::UnsupportedVersion {
-            found: version,
-            supported: FORMAT_VERSION,
-        });
-    }
-    let declared = le_u64(bytes, 16);
-    if declared != bytes.len() as u64 {
-        // A cut (or extended) file and a damaged length field look alike; the checksum,
-        // recomputed with the real length, tells them apart when only the field is damaged.
-        if only_the_length_is_damaged(bytes) {
-            return Err(ModelProblem::Dimension {
-                what: "the file length in the header",
-                value: declared,
-                reason: "corrupted (the checksum holds for the file's real length)",
-            });
-        }
-        if declared > bytes.len() as u64 {
-            return Err(ModelProblem::Truncated {
-                what: "the file (or its header's length field is corrupted)".into(),
-                expected: declared,
-                actual: bytes.len() as u64,
-            });
-        }
-        return Err(ModelProblem::TrailingBytes {
-            declared,
-            actual: bytes.len() as u64,
-        });
-    }
-    need(bytes.len(), HEADER_BYTES, CHECKSUM_BYTES, "the checksum")?;
-    let body = &bytes[..bytes.len() - CHECKSUM_BYTES];
-    let stored = le_u32(bytes, body.len());
-    let computed = crc32fast::hash(body);
-    if stored != computed {
-        return Err(ModelProblem::Checksum { stored, computed });
-    }
+    let body = checked_body(bytes)?;
     let table = SectionTable::read(body)?;
 
     let dims = table.section(body, DIMS, 20)?;
@@ -269,21 +222,7 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         ),
         false => (Vec::new(), Vec::new()),
     };
-    // Any length that is whole transforms; `validate` checks it against J.
-    let animation: Vec<[f32; 12]> = match table.entry(ANIM) {
-        Some(length) if length % 48 == 0 => f32s(table.section(body, ANIM, length)?)
-            .chunks_exact(12)
-            .map(array)
-            .collect(),
-        Some(length) => {
-            return Err(ModelProblem::SectionLength {
-                tag: "ANIM".into(),
-                expected: length / 48 * 48,
-                actual: length,
-            })
-        }
-        None => Vec::new(),
-    };
+    let animation = animation(&table, body)?;
 
     let rest_tangents = match table.has(TANG) {
         true => f32s(table.section(body, TANG, words(&[v, 4]))?)
@@ -303,24 +242,6 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         None => None,
     };
 
-    let predictors = pred
-        .chunks_exact(PREDICTOR_WORDS * 4)
-        .map(|r| {
-            let f = f32s(r);
-            let second_bone = le_u32(r, 4);
-            KeyPredictor {
-                bone: le_u32(r, 0),
-                u: f[2],
-                w: array(&f[4..13]),
-                second: (second_bone != NO_BONE).then(|| SecondBone {
-                    bone: second_bone,
-                    u: f[3],
-                    w: array(&f[13..22]),
-                }),
-                h: array(&f[22..85]),
-            }
-        })
-        .collect();
     Ok(ModelParts {
         rest_positions: f32s(rest).chunks_exact(3).map(array).collect(),
         triangles: u32s(tris).chunks_exact(3).map(array).collect(),
@@ -331,7 +252,10 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         influences: k as u32,
         skin_indices: u32s(skix),
         skin_weights: f32s(skiw),
-        predictors,
+        predictors: pred
+            .chunks_exact(PREDICTOR_WORDS * 4)
+            .map(predictor)
+            .collect(),
         c1: f32s(c1),
         c2: f32s(c2),
         normal_groups,
@@ -342,6 +266,92 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         correctives,
         proxy_correctives,
     })
+}
+
+/// The file less its checksum, once the magic, the version, the length field and the checksum
+/// hold.
+fn checked_body(bytes: &[u8]) -> Result<&[u8], ModelProblem> {
+    need(bytes.len(), 0, HEADER_BYTES, "the header")?;
+    if bytes[..8] != MAGIC {
+        return Err(ModelProblem::BadMagic);
+    }
+    let version = le_u32(bytes, 8);
+    if !(1..=FORMAT_VERSION).contains(&version) {
+        return Err(ModelProblem::UnsupportedVersion {
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    let declared = le_u64(bytes, 16);
+    if declared != bytes.len() as u64 {
+        return Err(length_problem(bytes, declared));
+    }
+    need(bytes.len(), HEADER_BYTES, CHECKSUM_BYTES, "the checksum")?;
+    let body = &bytes[..bytes.len() - CHECKSUM_BYTES];
+    let stored = le_u32(bytes, body.len());
+    let computed = crc32fast::hash(body);
+    if stored != computed {
+        return Err(ModelProblem::Checksum { stored, computed });
+    }
+    Ok(body)
+}
+
+/// What a file whose length is not the `declared` one has.
+fn length_problem(bytes: &[u8], declared: u64) -> ModelProblem {
+    // A cut (or extended) file and a damaged length field look alike; the checksum,
+    // recomputed with the real length, tells them apart when only the field is damaged.
+    if only_the_length_is_damaged(bytes) {
+        return ModelProblem::Dimension {
+            what: "the file length in the header",
+            value: declared,
+            reason: "corrupted (the checksum holds for the file's real length)",
+        };
+    }
+    if declared > bytes.len() as u64 {
+        return ModelProblem::Truncated {
+            what: "the file (or its header's length field is corrupted)".into(),
+            expected: declared,
+            actual: bytes.len() as u64,
+        };
+    }
+    ModelProblem::TrailingBytes {
+        declared,
+        actual: bytes.len() as u64,
+    }
+}
+
+/// The optional ANIM section: any length that is whole transforms (`validate` checks it
+/// against J).
+fn animation(table: &SectionTable, body: &[u8]) -> Result<Vec<[f32; 12]>, ModelProblem> {
+    match table.entry(ANIM) {
+        Some(length) if length % 48 == 0 => Ok(f32s(table.section(body, ANIM, length)?)
+            .chunks_exact(12)
+            .map(array)
+            .collect()),
+        Some(length) => Err(ModelProblem::SectionLength {
+            tag: "ANIM".into(),
+            expected: length / 48 * 48,
+            actual: length,
+        }),
+        None => Ok(Vec::new()),
+    }
+}
+
+/// A predictor from the 85 words of its PRED record (`predictor_words` in reverse).
+fn predictor(record: &[u8]) -> KeyPredictor {
+    let f = f32s(record);
+    let second_bone = le_u32(record, 4);
+    KeyPredictor {
+        bone: le_u32(record, 0),
+        u: f[2],
+        w: array(&f[4..13]),
+        second: (second_bone != NO_BONE).then(|| SecondBone {
+            bone: second_bone,
+            u: f[3],
+            w: array(&f[13..22]),
+        }),
+        h: array(&f[22..85]),
+    }
 }
 
 /// The PCOR section: E, C, the linear flag and D, then the lengths they give (checked before
@@ -564,6 +574,18 @@ fn f32s(b: &[u8]) -> Vec<f32> {
     b.chunks_exact(4)
         .map(|w| f32::from_le_bytes(array(w)))
         .collect()
+}
+
+fn u32_bytes(xs: &[u32]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(4 * xs.len());
+    push_u32s(&mut out, xs);
+    out
+}
+
+fn f32_bytes(xs: &[f32]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(4 * xs.len());
+    push_f32s(&mut out, xs);
+    out
 }
 
 fn push_u32s(out: &mut Vec<u8>, xs: &[u32]) {
