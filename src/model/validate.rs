@@ -18,6 +18,41 @@ pub const TANGENT_LENGTH_TOLERANCE: f32 = 1e-3;
 type Check = Result<(), ModelProblem>;
 
 pub fn check(m: &ModelParts) -> Check {
+    sizes(m)?;
+    let v = m.rest_positions.len();
+    let j = m.bone_parents.len();
+    let p = m.predictors.len();
+    let k = m.influences as usize;
+    finite("rest positions", m.rest_positions.iter().flatten())?;
+    finite("skin weights", m.skin_weights.iter())?;
+    finite("C1", m.c1.iter())?;
+    finite("C2", m.c2.iter())?;
+    indices(m, v, j, p)?;
+    weights(&m.skin_weights, k)?;
+    for (l, pred) in m.predictors.iter().enumerate() {
+        predictor(l, pred, j)?;
+    }
+    if !m.baseline_indices.is_empty() || !m.baseline_weights.is_empty() {
+        baseline(m, v, j, k)?;
+    }
+    animation(&m.animation, j)?;
+    if !m.normal_groups.is_empty() {
+        normal_groups(&m.normal_groups, v)?;
+    }
+    if !m.rest_tangents.is_empty() {
+        rest_tangents(&m.rest_tangents, v)?;
+    }
+    if let Some(c) = &m.correctives {
+        correctives(c, &m.bone_parents, v)?;
+    }
+    if let Some(c) = &m.proxy_correctives {
+        proxy_correctives(c, &m.bone_parents, p)?;
+    }
+    Ok(())
+}
+
+/// V, J, T, P and K in range, and the lengths they give the skin, C1 and C2.
+fn sizes(m: &ModelParts) -> Check {
     let v = m.rest_positions.len();
     let j = m.bone_parents.len();
     let p = m.predictors.len();
@@ -37,12 +72,12 @@ pub fn check(m: &ModelParts) -> Check {
     length("skin weights", v * k, m.skin_weights.len())?;
     length("C1", 4 * p * 3 * p, m.c1.len())?;
     length("C2", 4 * p * 4 * j, m.c2.len())?;
+    Ok(())
+}
 
-    finite("rest positions", m.rest_positions.iter().flatten())?;
-    finite("skin weights", m.skin_weights.iter())?;
-    finite("C1", m.c1.iter())?;
-    finite("C2", m.c2.iter())?;
-
+/// The bone parents (a forest), the triangles' vertices and the skin's palette indices in
+/// range.
+fn indices(m: &ModelParts, v: usize, j: usize, p: usize) -> Check {
     for (i, &parent) in m.bone_parents.iter().enumerate() {
         if parent < -1 || parent >= j as i32 {
             return Err(out_of_range("bone parents", i, parent as i64, j));
@@ -61,79 +96,78 @@ pub fn check(m: &ModelParts) -> Check {
             return Err(out_of_range("skin indices", i, idx as i64, p + j));
         }
     }
-    for (a, w) in m.skin_weights.chunks_exact(k).enumerate() {
+    Ok(())
+}
+
+/// Every vertex's `k` weights non-negative, summing to 1.
+fn weights(weights: &[f32], k: usize) -> Check {
+    for (a, w) in weights.chunks_exact(k).enumerate() {
         let sum: f32 = w.iter().sum();
         if w.iter().any(|&x| x < 0.0) || (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
             return Err(ModelProblem::BadWeights { vertex: a, sum });
         }
     }
-    for (l, pred) in m.predictors.iter().enumerate() {
-        predictor(l, pred, j)?;
+    Ok(())
+}
+
+/// The SSD baseline skin: V x K bones in range and weights.
+fn baseline(m: &ModelParts, v: usize, j: usize, k: usize) -> Check {
+    length("baseline indices", v * k, m.baseline_indices.len())?;
+    length("baseline weights", v * k, m.baseline_weights.len())?;
+    finite("baseline weights", m.baseline_weights.iter())?;
+    if let Some(i) = m.baseline_indices.iter().position(|&b| b as usize >= j) {
+        return Err(out_of_range(
+            "baseline indices",
+            i,
+            m.baseline_indices[i] as i64,
+            j,
+        ));
     }
-    if !m.baseline_indices.is_empty() || !m.baseline_weights.is_empty() {
-        length("baseline indices", v * k, m.baseline_indices.len())?;
-        length("baseline weights", v * k, m.baseline_weights.len())?;
-        finite("baseline weights", m.baseline_weights.iter())?;
-        if let Some(i) = m.baseline_indices.iter().position(|&b| b as usize >= j) {
-            return Err(out_of_range(
-                "baseline indices",
-                i,
-                m.baseline_indices[i] as i64,
-                j,
-            ));
-        }
-        for (a, w) in m.baseline_weights.chunks_exact(k).enumerate() {
-            let sum: f32 = w.iter().sum();
-            if w.iter().any(|&x| x < 0.0) || (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
-                return Err(ModelProblem::BadWeights { vertex: a, sum });
-            }
-        }
-    }
-    if m.animation.len() % j != 0 {
+    weights(&m.baseline_weights, k)
+}
+
+/// Whole frames of J transforms, finite, with proper rotations.
+fn animation(animation: &[[f32; 12]], j: usize) -> Check {
+    if animation.len() % j != 0 {
         return Err(ModelProblem::Length {
             what: "animation (frames x bones)",
-            expected: m.animation.len().div_ceil(j) * j,
-            actual: m.animation.len(),
+            expected: animation.len().div_ceil(j) * j,
+            actual: animation.len(),
         });
     }
-    finite("animation", m.animation.as_flattened().iter())?;
-    for (i, t) in m.animation.iter().enumerate() {
+    finite("animation", animation.as_flattened().iter())?;
+    for (i, t) in animation.iter().enumerate() {
         rotation(
             "animation rotation",
             i,
             &[t[0], t[1], t[2], t[4], t[5], t[6], t[8], t[9], t[10]],
         )?;
     }
-    if !m.normal_groups.is_empty() {
-        length("normal groups", v, m.normal_groups.len())?;
-        if let Some(i) = m.normal_groups.iter().position(|&g| g as usize >= v) {
-            return Err(out_of_range(
-                "normal groups",
-                i,
-                m.normal_groups[i] as i64,
-                v,
-            ));
+    Ok(())
+}
+
+/// V normal groups, each a vertex.
+fn normal_groups(groups: &[u32], v: usize) -> Check {
+    length("normal groups", v, groups.len())?;
+    if let Some(i) = groups.iter().position(|&g| g as usize >= v) {
+        return Err(out_of_range("normal groups", i, groups[i] as i64, v));
+    }
+    Ok(())
+}
+
+/// V rest tangents, finite, of unit xyz and handedness ±1.
+fn rest_tangents(tangents: &[[f32; 4]], v: usize) -> Check {
+    length("rest tangents", v, tangents.len())?;
+    finite("rest tangents", tangents.iter().flatten())?;
+    for (a, t) in tangents.iter().enumerate() {
+        let length = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+        if (length - 1.0).abs() > TANGENT_LENGTH_TOLERANCE || t[3].abs() != 1.0 {
+            return Err(ModelProblem::BadTangent {
+                vertex: a,
+                length,
+                handedness: t[3],
+            });
         }
-    }
-    if !m.rest_tangents.is_empty() {
-        length("rest tangents", v, m.rest_tangents.len())?;
-        finite("rest tangents", m.rest_tangents.iter().flatten())?;
-        for (a, t) in m.rest_tangents.iter().enumerate() {
-            let length = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-            if (length - 1.0).abs() > TANGENT_LENGTH_TOLERANCE || t[3].abs() != 1.0 {
-                return Err(ModelProblem::BadTangent {
-                    vertex: a,
-                    length,
-                    handedness: t[3],
-                });
-            }
-        }
-    }
-    if let Some(c) = &m.correctives {
-        correctives(c, &m.bone_parents, v)?;
-    }
-    if let Some(c) = &m.proxy_correctives {
-        proxy_correctives(c, &m.bone_parents, p)?;
     }
     Ok(())
 }
@@ -143,8 +177,23 @@ pub fn check(m: &ModelParts) -> Check {
 /// (C ≤ MAX_PROXY_KERNELS), J widths when C > 0 (> 0 for every driver), at least one feature
 /// per driver; the maps Σ 12 F_i; every number finite.
 fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
-    let j = parents.len();
-    let e = c.proxies.len();
+    corrected_proxies(&c.proxies, p)?;
+    driver_offsets(c)?;
+    proxy_drivers(c, parents)?;
+    let kernels = proxy_kernels(c, parents.len())?;
+    let features = 9 * usize::from(c.linear) + kernels;
+    length(
+        "proxy corrective maps (12 x features, summed over the proxies)",
+        12 * features * c.drivers.len(),
+        c.maps.len(),
+    )?;
+    finite("proxy corrective maps", c.maps.iter())?;
+    Ok(())
+}
+
+/// E in 1..=P proxies, ascending and distinct.
+fn corrected_proxies(proxies: &[u32], p: usize) -> Check {
+    let e = proxies.len();
     if e == 0 || e > p {
         return Err(ModelProblem::Dimension {
             what: "corrected proxy count (E)",
@@ -152,11 +201,11 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
             reason: "must be 1 to P (the model's proxies)",
         });
     }
-    for (i, &proxy) in c.proxies.iter().enumerate() {
+    for (i, &proxy) in proxies.iter().enumerate() {
         if proxy as usize >= p {
             return Err(out_of_range("proxy corrective proxies", i, proxy as i64, p));
         }
-        if i > 0 && proxy <= c.proxies[i - 1] {
+        if i > 0 && proxy <= proxies[i - 1] {
             return Err(ModelProblem::BadProxyCorrective {
                 what: "proxies",
                 index: i,
@@ -164,9 +213,14 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
             });
         }
     }
+    Ok(())
+}
+
+/// E + 1 CSR offsets from 0, non-decreasing, at most MAX_PROXY_DRIVERS apart.
+fn driver_offsets(c: &ProxyCorrectives) -> Check {
     length(
         "proxy corrective driver offsets (E + 1)",
-        e + 1,
+        c.proxies.len() + 1,
         c.driver_offsets.len(),
     )?;
     if c.driver_offsets[0] != 0 {
@@ -192,6 +246,12 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
             });
         }
     }
+    Ok(())
+}
+
+/// As many drivers as the last offset says; each proxy's bones with a parent, each once.
+fn proxy_drivers(c: &ProxyCorrectives, parents: &[i32]) -> Check {
+    let (e, j) = (c.proxies.len(), parents.len());
     length(
         "proxy corrective drivers (the last driver offset)",
         c.driver_offsets[e] as usize,
@@ -225,6 +285,12 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
             }
         }
     }
+    Ok(())
+}
+
+/// C, the kernels per joint: C x J finite centres (C ≤ MAX_PROXY_KERNELS), J finite widths
+/// when C > 0, > 0 for every driver; the linear features, kernels or both.
+fn proxy_kernels(c: &ProxyCorrectives, j: usize) -> Result<usize, ModelProblem> {
     if c.centres.len() % j != 0 {
         return Err(ModelProblem::Length {
             what: "proxy corrective kernel centres (C x J)",
@@ -266,14 +332,7 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
             });
         }
     }
-    let features = 9 * usize::from(c.linear) + kernels;
-    length(
-        "proxy corrective maps (12 x features, summed over the proxies)",
-        12 * features * c.drivers.len(),
-        c.maps.len(),
-    )?;
-    finite("proxy corrective maps", c.maps.iter())?;
-    Ok(())
+    Ok(kernels)
 }
 
 /// N = targets / V in 1..=MAX_CORRECTIVES, the map N x 9D, every number finite, the drivers
