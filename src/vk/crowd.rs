@@ -193,53 +193,13 @@ impl Crowd {
     ) -> Result<Crowd> {
         let m = &model.inner;
         let shared = m.context.shared.clone();
-        if characters == 0 {
-            return Err(Error::OutOfRange {
-                what: "crowd size",
-                index: 0,
-                count: 0,
-            });
-        }
-        let frames = options.frames_in_flight;
-        if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&frames) {
-            return Err(Error::OutOfRange {
-                what: "frames in flight (1 to 4)",
-                index: frames,
-                count: MAX_FRAMES_IN_FLIGHT + 1,
-            });
-        }
-        if let Some(family) = options.release_to_queue_family {
-            let count = shared.limits.queue_family_count;
-            let other = family != shared.queue_family_index
-                && (family < count || family == vk::QUEUE_FAMILY_EXTERNAL);
-            if !other {
-                return Err(Error::OutOfRange {
-                    what: "queue family to release outputs to (another of the device's)",
-                    index: family as usize,
-                    count: count as usize,
-                });
-            }
-        }
-        if options.tangents && !m.sizes.tangents {
-            return Err(Error::NotInModel {
-                what: "rest tangents (train from a glTF rig with TANGENT or TEXCOORD_0) for a crowd with tangents",
-            });
-        }
+        check_request(&shared, m, characters, &options)?;
         let dims = Dims {
             bounds: options.bounds,
             tangents: options.tangents,
             normals: options.normals,
             ..m.dims
         };
-        let bytes = crowd_bytes(&m.sizes, characters, &options)?;
-        let heap = shared.limits.device_local_bytes;
-        if bytes > heap {
-            return Err(Error::DeviceLimit {
-                what: "crowd bytes (vk::crowd_bytes) in the largest device-local heap",
-                needed: bytes,
-                limit: heap,
-            });
-        }
 
         let c = characters as u64;
         let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&dims, b));
@@ -260,17 +220,30 @@ impl Crowd {
         for slot in &mut crowd.buffers[CrowdBuffer::Bones as usize] {
             write_rest_pose(slot.mapped()?);
         }
+        crowd.make_chunks(&shared, m, &per_character, c, chunk_characters)?;
+        Ok(crowd)
+    }
 
-        let chunk_count = characters.div_ceil(chunk_characters as usize);
-        let variants = crowd.variant_count();
-        crowd.pool = create_pool(&shared.device, &dims, (chunk_count * variants) as u32)?;
-        crowd.chunks.reserve_exact(chunk_count);
+    /// The descriptor pool and the chunks of `c` characters, `chunk_characters` each (the
+    /// last one fewer), each with its descriptor sets per variant.
+    fn make_chunks(
+        &mut self,
+        shared: &Shared,
+        m: &Inner,
+        per_character: &[u64; CrowdBuffer::COUNT],
+        c: u64,
+        chunk_characters: u64,
+    ) -> Result<()> {
+        let chunk_count = (c as usize).div_ceil(chunk_characters as usize);
+        let variants = self.variant_count();
+        self.pool = create_pool(&shared.device, &self.dims, (chunk_count * variants) as u32)?;
+        self.chunks.reserve_exact(chunk_count);
         for first in (0..c).step_by(chunk_characters as usize) {
             let count = chunk_characters.min(c - first);
             let mut sets = Vec::with_capacity(variants);
             for variant in 0..variants {
                 let view = |b: CrowdBuffer| {
-                    let buffer = crowd.buffer(b, variant).ok_or(Error::Mismatch {
+                    let buffer = self.buffer(b, variant).ok_or(Error::Mismatch {
                         what: "a pass binds a buffer the crowd was made without",
                     })?;
                     Ok(match per_character[b as usize] {
@@ -278,14 +251,14 @@ impl Crowd {
                         per => buffer.descriptor(first * per, count * per),
                     })
                 };
-                sets.push(crowd.make_sets(&shared, m, &view)?);
+                sets.push(self.make_sets(shared, m, &view)?);
             }
-            crowd.chunks.push(Chunk {
+            self.chunks.push(Chunk {
                 characters: count as u32,
                 sets,
             });
         }
-        Ok(crowd)
+        Ok(())
     }
 
     /// One descriptor set per pass the crowd runs, over the views `view` gives.
@@ -672,6 +645,59 @@ impl Drop for Crowd {
                 .destroy_descriptor_pool(self.pool, None)
         };
     }
+}
+
+/// What `Crowd::with_options` refuses before it creates anything: no characters, frames in
+/// flight out of 1..4, a release to the context's own (or no) queue family, tangents of a model
+/// without rest tangents, a crowd beyond the largest device-local heap.
+fn check_request(
+    shared: &Shared,
+    m: &Inner,
+    characters: usize,
+    options: &CrowdOptions,
+) -> Result<()> {
+    if characters == 0 {
+        return Err(Error::OutOfRange {
+            what: "crowd size",
+            index: 0,
+            count: 0,
+        });
+    }
+    let frames = options.frames_in_flight;
+    if !(1..=MAX_FRAMES_IN_FLIGHT).contains(&frames) {
+        return Err(Error::OutOfRange {
+            what: "frames in flight (1 to 4)",
+            index: frames,
+            count: MAX_FRAMES_IN_FLIGHT + 1,
+        });
+    }
+    if let Some(family) = options.release_to_queue_family {
+        let count = shared.limits.queue_family_count;
+        let other = family != shared.queue_family_index
+            && (family < count || family == vk::QUEUE_FAMILY_EXTERNAL);
+        if !other {
+            return Err(Error::OutOfRange {
+                what: "queue family to release outputs to (another of the device's)",
+                index: family as usize,
+                count: count as usize,
+            });
+        }
+    }
+    if options.tangents && !m.sizes.tangents {
+        return Err(Error::NotInModel {
+            what: "rest tangents (train from a glTF rig with TANGENT or TEXCOORD_0) for a crowd with tangents",
+        });
+    }
+    let bytes = crowd_bytes(&m.sizes, characters, options)?;
+    let heap = shared.limits.device_local_bytes;
+    if bytes > heap {
+        return Err(Error::DeviceLimit {
+            what: "crowd bytes (vk::crowd_bytes) in the largest device-local heap",
+            needed: bytes,
+            limit: heap,
+        });
+    }
+    Ok(())
 }
 
 /// The characters per chunk: as many as fit the binding range, a multiple of the granularity
