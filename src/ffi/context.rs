@@ -45,12 +45,8 @@ pub unsafe extern "C" fn rrskin_context_create_headless(
             validation: validation != 0,
             ..Default::default()
         })?;
-        let batch = Mutex::new(Batch::new(&context)?);
-        let id = registry()
-            .contexts
-            .insert(Arc::new(ContextEntry { context, batch }));
         // SAFETY: `out` as the function's contract requires.
-        unsafe { put(out, RrskinContext { id }, "out") }
+        unsafe { add_context(context, out) }
     })
 }
 
@@ -107,13 +103,22 @@ pub unsafe extern "C" fn rrskin_context_create_from_engine(
         };
         // SAFETY: the caller guarantees the handles are valid and outlive the context.
         let context = unsafe { Context::from_engine(engine) }?;
-        let batch = Mutex::new(Batch::new(&context)?);
-        let id = registry()
-            .contexts
-            .insert(Arc::new(ContextEntry { context, batch }));
         // SAFETY: `out` as the function's contract requires.
-        unsafe { put(out, RrskinContext { id }, "out") }
+        unsafe { add_context(context, out) }
     })
+}
+
+/// Gives `context` its batch and hands out its handle.
+///
+/// # Safety
+/// `out` is NULL or valid for writing one `RrskinContext`.
+unsafe fn add_context(context: Context, out: *mut RrskinContext) -> Result<(), Failure> {
+    let batch = Mutex::new(Batch::new(&context)?);
+    let id = registry()
+        .contexts
+        .insert(Arc::new(ContextEntry { context, batch }));
+    // SAFETY: `out` as the function's contract requires.
+    unsafe { put(out, RrskinContext { id }, "out") }
 }
 
 /// Destroys a context handle. Its device is released once the last model and crowd made from it
