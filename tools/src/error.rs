@@ -1,6 +1,6 @@
 //! One error type for what the tools' library calls can fail with, and its `Result` alias.
 
-use crate::import::example_set::InputError;
+use crate::set::InputError;
 use crate::train::TrainError;
 use std::fmt;
 use std::path::PathBuf;

@@ -1,9 +1,11 @@
 //! rrskin's offline tools, grouped by phase:
 //!
-//! - [`import`]: example sets (pose, deformed mesh) from NumPy folders, glTF rigs and point
-//!   caches, validated;
+//! - [`set`]: the example set (pose, deformed mesh), validated once by `ExampleSet::new`;
+//! - [`skinning`]: skinning without learning (LBS, rigid, DQS, CoR, DDM) and the enveloping
+//!   error;
+//! - [`import`]: example sets from NumPy folders, glTF or FBX rigs and point caches;
 //! - [`train`]: the training pipeline of the paper, one module per stage, and [`train::run`];
-//! - [`eval`]: the enveloping error (§7.1), the baselines, the error budget, leave-one-out;
+//! - [`eval`]: every method's enveloping error (§7.1), the error budget, leave-one-out;
 //! - [`run`]: what runs a trained model on the Vulkan runtime: bench, profile, the demo;
 //! - [`export`]: a trained model as a standard skinned glTF, for any engine's own skinning;
 //! - [`output`]: outputs checked before long work, and paths shown as a user types them;
@@ -27,6 +29,8 @@ pub mod linalg;
 pub mod output;
 pub mod progress;
 pub mod run;
+pub mod set;
+pub mod skinning;
 pub mod train;
 
 pub use error::{Error, Result};

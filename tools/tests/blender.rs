@@ -5,7 +5,7 @@
 mod blender;
 
 use blender::{blender, blender_script, count, eval_json, figure, repo, temp_dir};
-use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::set::ExampleSet;
 
 fn exporter() -> std::path::PathBuf {
     repo().join("tools/blender/export_examples.py")

@@ -5,7 +5,7 @@
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_render::{grid_scene, Renderer};
 use rrskin_tools::eval;
-use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::set::ExampleSet;
 use rrskin_tools::train::TrainOptions;
 
 const SIDE: usize = 16;

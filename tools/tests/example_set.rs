@@ -3,7 +3,7 @@
 
 mod support;
 
-use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::set::ExampleSet;
 use std::path::Path;
 use support::{temp_dir, write_f32, write_i32};
 

@@ -14,9 +14,9 @@
 
 mod support;
 
-use rrskin_tools::import::example_set::ExampleSet;
 use rrskin_tools::import::gltf::{import, Options};
 use rrskin_tools::import::point_cache::PointCache;
+use rrskin_tools::set::ExampleSet;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::ops::Range;

@@ -6,14 +6,15 @@
 use glam::DVec3;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
-use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::set::{Bone, ExampleSet, Pose};
+use rrskin_tools::skinning::lbs::Skinning;
 use rrskin_tools::train::full_model::{self, FullModel, Prepared};
 use rrskin_tools::train::reduce::c1c2::Reduced;
 use rrskin_tools::train::reduce::vertex::{self, Stop};
 use rrskin_tools::train::reduce::{self, Reduction};
 use rrskin_tools::train::rotreg::PoseFeatures;
 use rrskin_tools::train::selection::{Blend, Choice, Selection};
-use rrskin_tools::train::ssd::{self, Skinning};
+use rrskin_tools::train::ssd;
 
 /// The pipeline's stages with the paper's choices (no blend, a fixed percentile and ridge).
 struct Trained {
@@ -29,7 +30,12 @@ const RIDGE: f64 = 1e-3;
 fn train(set: ExampleSet, percentile: f64) -> Trained {
     let prep = Prepared::new(&set, PoseFeatures::all(&set));
     let train = set.train();
-    let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
+    let ssd = ssd::fit(
+        &set,
+        &train,
+        &rrskin_tools::skinning::lbs::rigid_errors(&set, &train),
+        4,
+    );
     let selection = Selection {
         choice: Choice {
             percentile,
@@ -395,7 +401,12 @@ fn the_stretch_fit_recovers_a_known_stretch() {
     let feats = PoseFeatures::all(&set);
     let train = set.train();
     let test: Vec<usize> = (0..set.poses.len()).filter(|&i| set.is_test[i]).collect();
-    let ssd = ssd::fit(&set, &train, &ssd::rigid_errors(&set, &train), 4);
+    let ssd = ssd::fit(
+        &set,
+        &train,
+        &rrskin_tools::skinning::lbs::rigid_errors(&set, &train),
+        4,
+    );
     let rigid = reduce::joint_blend::fit(&set, &feats, &train, &ssd, 60, 4);
     let mut truth = rigid.clone();
     for (e, key) in truth.predictors.iter_mut().enumerate() {

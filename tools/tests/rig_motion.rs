@@ -8,7 +8,7 @@ mod blender;
 mod support;
 
 use blender::{eval_json, figure};
-use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::set::ExampleSet;
 use support::limb::{limb_animation, limb_set, limb_with_controls};
 use support::temp_dir;
 

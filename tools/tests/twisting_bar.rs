@@ -7,7 +7,7 @@ mod support;
 
 use glam::{DMat3, DVec3};
 use rrskin_tools::eval;
-use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::set::{Bone, ExampleSet, Pose};
 use rrskin_tools::train::TrainOptions;
 
 const RINGS: usize = 25;
@@ -170,14 +170,14 @@ fn centres_of_rotation_twist_without_the_candy_wrapper() {
         },
     ];
     let radius = |p: &DVec3| p.y.hypot(p.z);
-    let lbs = rrskin_tools::train::ssd::Skinning {
+    let lbs = rrskin_tools::skinning::lbs::Skinning {
         influences: weights.clone(),
     }
     .deform(&set.rest, &bones);
     let thinnest = lbs.iter().map(radius).fold(f64::INFINITY, f64::min);
     assert!(thinnest < 0.05, "LBS should collapse: radius {thinnest}");
-    let centres = eval::cor::centres(&set.rest, &set.faces, &weights);
-    let cor = eval::cor::deform(&set.rest, &weights, &centres, &bones);
+    let centres = rrskin_tools::skinning::cor::centres(&set.rest, &set.faces, &weights);
+    let cor = rrskin_tools::skinning::cor::deform(&set.rest, &weights, &centres, &bones);
     for (a, p) in cor.iter().enumerate() {
         assert!(
             (radius(p) - 0.2).abs() < 1e-9,

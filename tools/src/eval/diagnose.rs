@@ -15,7 +15,7 @@
 //! correction linear in the nearby joints' rotations, at any per-vertex cost. Where it stays
 //! above a goal held out, no such correction reaches the goal from these training poses.
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
 use crate::train::corrective::{self, Residuals};
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::Trained;

@@ -6,16 +6,16 @@
 //! `EE = sqrt(Σ_i Σ_a |y_a(q_i) − y_a^i|² / Σ_i Σ_a |r_a(q_i) − y_a^i|²)` in percent, r the best
 //! rigid predictor (one bone per vertex, chosen on the training poses).
 
-pub mod cor;
-pub mod ddm;
 pub mod diagnose;
-pub mod dqs;
 pub mod normals;
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
+use crate::skinning::error::{deform_all, enveloping_error, squared_error};
+use crate::skinning::lbs::Skinning;
+use crate::skinning::{cor, ddm, dqs};
 use crate::train::proxy_corrective;
-use crate::train::selection::{squared_error, Choice};
-use crate::train::ssd::{self, Skinning};
+use crate::train::selection::Choice;
+use crate::train::ssd;
 use crate::train::structure::{Chosen, Ridges, Structure, Why};
 use crate::train::{full_model, Method, TrainOptions, Trained};
 use crate::{Error, Result};
@@ -351,13 +351,6 @@ fn structure_line(c: &Chosen) -> String {
     line + ")\n"
 }
 
-fn deform_all(set: &ExampleSet, skin: &Skinning, poses: &[usize]) -> Vec<Vec<DVec3>> {
-    poses
-        .iter()
-        .map(|&i| skin.deform(&set.rest, &set.poses[i].bones))
-        .collect()
-}
-
 fn dqs_all(set: &ExampleSet, influences: &[Vec<(usize, f64)>], poses: &[usize]) -> Vec<Vec<DVec3>> {
     poses
         .iter()
@@ -425,17 +418,6 @@ impl Baselines {
             ddm_params,
         })
     }
-}
-
-/// EE in percent of `predicted` against the rigid predictor on the same poses.
-pub fn enveloping_error(
-    set: &ExampleSet,
-    poses: &[usize],
-    predicted: &[Vec<DVec3>],
-    rigid: &Skinning,
-) -> f64 {
-    let reference = squared_error(set, poses, &deform_all(set, rigid, poses));
-    100.0 * (squared_error(set, poses, predicted) / reference).sqrt()
 }
 
 #[derive(Default)]
@@ -613,7 +595,7 @@ fn leave_one_out(
     let progress = crate::progress::Progress::new("leave-one-out", train.len(), options.quiet);
     for &i in &train {
         let others: Vec<usize> = train.iter().copied().filter(|&t| t != i).collect();
-        let rigid_errors = ssd::rigid_errors(set, &others);
+        let rigid_errors = crate::skinning::lbs::rigid_errors(set, &others);
         let ssd = ssd::fit(set, &others, &rigid_errors, k);
         if let Some(f) = &trained.full {
             let full = full_model::fit(set, &f.prep, &others, &ssd, &f.selection)
@@ -624,7 +606,7 @@ fn leave_one_out(
         dqs_p.extend(dqs_all(set, &ssd.influences, &[i]));
         rigid_p.extend(deform_all(
             set,
-            &Skinning::rigid(&ssd::rigid_bones(&rigid_errors)),
+            &Skinning::rigid(&crate::skinning::lbs::rigid_bones(&rigid_errors)),
             &[i],
         ));
         progress.step();

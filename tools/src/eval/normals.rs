@@ -13,8 +13,8 @@
 //! A vertex whose normal (the rig's or the method's) vanishes has no direction and is left out.
 
 use super::dqs;
-use crate::import::example_set::ExampleSet;
-use crate::train::ssd::Skinning;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 use glam::DVec3;
 use rrskin::normals::{area_weighted_grouped, cofactor_times};
 use rrskin::NormalMode;

@@ -9,8 +9,8 @@
 //! quarter, half and three quarters of the interval. A model's pose-space correctives are
 //! baked the same way, as morph-target weights that a viewer lerps between samples.
 
-use crate::import::example_set::Bone;
 use crate::linalg::{polar, svd3};
+use crate::set::Bone;
 use glam::{DMat3, DQuat, DVec3};
 use rrskin::palette::Palette;
 use rrskin::predict::{rotation_of, Affine};

@@ -18,9 +18,9 @@
 pub mod bake;
 pub mod glb;
 
-use crate::import::example_set::{Bone, InputError};
 use crate::import::gltf_rig::{load_buffers, Rig};
 use crate::linalg::procrustes;
+use crate::set::{Bone, InputError};
 use crate::{Error, Result};
 use bake::{bake, Baked, NodePair};
 use glam::{DMat3, DQuat, DVec3};

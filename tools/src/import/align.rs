@@ -17,10 +17,11 @@
 //! scored by how far the skinned mesh's points are from the nearest cache point (a one-sided
 //! Chamfer distance on a subsample), and the best must be at most [`MARGIN`] of the next best.
 
-use crate::import::example_set::{Bone, InputError};
 use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::{Format, PointCache};
-use crate::import::vertex_map::{self, diagonal, tree};
+use crate::import::vertex_map::{self, tree};
+use crate::set::diagonal;
+use crate::set::{Bone, InputError};
 use glam::{DMat3, DMat4, DVec3};
 use kdtree::distance::squared_euclidean;
 use rayon::prelude::*;

@@ -10,8 +10,8 @@
 //! skin cluster (the `_end` leaf bones Blender's FBX exporter adds by default, IK controls)
 //! deform nothing and are left out, each kind with a note.
 
-use crate::import::example_set::{Bone, InputError};
 use crate::import::gltf_rig::{Motion, Rig};
+use crate::set::{Bone, InputError};
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use std::path::Path;
 

@@ -8,13 +8,11 @@
 //! (TANGENT, or MikkTSpace from TEXCOORD_0: `import::tangents`).
 
 use crate::import::align::align;
-use crate::import::example_set::{
-    rotation_error, ExampleSet, InputError, Pose, ROTATION_TOLERANCE,
-};
 use crate::import::gltf_rig::Rig;
 use crate::import::point_cache::PointCache;
 use crate::import::preflight;
 use crate::import::tangents::{rest_tangents, Source};
+use crate::set::{ExampleSet, InputError, Pose, SetFiles, SetParts};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -74,44 +72,20 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         .map(|t| t.map(|g| weld[g]))
         .filter(|[a, b, c]| a != b && b != c && a != c)
         .collect();
-    let mut poses = Vec::with_capacity(aligned.positions.len());
-    for (s, ((positions, bones), &time)) in aligned
+    let poses: Vec<Pose> = aligned
         .positions
         .iter()
         .zip(aligned.bones)
-        .zip(&aligned.times)
-        .enumerate()
-    {
-        if let Some((b, e)) = bones
-            .iter()
-            .enumerate()
-            .map(|(b, x)| (b, rotation_error(x.q)))
-            .find(|(_, e)| *e > ROTATION_TOLERANCE)
-        {
-            return Err(InputError {
-                file: rig_path.to_path_buf(),
-                message: format!("sample {s} (t = {time:.4} s): joint {} is not rigid (error {e:.2e}); scaled joints are not supported", rig.names[b]),
-            });
-        }
-        poses.push(Pose {
+        .map(|(positions, bones)| Pose {
             bones,
             vertices: representative.iter().map(|&g| positions[g]).collect(),
-        });
-    }
-    let bad = |message: String| InputError {
-        file: options.cache.clone(),
-        message,
-    };
+        })
+        .collect();
     let is_test: Vec<bool> = aligned
         .frames
         .iter()
         .map(|&f| options.test_frames.is_some_and(|r| in_range(f, r)))
         .collect();
-    if is_test.iter().all(|&t| t) {
-        return Err(bad(
-            "every cache sample is a test frame: nothing to train on".into(),
-        ));
-    }
     let groups = normal_groups(&weld);
     let tangents = rest_tangents(
         &rig.rest,
@@ -120,14 +94,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         rig.uvs.as_deref(),
         rig.tangents.as_deref(),
     );
-    let warnings = match tangents {
-        Some(_) => Vec::new(),
-        None => vec![format!(
-            "{}: no per-vertex UVs or tangents (glTF: TANGENT or TEXCOORD_0 on every primitive, or MikkTSpace failed; FBX: UVs are not read): the model has no tangents",
-            rig_path.display()
-        )],
-    };
-    let mut set = ExampleSet {
+    let parts = SetParts {
         rest: representative.iter().map(|&g| rig.rest[g]).collect(),
         faces,
         parents: rig.parents.clone(),
@@ -140,8 +107,26 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
                 .map(|&g| rig.weights[g].clone())
                 .collect(),
         ),
-        warnings,
     };
+    let files = SetFiles {
+        split: options.cache.clone(),
+        pose_labels: Some(
+            aligned
+                .times
+                .iter()
+                .enumerate()
+                .map(|(s, t)| format!("sample {s} (t = {t:.4} s)"))
+                .collect(),
+        ),
+        ..SetFiles::one(rig_path)
+    };
+    let mut set = ExampleSet::new(parts, &files)?;
+    if tangents.is_none() {
+        set.warnings.push(format!(
+            "{}: no per-vertex UVs or tangents (glTF: TANGENT or TEXCOORD_0 on every primitive, or MikkTSpace failed; FBX: UVs are not read): the model has no tangents",
+            rig_path.display()
+        ));
+    }
     let fix = format!("the cache is not this rig's motion as {} exports it. Bake the cache from this rig and clip, in world space (PC2: 'Export into Worldspace'), in the glTF's Y-up or Blender's Z-up, in the rig's units, over the clip's frames", rig_path.display());
     preflight::check(&mut set, &options.cache, &fix, rig_path)?;
     let notes = (rig
@@ -336,7 +321,7 @@ fn per_target(targets: &[[f32; 3]], v: usize, from: &[usize]) -> Vec<[f32; 3]> {
 /// Groups vertices with equal rest positions and trajectories; returns each vertex's group, the
 /// groups numbered in order of first appearance.
 pub fn weld(rest: &[DVec3], trajectories: &[Vec<DVec3>]) -> Vec<usize> {
-    let scale = crate::import::vertex_map::diagonal(rest);
+    let scale = crate::set::diagonal(rest);
     let cell = WELD_REST * scale * 4.0;
     let key = |p: DVec3| ((p / cell).round().as_i64vec3()).to_array();
     let mut buckets: HashMap<[i64; 3], Vec<usize>> = HashMap::new();

@@ -6,7 +6,7 @@
 //! clip's morph weight channels are not played: the cache carries their effect. An FBX rig
 //! loads into the same [`Rig`] through `fbx_rig`.
 
-use crate::import::example_set::{Bone, InputError};
+use crate::set::{Bone, InputError};
 use glam::{DMat4, DQuat, DVec3, DVec4};
 use gltf::animation::{Interpolation, Property};
 use std::path::Path;

@@ -12,7 +12,7 @@
 //! number is that whole frame (MDD's f32 seconds put Blender's frame 59 at 58.99999809), so a
 //! `--test-frames` bound never moves a sample to the other side.
 
-use crate::import::example_set::InputError;
+use crate::set::InputError;
 use glam::DVec3;
 use std::path::Path;
 

@@ -10,9 +10,9 @@
 //! right. Every distance is an RMS over the training poses and the vertices, in mesh units (over
 //! the rest mesh's bounding-box diagonal).
 
-use crate::import::example_set::{ExampleSet, InputError};
-use crate::import::vertex_map::diagonal;
-use crate::train::ssd::Skinning;
+use crate::set::diagonal;
+use crate::set::{ExampleSet, InputError};
+use crate::skinning::lbs::Skinning;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::path::Path;

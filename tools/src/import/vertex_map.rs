@@ -21,6 +21,7 @@
 //! refused: a wrong mapping would train on garbage.
 
 use crate::import::gltf::weld;
+use crate::set::diagonal;
 use glam::DVec3;
 use kdtree::distance::squared_euclidean;
 use kdtree::KdTree;
@@ -524,15 +525,6 @@ fn refined(problem: &Problem, groups: &Groups, matched: &Matched) -> Vec<Vec<DVe
                 .collect()
         })
         .collect()
-}
-
-/// The length of the bounding box's diagonal (at least 1e-12).
-pub fn diagonal(points: &[DVec3]) -> f64 {
-    let (lo, hi) = points.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
-    (hi - lo).length().max(1e-12)
 }
 
 /// A kd-tree of `points`, each carrying its index.

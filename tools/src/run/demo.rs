@@ -8,9 +8,9 @@
 //! error table, the curve and the images.
 
 use crate::eval::{self, Report};
-use crate::import::example_set::ExampleSet;
 use crate::run::figure::Image;
 use crate::run::image::write_png;
+use crate::set::ExampleSet;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin::Model;
 use rrskin_render::{grid_scene, phased_poses, Camera, HostMesh, Renderer, CROWD_BACKGROUND};

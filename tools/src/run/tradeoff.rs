@@ -3,7 +3,7 @@
 //! curve beside the baselines a user would pick instead.
 
 use crate::eval::{self, Report};
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
 use crate::train::TrainOptions;
 use plotters::prelude::*;
 use std::path::Path;

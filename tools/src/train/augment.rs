@@ -7,11 +7,11 @@
 //! bone transforms by forward kinematics about each joint's pivot c_b, the rest-space point
 //! that parent and child move alike (`T_b c_b = T_p c_b`, least squares over the poses).
 
-use crate::import::example_set::{Bone, ExampleSet, Pose};
+use crate::set::{Bone, ExampleSet, Pose};
+use crate::skinning::lbs::Skinning;
 use crate::train::full_model::{FullModel, Prepared};
 use crate::train::pivots::pivots;
 use crate::train::rotreg::PoseFeatures;
-use crate::train::ssd::Skinning;
 use glam::DVec3;
 use rrskin::model::parents_first;
 use rrskin::predict::{exp_rotation, log_rotation};

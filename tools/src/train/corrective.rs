@@ -25,11 +25,11 @@
 //! regularised first: the residuals left on the training poses are smaller than those on new
 //! poses, so a weak ridge fits noise that looks like signal.
 
-use crate::import::example_set::ExampleSet;
 use crate::linalg::DenseCholesky;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 use crate::train::pose_scale;
 use crate::train::rotreg::PoseFeatures;
-use crate::train::ssd::Skinning;
 use faer::{Mat, Side};
 use glam::{DMat3, DVec3};
 use std::collections::HashMap;

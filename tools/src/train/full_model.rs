@@ -2,14 +2,14 @@
 //! (§3.2) and a scale/shear predictor (§3.3); meshes by Poisson reconstruction with the
 //! near-rigid vertices F fixed to SSD (§4.2). The quality reference for the reduced model.
 
-use crate::import::example_set::ExampleSet;
 use crate::linalg::polar;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 use crate::train::gradients::{gradients, rest_inverses};
 use crate::train::poisson::{anchor_components, Poisson, PoissonError};
 use crate::train::rotreg::{self, PoseFeatures, RotationPredictor};
 use crate::train::scale_shear::{self, ScaleShear};
 use crate::train::selection::Selection;
-use crate::train::ssd::Skinning;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -59,7 +59,7 @@ pub fn fit(
     let rotations = fit_rotations(set, prep, poses, &nearby_bones(set, ssd));
     let ridge = selection.choice.ridge;
     let stretches = fit_stretches(set, prep, poses, &rotations, ridge);
-    let ssd_error = crate::train::ssd::per_vertex_error(set, poses, ssd);
+    let ssd_error = crate::skinning::lbs::per_vertex_error(set, poses, ssd);
     let fixed = near_rigid(set, &ssd_error, selection.choice.percentile);
     FullModel::new(
         set,

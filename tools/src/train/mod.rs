@@ -37,13 +37,13 @@ pub mod selection;
 pub mod ssd;
 pub mod structure;
 
-use crate::import::example_set::ExampleSet;
 use crate::progress::Progress;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use rotreg::PoseFeatures;
 use selection::Selection;
-use ssd::Skinning;
 use std::fmt;
 use std::time::Instant;
 
@@ -248,8 +248,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     };
 
     progress.stage("SSD");
-    let rigid_errors = ssd::rigid_errors(set, &train);
-    let rigid = Skinning::rigid(&ssd::rigid_bones(&rigid_errors));
+    let rigid_errors = crate::skinning::lbs::rigid_errors(set, &train);
+    let rigid = Skinning::rigid(&crate::skinning::lbs::rigid_bones(&rigid_errors));
     let ssd = ssd::fit(set, &train, &rigid_errors, k);
     clock.lap("ssd");
     progress.step();

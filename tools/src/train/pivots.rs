@@ -3,7 +3,7 @@
 //! centres in the example layout; the poses determine them (up to the joint's axis where a
 //! joint only ever turns about one).
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
 use glam::{DMat3, DVec3};
 
 /// Each bone's pivot: argmin_c Σ_i |(Q_b − Q_p) c − (d_p − d_b)|² (roots: the origin).

@@ -8,8 +8,8 @@
 //! vanishes, any error would otherwise carry everything. (Weighting the joint-blend fits
 //! themselves the same way changed nothing measurable: docs/experiments.md.)
 
-use crate::import::example_set::ExampleSet;
-use crate::train::ssd::Skinning;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 
 /// The floor of a pose's rigid error, relative to the mean over the poses.
 pub const FLOOR: f64 = 0.1;
@@ -75,7 +75,7 @@ pub fn first_within(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::import::example_set::{Bone, Pose};
+    use crate::set::{Bone, Pose};
     use glam::{DMat3, DVec3};
 
     /// One vertex on one bone that stays put: its pose errors are its displacements squared.

@@ -24,13 +24,13 @@
 //!    pose-relative vertex error of §18 ([`pose_scale`]), in the order unanchored first, the
 //!    simpler basis and the stronger ridge first.
 
-use crate::import::example_set::{Bone, ExampleSet};
 use crate::linalg::DenseCholesky;
+use crate::set::{Bone, ExampleSet};
+use crate::skinning::lbs::Skinning;
 use crate::train::corrective;
 use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
-use crate::train::ssd::Skinning;
 use crate::train::TrainOptions;
 use glam::{DMat3, DVec3};
 

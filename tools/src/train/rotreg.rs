@@ -2,8 +2,8 @@
 //! predicted from one bone's joint rotation θ~_b as `R(q) = Q_p(q) · exp(u W θ~_b(q))`, with
 //! p = parent(b), W ∈ SO(3), u ∈ R, optionally times `exp(u₂ W₂ θ~_b₂(q))` for a second bone.
 
-use crate::import::example_set::ExampleSet;
 use crate::linalg::{procrustes, rotation_angle};
+use crate::set::ExampleSet;
 use glam::{DMat3, DVec3};
 use rrskin::predict::{exp_rotation, log_rotation};
 use std::f64::consts::PI;

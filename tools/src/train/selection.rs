@@ -6,10 +6,12 @@
 //! - the scale/shear ridge (§3.3);
 //! - per triangle, how much of the regression's gradient to trust against SSD's ([`Blend`]).
 
-use crate::import::example_set::ExampleSet;
 use crate::progress::Progress;
+use crate::set::ExampleSet;
+use crate::skinning::error::squared_error;
+use crate::skinning::lbs::Skinning;
 use crate::train::full_model::{self, FullModel, Prepared};
-use crate::train::ssd::{self, Skinning};
+use crate::train::ssd;
 use crate::train::TrainError;
 use glam::DVec3;
 
@@ -47,9 +49,9 @@ struct FoldFit {
 }
 
 fn fit_fold(set: &ExampleSet, prep: &Prepared, train: &[usize], k: usize) -> FoldFit {
-    let errors = ssd::rigid_errors(set, train);
+    let errors = crate::skinning::lbs::rigid_errors(set, train);
     let ssd = ssd::fit(set, train, &errors, k);
-    let ssd_error = ssd::per_vertex_error(set, train, &ssd);
+    let ssd_error = crate::skinning::lbs::per_vertex_error(set, train, &ssd);
     let nearby = full_model::nearby_bones(set, &ssd);
     let rotations = full_model::fit_rotations(set, prep, train, &nearby);
     FoldFit {
@@ -219,18 +221,4 @@ pub fn choose(
         choice,
         alpha: scores.alpha(r, choice.blend),
     })
-}
-
-/// Σ squared distance between predicted and true meshes of `poses`.
-pub fn squared_error(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]) -> f64 {
-    poses
-        .iter()
-        .zip(predicted)
-        .map(|(&i, y)| {
-            y.iter()
-                .zip(&set.poses[i].vertices)
-                .map(|(a, b)| (*a - *b).length_squared())
-                .sum::<f64>()
-        })
-        .sum()
 }

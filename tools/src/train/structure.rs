@@ -16,15 +16,16 @@
 //!   [`TOLERANCE`] of its EE, is kept. A more flexible structure has to win clearly on the
 //!   training poses, not by what a different held-out fold or the gentler animation undoes.
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
+use crate::skinning::error::squared_error;
+use crate::skinning::lbs::Skinning;
 use crate::train::full_model::{self, Prepared};
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::refit::{self, Refit};
 use crate::train::reduce::stretch::{self, Stretch};
 use crate::train::reduce::{self, joint_blend, vertex::Stop, Reduction};
 use crate::train::rotreg::PoseFeatures;
-use crate::train::selection::squared_error;
-use crate::train::ssd::{self, Skinning};
+use crate::train::ssd;
 use crate::train::{augment, pose_scale, Method, TrainOptions};
 
 /// One runtime model structure. `method` is never [`Method::Auto`].
@@ -177,16 +178,6 @@ pub fn build(
     }
 }
 
-/// `set` with the poses of `held` marked held out, so that everything trained on it sees the
-/// other training poses only.
-fn without(set: &ExampleSet, held: &[usize]) -> ExampleSet {
-    let mut inner = set.clone();
-    for &i in held {
-        inner.is_test[i] = true;
-    }
-    inner
-}
-
 /// Cross-validates `candidates` over the training poses of `set` and keeps one by the
 /// one-standard-error rule (module docs). `rigid`: the rigid predictor whose per-pose error
 /// normalises each held-out pose; `ridges`: the joint-blend fits' ridges, chosen once on all
@@ -220,12 +211,12 @@ pub fn choose(
     for fold in 0..folds {
         let held: Vec<usize> = (0..train.len()).filter(|n| n % folds == fold).collect();
         let held_poses: Vec<usize> = held.iter().map(|&n| train[n]).collect();
-        let inner_set = without(set, &held_poses);
+        let inner_set = set.holding_out(&held_poses);
         let inner = inner_set.train();
         let ssd = ssd::fit(
             &inner_set,
             &inner,
-            &ssd::rigid_errors(&inner_set, &inner),
+            &crate::skinning::lbs::rigid_errors(&inner_set, &inner),
             options.influences,
         );
         for (c, structure) in candidates.iter().enumerate() {

@@ -5,7 +5,7 @@
 //! LBS error is about the rigid one; the examples are still this rig's motion, and train.
 
 use glam::{DMat3, DVec3};
-use rrskin_tools::import::example_set::{Bone, ExampleSet, Pose};
+use rrskin_tools::set::{Bone, ExampleSet, Pose};
 
 const RINGS: usize = 7;
 const SEGMENTS: usize = 6;
@@ -99,7 +99,7 @@ fn limb_of(angles: &[Angles], train: usize, rich: bool) -> ExampleSet {
         .map(|&angles| {
             let bones = bones_of(angles);
             let bends = angles.map(|(bend, _)| bend);
-            let posed = rrskin_tools::eval::dqs::deform(&rest, &influences, &bones);
+            let posed = rrskin_tools::skinning::dqs::deform(&rest, &influences, &bones);
             if !rich {
                 return Pose {
                     bones,

@@ -15,12 +15,12 @@
 //! proxy toward its best-matching bone, which keeps proxies touching only fixed vertices
 //! determined while staying linear in q.
 
-use crate::import::example_set::{Bone, ExampleSet, Pose};
 use crate::linalg::DenseCholesky;
+use crate::set::{Bone, ExampleSet, Pose};
+use crate::skinning::lbs::Skinning;
 use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::PoseFeatures;
-use crate::train::ssd::Skinning;
 use faer::prelude::*;
 use faer::{Mat, Side};
 use glam::{DMat3, DVec3, DVec4};

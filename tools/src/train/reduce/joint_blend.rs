@@ -14,13 +14,14 @@
 //! Everything is geometry but the weights, so the model extrapolates as the rig's joints do:
 //! a regression fitted on wide range-of-motion poses cannot bend it on gentle ones.
 
-use crate::import::example_set::{Bone, ExampleSet};
+use crate::set::{Bone, ExampleSet};
+use crate::skinning::lbs::Skinning;
 use crate::train::pivots::pivots;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::predictor::TrainedPredictor;
 use crate::train::rotreg::{BoneTerm, PoseFeatures, RotationPredictor};
 use crate::train::scale_shear;
-use crate::train::ssd::{self, Skinning};
+use crate::train::ssd;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use rrskin::predict::exp_rotation;
@@ -303,8 +304,11 @@ mod tests {
             let turned = log_rotation(parent.q.transpose() * t.q);
             assert!((turned - feats.theta[1] * w).length() < 1e-12, "w = {w}");
             if w == 0.5 {
-                let dqs =
-                    crate::eval::dqs::deform(&[x], &[vec![(0, 0.5), (1, 0.5)]], &[parent, child]);
+                let dqs = crate::skinning::dqs::deform(
+                    &[x],
+                    &[vec![(0, 0.5), (1, 0.5)]],
+                    &[parent, child],
+                );
                 assert!(
                     (t.apply(x) - dqs[0]).length() < 1e-12,
                     "{:?} vs {:?}",

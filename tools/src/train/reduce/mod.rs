@@ -8,9 +8,9 @@ pub mod refit;
 pub mod stretch;
 pub mod vertex;
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 use crate::train::full_model::{self, FullModel, Prepared};
-use crate::train::ssd::Skinning;
 use c1c2::Reduced;
 use vertex::Stop;
 

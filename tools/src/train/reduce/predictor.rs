@@ -8,8 +8,8 @@
 //! predictors are trained on the polar factors of the whole D_ℓ. With one key per triangle the
 //! keys are then exactly the triangles' gradients.
 
-use crate::import::example_set::ExampleSet;
 use crate::linalg::{cholesky_solve, polar, DenseCholesky};
+use crate::set::ExampleSet;
 use crate::train::full_model::Prepared;
 use crate::train::gradients::frame;
 use crate::train::reduce::vertex::Proxies;

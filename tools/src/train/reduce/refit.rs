@@ -23,7 +23,7 @@
 //! wide training poses (human_heavy spine vertices: 5x SSD's held-out error). λ is chosen by
 //! k-fold cross-validation over the training poses.
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use rayon::prelude::*;

@@ -23,13 +23,13 @@
 //! held-out pose by its error relative to the rigid predictor's; the most regularised within
 //! one standard error of the best, None, the rigid keys, first).
 
-use crate::import::example_set::ExampleSet;
 use crate::linalg::DenseCholesky;
+use crate::set::ExampleSet;
+use crate::skinning::lbs::Skinning;
 use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::scale_shear;
-use crate::train::ssd::{self, Skinning};
 use glam::{DMat3, DVec3, DVec4};
 use rayon::prelude::*;
 
@@ -257,7 +257,9 @@ pub fn fit(
         };
     }
     let problem = Problem::new(set, feats, train, reduced);
-    let rigid = Skinning::rigid(&ssd::rigid_bones(&ssd::rigid_errors(set, train)));
+    let rigid = Skinning::rigid(&crate::skinning::lbs::rigid_bones(
+        &crate::skinning::lbs::rigid_errors(set, train),
+    ));
     let normaliser = pose_scale::rigid_pose_errors(set, train, &rigid);
     let all: Vec<usize> = (0..train.len()).collect();
     let cases: Vec<(usize, usize)> = (0..folds)

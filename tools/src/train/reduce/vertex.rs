@@ -12,7 +12,7 @@
 //!
 //! Index letters: b, g proxies (groups), i poses (in `train` order), a vertices, k triangles.
 
-use crate::import::example_set::ExampleSet;
+use crate::set::ExampleSet;
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use std::cmp::Ordering;

@@ -17,7 +17,7 @@
 //! only, instead of every triangle.
 
 use super::dqs::{blended, DualQuat};
-use crate::import::example_set::Bone;
+use crate::set::Bone;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;

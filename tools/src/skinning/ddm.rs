@@ -20,8 +20,8 @@
 //! positive definite (one sparse Cholesky factor). libigl factors the non-symmetric
 //! `I + λ D⁻¹L` with an LDLᵀ that reads one triangle only; this follows the formulas instead.
 
-use crate::import::example_set::Bone;
 use crate::linalg::procrustes;
+use crate::set::Bone;
 use crate::{Error, Result};
 use faer::prelude::*;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -375,7 +375,7 @@ mod tests {
     /// Rest positions, triangles and (bone, weight) lists.
     type Mesh = (Vec<DVec3>, Vec<[usize; 3]>, Vec<Vec<(usize, f64)>>);
     use crate::cylinder_chain::Chain;
-    use crate::train::ssd::Skinning;
+    use crate::skinning::lbs::Skinning;
     use glam::DQuat;
 
     /// The synthetic chain's tube of `rings` x 6 vertices along x ∈ [0, 1], made bumpy (radii

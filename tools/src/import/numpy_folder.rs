@@ -1,96 +1,15 @@
-//! Example sets: N pairs (skeleton pose q_i, deformed mesh y_i) from a black-box rig, read from
-//! the NumPy folder layout of data/README.md and validated. Errors name the file and
+//! Example sets read from the NumPy folder layout of data/README.md (and written back to it),
+//! validated by [`ExampleSet::new`] and [`preflight::check`]. Errors name the file and
 //! the index of what is wrong; oddities that do not stop training (degenerate triangles,
 //! unreferenced vertices) are collected as warnings.
 
 use crate::import::preflight;
+use crate::set::{Bone, ExampleSet, InputError, Pose, SetFiles, SetParts};
 use glam::{DMat3, DVec3};
-use std::fmt;
-use std::path::{Path, PathBuf};
-
-/// Tolerance on the rotation part of a pose transform: |QᵀQ − I|∞ and |det Q − 1|.
-pub const ROTATION_TOLERANCE: f64 = 1e-3;
-
-/// A bone transform relative to the rest pose: x ↦ q x + d.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Bone {
-    pub q: DMat3,
-    pub d: DVec3,
-}
-
-impl Bone {
-    pub fn apply(&self, x: DVec3) -> DVec3 {
-        self.q * x + self.d
-    }
-
-    /// Row c of the 3x4 transform `[Q | d]`: what C2 multiplies (docs/method.md §8, `q_c`).
-    pub fn row(&self, c: usize) -> [f64; 4] {
-        [
-            self.q.x_axis[c],
-            self.q.y_axis[c],
-            self.q.z_axis[c],
-            self.d[c],
-        ]
-    }
-
-    /// The 3x4 row-major form the runtime takes.
-    pub fn to_affine(&self) -> rrskin::predict::Affine {
-        let (q, d) = (self.q, self.d);
-        [
-            q.x_axis.x, q.y_axis.x, q.z_axis.x, d.x, q.x_axis.y, q.y_axis.y, q.z_axis.y, d.y,
-            q.x_axis.z, q.y_axis.z, q.z_axis.z, d.z,
-        ]
-        .map(|x| x as f32)
-    }
-}
-
-/// One example: bone transforms (J) and the rig's vertex positions (V).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Pose {
-    pub bones: Vec<Bone>,
-    pub vertices: Vec<DVec3>,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct ExampleSet {
-    /// V rest positions ŷ.
-    pub rest: Vec<DVec3>,
-    /// T triangles.
-    pub faces: Vec<[usize; 3]>,
-    /// J parents (None for roots); every chain ends at a root.
-    pub parents: Vec<Option<usize>>,
-    /// N examples.
-    pub poses: Vec<Pose>,
-    /// N flags: true for a held-out test pose (split.npy = 1).
-    pub is_test: Vec<bool>,
-    pub bone_names: Option<Vec<String>>,
-    /// The rig's own skinning weights, if the set carries them (`skin_weights.npy`, the skin of
-    /// a glTF rig): per vertex (bone, weight) with weight > 0, summing to one. A baseline (what
-    /// an engine skins with today), never an input of training.
-    pub rig_weights: Option<Vec<Vec<(usize, f64)>>>,
-    pub warnings: Vec<String>,
-}
-
-/// A bad input file: which file, and what is wrong with it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct InputError {
-    pub file: PathBuf,
-    pub message: String,
-}
-
-impl fmt::Display for InputError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.file.display(), self.message)
-    }
-}
-
-impl std::error::Error for InputError {}
+use std::path::Path;
 
 fn bad(file: &Path, message: impl Into<String>) -> InputError {
-    InputError {
-        file: file.to_path_buf(),
-        message: message.into(),
-    }
+    InputError::new(file, message)
 }
 
 /// An NPY array read as f64 (from f4/f8) or i64 (from i4/i8), C order.
@@ -208,9 +127,6 @@ fn read_parents(path: &Path) -> Result<Vec<Option<usize>>, InputError> {
         .iter()
         .map(|&p| usize::try_from(p).ok())
         .collect();
-    if let Some(b) = cycle(&parents) {
-        return Err(bad(path, format!("the parents of bone {b} form a cycle")));
-    }
     Ok(parents)
 }
 
@@ -267,9 +183,6 @@ fn read_split(path: &Path, n: usize) -> Result<Vec<bool>, InputError> {
     } else {
         vec![false; n]
     };
-    if is_test.iter().all(|&t| t) {
-        return Err(bad(path, "every pose is a test pose: nothing to train on"));
-    }
     Ok(is_test)
 }
 
@@ -287,15 +200,8 @@ fn read_bone_names(path: &Path, j: usize) -> Result<Option<Vec<String>>, InputEr
     Ok(Some(names))
 }
 
-/// The poses of the arrays of [`read_pose_arrays`], each bone's 3x3 part checked to be a
-/// rotation.
-fn poses(
-    transforms_path: &Path,
-    transforms: &Array<f64>,
-    vertices: &Array<f64>,
-    j: usize,
-    v: usize,
-) -> Result<Vec<Pose>, InputError> {
+/// The poses of the arrays of [`read_pose_arrays`].
+fn poses(transforms: &Array<f64>, vertices: &Array<f64>, j: usize, v: usize) -> Vec<Pose> {
     let n = transforms.shape[0] as usize;
     let mut poses = Vec::with_capacity(n);
     for i in 0..n {
@@ -307,15 +213,6 @@ fn poses(
                 DVec3::new(t[1], t[5], t[9]),
                 DVec3::new(t[2], t[6], t[10]),
             );
-            let error = rotation_error(q);
-            if error > ROTATION_TOLERANCE {
-                return Err(bad(
-                    transforms_path,
-                    format!(
-                        "pose {i}, bone {b}: the 3x3 part is not a rotation (error {error:.2e} > {ROTATION_TOLERANCE:e}); transforms must be rigid"
-                    ),
-                ));
-            }
             bones.push(Bone {
                 q,
                 d: DVec3::new(t[3], t[7], t[11]),
@@ -330,7 +227,7 @@ fn poses(
                 .collect(),
         });
     }
-    Ok(poses)
+    poses
 }
 
 fn read_ints(path: &Path) -> Result<Array<i64>, InputError> {
@@ -392,8 +289,8 @@ impl ExampleSet {
             true => Some(read_rig_weights(&weights_path, v, j)?),
             false => None,
         };
-        let poses = poses(&transforms_path, &transforms, &vertices, j, v)?;
-        let mut set = ExampleSet {
+        let poses = poses(&transforms, &vertices, j, v);
+        let parts = SetParts {
             rest,
             faces,
             parents,
@@ -401,53 +298,19 @@ impl ExampleSet {
             is_test,
             bone_names,
             rig_weights,
-            warnings: Vec::new(),
         };
-        set.warnings = set.mesh_warnings(&faces_path);
+        let files = SetFiles {
+            mesh: faces_path,
+            skeleton: f("bone_parents.npy"),
+            transforms: transforms_path.clone(),
+            split: f("split.npy"),
+            weights: weights_path.clone(),
+            pose_labels: None,
+        };
+        let mut set = ExampleSet::new(parts, &files)?;
         let fix = "pose_vertices.npy is not in the space, units, vertex order or poses of pose_transforms.npy and rest_vertices.npy (by the rig's weights in skin_weights.npy)";
         preflight::check(&mut set, &weights_path, fix, &transforms_path)?;
         Ok(set)
-    }
-
-    /// Degenerate triangles and unreferenced vertices (training continues: degenerate triangles
-    /// get an identity gradient, unreferenced vertices follow SSD).
-    fn mesh_warnings(&self, faces_path: &Path) -> Vec<String> {
-        let mut warnings = Vec::new();
-        let scale = self
-            .rest
-            .iter()
-            .fold(0.0f64, |m, p| m.max(p.length()))
-            .max(1e-12);
-        let degenerate: Vec<usize> = self
-            .faces
-            .iter()
-            .enumerate()
-            .filter(|(_, [a, b, c])| {
-                let (a, b, c) = (self.rest[*a], self.rest[*b], self.rest[*c]);
-                (b - a).cross(c - a).length() <= 1e-12 * scale * scale
-            })
-            .map(|(k, _)| k)
-            .collect();
-        if !degenerate.is_empty() {
-            warnings.push(format!(
-                "{}: {} degenerate (zero-area) triangles, first {:?}",
-                faces_path.display(),
-                degenerate.len(),
-                &degenerate[..degenerate.len().min(5)]
-            ));
-        }
-        let mut used = vec![false; self.rest.len()];
-        self.faces.iter().flatten().for_each(|&a| used[a] = true);
-        let unused: Vec<usize> = (0..used.len()).filter(|&a| !used[a]).collect();
-        if !unused.is_empty() {
-            warnings.push(format!(
-                "{}: {} vertices belong to no triangle, first {:?}",
-                faces_path.display(),
-                unused.len(),
-                &unused[..unused.len().min(5)]
-            ));
-        }
-        warnings
     }
 
     /// Writes the set in the NumPy folder layout (the inverse of [`ExampleSet::load`]).
@@ -523,48 +386,7 @@ impl ExampleSet {
         }
         Ok(())
     }
-
-    pub fn vertex_count(&self) -> usize {
-        self.rest.len()
-    }
-
-    pub fn bone_count(&self) -> usize {
-        self.parents.len()
-    }
-
-    /// Per bone, its children, ascending.
-    pub fn children(&self) -> Vec<Vec<usize>> {
-        let mut children = vec![Vec::new(); self.bone_count()];
-        for (b, p) in self.parents.iter().enumerate() {
-            if let Some(p) = p {
-                children[*p].push(b);
-            }
-        }
-        children
-    }
-
-    /// Indices of the training poses (split 0).
-    pub fn train(&self) -> Vec<usize> {
-        (0..self.poses.len())
-            .filter(|&i| !self.is_test[i])
-            .collect()
-    }
-
-    /// Indices of the held-out test poses (split 1).
-    pub fn test(&self) -> Vec<usize> {
-        (0..self.poses.len()).filter(|&i| self.is_test[i]).collect()
-    }
 }
-
-/// |QᵀQ − I|∞ and |det Q − 1|, whichever is larger.
-pub fn rotation_error(q: DMat3) -> f64 {
-    let g = q.transpose() * q - DMat3::IDENTITY;
-    let worst = g.to_cols_array().iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    worst.max((q.determinant() - 1.0).abs())
-}
-
-/// Tolerance on a row sum of `skin_weights.npy`.
-pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
 
 /// `skin_weights.npy`: (V, J), every weight finite and ≥ 0, every row summing to one.
 fn read_rig_weights(path: &Path, v: usize, j: usize) -> Result<Vec<Vec<(usize, f64)>>, InputError> {
@@ -586,7 +408,7 @@ fn read_rig_weights(path: &Path, v: usize, j: usize) -> Result<Vec<Vec<(usize, f
                 ));
             }
             let sum: f64 = row.iter().sum();
-            if (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
+            if (sum - 1.0).abs() > crate::set::WEIGHT_SUM_TOLERANCE {
                 return Err(bad(
                     path,
                     format!("vertex {a}: weights sum to {sum}, not 1"),
@@ -600,17 +422,4 @@ fn read_rig_weights(path: &Path, v: usize, j: usize) -> Result<Vec<Vec<(usize, f
                 .collect())
         })
         .collect()
-}
-
-fn cycle(parents: &[Option<usize>]) -> Option<usize> {
-    (0..parents.len()).find(|&start| {
-        let mut b = start;
-        for _ in 0..=parents.len() {
-            match parents[b] {
-                Some(p) => b = p,
-                None => return false,
-            }
-        }
-        true
-    })
 }

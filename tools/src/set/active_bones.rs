@@ -5,8 +5,8 @@
 //! and the model explodes. A bone the rig's own skin gives no weight deforms nothing, whatever
 //! it does. Neither gets a weight, a predictor term or a corrective driver.
 
-use crate::import::example_set::{Bone, ExampleSet};
-use crate::import::vertex_map::diagonal;
+use crate::set::diagonal;
+use crate::set::{Bone, ExampleSet};
 
 /// Rotation elements and translations (over the mesh size) that differ by less are the same.
 const SAME: f64 = 1e-6;

@@ -3,7 +3,7 @@
 //! skinning weights (each flipped into the hemisphere of the heaviest bone's), normalised, and
 //! applied as one rigid motion.
 
-use crate::import::example_set::Bone;
+use crate::set::Bone;
 use glam::{DQuat, DVec3};
 
 /// A rigid transform as a unit dual quaternion: real part r (rotation), dual part ½ (0, t) r.

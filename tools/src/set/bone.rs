@@ -1,0 +1,47 @@
+//! A bone's pose: the rigid transform of the rest pose it makes, and the check that a transform
+//! is rigid.
+
+use glam::{DMat3, DVec3};
+
+/// Tolerance on the rotation part of a pose transform: |QᵀQ − I|∞ and |det Q − 1|.
+pub const ROTATION_TOLERANCE: f64 = 1e-3;
+
+/// A bone transform relative to the rest pose: x ↦ q x + d.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bone {
+    pub q: DMat3,
+    pub d: DVec3,
+}
+
+impl Bone {
+    pub fn apply(&self, x: DVec3) -> DVec3 {
+        self.q * x + self.d
+    }
+
+    /// Row c of the 3x4 transform `[Q | d]`: what C2 multiplies (docs/method.md §8, `q_c`).
+    pub fn row(&self, c: usize) -> [f64; 4] {
+        [
+            self.q.x_axis[c],
+            self.q.y_axis[c],
+            self.q.z_axis[c],
+            self.d[c],
+        ]
+    }
+
+    /// The 3x4 row-major form the runtime takes.
+    pub fn to_affine(&self) -> rrskin::predict::Affine {
+        let (q, d) = (self.q, self.d);
+        [
+            q.x_axis.x, q.y_axis.x, q.z_axis.x, d.x, q.x_axis.y, q.y_axis.y, q.z_axis.y, d.y,
+            q.x_axis.z, q.y_axis.z, q.z_axis.z, d.z,
+        ]
+        .map(|x| x as f32)
+    }
+}
+
+/// |QᵀQ − I|∞ and |det Q − 1|, whichever is larger.
+pub fn rotation_error(q: DMat3) -> f64 {
+    let g = q.transpose() * q - DMat3::IDENTITY;
+    let worst = g.to_cols_array().iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    worst.max((q.determinant() - 1.0).abs())
+}
