@@ -15,6 +15,8 @@ const LAYERS: &[&[&str]] = &[
     &["import", "train"],
     &["eval"],
     &["export", "run"],
+    // The binary's commands (main.rs): they name the library as `rrskin_tools`.
+    &["cli"],
 ];
 
 fn layer(module: &str) -> Option<usize> {

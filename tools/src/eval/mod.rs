@@ -64,10 +64,11 @@ pub struct Report {
     /// Dual quaternion skinning with SSD's weights.
     pub dqs: Errors,
     /// Skinning with optimized centres of rotation ([`cor`]) and direct delta mush ([`ddm`],
-    /// with `ddm_params`, chosen on the training poses), both with SSD's weights.
-    pub cor: Errors,
-    pub ddm: Errors,
-    pub ddm_params: ddm::Params,
+    /// with `ddm_params`, chosen on the training poses), both with SSD's weights (None with
+    /// [`Options::skip_baselines`]).
+    pub cor: Option<Errors>,
+    pub ddm: Option<Errors>,
+    pub ddm_params: Option<ddm::Params>,
     /// Linear blend, dual quaternion and centres-of-rotation skinning with the rig's own
     /// weights, when the set has them.
     pub rig_lbs: Option<Errors>,
@@ -127,11 +128,10 @@ impl Report {
             "vertices": self.vertices, "triangles": self.triangles, "bones": self.bones,
             "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": self.reduced_proxies,
             "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "dqs": errors(&self.dqs),
-            "cor": errors(&self.cor), "ddm": errors(&self.ddm),
-            "ddm_params": {
-                "iterations": self.ddm_params.iterations, "lambda": self.ddm_params.lambda,
-                "kappa": self.ddm_params.kappa, "alpha": self.ddm_params.alpha,
-            },
+            "cor": self.cor.as_ref().map(errors), "ddm": self.ddm.as_ref().map(errors),
+            "ddm_params": self.ddm_params.map(|d| serde_json::json!({
+                "iterations": d.iterations, "lambda": d.lambda, "kappa": d.kappa, "alpha": d.alpha,
+            })),
             "rig_lbs": self.rig_lbs.as_ref().map(errors), "rig_dqs": self.rig_dqs.as_ref().map(errors),
             "rig_cor": self.rig_cor.as_ref().map(errors),
             "rr_full": self.rr_full.as_ref().map(errors),
@@ -199,11 +199,15 @@ impl Report {
         row(&mut s, "rigid", &self.rigid);
         row(&mut s, "SSD (LBS, fitted weights)", &self.ssd);
         row(&mut s, "DQS (SSD's weights)", &self.dqs);
-        row(&mut s, "CoR (SSD's weights)", &self.cor);
-        row(&mut s, "DDM (SSD's weights)", &self.ddm);
-        if let (Some(lbs), Some(dqs), Some(cor)) = (&self.rig_lbs, &self.rig_dqs, &self.rig_cor) {
+        if let (Some(cor), Some(ddm)) = (&self.cor, &self.ddm) {
+            row(&mut s, "CoR (SSD's weights)", cor);
+            row(&mut s, "DDM (SSD's weights)", ddm);
+        }
+        if let (Some(lbs), Some(dqs)) = (&self.rig_lbs, &self.rig_dqs) {
             row(&mut s, "LBS (the rig's weights)", lbs);
             row(&mut s, "DQS (the rig's weights)", dqs);
+        }
+        if let Some(cor) = &self.rig_cor {
             row(&mut s, "CoR (the rig's weights)", cor);
         }
         if let Some(e) = &self.rr_full {
@@ -275,11 +279,12 @@ impl Report {
                 _ => format!("proxy correctives: none ({chosen})\n"),
             };
         }
-        let d = &self.ddm_params;
-        s += &format!(
-            "direct delta mush: p = {}, λ = {}, κ = {}, α = {} (p and α chosen on the training poses)\n",
-            d.iterations, d.lambda, d.kappa, d.alpha
-        );
+        if let Some(d) = &self.ddm_params {
+            s += &format!(
+                "direct delta mush: p = {}, λ = {}, κ = {}, α = {} (p and α chosen on the training poses)\n",
+                d.iterations, d.lambda, d.kappa, d.alpha
+            );
+        }
         s += "stages:";
         for (stage, t) in &self.stages {
             s += &format!(" {stage} {t:.2} s;");
@@ -429,8 +434,12 @@ pub struct Options {
     pub loocv: bool,
     /// Also report the error budget.
     pub diagnose: bool,
+    /// Leave out the baselines that need a precomputation (CoR and DDM with SSD's weights, CoR
+    /// with the rig's): `rrskin train`, which reports only what it trained.
+    pub skip_baselines: bool,
 }
 
+/// Trains on `set`'s training poses ([`crate::train::run`]) and scores every method.
 pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     if let Some((path, m)) = &options.model {
         if m.vertex_count() != set.vertex_count() || m.bone_count() != set.bone_count() {
@@ -446,113 +455,104 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         train_options.proxies = 0;
     }
     let trained = crate::train::run(set, &train_options)?;
-    let (train, test) = (set.train(), set.test());
     let mut stages = trained.seconds.clone();
-    let baselines = Baselines::precompute(set, &trained, &mut stages)?;
-    let start = std::time::Instant::now();
-    let rigid = &trained.rigid;
-    let errors = |predict: &dyn Fn(&[usize]) -> Vec<Vec<DVec3>>| Errors {
-        train: enveloping_error(set, &train, &predict(&train), rigid),
-        test: (!test.is_empty()).then(|| enveloping_error(set, &test, &predict(&test), rigid)),
+    let baselines = match options.skip_baselines {
+        true => None,
+        false => Some(Baselines::precompute(set, &trained, &mut stages)?),
     };
-    let mut rigid_e = errors(&|p| deform_all(set, rigid, p));
-    let mut ssd_e = errors(&|p| deform_all(set, &trained.ssd, p));
-    let mut dqs_e = errors(&|p| dqs_all(set, &trained.ssd.influences, p));
-    let rig_skin = set.rig_weights.as_ref().map(|w| Skinning {
-        influences: w.clone(),
-    });
-    let rig_lbs = rig_skin
-        .as_ref()
-        .map(|s| errors(&|p| deform_all(set, s, p)));
-    let rig_dqs = rig_skin
-        .as_ref()
-        .map(|s| errors(&|p| dqs_all(set, &s.influences, p)));
-    let ssd_weights = &trained.ssd.influences;
-    let mut cor_e = errors(&|p| cor_all(set, ssd_weights, &baselines.cor, p));
-    let mut ddm_e = errors(&|p| ddm_all(set, &baselines.ddm, p));
-    let rig_cor = rig_skin
-        .as_ref()
-        .zip(baselines.rig_cor.as_ref())
-        .map(|(s, c)| errors(&|p| cor_all(set, &s.influences, c, p)));
-    let full = trained.full.as_ref();
-    let mut rr_e = full.map(|f| errors(&|p| f.model.predict(set, &f.prep, &trained.ssd, p)));
+    let start = std::time::Instant::now();
+    let scorer = Scorer::new(set, &trained.rigid);
     let runtime = options
         .model
         .as_ref()
         .map(|m| &m.1)
         .or(trained.model.as_ref());
-    let mut rr_reduced = runtime
-        .map(|m| runtime_errors(set, m, &train, &test, rigid))
-        .transpose()?;
-    let budget = match (&trained.reduced, full, runtime, options.diagnose) {
-        (Some(reduced), Some(f), Some(model), true) => {
-            let exact = |p: &[usize]| {
-                f.model.reconstruct(set, &trained.ssd, p, |i, k| {
-                    let (r, s) = f.prep.polar[i][k];
-                    r * s
-                })
-            };
-            let folds = options.train.folds;
-            let [fitted, held] =
-                diagnose::pose_space_meshes(set, &trained, model, &train, &test, folds)?;
-            Some(Budget {
-                full_exact: errors(&exact),
-                reduced_oracle: errors(&|p| diagnose::oracle_meshes(set, reduced, p)),
-                reduced_oracle_keys: errors(&|p| diagnose::oracle_key_meshes(set, reduced, p)),
-                pose_space: Errors {
-                    train: enveloping_error(set, &train, &fitted, rigid),
-                    test: (!test.is_empty()).then(|| enveloping_error(set, &test, &held, rigid)),
-                },
-            })
-        }
-        _ => None,
+    let mut report = score(set, &trained, &scorer, baselines.as_ref(), runtime)?;
+    report.budget = match options.diagnose {
+        true => budget(set, &trained, &scorer, runtime, options.train.folds)?,
+        false => None,
     };
-    let normal_error = normals::held_out(set, &trained.ssd, runtime, &test)?;
+    report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
     stages.push(("evaluation", start.elapsed().as_secs_f64()));
     if options.loocv {
         let start = std::time::Instant::now();
         let loo = leave_one_out(set, &trained, &options.train)?;
-        rigid_e.test = Some(100.0);
-        ssd_e.test = Some(loo.ssd);
-        dqs_e.test = Some(loo.dqs);
-        if let Some(e) = rr_e.as_mut() {
-            e.test = loo.rr_full;
-        }
-        // Leave-one-out retrains SSD and the full model only: the reduced row and the
-        // baselines precomputed from SSD's weights have no such figure.
-        if let Some(e) = rr_reduced.as_mut() {
-            e.test = None;
-        }
-        cor_e.test = None;
-        ddm_e.test = None;
+        report.use_leave_one_out(&loo);
         stages.push(("leave-one-out", start.elapsed().as_secs_f64()));
     }
-    // The rig's weights are fitted on no pose: left out, a pose errs as it does in training.
-    let fitted_nothing = |e: Errors| Errors {
-        test: if options.loocv { Some(e.train) } else { e.test },
-        ..e
-    };
+    report.stages = stages;
+    report.folds = options.train.folds.min(scorer.train.len());
+    Ok(report)
+}
+
+/// EE on the training and test poses of `set`, against its rigid predictor.
+struct Scorer<'a> {
+    set: &'a ExampleSet,
+    rigid: &'a Skinning,
+    train: Vec<usize>,
+    test: Vec<usize>,
+}
+
+impl<'a> Scorer<'a> {
+    fn new(set: &'a ExampleSet, rigid: &'a Skinning) -> Scorer<'a> {
+        Scorer {
+            set,
+            rigid,
+            train: set.train(),
+            test: set.test(),
+        }
+    }
+
+    fn errors(&self, predict: &dyn Fn(&[usize]) -> Vec<Vec<DVec3>>) -> Errors {
+        let (set, rigid) = (self.set, self.rigid);
+        Errors {
+            train: enveloping_error(set, &self.train, &predict(&self.train), rigid),
+            test: (!self.test.is_empty())
+                .then(|| enveloping_error(set, &self.test, &predict(&self.test), rigid)),
+        }
+    }
+}
+
+/// Every method's errors (no budget, no normals, no leave-one-out yet).
+fn score(
+    set: &ExampleSet,
+    trained: &Trained,
+    scorer: &Scorer,
+    baselines: Option<&Baselines>,
+    runtime: Option<&rrskin::Model>,
+) -> Result<Report> {
+    let ssd_weights = &trained.ssd.influences;
+    let rig_skin = set.rig_weights.as_ref().map(|w| Skinning {
+        influences: w.clone(),
+    });
+    let with_rig = |f: &dyn Fn(&Skinning) -> Errors| rig_skin.as_ref().map(f);
+    let full = trained.full.as_ref();
     Ok(Report {
         vertices: set.vertex_count(),
         triangles: set.faces.len(),
         bones: set.bone_count(),
-        train_poses: train.len(),
-        test_poses: test.len(),
-        rigid: rigid_e,
-        ssd: ssd_e,
-        dqs: dqs_e,
-        cor: cor_e,
-        ddm: ddm_e,
-        ddm_params: baselines.ddm_params,
-        normal_error,
-        rig_lbs: rig_lbs.map(fitted_nothing),
-        rig_dqs: rig_dqs.map(fitted_nothing),
-        rig_cor: rig_cor.map(fitted_nothing),
-        rr_full: rr_e,
-        rr_reduced,
+        train_poses: scorer.train.len(),
+        test_poses: scorer.test.len(),
+        rigid: scorer.errors(&|p| deform_all(set, &trained.rigid, p)),
+        ssd: scorer.errors(&|p| deform_all(set, &trained.ssd, p)),
+        dqs: scorer.errors(&|p| dqs_all(set, ssd_weights, p)),
+        cor: baselines.map(|b| scorer.errors(&|p| cor_all(set, ssd_weights, &b.cor, p))),
+        ddm: baselines.map(|b| scorer.errors(&|p| ddm_all(set, &b.ddm, p))),
+        ddm_params: baselines.map(|b| b.ddm_params),
+        rig_lbs: with_rig(&|s| scorer.errors(&|p| deform_all(set, s, p))),
+        rig_dqs: with_rig(&|s| scorer.errors(&|p| dqs_all(set, &s.influences, p))),
+        rig_cor: rig_skin
+            .as_ref()
+            .zip(baselines.and_then(|b| b.rig_cor.as_ref()))
+            .map(|(s, c)| scorer.errors(&|p| cor_all(set, &s.influences, c, p))),
+        rr_full: full.map(|f| scorer.errors(&|p| f.model.predict(set, &f.prep, &trained.ssd, p))),
+        rr_reduced: runtime
+            .map(|m| runtime_errors(set, m, &scorer.train, &scorer.test, scorer.rigid))
+            .transpose()?,
         reduced_proxies: runtime.map(|m| m.proxy_count()),
         structure: trained.structure.clone(),
-        budget,
+        budget: None,
+        normal_error: Vec::new(),
         model: trained.model.clone(),
         choice: full.map(|f| {
             let alpha = &f.selection.alpha;
@@ -569,10 +569,68 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
             scores: f.scores.clone(),
         }),
         proxy_correctives: trained.proxy_correctives.clone(),
-        folds: options.train.folds.min(train.len()),
-        stages,
-        loocv: options.loocv,
+        folds: 0,
+        stages: Vec::new(),
+        loocv: false,
     })
+}
+
+/// The error budget (oracle ceilings), when there is a reduced model and a full one.
+fn budget(
+    set: &ExampleSet,
+    trained: &Trained,
+    scorer: &Scorer,
+    runtime: Option<&rrskin::Model>,
+    folds: usize,
+) -> Result<Option<Budget>> {
+    let (Some(reduced), Some(f), Some(model)) = (&trained.reduced, &trained.full, runtime) else {
+        return Ok(None);
+    };
+    let exact = |p: &[usize]| {
+        f.model.reconstruct(set, &trained.ssd, p, |i, k| {
+            let (r, s) = f.prep.polar[i][k];
+            r * s
+        })
+    };
+    let (train, test) = (&scorer.train, &scorer.test);
+    let [fitted, held] = diagnose::pose_space_meshes(set, trained, model, train, test, folds)?;
+    Ok(Some(Budget {
+        full_exact: scorer.errors(&exact),
+        reduced_oracle: scorer.errors(&|p| diagnose::oracle_meshes(set, reduced, p)),
+        reduced_oracle_keys: scorer.errors(&|p| diagnose::oracle_key_meshes(set, reduced, p)),
+        pose_space: Errors {
+            train: enveloping_error(set, train, &fitted, scorer.rigid),
+            test: (!test.is_empty()).then(|| enveloping_error(set, test, &held, scorer.rigid)),
+        },
+    }))
+}
+
+impl Report {
+    /// "test" becomes leave-one-out over the training poses where there is such a figure.
+    fn use_leave_one_out(&mut self, loo: &LeaveOneOut) {
+        self.loocv = true;
+        self.rigid.test = Some(100.0);
+        self.ssd.test = Some(loo.ssd);
+        self.dqs.test = Some(loo.dqs);
+        if let Some(e) = self.rr_full.as_mut() {
+            e.test = loo.rr_full;
+        }
+        // Leave-one-out retrains SSD and the full model only: the reduced row and the
+        // baselines precomputed from SSD's weights have no such figure.
+        for e in [&mut self.rr_reduced, &mut self.cor, &mut self.ddm]
+            .into_iter()
+            .flatten()
+        {
+            e.test = None;
+        }
+        // The rig's weights are fitted on no pose: left out, a pose errs as in training.
+        for e in [&mut self.rig_lbs, &mut self.rig_dqs, &mut self.rig_cor]
+            .into_iter()
+            .flatten()
+        {
+            e.test = Some(e.train);
+        }
+    }
 }
 
 /// Leave-one-out EE over the training poses (against a rigid predictor also refitted without

@@ -86,9 +86,7 @@ fn train(set: &ExampleSet, quiet: bool) -> Result<(Report, Model), Box<dyn std::
             quiet,
             ..Default::default()
         },
-        model: None,
-        loocv: false,
-        diagnose: false,
+        ..Default::default()
     };
     let report = eval::run(set, &options)?;
     let model = report.model.clone().ok_or("training produced no model")?;

@@ -44,6 +44,8 @@ pub fn sweep(set: &ExampleSet, main: &Report, quiet: bool) -> crate::Result<Vec<
                 quiet,
                 ..Default::default()
             },
+            // Only SSD and DQS are drawn.
+            skip_baselines: true,
             ..Default::default()
         };
         points.extend(point(&eval::run(set, &options)?));

@@ -120,8 +120,12 @@ pub enum TrainError {
     Influences { influences: usize },
     /// More corrective targets than a model holds.
     Correctives { correctives: usize, max: usize },
-    /// The set has no training pose.
-    NoTrainingPoses,
+    /// Fewer training poses than training needs (one pose has no variation to regress on).
+    TooFewPoses {
+        poses: usize,
+        min: usize,
+        folds: usize,
+    },
     /// More proxy bones than the paper's reduction can make (one per triangle at most).
     TooManyProxies { proxies: usize, triangles: usize },
     /// The Poisson system cannot be factored (a component without a fixed vertex).
@@ -140,7 +144,11 @@ impl fmt::Display for TrainError {
                 f,
                 "--correctives {correctives}: a model holds at most {max} pose-space corrective targets"
             ),
-            TrainError::NoTrainingPoses => write!(f, "the example set has no training pose"),
+            TrainError::TooFewPoses { poses, min, folds } => write!(
+                f,
+                "{poses} training pose{}: training needs at least {min} (and {folds} to choose its settings by {folds}-fold cross-validation)",
+                if *poses == 1 { "" } else { "s" }
+            ),
             TrainError::TooManyProxies { proxies, triangles } => write!(
                 f,
                 "--proxies {proxies}: the reduction makes at most one proxy per triangle ({triangles})"
@@ -211,28 +219,60 @@ impl Clock {
     }
 }
 
+/// Fewer training poses cannot train: one pose has no variation to regress on.
+pub const MIN_TRAINING_POSES: usize = 2;
+
+/// Proxies per bone past which the paper's reduction gained nothing measurable (README,
+/// "Reduction trade-off": CesiumMan's test EE flat from P = 60, J = 19), while the model's size
+/// and the C1/C2 product grow as P².
+const PROXIES_PER_BONE_OF_GAIN: usize = 3;
+
+impl TrainOptions {
+    /// Refuses what cannot train on `set`; returns warnings of what trains poorly. [`run`]
+    /// checks the same, so a caller needs this only to show the warnings before training.
+    pub fn check(&self, set: &ExampleSet) -> Result<Vec<String>, TrainError> {
+        let k = self.influences;
+        if !rrskin::model::SUPPORTED_INFLUENCES.contains(&(k as u32)) {
+            return Err(TrainError::Influences { influences: k });
+        }
+        if self.correctives > rrskin::model::MAX_CORRECTIVES {
+            return Err(TrainError::Correctives {
+                correctives: self.correctives,
+                max: rrskin::model::MAX_CORRECTIVES,
+            });
+        }
+        let poses = set.train().len();
+        if poses < MIN_TRAINING_POSES {
+            return Err(TrainError::TooFewPoses {
+                poses,
+                min: MIN_TRAINING_POSES,
+                folds: self.folds,
+            });
+        }
+        let triangles = set.faces.len();
+        if self.method == Method::Paper && self.proxies > triangles {
+            return Err(TrainError::TooManyProxies {
+                proxies: self.proxies,
+                triangles,
+            });
+        }
+        let mut warnings = Vec::new();
+        if poses < self.folds {
+            warnings.push(format!("{poses} training poses, fewer than the {} the cross-validation needs (one per fold): its settings are fixed, not chosen", self.folds));
+        }
+        // Joint-blend proxies need no such warning: they stop at three per moving joint.
+        let gain = PROXIES_PER_BONE_OF_GAIN * set.bone_count();
+        if self.method == Method::Paper && self.proxies > gain {
+            warnings.push(format!("--proxies {}: past {PROXIES_PER_BONE_OF_GAIN} per bone ({gain} here) the paper's reduction measurably gains nothing, while training time, model size and the per-frame C1/C2 product grow as P²", self.proxies));
+        }
+        Ok(warnings)
+    }
+}
+
 /// Trains the full model and, for P > 0, the runtime model on the training poses of `set`.
 pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainError> {
-    let k = options.influences;
-    if !rrskin::model::SUPPORTED_INFLUENCES.contains(&(k as u32)) {
-        return Err(TrainError::Influences { influences: k });
-    }
-    if options.correctives > rrskin::model::MAX_CORRECTIVES {
-        return Err(TrainError::Correctives {
-            correctives: options.correctives,
-            max: rrskin::model::MAX_CORRECTIVES,
-        });
-    }
-    let train = set.train();
-    if train.is_empty() {
-        return Err(TrainError::NoTrainingPoses);
-    }
-    if options.method == Method::Paper && options.proxies > set.faces.len() {
-        return Err(TrainError::TooManyProxies {
-            proxies: options.proxies,
-            triangles: set.faces.len(),
-        });
-    }
+    options.check(set)?;
+    let (k, train) = (options.influences, set.train());
     let feats = PoseFeatures::all(set);
     let pool = reduce::joint_blend::pool(set, &feats, &train);
     let with_full = options.full_model || (options.proxies > 0 && options.method == Method::Paper);

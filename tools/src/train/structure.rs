@@ -161,21 +161,36 @@ pub fn build(
         }
         // Joint-blend proxies (the paper's reduction is never built without its model).
         _ => {
-            let mut r = joint_blend::fit(set, feats, &train, ssd, structure.proxies, k);
-            let fitted = match ridges {
-                None => JointBlendFit {
-                    stretch: stretch::fit(set, feats, &train, options.folds, &mut r),
-                    refit: refit::refit(set, feats, &train, options.folds, &mut r),
-                },
-                Some(fixed) => JointBlendFit {
-                    stretch: stretch::fit_with(set, feats, &train, fixed.stretch, &mut r),
-                    refit: refit::refit_with(set, feats, &train, fixed.refit, &mut r),
-                },
-            };
-            joint_blend::reweight(set, feats, &train, ssd, k, &mut r);
-            (r, Some(fitted))
+            let pool = joint_blend::Pool::new(set, feats, &train, ssd, k);
+            build_joint_blend(set, feats, ssd, &pool, structure, options, ridges)
         }
     }
+}
+
+/// [`build`] of joint-blend proxies from `pool` (made from `set`'s training poses and `ssd`).
+fn build_joint_blend(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    ssd: &Skinning,
+    pool: &joint_blend::Pool,
+    structure: &Structure,
+    options: &TrainOptions,
+    ridges: Option<Ridges>,
+) -> (Reduced, Option<JointBlendFit>) {
+    let (train, k) = (set.train(), structure.influences);
+    let mut r = pool.fit(set, feats, &train, ssd, structure.proxies, k);
+    let fitted = match ridges {
+        None => JointBlendFit {
+            stretch: stretch::fit(set, feats, &train, options.folds, &mut r),
+            refit: refit::refit(set, feats, &train, options.folds, &mut r),
+        },
+        Some(fixed) => JointBlendFit {
+            stretch: stretch::fit_with(set, feats, &train, fixed.stretch, &mut r),
+            refit: refit::refit_with(set, feats, &train, fixed.refit, &mut r),
+        },
+    };
+    joint_blend::reweight(set, feats, &train, ssd, k, &mut r);
+    (r, Some(fitted))
 }
 
 /// Cross-validates `candidates` over the training poses of `set` and keeps one by the
@@ -219,12 +234,14 @@ pub fn choose(
             &crate::skinning::lbs::rigid_errors(&inner_set, &inner),
             options.influences,
         );
+        // The candidates differ only in how many of the pool's proxies they keep.
+        let pool = joint_blend::Pool::new(&inner_set, feats, &inner, &ssd, options.influences);
         for (c, structure) in candidates.iter().enumerate() {
-            let (reduced, _) = build(
+            let (reduced, _) = build_joint_blend(
                 &inner_set,
                 feats,
                 &ssd,
-                None,
+                &pool,
                 structure,
                 options,
                 Some(ridges),

@@ -47,8 +47,73 @@ impl Proxy {
     }
 }
 
-/// At most `proxies` joint-blend proxies, weights for every vertex (K = `influences`) over
-/// them and the bones, fitted on the `train` poses; `ssd` is the baseline the model carries.
+/// Every candidate proxy (one per moving joint and fraction) and how much weight a first NNLS
+/// fit over all of them gives each: what [`Pool::fit`] keeps the most used of, whatever P. It
+/// depends only on the training poses and SSD, so the structure's candidates of one
+/// cross-validation fold share it.
+pub struct Pool {
+    all: Vec<Proxy>,
+    /// Proxy indices carrying weight, most used first.
+    by_use: Vec<usize>,
+}
+
+impl Pool {
+    /// The pool of the `train` poses (`ssd` fitted on them), with K = `influences`.
+    pub fn new(
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        train: &[usize],
+        ssd: &Skinning,
+        influences: usize,
+    ) -> Pool {
+        let pivot = pivots(set, train);
+        let all: Vec<Proxy> = moving_joints(set, feats, train)
+            .flat_map(|(bone, parent)| {
+                FRACTIONS.map(|fraction| Proxy {
+                    bone,
+                    parent,
+                    fraction,
+                    pivot: pivot[bone],
+                })
+            })
+            .collect();
+        let palette = palettes(set, feats, train, &all);
+        let first = weights(set, train, &palette, &joints(&all), ssd, influences);
+        let mut usage = vec![0.0; all.len()];
+        for inf in &first {
+            for &(e, w) in inf {
+                if e < all.len() {
+                    usage[e] += w;
+                }
+            }
+        }
+        let mut by_use: Vec<usize> = (0..all.len()).filter(|&e| usage[e] > 0.0).collect();
+        by_use.sort_by(|&x, &y| usage[y].total_cmp(&usage[x]));
+        Pool { all, by_use }
+    }
+
+    /// At most `proxies` joint-blend proxies, the most used, and weights for every vertex (K =
+    /// `influences`) over them and the bones, fitted on the `train` poses (the pool's); `ssd` is
+    /// the baseline the model carries.
+    pub fn fit(
+        &self,
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        train: &[usize],
+        ssd: &Skinning,
+        proxies: usize,
+        influences: usize,
+    ) -> Reduced {
+        let mut order: Vec<usize> = self.by_use.iter().copied().take(proxies).collect();
+        order.sort_unstable();
+        let kept: Vec<Proxy> = order.iter().map(|&e| self.all[e]).collect();
+        let palette = palettes(set, feats, train, &kept);
+        let skin = weights(set, train, &palette, &joints(&kept), ssd, influences);
+        assemble(set, &kept, skin, ssd)
+    }
+}
+
+/// [`Pool::fit`] of a pool made for it alone.
 pub fn fit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -57,38 +122,7 @@ pub fn fit(
     proxies: usize,
     influences: usize,
 ) -> Reduced {
-    let pivot = pivots(set, train);
-    let all: Vec<Proxy> = moving_joints(set, feats, train)
-        .flat_map(|(bone, parent)| {
-            FRACTIONS.map(|fraction| Proxy {
-                bone,
-                parent,
-                fraction,
-                pivot: pivot[bone],
-            })
-        })
-        .collect();
-    let weights_over = |proxies: &[Proxy]| {
-        let palette = palettes(set, feats, train, proxies);
-        weights(set, train, &palette, &joints(proxies), ssd, influences)
-    };
-    let first = weights_over(&all);
-    // Keep the proxies carrying most weight, then refit the weights over those.
-    let mut usage = vec![0.0; all.len()];
-    for inf in &first {
-        for &(e, w) in inf {
-            if e < all.len() {
-                usage[e] += w;
-            }
-        }
-    }
-    let mut order: Vec<usize> = (0..all.len()).filter(|&e| usage[e] > 0.0).collect();
-    order.sort_by(|&x, &y| usage[y].total_cmp(&usage[x]));
-    order.truncate(proxies);
-    order.sort_unstable();
-    let kept: Vec<Proxy> = order.iter().map(|&e| all[e]).collect();
-    let skin = weights_over(&kept);
-    assemble(set, &kept, skin, ssd)
+    Pool::new(set, feats, train, ssd, influences).fit(set, feats, train, ssd, proxies, influences)
 }
 
 /// The active joints (bone, parent) that move in the `train` poses: each has a proxy per

@@ -1,0 +1,42 @@
+//! `rrskin info MODEL.rrs`: a model file's dimensions.
+
+use super::Outcome;
+use rrskin::Model;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct InfoArgs {
+    pub model: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `rrskin info`: a model file's dimensions.
+pub fn run(args: &InfoArgs) -> Outcome {
+    let (model, json) = (&args.model, args.json);
+    let m = Model::load(model)?;
+    if json {
+        let dims = serde_json::json!({
+            "vertices": m.vertex_count(), "triangles": m.triangle_count(),
+            "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
+            "tangents": m.has_tangents(), "correctives": m.corrective_count(),
+            "proxy_correctives": m.proxy_corrective_count(),
+        });
+        out!("{dims}");
+    } else {
+        out!(
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies",
+            model.display(),
+            m.vertex_count(),
+            m.triangle_count(),
+            m.bone_count(),
+            m.proxy_count(),
+            m.influences(),
+            if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
+            if m.has_tangents() { "rest tangents" } else { "no rest tangents" },
+            m.corrective_count(),
+            m.proxy_corrective_count(),
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,195 @@
+//! The training options `eval` and `train` share, and SET: the example set they load.
+
+use super::note;
+use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
+use rrskin_tools::set::ExampleSet;
+use rrskin_tools::train::{Method, TrainOptions};
+use std::path::PathBuf;
+
+/// What training is asked for (defaults: [`TrainOptions::default`]).
+#[derive(clap::Args)]
+pub struct TrainArgs {
+    /// Proxy bones P (the model's size and per-frame cost grow with it; 0: no reduction).
+    #[arg(long, default_value_t = TrainOptions::default().proxies)]
+    pub proxies: usize,
+    /// --reduction paper: stop merging proxy bones earlier, when the RMS fitting error of the
+    /// groups (mesh units) would pass this (the paper's ε).
+    #[arg(long)]
+    pub epsilon: Option<f64>,
+    /// Influences per vertex (SSD and the runtime model): 4 or 8.
+    #[arg(long, default_value_t = TrainOptions::default().influences)]
+    pub influences: usize,
+    /// How the runtime model is made: joint-blend proxies, as many as cross-validation over the
+    /// training poses chooses (auto, the default: a sixth or a third of P, P, or 1.5 P),
+    /// joint-blend proxies with P, or the paper's reduction of the full model.
+    #[arg(long, value_enum, default_value_t = Reduction::Auto)]
+    pub reduction: Reduction,
+    /// At most this many pose-space corrective targets on the runtime model (0: none; the
+    /// cross-validation over the training poses may keep none). Each costs the runtime about
+    /// 3 % of palette skinning.
+    #[arg(long, default_value_t = TrainOptions::default().correctives)]
+    pub correctives: usize,
+    /// No proxy correctives (each proxy corrected from the nearby joints' rotations where the
+    /// cross-validation keeps them; no per-vertex cost).
+    #[arg(long)]
+    pub no_proxy_correctives: bool,
+    /// Also offer the proxy correctives a kernel per training pose (pose-space RBFs; the
+    /// cross-validation still decides), at a run-time cost per kernel: held out, no better than
+    /// without on the rigs measured and worse on some (docs/experiments.md).
+    #[arg(long)]
+    pub proxy_kernels: bool,
+    /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
+    #[arg(long)]
+    pub no_gentle_poses: bool,
+    /// One JSON object (the contract of docs/cli.md) on stdout, no progress.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum Reduction {
+    Auto,
+    JointBlend,
+    Paper,
+}
+
+impl TrainArgs {
+    pub fn options(&self) -> TrainOptions {
+        let defaults = TrainOptions::default();
+        TrainOptions {
+            influences: self.influences,
+            proxies: self.proxies,
+            epsilon: self.epsilon,
+            correctives: self.correctives,
+            proxy_correctives: !self.no_proxy_correctives,
+            proxy_kernels: self.proxy_kernels,
+            method: match self.reduction {
+                Reduction::Auto => Method::Auto,
+                Reduction::JointBlend => Method::JointBlend,
+                Reduction::Paper => Method::Paper,
+            },
+            gentle_scales: if self.no_gentle_poses {
+                Vec::new()
+            } else {
+                defaults.gentle_scales
+            },
+            quiet: self.json,
+            ..defaults
+        }
+    }
+}
+
+/// SET: a NumPy example-set folder, or a rig (.glb/.gltf/.fbx) with a point cache.
+#[derive(clap::Args)]
+pub struct SetArgs {
+    /// An example-set folder (NumPy layout) or a rig (.glb / .gltf / .fbx).
+    pub set: PathBuf,
+    /// Rig: the animation (glTF) or animation stack (FBX) that poses the rig at the cache's
+    /// samples.
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// Rig: the point cache (.pc2, .mdd or Alembic .abc) of the black-box rig's vertices, in
+    /// the rig's vertex order or the DCC's own (mapped), world or object space, Y-up or Z-up
+    /// (detected).
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
+    /// Rig: the clip's frames per second (glTF key time x fps = the DCC's frame number;
+    /// PC2 frames become times with it, MDD and Alembic times frames).
+    #[arg(long, default_value_t = 24.0)]
+    pub fps: f64,
+    /// Rig: frames held out as test poses, e.g. 41..60 (inclusive; the DCC's frame
+    /// numbers, after any shift of the cache onto the clip).
+    #[arg(long)]
+    pub test_frames: Option<String>,
+}
+
+impl SetArgs {
+    pub fn is_rig(&self) -> bool {
+        let ext = self
+            .set
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        ext == "glb" || ext == "gltf" || ext == "fbx"
+    }
+
+    /// The example set, and for a glTF rig what maps it back to the file's vertices.
+    pub fn load(&self) -> Result<(ExampleSet, Option<Imported>), Box<dyn std::error::Error>> {
+        if !self.is_rig() {
+            if self.clip.is_some() || self.cache.is_some() || self.test_frames.is_some() {
+                return Err(format!(
+                    "{}: --clip, --cache and --test-frames apply to a rig (.glb/.gltf/.fbx)",
+                    self.set.display()
+                )
+                .into());
+            }
+            return Ok((ExampleSet::load(&self.set)?, None));
+        }
+        let (Some(clip), Some(cache)) = (&self.clip, &self.cache) else {
+            return Err(format!(
+                "{}: a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc",
+                self.set.display()
+            )
+            .into());
+        };
+        let test_frames = self.test_frames.as_deref().map(parse_range).transpose()?;
+        let options = ImportOptions {
+            clip: clip.clone(),
+            cache: cache.clone(),
+            fps: self.fps,
+            test_frames,
+        };
+        let imported = rrskin_tools::import::gltf::import(&self.set, &options)?;
+        // Facts about the inputs, not progress: printed under --json too (on stderr).
+        for (file, line) in &imported.notes {
+            note(format_args!("note: {}: {line}", file.display()));
+        }
+        Ok((imported.set.clone(), Some(imported)))
+    }
+}
+
+/// What `eval` and `train` start from: SET loaded, `options` checked against it (refused naming
+/// SET), and unless `quiet` the set's and the options' warnings shown.
+pub fn load_for_training(
+    set: &SetArgs,
+    options: &TrainOptions,
+    loocv: bool,
+) -> Result<(ExampleSet, Option<Imported>), Box<dyn std::error::Error>> {
+    let (examples, imported) = set.load()?;
+    let path = set.set.display();
+    let warnings = options
+        .check(&examples)
+        .map_err(|e| format!("{path}: {e}"))?;
+    if !options.quiet {
+        let no_test = (examples.test().is_empty() && !loocv).then(|| format!("{path}: no test poses, so no held-out error (--loocv reports leave-one-out over the training poses)"));
+        let named = warnings.iter().map(|w| format!("{path}: {w}"));
+        for w in examples
+            .warnings
+            .iter()
+            .cloned()
+            .chain(no_test)
+            .chain(named)
+        {
+            note(format_args!("warning: {w}"));
+        }
+    }
+    Ok((examples, imported))
+}
+
+/// "A..B" (inclusive) as a frame range.
+fn parse_range(text: &str) -> Result<(f64, f64), String> {
+    let (a, b) = text
+        .split_once("..")
+        .ok_or_else(|| format!("--test-frames {text}: expected A..B"))?;
+    let parse = |x: &str| {
+        x.trim()
+            .parse::<f64>()
+            .map_err(|_| format!("--test-frames {text}: '{x}' is not a number"))
+    };
+    let (a, b) = (parse(a)?, parse(b)?);
+    if b < a {
+        return Err(format!("--test-frames {text}: the range is empty"));
+    }
+    Ok((a, b))
+}
