@@ -43,25 +43,8 @@ pub fn fit_weights(
     moved: impl Fn(usize, usize) -> DVec3,
     target: impl Fn(usize) -> DVec3,
 ) -> Vec<(usize, f64)> {
-    let solve = |set: &[usize]| -> Vec<(usize, f64)> {
-        let w = nnls_sum_to_one(poses, set, &moved, &target);
-        set.iter()
-            .zip(&w)
-            .filter(|(_, &w)| w > 0.0)
-            .map(|(&c, &w)| (c, w))
-            .collect()
-    };
-    let mut support = solve(candidates);
-    if support.len() > k {
-        support.sort_by(|x, y| y.1.total_cmp(&x.1));
-        let kept: Vec<usize> = support[..k].iter().map(|&(c, _)| c).collect();
-        support = solve(&kept);
-    }
-    let total: f64 = support.iter().map(|&(_, w)| w).sum();
-    if support.is_empty() || total <= 0.0 {
-        return vec![(candidates[0], 1.0)];
-    }
-    support.iter().map(|&(c, w)| (c, w / total)).collect()
+    let all: Vec<usize> = (0..candidates.len()).collect();
+    Normal::new(poses, candidates, &moved, &target).fit(&all, k)
 }
 
 /// Like [`fit_weights`], but when more than `k` candidates get weight, every k-subset of that
@@ -77,14 +60,21 @@ pub fn fit_weights_best_subset(
     moved: impl Fn(usize, usize) -> DVec3,
     target: impl Fn(usize) -> DVec3,
 ) -> Vec<(usize, f64)> {
-    let support = fit_weights(poses, candidates, candidates.len(), &moved, &target);
+    // Every subset's normal equations are a block of the candidates': summed once.
+    let normal = Normal::new(poses, candidates, &moved, &target);
+    let all: Vec<usize> = (0..candidates.len()).collect();
+    let support = normal.fit(&all, candidates.len());
     if support.len() <= k || support.len() > MAX_SUBSET_SUPPORT {
-        return fit_weights(poses, candidates, k, &moved, &target);
+        return normal.fit(&all, k);
     }
+    let position = |c: usize| candidates.iter().position(|&x| x == c).unwrap_or(0);
     let error = |w: &[(usize, f64)]| -> f64 {
         (0..poses)
             .map(|n| {
-                let y: DVec3 = w.iter().map(|&(c, x)| moved(n, c) * x).sum();
+                let y: DVec3 = w
+                    .iter()
+                    .map(|&(c, x)| normal.moved[position(c)][n] * x)
+                    .sum();
                 (y - target(n)).length_squared()
             })
             .sum()
@@ -96,9 +86,9 @@ pub fn fit_weights_best_subset(
         }
         let subset: Vec<usize> = (0..support.len())
             .filter(|&i| mask & (1 << i) != 0)
-            .map(|i| support[i].0)
+            .map(|i| position(support[i].0))
             .collect();
-        let w = fit_weights(poses, &subset, k, &moved, &target);
+        let w = normal.fit(&subset, k);
         let e = error(&w);
         if best.as_ref().is_none_or(|b| e < b.0) {
             best = Some((e, w));
@@ -110,35 +100,93 @@ pub fn fit_weights_best_subset(
 /// The largest NNLS support [`fit_weights_best_subset`] searches exhaustively.
 const MAX_SUBSET_SUPPORT: usize = 16;
 
-fn nnls_sum_to_one(
-    poses: usize,
-    candidates: &[usize],
-    moved: &impl Fn(usize, usize) -> DVec3,
-    target: &impl Fn(usize) -> DVec3,
-) -> Vec<f64> {
-    let n = candidates.len();
-    let (mut g, mut h) = (vec![0.0; n * n], vec![0.0; n]);
-    let mut m = vec![DVec3::ZERO; n];
-    for s in 0..poses {
-        for (slot, &c) in m.iter_mut().zip(candidates) {
-            *slot = moved(s, c);
-        }
-        let y = target(s);
-        for r in 0..n {
-            h[r] += m[r].dot(y);
-            for c in 0..n {
-                g[r * n + c] += m[r].dot(m[c]);
+/// One vertex's blend over candidates: each candidate's moved point per sample, and the normal
+/// equations `G = Σ_n m_n m_nᵀ`, `h = Σ_n m_n · y_n` (entries `G[r][c] = Σ_n m_r,n · m_c,n`),
+/// from which any subset's equations are a block.
+struct Normal<'a> {
+    candidates: &'a [usize],
+    /// [candidate position][sample]
+    moved: Vec<Vec<DVec3>>,
+    g: Vec<f64>,
+    h: Vec<f64>,
+}
+
+impl<'a> Normal<'a> {
+    fn new(
+        poses: usize,
+        candidates: &'a [usize],
+        moved: &impl Fn(usize, usize) -> DVec3,
+        target: &impl Fn(usize) -> DVec3,
+    ) -> Normal<'a> {
+        let n = candidates.len();
+        let m: Vec<Vec<DVec3>> = candidates
+            .iter()
+            .map(|&c| (0..poses).map(|s| moved(s, c)).collect())
+            .collect();
+        let (mut g, mut h) = (vec![0.0; n * n], vec![0.0; n]);
+        for s in 0..poses {
+            let y = target(s);
+            for r in 0..n {
+                h[r] += m[r][s].dot(y);
+                for c in 0..n {
+                    g[r * n + c] += m[r][s].dot(m[c][s]);
+                }
             }
         }
-    }
-    let omega = SUM_TO_ONE_WEIGHT * (0..n).map(|r| g[r * n + r]).sum::<f64>() / n as f64;
-    for r in 0..n {
-        h[r] += omega;
-        for c in 0..n {
-            g[r * n + c] += omega;
+        Normal {
+            candidates,
+            moved: m,
+            g,
+            h,
         }
     }
-    nnls(&g, &h)
+
+    /// Weights over the candidates at `subset` (positions, best first): NNLS with a heavily
+    /// weighted Σw = 1 row; if more than `k` are non-zero, the `k` largest are refitted. As
+    /// (candidate, weight), normalised; the subset's first candidate alone if none fits.
+    fn fit(&self, subset: &[usize], k: usize) -> Vec<(usize, f64)> {
+        let solve = |subset: &[usize]| -> Vec<(usize, f64)> {
+            let w = self.nnls_sum_to_one(subset);
+            subset
+                .iter()
+                .zip(&w)
+                .filter(|(_, &w)| w > 0.0)
+                .map(|(&p, &w)| (p, w))
+                .collect()
+        };
+        let mut support = solve(subset);
+        if support.len() > k {
+            support.sort_by(|x, y| y.1.total_cmp(&x.1));
+            let kept: Vec<usize> = support[..k].iter().map(|&(p, _)| p).collect();
+            support = solve(&kept);
+        }
+        let total: f64 = support.iter().map(|&(_, w)| w).sum();
+        if support.is_empty() || total <= 0.0 {
+            return vec![(self.candidates[subset[0]], 1.0)];
+        }
+        (support.iter())
+            .map(|&(p, w)| (self.candidates[p], w / total))
+            .collect()
+    }
+
+    /// NNLS over the block of `subset` with the Σw = 1 row weighted [`SUM_TO_ONE_WEIGHT`]
+    /// times the block's mean diagonal.
+    fn nnls_sum_to_one(&self, subset: &[usize]) -> Vec<f64> {
+        let (n, all) = (subset.len(), self.candidates.len());
+        let mut g: Vec<f64> = (subset.iter())
+            .flat_map(|&r| subset.iter().map(move |&c| (r, c)))
+            .map(|(r, c)| self.g[r * all + c])
+            .collect();
+        let mut h: Vec<f64> = subset.iter().map(|&r| self.h[r]).collect();
+        let omega = SUM_TO_ONE_WEIGHT * (0..n).map(|r| g[r * n + r]).sum::<f64>() / n as f64;
+        for r in 0..n {
+            h[r] += omega;
+            for c in 0..n {
+                g[r * n + c] += omega;
+            }
+        }
+        nnls(&g, &h)
+    }
 }
 
 #[cfg(test)]

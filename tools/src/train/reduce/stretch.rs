@@ -68,17 +68,6 @@ struct Problem {
     residual: Vec<Vec<DVec3>>,
 }
 
-/// ΔS z for coefficients h, features φ and key-frame point z.
-fn stretch(h: &Coefficients, phi: &[f64; 6], z: DVec3) -> DVec3 {
-    let z = z.to_array();
-    let row = |r: usize| -> f64 {
-        (0..3)
-            .map(|c| z[c] * (0..6).map(|k| h[r * 18 + c * 6 + k] * phi[k]).sum::<f64>())
-            .sum()
-    };
-    DVec3::new(row(0), row(1), row(2))
-}
-
 impl Problem {
     fn new(
         set: &ExampleSet,
@@ -142,56 +131,68 @@ impl Problem {
         }
     }
 
-    /// One key's contribution to vertex member m in training pose n.
-    fn moved(&self, h: &Coefficients, e: usize, n: usize, m: usize) -> DVec3 {
-        let (_, alpha, z) = self.members[e][m];
-        self.rotation[n][e] * stretch(h, &self.phi[n][e], z) * alpha
+    /// The map z ↦ R_e ΔS z of key e in training pose n under coefficients h: a key's
+    /// contribution to its member with key-frame point z is α times it applied to z.
+    fn moved(&self, h: &Coefficients, e: usize, n: usize) -> DMat3 {
+        let phi = &self.phi[n][e];
+        let entry = |r: usize, c: usize| (0..6).map(|k| h[r * 18 + c * 6 + k] * phi[k]).sum();
+        let s = DMat3::from_cols_array_2d(&[0, 1, 2].map(|c| [0, 1, 2].map(|r| entry(r, c))));
+        self.rotation[n][e] * s
     }
 
-    /// H' for every key, fitted on training poses `inner` (indices into `train`).
+    /// The normal equations' matrix of key e over the poses `inner`: with v = α (z ⊗ φ) per
+    /// member and pose, `G = Σ_n Σ_m v vᵀ = (Σ_m α² z zᵀ) ⊗ (Σ_n φ φᵀ)` (18 x 18), the ridge
+    /// (relative to its mean diagonal) added; None for a key without features.
+    fn factor(&self, e: usize, inner: &[usize], ridge: f64) -> Option<DenseCholesky> {
+        let mut zz = [[0.0; 3]; 3];
+        for &(_, alpha, z) in &self.members[e] {
+            let z = z.to_array();
+            (0..9).for_each(|u| zz[u / 3][u % 3] += alpha * alpha * z[u / 3] * z[u % 3]);
+        }
+        let mut pp = [[0.0; 6]; 6];
+        for &n in inner {
+            let phi = &self.phi[n][e];
+            (0..36).for_each(|u| pp[u / 6][u % 6] += phi[u / 6] * phi[u % 6]);
+        }
+        let mut g = vec![0.0; 18 * 18];
+        for r in 0..18 {
+            for c in 0..18 {
+                g[r * 18 + c] = zz[r / 6][c / 6] * pp[r % 6][c % 6];
+            }
+        }
+        let mean = (0..18).map(|u| g[u * 19]).sum::<f64>() / 18.0;
+        (mean > 0.0).then(|| {
+            (0..18).for_each(|u| g[u * 19] += ridge * mean + 1e-12);
+            DenseCholesky::new(&g, 18)
+        })
+    }
+
+    /// H' for every key, fitted on training poses `inner` (indices into `train`): block
+    /// coordinate descent over the keys, each a least-squares solve against the residual its
+    /// members keep without it.
     fn solve(&self, inner: &[usize], ridge: f64) -> Vec<Coefficients> {
         let p = self.members.len();
         let mut residual: Vec<Vec<DVec3>> =
             inner.iter().map(|&n| self.residual[n].clone()).collect();
-        let factors: Vec<Option<DenseCholesky>> = (0..p)
-            .map(|e| {
-                let mut g = vec![0.0; 18 * 18];
-                for &n in inner {
-                    let phi = &self.phi[n][e];
-                    for &(_, alpha, z) in &self.members[e] {
-                        let z = z.to_array();
-                        let v: [f64; 18] = std::array::from_fn(|u| alpha * z[u / 6] * phi[u % 6]);
-                        for r in 0..18 {
-                            for c in 0..18 {
-                                g[r * 18 + c] += v[r] * v[c];
-                            }
-                        }
-                    }
-                }
-                let mean = (0..18).map(|u| g[u * 19]).sum::<f64>() / 18.0;
-                (mean > 0.0).then(|| {
-                    (0..18).for_each(|u| g[u * 19] += ridge * mean + 1e-12);
-                    DenseCholesky::new(&g, 18)
-                })
-            })
-            .collect();
+        let factors: Vec<Option<DenseCholesky>> =
+            (0..p).map(|e| self.factor(e, inner, ridge)).collect();
         let mut h = vec![[0.0; 54]; p];
         for _ in 0..SWEEPS {
             for e in 0..p {
                 let Some(factor) = &factors[e] else { continue };
+                // b = Σ_n Σ_m α ρ ⊗ z ⊗ φ_n = Σ_n (Σ_m α ρ zᵀ) ⊗ φ_n, ρ = Rᵀ (own residual).
                 let mut b = [0.0; 54];
                 for (slot, &n) in inner.iter().enumerate() {
-                    let (rot, phi) = (self.rotation[n][e], &self.phi[n][e]);
-                    for (m, &(a, alpha, z)) in self.members[e].iter().enumerate() {
-                        let own = residual[slot][a] + self.moved(&h[e], e, n, m);
-                        let rho = (rot.transpose() * own).to_array();
+                    let (rot_t, old) = (self.rotation[n][e].transpose(), self.moved(&h[e], e, n));
+                    let mut w = [[0.0; 3]; 3];
+                    for &(a, alpha, z) in &self.members[e] {
+                        let own = residual[slot][a] + old * z * alpha;
+                        let rho = (rot_t * own).to_array();
                         let z = z.to_array();
-                        for r in 0..3 {
-                            for u in 0..18 {
-                                b[r * 18 + u] += alpha * rho[r] * z[u / 6] * phi[u % 6];
-                            }
-                        }
+                        (0..9).for_each(|u| w[u / 3][u % 3] += alpha * rho[u / 3] * z[u % 3]);
                     }
+                    let phi = &self.phi[n][e];
+                    (0..54).for_each(|u| b[u] += w[u / 18][(u / 6) % 3] * phi[u % 6]);
                 }
                 let mut next = [0.0; 54];
                 for r in 0..3 {
@@ -200,10 +201,9 @@ impl Problem {
                     next[r * 18..][..18].copy_from_slice(&rhs);
                 }
                 for (slot, &n) in inner.iter().enumerate() {
-                    for m in 0..self.members[e].len() {
-                        let a = self.members[e][m].0;
-                        residual[slot][a] +=
-                            self.moved(&h[e], e, n, m) - self.moved(&next, e, n, m);
+                    let change = self.moved(&h[e], e, n) - self.moved(&next, e, n);
+                    for &(a, alpha, z) in &self.members[e] {
+                        residual[slot][a] += change * z * alpha;
                     }
                 }
                 h[e] = next;
@@ -232,8 +232,9 @@ impl Problem {
     fn error(&self, h: &[Coefficients], n: usize) -> f64 {
         let mut r = self.residual[n].clone();
         for (e, he) in h.iter().enumerate() {
-            for m in 0..self.members[e].len() {
-                r[self.members[e][m].0] -= self.moved(he, e, n, m);
+            let moved = self.moved(he, e, n);
+            for &(a, alpha, z) in &self.members[e] {
+                r[a] -= moved * z * alpha;
             }
         }
         r.iter().map(|d| d.length_squared()).sum()
