@@ -24,6 +24,7 @@
 
 pub mod augment;
 pub mod corrective;
+pub mod cross_validate;
 pub mod full_model;
 pub mod gradients;
 pub mod pivots;
