@@ -262,7 +262,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             let prep = Prepared::new(set, feats.clone());
             clock.lap("gradients");
             progress.stage("cross-validation");
-            let selection = selection::choose(set, &prep, &train, k, options.folds, &progress)?;
+            let selection =
+                selection::choose(set, &prep, &train, &rigid, k, options.folds, &progress)?;
             clock.lap("cross-validation");
             progress.stage("full model");
             let model = full_model::fit(set, &prep, &train, &ssd, &selection)?;
