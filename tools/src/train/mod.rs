@@ -5,6 +5,7 @@
 //! |---|---|---|
 //! | deformation gradients and their polar factors | [`gradients`], [`full_model::Prepared`] | §3 |
 //! | rigid and SSD baselines, the near-rigid set | [`ssd`], [`full_model::near_rigid`] | §4.2 |
+//! | k-fold cross-validation: one split, one score, one rule | [`cross_validate`], [`pose_scale`] | beyond the paper |
 //! | model selection by cross-validation | [`selection`] | beyond the paper |
 //! | rotational regression | [`rotreg`] | §3.2 |
 //! | scale/shear regression | [`scale_shear`] | §3.3 |
