@@ -7,7 +7,7 @@ use rrskin::palette::Palette;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
 use rrskin_render::phased_poses;
 use rrskin_tools::cylinder_chain::Chain;
-use rrskin_tools::import::example_set::ExampleSet;
+use rrskin_tools::set::ExampleSet;
 use rrskin_tools::train::{self, TrainOptions};
 use std::time::Duration;
 

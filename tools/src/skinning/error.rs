@@ -6,8 +6,8 @@ use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
 use glam::DVec3;
 
-/// Σ_i Σ_a |predicted_i,a − y_a^i|² over `poses` (`predicted` in the same order).
-pub fn squared_error(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]) -> f64 {
+/// Per pose i of `poses`, Σ_a |predicted_i,a − y_a^i|² (`predicted` in the same order).
+pub fn pose_errors(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]) -> Vec<f64> {
     poses
         .iter()
         .zip(predicted)
@@ -17,7 +17,12 @@ pub fn squared_error(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]
                 .map(|(a, b)| (*a - *b).length_squared())
                 .sum::<f64>()
         })
-        .sum()
+        .collect()
+}
+
+/// Σ_i Σ_a |predicted_i,a − y_a^i|² over `poses`.
+pub fn squared_error(set: &ExampleSet, poses: &[usize], predicted: &[Vec<DVec3>]) -> f64 {
+    pose_errors(set, poses, predicted).iter().sum()
 }
 
 /// `skin`'s meshes of `poses`.

@@ -21,13 +21,15 @@
 //!    training poses.
 //!
 //! λ is chosen by k-fold cross-validation over the training poses from [`RIDGES`] or none, with
-//! the pose-relative score and one-standard-error rule of §18 ([`pose_scale`]), the most
-//! regularised first: the residuals left on the training poses are smaller than those on new
-//! poses, so a weak ridge fits noise that looks like signal.
+//! the pose-relative score and one-standard-error rule of §18
+//! ([`crate::train::cross_validate`]), the most regularised first: the residuals left on the
+//! training poses are smaller than those on new poses, so a weak ridge fits noise that looks
+//! like signal.
 
 use crate::linalg::DenseCholesky;
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
+use crate::train::cross_validate::{cross_validate, Folds, Score};
 use crate::train::pose_scale;
 use crate::train::rotreg::PoseFeatures;
 use faer::{Mat, Side};
@@ -56,7 +58,7 @@ pub struct Correctives {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
     pub ridge: Option<f64>,
-    pub scores: Vec<(f64, f64)>,
+    pub scores: Vec<Score>,
     pub correctives: Option<Correctives>,
 }
 
@@ -294,41 +296,32 @@ fn choose_ridge(
     train: &[usize],
     r: &Residuals,
     folds: usize,
-) -> (Option<f64>, Vec<(f64, f64)>) {
-    let all: Vec<usize> = (0..train.len()).collect();
-    let folds = folds.min(train.len());
-    if folds < 2 {
+) -> (Option<f64>, Vec<Score>) {
+    let Some(folds) = Folds::new(train.len(), folds) else {
         return (None, Vec::new());
-    }
+    };
     let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
-    let held_error = |i: usize, offsets: &[DVec3]| -> f64 {
-        let e: f64 = (r.m[i].iter().zip(&r.delta[i]).zip(offsets))
+    // Pose n's squared vertex error with rest-space offsets o: Σ_a |M_a (δ_a − o_a)|².
+    let error = |n: usize, offsets: &[DVec3]| -> f64 {
+        (r.m[n].iter().zip(&r.delta[n]).zip(offsets))
             .map(|((m, d), o)| (*m * (*d - *o)).length_squared())
-            .sum();
-        e / normaliser[i]
+            .sum()
     };
     let zero = vec![DVec3::ZERO; set.vertex_count()];
-    let mut relative = vec![all
-        .iter()
-        .map(|&i| held_error(i, &zero))
-        .collect::<Vec<f64>>()];
-    for &lambda in &RIDGES {
-        let mut per_pose = vec![0.0; all.len()];
-        for fold in 0..folds {
-            let (held, kept): (Vec<usize>, Vec<usize>) =
-                all.iter().partition(|&&i| i % folds == fold);
-            let local = Local::fit(drivers, r, &kept, lambda);
-            for i in held {
-                per_pose[i] = held_error(i, &local.predict(&r.phi[i]));
-            }
-        }
-        relative.push(per_pose);
-    }
-    let scores = pose_scale::scores(&relative);
-    let ridge = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
-        .and_then(|c| c.checked_sub(1))
-        .map(|c| RIDGES[c]);
-    (ridge, scores)
+    let candidates = 1 + RIDGES.len();
+    let validated = cross_validate(&folds, &normaliser, candidates, 0.0, |fold| {
+        let none = fold.held.iter().map(|&n| error(n, &zero)).collect();
+        std::iter::once(none)
+            .chain(RIDGES.iter().map(|&lambda| {
+                let local = Local::fit(drivers, r, &fold.inner, lambda);
+                (fold.held.iter())
+                    .map(|&n| error(n, &local.predict(&r.phi[n])))
+                    .collect()
+            }))
+            .collect()
+    });
+    let ridge = validated.chosen.checked_sub(1).map(|c| RIDGES[c]);
+    (ridge, validated.scores)
 }
 
 /// Fits at most `n` targets to the residuals `r` of the training poses `train` (in `r`'s

@@ -5,6 +5,7 @@
 //! |---|---|---|
 //! | deformation gradients and their polar factors | [`gradients`], [`full_model::Prepared`] | §3 |
 //! | rigid and SSD baselines, the near-rigid set | [`ssd`], [`full_model::near_rigid`] | §4.2 |
+//! | k-fold cross-validation: one split, one score, one rule | [`cross_validate`], [`pose_scale`] | beyond the paper |
 //! | model selection by cross-validation | [`selection`] | beyond the paper |
 //! | rotational regression | [`rotreg`] | §3.2 |
 //! | scale/shear regression | [`scale_shear`] | §3.3 |
@@ -24,6 +25,7 @@
 
 pub mod augment;
 pub mod corrective;
+pub mod cross_validate;
 pub mod full_model;
 pub mod gradients;
 pub mod pivots;
@@ -301,7 +303,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
             let prep = Prepared::new(set, feats.clone());
             clock.lap("gradients");
             progress.stage("cross-validation");
-            let selection = selection::choose(set, &prep, &train, k, options.folds, &progress)?;
+            let selection =
+                selection::choose(set, &prep, &train, &rigid, k, options.folds, &progress)?;
             clock.lap("cross-validation");
             progress.stage("full model");
             let model = full_model::fit(set, &prep, &train, &ssd, &selection)?;

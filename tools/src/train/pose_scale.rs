@@ -1,12 +1,13 @@
-//! Per-pose normalisers for scoring the runtime model's structure on held-out training poses
-//! (beyond the paper; docs/method.md §18). Random range-of-motion training poses are far wider
-//! than animation, and a plain sum of squared errors over them is carried by the widest,
-//! where every error is largest. Each pose is weighted instead by the inverse of the rigid
-//! predictor's squared error in it, the denominator of the pose's EE², so that every pose
-//! counts by its relative error, as a gentle animation pose does in the held-out EE. The rigid
-//! error is floored at a tenth of its mean over the poses: at or near the rest pose, where it
-//! vanishes, any error would otherwise carry everything. (Weighting the joint-blend fits
-//! themselves the same way changed nothing measurable: docs/experiments.md.)
+//! Per-pose normalisers for scoring candidates on held-out training poses
+//! ([`crate::train::cross_validate`]; beyond the paper, docs/method.md §18). Random
+//! range-of-motion training poses are far wider than animation, and a plain sum of squared
+//! errors over them is carried by the widest, where every error is largest. Each pose is
+//! weighted instead by the inverse of the rigid predictor's squared error in it, the denominator
+//! of the pose's EE², so that every pose counts by its relative error, as a gentle animation pose
+//! does in the held-out EE. The rigid error is floored at a tenth of its mean over the poses: at
+//! or near the rest pose, where it vanishes, any error would otherwise carry everything.
+//! (Weighting the joint-blend fits themselves the same way changed nothing measurable:
+//! docs/experiments.md.)
 
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
@@ -34,42 +35,14 @@ pub fn rigid_pose_errors(set: &ExampleSet, poses: &[usize], rigid: &Skinning) ->
     errors.iter().map(|&e| e.max(floor)).collect()
 }
 
-/// Per candidate (rows of `relative`: its per-pose scores), the mean score and the standard
-/// error of its per-pose difference to the best candidate's (zero for the best itself): what the
-/// one-standard-error rule compares.
-pub fn scores(relative: &[Vec<f64>]) -> Vec<(f64, f64)> {
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let means: Vec<f64> = relative.iter().map(|r| mean(r)).collect();
-    let best = (0..means.len())
-        .min_by(|&x, &y| means[x].total_cmp(&means[y]))
-        .unwrap_or(0);
-    relative
-        .iter()
-        .zip(&means)
-        .map(|(r, &score)| {
-            let diff: Vec<f64> = r.iter().zip(&relative[best]).map(|(x, y)| x - y).collect();
-            let m = mean(&diff);
-            let n = diff.len();
-            let variance =
-                diff.iter().map(|d| (d - m).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64;
-            (score, (variance / n.max(1) as f64).sqrt())
-        })
-        .collect()
-}
-
-/// The one-standard-error rule (Breiman et al. 1984) over [`scores`]: the first candidate in
-/// `order` (most robust first) whose score is within one standard error of the best, or
-/// within `tolerance` of the best's EE (a score is EE²).
-pub fn first_within(
-    scored: &[(f64, f64)],
-    order: impl IntoIterator<Item = usize>,
-    tolerance: f64,
-) -> Option<usize> {
-    let best = scored.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
-    let within = (1.0 + tolerance).powi(2) * best;
-    order
-        .into_iter()
-        .find(|&c| scored[c].0 <= (best + scored[c].1).max(within))
+/// [`rigid_pose_errors`] of the best rigid predictor fitted on `poses` themselves, for the stages
+/// that are not handed one (the joint-blend fits inside the structure's folds see only their
+/// fold's poses).
+pub fn own_rigid_pose_errors(set: &ExampleSet, poses: &[usize]) -> Vec<f64> {
+    let rigid = Skinning::rigid(&crate::skinning::lbs::rigid_bones(
+        &crate::skinning::lbs::rigid_errors(set, poses),
+    ));
+    rigid_pose_errors(set, poses, &rigid)
 }
 
 #[cfg(test)]

@@ -21,13 +21,15 @@
 //! 3. **Ridge regression per proxy**, 12 outputs from F_e features, λ times the proxy's mean
 //!    Gram diagonal. The anchor μ ([`ANCHORS`]), the basis (linear, or linear and kernels) and
 //!    λ are chosen together by k-fold cross-validation on the training poses, scored by the
-//!    pose-relative vertex error of §18 ([`pose_scale`]), in the order unanchored first, the
-//!    simpler basis and the stronger ridge first.
+//!    pose-relative vertex error of §18 and its one-standard-error rule
+//!    ([`crate::train::cross_validate`]), in the order unanchored first, the simpler basis and
+//!    the stronger ridge first.
 
 use crate::linalg::DenseCholesky;
 use crate::set::{Bone, ExampleSet};
 use crate::skinning::lbs::Skinning;
 use crate::train::corrective;
+use crate::train::cross_validate::{cross_validate, Folds, Score};
 use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
@@ -91,8 +93,8 @@ pub struct Candidate {
 /// correction).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
-    pub uncorrected: (f64, f64),
-    pub candidates: Vec<(Candidate, (f64, f64))>,
+    pub uncorrected: Score,
+    pub candidates: Vec<(Candidate, Score)>,
     pub chosen: Option<Candidate>,
     pub correctives: Option<ProxyCorrectives>,
 }
@@ -306,7 +308,14 @@ pub fn fit(
     train: &[usize],
     options: &TrainOptions,
 ) -> Fit {
-    let kernels = options.proxy_kernels;
+    let Some(folds) = Folds::new(train.len(), options.folds) else {
+        return Fit {
+            uncorrected: (0.0, 0.0),
+            candidates: Vec::new(),
+            chosen: None,
+            correctives: None,
+        };
+    };
     let drivers = drivers(set, ssd, reduced);
     let predicted: Vec<Vec<Bone>> = (train.iter())
         .map(|&i| reduced.predict_proxies(set, &feats[i], &set.poses[i].bones))
@@ -329,39 +338,42 @@ pub fn fit(
             .collect(),
         predicted,
     };
-    let all: Vec<usize> = (0..train.len()).collect();
-    let folds = options.folds.min(train.len());
-    let mut out = Fit {
-        uncorrected: (0.0, 0.0),
-        candidates: Vec::new(),
-        chosen: None,
-        correctives: None,
-    };
-    if folds < 2 {
-        return out;
-    }
     let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
-    let held_error = |k: usize, c: Option<&ProxyCorrectives>| -> f64 {
-        let pose = &set.poses[train[k]];
-        let mut palette = poses.predicted[k].clone();
-        if let Some(c) = c {
-            c.correct(&mut palette, &poses.phi[k]);
-        }
-        let y = reduced.skin_with(set, &palette, &pose.bones);
-        let e: f64 = (y.iter().zip(&pose.vertices))
-            .map(|(a, b)| (*a - *b).length_squared())
-            .sum();
-        e / normaliser[k]
-    };
-    let mut relative = vec![all
-        .iter()
-        .map(|&k| held_error(k, None))
-        .collect::<Vec<f64>>()];
+    let grid = grid(options.proxy_kernels);
+    let validated = cross_validate(&folds, &normaliser, 1 + grid.len(), 0.0, |fold| {
+        let uncorrected = (fold.held.iter())
+            .map(|&k| held_error(set, train, reduced, &poses, k, None))
+            .collect();
+        let corrected = grid.iter().map(|&(a, c)| {
+            let fitted = regress(a, c.basis, &drivers, &poses, &fold.inner, c.ridge);
+            (fold.held.iter())
+                .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
+                .collect()
+        });
+        std::iter::once(uncorrected).chain(corrected).collect()
+    });
+    let chosen = validated.chosen.checked_sub(1).map(|c| grid[c]);
+    let all: Vec<usize> = (0..train.len()).collect();
+    Fit {
+        uncorrected: validated.scores[0],
+        candidates: (grid.iter().zip(&validated.scores[1..]))
+            .map(|(&(_, c), &s)| (c, s))
+            .collect(),
+        chosen: chosen.map(|(_, c)| c),
+        correctives: chosen
+            .map(|(a, c)| regress(a, c.basis, &drivers, &poses, &all, c.ridge))
+            .filter(|c| !c.proxies.is_empty()),
+    }
+}
+
+/// The candidates after the uncorrected proxies, in the order considered: per anchor (an index
+/// into [`ANCHORS`], unanchored first), per basis (the kernels only with `kernels`), per ridge.
+fn grid(kernels: bool) -> Vec<(usize, Candidate)> {
     let bases: &[Basis] = match kernels {
         true => &[Basis::Linear, Basis::Kernels],
         false => &[Basis::Linear],
     };
-    let grid: Vec<(usize, Candidate)> = (ANCHORS.iter().enumerate())
+    (ANCHORS.iter().enumerate())
         .flat_map(|(a, &anchor)| {
             (bases.iter()).flat_map(move |&basis| {
                 RIDGES.map(|ridge| {
@@ -374,30 +386,26 @@ pub fn fit(
                 })
             })
         })
-        .collect();
-    for &(a, c) in &grid {
-        let mut per_pose = vec![0.0; all.len()];
-        for fold in 0..folds {
-            let (held, kept): (Vec<usize>, Vec<usize>) =
-                all.iter().partition(|&&k| k % folds == fold);
-            let fitted = regress(a, c.basis, &drivers, &poses, &kept, c.ridge);
-            for k in held {
-                per_pose[k] = held_error(k, Some(&fitted));
-            }
-        }
-        relative.push(per_pose);
+        .collect()
+}
+
+/// Training pose k's (a position in `train`) squared vertex error with the proxies predicted
+/// and, given `c`, corrected.
+fn held_error(
+    set: &ExampleSet,
+    train: &[usize],
+    reduced: &Reduced,
+    poses: &Poses,
+    k: usize,
+    c: Option<&ProxyCorrectives>,
+) -> f64 {
+    let pose = &set.poses[train[k]];
+    let mut palette = poses.predicted[k].clone();
+    if let Some(c) = c {
+        c.correct(&mut palette, &poses.phi[k]);
     }
-    let scores = pose_scale::scores(&relative);
-    let chosen = pose_scale::first_within(&scores, 0..scores.len(), 0.0)
-        .and_then(|c| c.checked_sub(1))
-        .map(|c| grid[c]);
-    out.chosen = chosen.map(|(_, c)| c);
-    out.correctives = chosen
-        .map(|(a, c)| regress(a, c.basis, &drivers, &poses, &all, c.ridge))
-        .filter(|c| !c.proxies.is_empty());
-    out.uncorrected = scores[0];
-    out.candidates = (grid.iter().zip(&scores[1..]))
-        .map(|(&(_, c), &s)| (c, s))
-        .collect();
-    out
+    let y = reduced.skin_with(set, &palette, &pose.bones);
+    (y.iter().zip(&pose.vertices))
+        .map(|(a, b)| (*a - *b).length_squared())
+        .sum()
 }

@@ -8,16 +8,20 @@
 
 use crate::progress::Progress;
 use crate::set::ExampleSet;
-use crate::skinning::error::squared_error;
+use crate::skinning::error::pose_errors;
 use crate::skinning::lbs::Skinning;
+use crate::train::cross_validate::{try_cross_validate, Folds};
 use crate::train::full_model::{self, FullModel, Prepared};
+use crate::train::pose_scale;
+use crate::train::scale_shear::ScaleShear;
 use crate::train::ssd;
 use crate::train::TrainError;
 use glam::DVec3;
 
-/// Candidate F percentiles and scale/shear ridges (per pose) the cross-validation picks from.
-pub const PERCENTILES: [f64; 7] = [10.0, 25.0, 50.0, 70.0, 80.0, 90.0, 95.0];
-pub const RIDGES: [f64; 4] = [1e-3, 1e-2, 1e-1, 1.0];
+/// Candidate F percentiles and scale/shear ridges (per pose) the cross-validation picks from,
+/// the most robust first (the largest near-rigid set, the strongest ridge).
+pub const PERCENTILES: [f64; 7] = [95.0, 90.0, 80.0, 70.0, 50.0, 25.0, 10.0];
+pub const RIDGES: [f64; 4] = [1.0, 1e-1, 1e-2, 1e-3];
 
 /// What the cross-validation chose, with the per-triangle regression weights α it implies.
 #[derive(Debug, Clone, PartialEq)]
@@ -46,6 +50,8 @@ struct FoldFit {
     ssd: Skinning,
     ssd_error: Vec<f64>,
     rotations: full_model::Rotations,
+    /// Per ridge of [`RIDGES`], the triangles' scale/shear.
+    stretches: Vec<Vec<ScaleShear>>,
 }
 
 fn fit_fold(set: &ExampleSet, prep: &Prepared, train: &[usize], k: usize) -> FoldFit {
@@ -54,10 +60,15 @@ fn fit_fold(set: &ExampleSet, prep: &Prepared, train: &[usize], k: usize) -> Fol
     let ssd_error = crate::skinning::lbs::per_vertex_error(set, train, &ssd);
     let nearby = full_model::nearby_bones(set, &ssd);
     let rotations = full_model::fit_rotations(set, prep, train, &nearby);
+    let stretches = RIDGES
+        .iter()
+        .map(|&ridge| full_model::fit_stretches(set, prep, train, &rotations, ridge))
+        .collect();
     FoldFit {
         ssd,
         ssd_error,
         rotations,
+        stretches,
     }
 }
 
@@ -114,19 +125,86 @@ impl TriangleScores {
 
 /// k-fold cross-validation over the training poses: first the per-triangle held-out gradient
 /// errors (which triangles fall back to SSD), then the held-out vertex error of every
-/// (percentile, ridge, fallback) candidate; returns the best and the triangle scores.
+/// (percentile, ridge, fallback) candidate ([`candidates`]), ruled as every cross-validation
+/// here is ([`crate::train::cross_validate`]; `rigid` normalises each held-out pose's error);
+/// returns the one kept and its triangles' regression weights.
 pub fn choose(
     set: &ExampleSet,
     prep: &Prepared,
     train: &[usize],
+    rigid: &Skinning,
     k: usize,
     folds: usize,
     progress: &Progress,
 ) -> Result<Selection, TrainError> {
-    let folds = folds.min(train.len());
-    if folds < 2 {
+    let Some(folds) = Folds::new(train.len(), folds) else {
         return Ok(Selection::fallback(set.faces.len()));
-    }
+    };
+    let (fits, scores) = fit_folds(set, prep, train, k, &folds, progress);
+    let candidates = candidates();
+    let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
+    let validated = try_cross_validate(&folds, &normaliser, candidates.len(), 0.0, |fold| {
+        let fit = &fits[fold.index];
+        let (_, held) = fold.poses(train);
+        (candidates.iter())
+            .map(|choice| {
+                let r = ridge_index(choice.ridge);
+                let model = FullModel::new(
+                    set,
+                    fit.rotations.clone(),
+                    fit.stretches[r].clone(),
+                    full_model::near_rigid(set, &fit.ssd_error, choice.percentile),
+                    scores.alpha(r, choice.blend),
+                    choice.ridge,
+                )?;
+                Ok(pose_errors(
+                    set,
+                    &held,
+                    &model.predict(set, prep, &fit.ssd, &held),
+                ))
+            })
+            .collect::<Result<_, TrainError>>()
+    })?;
+    let choice = candidates[validated.chosen];
+    Ok(Selection {
+        choice,
+        alpha: scores.alpha(ridge_index(choice.ridge), choice.blend),
+    })
+}
+
+/// The candidates, most robust first: the paper's regression before the blends with SSD's
+/// gradient that the held-out folds fit (Switch, one bit per triangle, before Weighted, one
+/// weight), then the strongest ridge and the largest near-rigid set (the most vertices following
+/// SSD) first.
+pub fn candidates() -> Vec<Choice> {
+    [Blend::Regression, Blend::Switch, Blend::Weighted]
+        .into_iter()
+        .flat_map(|blend| {
+            RIDGES.into_iter().flat_map(move |ridge| {
+                PERCENTILES.map(|percentile| Choice {
+                    percentile,
+                    ridge,
+                    blend,
+                })
+            })
+        })
+        .collect()
+}
+
+fn ridge_index(ridge: f64) -> usize {
+    RIDGES.iter().position(|&x| x == ridge).unwrap_or(0)
+}
+
+/// Per fold of `folds`, the fit on its inner poses; and, over the held-out poses of all folds,
+/// the triangles' gradient scores.
+fn fit_folds(
+    set: &ExampleSet,
+    prep: &Prepared,
+    train: &[usize],
+    k: usize,
+    folds: &Folds,
+    progress: &Progress,
+) -> (Vec<FoldFit>, TriangleScores) {
     let edges = full_model::rest_edges(set);
     let inverses = crate::train::gradients::rest_inverses(&set.rest, &set.faces);
     let t = set.faces.len();
@@ -135,29 +213,10 @@ pub fn choose(
         cross: vec![vec![0.0; t]; RIDGES.len()],
         ssd: vec![0.0; t],
     };
-    let split = |fold: usize| -> (Vec<usize>, Vec<usize>) {
-        let inner = train
-            .iter()
-            .enumerate()
-            .filter(|(n, _)| n % folds != fold)
-            .map(|(_, &i)| i)
-            .collect();
-        let held = train
-            .iter()
-            .enumerate()
-            .filter(|(n, _)| n % folds == fold)
-            .map(|(_, &i)| i)
-            .collect();
-        (inner, held)
-    };
-    let mut fits = Vec::with_capacity(folds);
-    for fold in 0..folds {
-        let (inner, held) = split(fold);
+    let mut fits = Vec::with_capacity(folds.count());
+    for fold in folds.iter() {
+        let (inner, held) = fold.poses(train);
         let fit = fit_fold(set, prep, &inner, k);
-        let stretches: Vec<_> = RIDGES
-            .iter()
-            .map(|&ridge| full_model::fit_stretches(set, prep, &inner, &fit.rotations, ridge))
-            .collect();
         for &i in &held {
             let skinned = fit.ssd.deform(&set.rest, &set.poses[i].bones);
             let ssd_grads = crate::train::gradients::gradients(&skinned, &set.faces, &inverses);
@@ -166,7 +225,7 @@ pub fn choose(
                 let truth = r * sv;
                 let e_ssd = full_model::edge_residuals(ssd_grads[kk], truth, &edges[kk]);
                 scores.ssd[kk] += dot(&e_ssd, &e_ssd);
-                for (ri, h) in stretches.iter().enumerate() {
+                for (ri, h) in fit.stretches.iter().enumerate() {
                     let d = full_model::predict_gradient(
                         set,
                         &prep.feats[i],
@@ -179,46 +238,8 @@ pub fn choose(
                 }
             }
         }
-        fits.push((fit, stretches));
+        fits.push(fit);
         progress.step();
     }
-    let mut candidates = Vec::new();
-    for blend in [Blend::Regression, Blend::Switch, Blend::Weighted] {
-        for &ridge in &RIDGES {
-            for &percentile in &PERCENTILES {
-                candidates.push(Choice {
-                    percentile,
-                    ridge,
-                    blend,
-                });
-            }
-        }
-    }
-    let mut score = vec![0.0; candidates.len()];
-    for (fold, (fit, stretches)) in fits.into_iter().enumerate() {
-        let (_, held) = split(fold);
-        for (c, choice) in candidates.iter().enumerate() {
-            let r = RIDGES.iter().position(|&x| x == choice.ridge).unwrap_or(0);
-            let fixed = full_model::near_rigid(set, &fit.ssd_error, choice.percentile);
-            let alpha = scores.alpha(r, choice.blend);
-            let model = FullModel::new(
-                set,
-                fit.rotations.clone(),
-                stretches[r].clone(),
-                fixed,
-                alpha,
-                choice.ridge,
-            )?;
-            score[c] += squared_error(set, &held, &model.predict(set, prep, &fit.ssd, &held));
-        }
-    }
-    let best = (0..score.len())
-        .min_by(|&a, &b| score[a].total_cmp(&score[b]))
-        .unwrap_or(0);
-    let choice = candidates[best];
-    let r = RIDGES.iter().position(|&x| x == choice.ridge).unwrap_or(0);
-    Ok(Selection {
-        choice,
-        alpha: scores.alpha(r, choice.blend),
-    })
+    (fits, scores)
 }

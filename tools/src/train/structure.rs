@@ -15,10 +15,13 @@
 //!   standard error of the best (the paired per-pose difference's), or within
 //!   [`TOLERANCE`] of its EE, is kept. A more flexible structure has to win clearly on the
 //!   training poses, not by what a different held-out fold or the gentler animation undoes.
+//!
+//! Both are [`crate::train::cross_validate`]'s, with [`TOLERANCE`].
 
 use crate::set::ExampleSet;
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::Skinning;
+use crate::train::cross_validate::{cross_validate, Folds};
 use crate::train::full_model::{self, Prepared};
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::refit::{self, Refit};
@@ -207,7 +210,8 @@ pub fn choose(
 ) -> Chosen {
     let train = set.train();
     let folds = options.folds.min(train.len());
-    if folds < 2 || candidates.len() < 2 {
+    let split = Folds::new(train.len(), options.folds).filter(|_| candidates.len() >= 2);
+    let Some(split) = split else {
         // Without folds, the caller's P.
         let asked = candidates.iter().find(|c| c.proxies == options.proxies);
         return Chosen {
@@ -219,14 +223,11 @@ pub fn choose(
                 false => Why::TooFewPoses,
             },
         };
-    }
+    };
     let normaliser = pose_scale::rigid_pose_errors(set, &train, rigid);
-    // Per candidate, per training pose (in `train` order): held-out relative squared error.
-    let mut relative = vec![vec![0.0; train.len()]; candidates.len()];
-    for fold in 0..folds {
-        let held: Vec<usize> = (0..train.len()).filter(|n| n % folds == fold).collect();
-        let held_poses: Vec<usize> = held.iter().map(|&n| train[n]).collect();
-        let inner_set = set.holding_out(&held_poses);
+    let validated = cross_validate(&split, &normaliser, candidates.len(), TOLERANCE, |fold| {
+        let (_, held) = fold.poses(&train);
+        let inner_set = set.holding_out(&held);
         let inner = inner_set.train();
         let ssd = ssd::fit(
             &inner_set,
@@ -236,56 +237,46 @@ pub fn choose(
         );
         // The candidates differ only in how many of the pool's proxies they keep.
         let pool = joint_blend::Pool::new(&inner_set, feats, &inner, &ssd, options.influences);
-        for (c, structure) in candidates.iter().enumerate() {
-            let (reduced, _) = build_joint_blend(
-                &inner_set,
-                feats,
-                &ssd,
-                &pool,
-                structure,
-                options,
-                Some(ridges),
-            );
-            for (&n, &i) in held.iter().zip(&held_poses) {
-                let y = reduced.predict(set, &feats[i], &set.poses[i].bones);
-                relative[c][n] = squared_error(set, &[i], &[y]) / normaliser[n];
-            }
-        }
-    }
-    let scored = one_standard_error(candidates, &relative);
-    let kept = pick(&scored);
+        (candidates.iter())
+            .map(|structure| {
+                let (reduced, _) = build_joint_blend(
+                    &inner_set,
+                    feats,
+                    &ssd,
+                    &pool,
+                    structure,
+                    options,
+                    Some(ridges),
+                );
+                (held.iter())
+                    .map(|&i| {
+                        let y = reduced.predict(set, &feats[i], &set.poses[i].bones);
+                        squared_error(set, &[i], &[y])
+                    })
+                    .collect()
+            })
+            .collect()
+    });
     Chosen {
-        structure: scored[kept].structure,
-        candidates: scored,
+        structure: candidates[validated.chosen],
+        candidates: (candidates.iter().zip(&validated.scores))
+            .map(|(&structure, &(score, standard_error))| Scored {
+                structure,
+                score,
+                standard_error,
+            })
+            .collect(),
         folds,
         why: Why::CrossValidated,
     }
 }
 
-/// Every candidate's mean per-pose score and the standard error of its per-pose difference to
-/// the best's ([`pose_scale::scores`]).
-fn one_standard_error(candidates: &[Structure], relative: &[Vec<f64>]) -> Vec<Scored> {
-    candidates
-        .iter()
-        .zip(pose_scale::scores(relative))
-        .map(|(&structure, (score, standard_error))| Scored {
-            structure,
-            score,
-            standard_error,
-        })
-        .collect()
-}
-
 /// Below this relative EE difference a more flexible (and for K = 8 or a larger P, costlier)
 /// structure is not worth it: differences of a few percent on held-out range-of-motion poses
-/// are what the animation's gentler poses undo (docs/experiments.md).
+/// are what the animation's gentler poses undo (docs/experiments.md). The structure's
+/// tolerance of the one-standard-error rule; the other stages' candidates differ in
+/// regularisation, not run time, and go by the plain rule.
 pub const TOLERANCE: f64 = 0.03;
-
-/// The first candidate within one standard error, or within [`TOLERANCE`] of EE, of the best.
-fn pick(scored: &[Scored]) -> usize {
-    let pairs: Vec<(f64, f64)> = scored.iter().map(|s| (s.score, s.standard_error)).collect();
-    pose_scale::first_within(&pairs, 0..pairs.len(), TOLERANCE).unwrap_or(0)
-}
 
 #[cfg(test)]
 mod tests {
@@ -316,37 +307,5 @@ mod tests {
         // Fewer than one proxy a sixth of the pool: left out.
         assert_eq!(candidates(&options, 3), [1, p].map(|p| joint_blend(p, k)));
         assert_eq!(candidates(&options, 2), vec![joint_blend(p, k)]);
-    }
-
-    /// Per-pose scores of three candidates over four poses: the rule keeps the first that is
-    /// not clearly beaten.
-    #[test]
-    fn the_first_candidate_not_clearly_beaten_is_kept() {
-        let structures = [joint_blend(60, 4), joint_blend(60, 8), joint_blend(90, 4)];
-        let clear = vec![
-            vec![1.0, 2.0, 1.0, 2.0],
-            vec![0.81, 1.62, 0.81, 1.62],
-            vec![1.0, 2.0, 1.0, 2.0],
-        ];
-        let scored = one_standard_error(&structures, &clear);
-        assert_eq!(scored[1].standard_error, 0.0);
-        assert_eq!(pick(&scored), 1);
-        // A gain of 3.4 % EE that one pose of four carries and another undoes: within one
-        // standard error.
-        let noisy = vec![
-            vec![1.0, 2.0, 1.0, 2.0],
-            vec![0.2, 2.0, 1.0, 2.4],
-            vec![1.0, 2.0, 1.0, 2.0],
-        ];
-        let scored = one_standard_error(&structures, &noisy);
-        assert!(scored[0].standard_error > 0.0);
-        assert_eq!(pick(&scored), 0);
-        // A consistent gain of 1 % EE: below the tolerance.
-        let base = [1.0, 2.0, 1.0, 2.0];
-        let small: Vec<Vec<f64>> = [1.0, 0.99f64.powi(2), 1.0]
-            .iter()
-            .map(|f| base.iter().map(|x| x * f).collect())
-            .collect();
-        assert_eq!(pick(&one_standard_error(&structures, &small)), 0);
     }
 }

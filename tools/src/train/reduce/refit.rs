@@ -21,32 +21,37 @@
 //! proxy follows them exactly. Δ only corrects *relative* motion, which is what the training
 //! poses sample. Without that constraint the fit traded the near-rest spine of a walk for the
 //! wide training poses (human_heavy spine vertices: 5x SSD's held-out error). λ is chosen by
-//! k-fold cross-validation over the training poses.
+//! k-fold cross-validation over the training poses ([`crate::train::cross_validate`]: every
+//! held-out pose by its error relative to the rigid predictor's; the most regularised within
+//! one standard error of the best, None, C0 kept, first).
 
 use crate::set::ExampleSet;
+use crate::train::cross_validate::{cross_validate, Folds};
+use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
-use rayon::prelude::*;
 
-/// Ridge strengths tried, relative to mean(diag A)·mean(diag B); `None` keeps C0. (The
-/// cross-validation picked the weakest of 1e-6..1 on both public sets, so the grid reaches
-/// further down; conjugate gradients' fixed iteration count bounds the fit as well.)
+/// Ridge strengths tried, relative to mean(diag A)·mean(diag B), the most regularised first
+/// (`None`: C0 kept). (The cross-validation picked the weakest of 1e-6..1 on both public sets,
+/// so the grid reaches further down; conjugate gradients' fixed iteration count bounds the fit
+/// as well.)
 pub const RIDGES: [Option<f64>; 10] = [
-    Some(1e-8),
-    Some(1e-7),
-    Some(1e-6),
-    Some(1e-5),
-    Some(1e-4),
-    Some(1e-3),
-    Some(1e-2),
-    Some(1e-1),
-    Some(1.0),
     None,
+    Some(1.0),
+    Some(1e-1),
+    Some(1e-2),
+    Some(1e-3),
+    Some(1e-4),
+    Some(1e-5),
+    Some(1e-6),
+    Some(1e-7),
+    Some(1e-8),
 ];
 const CG_ITERATIONS: usize = 100;
 
 /// What the refit chose: the relative ridge (None: C0 kept) and every candidate's held-out
-/// error (Σ squared distances over the folds), in `RIDGES` order.
+/// score ([`crate::train::cross_validate::Score`]'s mean), in `RIDGES` order (empty where
+/// nothing was cross-validated).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Refit {
     pub ridge: Option<f64>,
@@ -90,7 +95,7 @@ struct Problem {
 }
 
 /// Refits `reduced`'s C1/C2 on the frames each proxy sees: its key, the bones its geometry
-/// uses and the bone its key turns.
+/// uses and the bone its key turns; the ridge chosen by `folds`-fold cross-validation.
 pub fn refit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -99,40 +104,25 @@ pub fn refit(
     reduced: &mut Reduced,
 ) -> Refit {
     let problem = Problem::new(set, feats, train, reduced);
-    let folds = folds.min(train.len());
-    if folds < 2 || problem.free.is_empty() {
+    let folds = Folds::new(train.len(), folds).filter(|_| !problem.free.is_empty());
+    let Some(folds) = folds else {
         return Refit {
             ridge: None,
-            held_out: vec![0.0; RIDGES.len()],
+            held_out: Vec::new(),
         };
-    }
-    let all: Vec<usize> = (0..train.len()).collect();
-    let per_fold: Vec<Vec<f64>> = (0..folds)
-        .into_par_iter()
-        .map(|fold| {
-            let inner: Vec<usize> = all.iter().copied().filter(|n| n % folds != fold).collect();
-            problem
-                .solve(&inner, &RIDGES)
-                .iter()
-                .map(|v| {
-                    all.iter()
-                        .filter(|n| *n % folds == fold)
-                        .map(|&n| problem.error(v, n))
-                        .sum::<f64>()
-                })
-                .collect()
-        })
-        .collect();
-    let mut held_out = vec![0.0; RIDGES.len()];
-    for fold in &per_fold {
-        held_out.iter_mut().zip(fold).for_each(|(h, e)| *h += e);
-    }
-    let best = (0..RIDGES.len())
-        .min_by(|&x, &y| held_out[x].total_cmp(&held_out[y]))
-        .unwrap_or(RIDGES.len() - 1);
-    let ridge = RIDGES[best];
+    };
+    let normaliser = pose_scale::own_rigid_pose_errors(set, train);
+    let validated = cross_validate(&folds, &normaliser, RIDGES.len(), 0.0, |fold| {
+        (problem.solve(&fold.inner, &RIDGES).iter())
+            .map(|v| fold.held.iter().map(|&n| problem.error(v, n)).collect())
+            .collect()
+    });
+    let ridge = RIDGES[validated.chosen];
     problem.apply(ridge, train.len(), reduced);
-    Refit { ridge, held_out }
+    Refit {
+        ridge,
+        held_out: validated.scores.iter().map(|s| s.0).collect(),
+    }
 }
 
 /// [`refit`] with the ridge given (None: C0 kept) instead of chosen; `held_out` is empty.

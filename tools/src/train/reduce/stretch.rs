@@ -19,13 +19,13 @@
 //! normal equations is 3 copies of one 18 x 18 Gram matrix G_e = Σ α² (z ⊗ φ)(z ⊗ φ)ᵀ; the keys
 //! are coupled only through shared vertices, so block Gauss–Seidel over the keys solves it
 //! with one small Cholesky factor per key. λ is chosen by k-fold cross-validation over the
-//! training poses, scored and ruled as the structure is ([`crate::train::structure`]: every
-//! held-out pose by its error relative to the rigid predictor's; the most regularised within
-//! one standard error of the best, None, the rigid keys, first).
+//! training poses ([`crate::train::cross_validate`]: every held-out pose by its error relative
+//! to the rigid predictor's; the most regularised within one standard error of the best, None,
+//! the rigid keys, first).
 
 use crate::linalg::DenseCholesky;
 use crate::set::ExampleSet;
-use crate::skinning::lbs::Skinning;
+use crate::train::cross_validate::{cross_validate, Folds};
 use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
@@ -33,22 +33,23 @@ use crate::train::scale_shear;
 use glam::{DMat3, DVec3, DVec4};
 use rayon::prelude::*;
 
-/// Ridge strengths tried, relative to each key's mean Gram diagonal; `None` keeps S = I.
+/// Ridge strengths tried, relative to each key's mean Gram diagonal, the most regularised first
+/// (`None`: S = I kept).
 pub const RIDGES: [Option<f64>; 7] = [
-    Some(1e-4),
-    Some(1e-3),
-    Some(1e-2),
-    Some(1e-1),
-    Some(1.0),
-    Some(10.0),
     None,
+    Some(10.0),
+    Some(1.0),
+    Some(1e-1),
+    Some(1e-2),
+    Some(1e-3),
+    Some(1e-4),
 ];
 /// Gauss–Seidel sweeps over the keys.
 const SWEEPS: usize = 4;
 
 /// What the fit chose: the relative ridge (None: rigid keys kept) and every candidate's
-/// held-out score (the mean over held-out training poses of the pose's squared error relative
-/// to the rigid predictor's, as [`crate::train::structure`] scores), in `RIDGES` order.
+/// held-out score ([`crate::train::cross_validate::Score`]'s mean), in `RIDGES` order (empty
+/// where nothing was cross-validated).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stretch {
     pub ridge: Option<f64>,
@@ -250,53 +251,33 @@ pub fn fit(
     folds: usize,
     reduced: &mut Reduced,
 ) -> Stretch {
-    let folds = folds.min(train.len());
-    if folds < 2 || reduced.proxies == 0 {
+    let folds = Folds::new(train.len(), folds).filter(|_| reduced.proxies > 0);
+    let Some(folds) = folds else {
         return Stretch {
             ridge: None,
-            held_out: vec![0.0; RIDGES.len()],
+            held_out: Vec::new(),
         };
-    }
+    };
     let problem = Problem::new(set, feats, train, reduced);
-    let rigid = Skinning::rigid(&crate::skinning::lbs::rigid_bones(
-        &crate::skinning::lbs::rigid_errors(set, train),
-    ));
-    let normaliser = pose_scale::rigid_pose_errors(set, train, &rigid);
-    let all: Vec<usize> = (0..train.len()).collect();
-    let cases: Vec<(usize, usize)> = (0..folds)
-        .flat_map(|fold| (0..RIDGES.len()).map(move |c| (fold, c)))
-        .collect();
-    // Per case, per held-out pose: (pose, its error relative to the rigid predictor's).
-    let scores: Vec<Vec<(usize, f64)>> = cases
-        .par_iter()
-        .map(|&(fold, c)| {
-            let held = all.iter().copied().filter(|n| n % folds == fold);
-            let h = match RIDGES[c] {
-                None => Vec::new(),
-                Some(ridge) => {
-                    let inner: Vec<usize> =
-                        all.iter().copied().filter(|n| n % folds != fold).collect();
-                    problem.solve(&inner, ridge)
-                }
-            };
-            held.map(|n| (n, problem.error(&h, n) / normaliser[n]))
-                .collect()
-        })
-        .collect();
-    let mut relative = vec![vec![0.0; train.len()]; RIDGES.len()];
-    for (&(_, c), s) in cases.iter().zip(&scores) {
-        for &(n, e) in s {
-            relative[c][n] = e;
-        }
-    }
-    let scored = pose_scale::scores(&relative);
-    // The most regularised first: rigid keys, then the strongest ridge.
-    let best =
-        pose_scale::first_within(&scored, (0..RIDGES.len()).rev(), 0.0).unwrap_or(RIDGES.len() - 1);
-    let held_out = scored.iter().map(|s| s.0).collect();
-    let ridge = RIDGES[best];
+    let normaliser = pose_scale::own_rigid_pose_errors(set, train);
+    let validated = cross_validate(&folds, &normaliser, RIDGES.len(), 0.0, |fold| {
+        RIDGES
+            .par_iter()
+            .map(|ridge| {
+                let h = match ridge {
+                    None => Vec::new(),
+                    Some(ridge) => problem.solve(&fold.inner, *ridge),
+                };
+                fold.held.iter().map(|&n| problem.error(&h, n)).collect()
+            })
+            .collect()
+    });
+    let ridge = RIDGES[validated.chosen];
     problem.apply(ridge, reduced);
-    Stretch { ridge, held_out }
+    Stretch {
+        ridge,
+        held_out: validated.scores.iter().map(|s| s.0).collect(),
+    }
 }
 
 /// [`fit`] with the ridge given (None: rigid keys) instead of chosen; `held_out` is empty.
