@@ -3,7 +3,7 @@
 //! cylinder (volume-preserving, not representable by linear blend skinning). Used to time
 //! training at scale (`benches/`, `examples/cylinder_chain.rs`).
 
-use crate::set::{Bone, ExampleSet, Pose, SetFiles, SetParts};
+use crate::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
 use glam::{DMat3, DQuat, DVec3};
 
 /// The chain's size: `rings` x `segments` vertices along `bones` unit-length bones, `poses`
@@ -57,7 +57,7 @@ impl Chain {
         };
         let mut examples = Vec::with_capacity(poses);
         for i in 0..poses {
-            // Bone b pivots at x = b; world rotations compose local bends (z, y) and twists (x).
+            // Affine b pivots at x = b; world rotations compose local bends (z, y) and twists (x).
             let mut world = DMat3::IDENTITY;
             let mut origin = DVec3::ZERO;
             let mut pose_bones = Vec::with_capacity(bones);
@@ -74,7 +74,7 @@ impl Chain {
                 let moved_pivot = if b == 0 { pivot } else { parent_apply(pivot) };
                 world *= local;
                 origin = moved_pivot - world * pivot;
-                pose_bones.push(Bone {
+                pose_bones.push(Affine {
                     q: world,
                     d: origin,
                 });

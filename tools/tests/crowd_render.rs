@@ -46,7 +46,7 @@ fn a_crowd_of_256_renders_and_moves() {
                 set.poses[walk[(c * 7 + frame) % walk.len()]]
                     .bones
                     .iter()
-                    .map(|b| b.to_affine())
+                    .map(|b| b.to_runtime())
             })
             .collect();
         crowd.set_bones(0, &bones).expect("bones");

@@ -234,7 +234,7 @@ fn blender_plays_an_exported_model_like_the_runtime() {
         "examples",
         &model,
         &clip.key_times(),
-        |t| clip.bones_at(t).iter().map(|b| b.to_affine()).collect(),
+        |t| clip.bones_at(t).iter().map(|b| b.to_runtime()).collect(),
     );
     eprintln!("with the rig (STEP), Blender vs rrskin of the mesh's size: {at_keys:.2e} at keys, {between:.2e} between");
     assert!(
@@ -303,7 +303,7 @@ fn a_rig_from_blenders_exporter_exports_back_with_its_materials() {
     let rom = Rig::load(&rig, "rom").expect("the rig");
     let (at_keys, between) =
         blender_against_model(&dir, &glb, "rom", &model, &rom.key_times(), |t| {
-            rom.bones_at(t).iter().map(|b| b.to_affine()).collect()
+            rom.bones_at(t).iter().map(|b| b.to_runtime()).collect()
         });
     eprintln!(
         "Blender's own rig, Blender vs rrskin of the mesh's size: {at_keys:.2e} at keys, {between:.2e} between; export's own check {clip}"

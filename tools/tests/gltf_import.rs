@@ -130,7 +130,7 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
     let bones: Vec<rrskin::predict::Affine> = rig
         .bones_at(50.0 / 24.0)
         .iter()
-        .map(|b| b.to_affine())
+        .map(|b| b.to_runtime())
         .collect();
     let v = model.vertex_count();
     let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);

@@ -6,7 +6,7 @@
 use glam::DVec3;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::{Batch, Context, ContextDesc, Crowd, GpuModel};
-use rrskin_tools::set::{Bone, ExampleSet, Pose};
+use rrskin_tools::set::{Affine, ExampleSet, Pose};
 use rrskin_tools::skinning::lbs::Skinning;
 use rrskin_tools::train::full_model::{self, FullModel, Prepared};
 use rrskin_tools::train::reduce::c1c2::Reduced;
@@ -124,7 +124,7 @@ fn the_refit_joint_blend_model_follows_a_rigid_motion_exactly() {
         reduced.c1 != plain.c1 && reduced.c2 != plain.c2,
         "the refit changed nothing"
     );
-    let motion = Bone {
+    let motion = Affine {
         q: glam::DMat3::from_axis_angle(DVec3::new(1.0, 2.0, -0.5).normalize(), 1.2),
         d: DVec3::new(0.3, -1.0, 2.0),
     };
@@ -154,7 +154,7 @@ fn assert_runtime_reproduces(t: &Trained, reduced: &Reduced, proxies: usize, spa
     let poses = t.set.test();
     let bones: Vec<rrskin::predict::Affine> = poses
         .iter()
-        .flat_map(|&i| t.set.poses[i].bones.iter().map(Bone::to_affine))
+        .flat_map(|&i| t.set.poses[i].bones.iter().map(Affine::to_runtime))
         .collect();
     let v = t.set.vertex_count();
     let (mut cpu, mut normals) = (
@@ -234,11 +234,11 @@ fn tube() -> ExampleSet {
         let joint = |x: f64| {
             glam::DMat3::from_rotation_z(bend * x) * glam::DMat3::from_rotation_x(twist * x)
         };
-        let bones: Vec<Bone> = (0..3)
+        let bones: Vec<Affine> = (0..3)
             .map(|b| {
                 let q = joint(b as f64);
                 let pivot = DVec3::new(b as f64, 0.0, 0.0);
-                Bone {
+                Affine {
                     q,
                     d: pivot - q * pivot,
                 }
@@ -571,7 +571,7 @@ fn the_corrective_fit_recovers_known_correctives() {
         let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
         test.iter()
             .map(|&i| {
-                let bones: Vec<_> = set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+                let bones: Vec<_> = set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
                 evaluator
                     .evaluate(&bones, &mut pos, &mut nrm)
                     .expect("evaluates");
@@ -623,13 +623,13 @@ fn the_proxy_corrective_fit_recovers_a_known_correction() {
     let drivers = proxy_corrective::drivers(&set, &trained.ssd, &reduced);
     // The known correction of proxy e, in its rest frame, from its first driver's φ: a stretch
     // along x and a shift along z, as a muscle bulging with the joint below would.
-    let truth = |phi: &[[f64; 9]], palette: &mut [Bone]| {
+    let truth = |phi: &[[f64; 9]], palette: &mut [Affine]| {
         for (e, d) in drivers.iter().enumerate() {
             let Some(&b) = d.first() else { continue };
             let f = &phi[b];
             let (s, z) = (0.4 * f[0] - 0.3 * f[4], 0.2 * f[8] + 0.1 * f[1]);
             let t = palette[e];
-            palette[e] = Bone {
+            palette[e] = Affine {
                 q: t.q * glam::DMat3::from_diagonal(DVec3::new(1.0 + s, 1.0, 1.0)),
                 d: t.d + t.q * DVec3::new(0.0, 0.0, z),
             };
@@ -689,7 +689,7 @@ fn anchored_best_transforms_move_toward_the_anchor() {
     let (set, trained) = chain_with_four_proxies();
     let reduced = trained.reduced.clone().expect("a reduced model");
     let train = set.train();
-    let anchor: Vec<Vec<Bone>> = (train.iter())
+    let anchor: Vec<Vec<Affine>> = (train.iter())
         .map(|&i| reduced.predict_proxies(&set, &trained.feats[i], &set.poses[i].bones))
         .collect();
     // (vertex error, squared distance to the anchor) summed over the training poses.

@@ -7,7 +7,7 @@ mod support;
 
 use glam::{DMat3, DVec3};
 use rrskin_tools::eval;
-use rrskin_tools::set::{Bone, ExampleSet, Pose};
+use rrskin_tools::set::{Affine, ExampleSet, Pose};
 use rrskin_tools::train::TrainOptions;
 
 const RINGS: usize = 25;
@@ -36,11 +36,11 @@ fn bar_set(train_degrees: &[f64], test_degrees: &[f64]) -> ExampleSet {
             let phi = deg.to_radians();
             Pose {
                 bones: vec![
-                    Bone {
+                    Affine {
                         q: DMat3::IDENTITY,
                         d: DVec3::ZERO,
                     },
-                    Bone {
+                    Affine {
                         q: twist(phi),
                         d: DVec3::ZERO,
                     }, // about the bar's axis
@@ -160,11 +160,11 @@ fn centres_of_rotation_twist_without_the_candy_wrapper() {
         .map(|p| vec![(0, 1.0 - share(p.x)), (1, share(p.x))])
         .collect();
     let bones = [
-        Bone {
+        Affine {
             q: DMat3::IDENTITY,
             d: DVec3::ZERO,
         },
-        Bone {
+        Affine {
             q: twist(170f64.to_radians()),
             d: DVec3::ZERO,
         },

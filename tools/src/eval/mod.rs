@@ -695,7 +695,7 @@ fn runtime_errors(
             .iter()
             .map(|&i| {
                 let bones: Vec<rrskin::predict::Affine> =
-                    set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+                    set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
                 evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
                 Ok(pos.iter().map(|p| DVec3::from(p.map(f64::from))).collect())
             })

@@ -149,7 +149,7 @@ pub fn held_out(
 /// Pose `i`'s rest normals through the cofactor of each vertex's SSD-blended 3x3.
 fn cofactor_normals(set: &ExampleSet, ssd: &Skinning, rest: &[DVec3], i: usize) -> Vec<DVec3> {
     let bones: Vec<[f64; 12]> = (set.poses[i].bones.iter())
-        .map(|b| b.to_affine().map(f64::from))
+        .map(|b| b.to_runtime().map(f64::from))
         .collect();
     (ssd.influences.iter().zip(rest))
         .map(|(inf, &n)| {
@@ -175,7 +175,7 @@ fn runtime_normals(
     test.iter()
         .map(|&i| {
             let bones: Vec<rrskin::predict::Affine> =
-                set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+                set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
             evaluator.evaluate(&bones, &mut positions, &mut normals)?;
             Ok(normals
                 .iter()

@@ -10,7 +10,6 @@
 //! baked the same way, as morph-target weights that a viewer lerps between samples.
 
 use crate::linalg::{polar, svd3};
-use crate::set::Bone;
 use glam::{DMat3, DQuat, DVec3};
 use rrskin::palette::Palette;
 use rrskin::predict::{rotation_of, Affine};
@@ -113,11 +112,11 @@ impl NodePair {
         let m = DMat3::from_quat(self.rotation)
             * DMat3::from_diagonal(self.scale)
             * DMat3::from_quat(self.child_rotation);
-        Bone {
+        crate::set::Affine {
             q: m,
             d: self.translation,
         }
-        .to_affine()
+        .to_runtime()
     }
 }
 

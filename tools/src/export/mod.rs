@@ -20,7 +20,7 @@ pub mod glb;
 
 use crate::import::gltf_rig::{load_buffers, Rig};
 use crate::linalg::procrustes;
-use crate::set::{Bone, InputError};
+use crate::set::InputError;
 use crate::{Error, Result};
 use bake::{bake, Baked, NodePair};
 use glam::{DMat3, DQuat, DVec3};
@@ -217,11 +217,11 @@ fn interpolate_bone(a: &Affine, b: &Affine, x: f64) -> Affine {
     let ((ra, sa, da), (rb, sb, db)) = (split(a), split(b));
     let rb = if ra.dot(rb) < 0.0 { -rb } else { rb };
     let m = DMat3::from_quat(ra.slerp(rb, x)) * (sa * (1.0 - x) + sb * x);
-    Bone {
+    crate::set::Affine {
         q: m,
         d: da.lerp(db, x),
     }
-    .to_affine()
+    .to_runtime()
 }
 
 fn input(file: &Path, message: impl Into<String>) -> Error {
@@ -318,7 +318,13 @@ fn rig_source(
             return Err(input(path, format!("animation '{name}' has no key times")));
         }
         let step = clip_rig.holds_keys();
-        let pose_at = move |t: f64| clip_rig.bones_at(t).iter().map(|b| b.to_affine()).collect();
+        let pose_at = move |t: f64| {
+            clip_rig
+                .bones_at(t)
+                .iter()
+                .map(|b| b.to_runtime())
+                .collect()
+        };
         out.push(Clip {
             name,
             keys,

@@ -21,7 +21,7 @@ use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::{Format, PointCache};
 use crate::import::vertex_map::{self, tree};
 use crate::set::diagonal;
-use crate::set::{Bone, InputError};
+use crate::set::{Affine, InputError};
 use glam::{DMat3, DMat4, DVec3};
 use kdtree::distance::squared_euclidean;
 use rayon::prelude::*;
@@ -51,7 +51,7 @@ pub struct Aligned {
     pub frames: Vec<f64>,
     pub times: Vec<f64>,
     /// Per sample: every bone's transform at its time (`Rig::bones_at`).
-    pub bones: Vec<Vec<Bone>>,
+    pub bones: Vec<Vec<Affine>>,
     /// One line per fix made.
     pub notes: Vec<String>,
 }
@@ -238,7 +238,7 @@ pub fn align(
         .iter()
         .map(|s| s.iter().map(|&p| to_world.transform_point3(p)).collect())
         .collect();
-    let bones: Vec<Vec<Bone>> = times.iter().map(|&t| rig.bones_at(t)).collect();
+    let bones: Vec<Vec<Affine>> = times.iter().map(|&t| rig.bones_at(t)).collect();
     let skin: Vec<Vec<DVec3>> = bones.iter().map(|b| rig.skin(b)).collect();
     let at_bind = bones.iter().position(|b| {
         b.iter()

@@ -11,7 +11,7 @@
 //! deform nothing and are left out, each kind with a note.
 
 use crate::import::gltf_rig::{Motion, Rig};
-use crate::set::{Bone, InputError};
+use crate::set::{Affine, InputError};
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use std::path::Path;
 
@@ -287,7 +287,7 @@ fn sample(
             .map(|(node, to_bone)| {
                 let world = mat4(&evaluated.nodes[node.element.typed_id as usize].node_to_world);
                 let t = world * *to_bone * from_world;
-                Bone {
+                Affine {
                     q: DMat3::from_mat4(t),
                     d: t.w_axis.truncate(),
                 }

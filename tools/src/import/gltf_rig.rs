@@ -6,7 +6,7 @@
 //! clip's morph weight channels are not played: the cache carries their effect. An FBX rig
 //! loads into the same [`Rig`] through `fbx_rig`.
 
-use crate::set::{Bone, InputError};
+use crate::set::{Affine, InputError};
 use glam::{DMat4, DQuat, DVec3, DVec4};
 use gltf::animation::{Interpolation, Property};
 use std::path::Path;
@@ -95,7 +95,7 @@ pub(crate) enum Motion {
     /// samples takes the nearest one.
     Sampled {
         times: Vec<f64>,
-        bones: Vec<Vec<Bone>>,
+        bones: Vec<Vec<Affine>>,
     },
 }
 
@@ -176,14 +176,14 @@ impl Rig {
     }
 
     /// The rest mesh under the rig's own skin (linear blend skinning with its weights).
-    pub fn skin(&self, bones: &[Bone]) -> Vec<DVec3> {
+    pub fn skin(&self, bones: &[Affine]) -> Vec<DVec3> {
         (0..self.rest.len())
             .map(|v| self.skin_vertex(v, bones))
             .collect()
     }
 
     /// Vertex `v` of [`Rig::skin`].
-    pub fn skin_vertex(&self, v: usize, bones: &[Bone]) -> DVec3 {
+    pub fn skin_vertex(&self, v: usize, bones: &[Affine]) -> DVec3 {
         if self.weights[v].is_empty() {
             return self.rest[v];
         }
@@ -194,7 +194,7 @@ impl Rig {
     }
 
     /// Every bone's transform at `time` (seconds) relative to the rest pose.
-    pub fn bones_at(&self, time: f64) -> Vec<Bone> {
+    pub fn bones_at(&self, time: f64) -> Vec<Affine> {
         match &self.motion {
             Motion::Channels(c) => c.bones_at(time),
             Motion::Sampled { times, bones } => {
@@ -209,7 +209,7 @@ impl Rig {
 }
 
 impl Channels {
-    fn bones_at(&self, time: f64) -> Vec<Bone> {
+    fn bones_at(&self, time: f64) -> Vec<Affine> {
         let mut locals = self.defaults.clone();
         for ch in &self.channels {
             let trs = &mut locals[ch.node];
@@ -229,7 +229,7 @@ impl Channels {
             .zip(&self.default_inverse)
             .map(|(&n, inv)| {
                 let t = world[n] * *inv;
-                Bone {
+                Affine {
                     q: glam::DMat3::from_mat4(t),
                     d: t.w_axis.truncate(),
                 }

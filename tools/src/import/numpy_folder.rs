@@ -4,7 +4,7 @@
 //! unreferenced vertices) are collected as warnings.
 
 use crate::import::preflight;
-use crate::set::{Bone, ExampleSet, InputError, Pose, SetFiles, SetParts};
+use crate::set::{Affine, ExampleSet, InputError, Pose, SetFiles, SetParts};
 use glam::{DMat3, DVec3};
 use std::path::Path;
 
@@ -213,7 +213,7 @@ fn poses(transforms: &Array<f64>, vertices: &Array<f64>, j: usize, v: usize) -> 
                 DVec3::new(t[1], t[5], t[9]),
                 DVec3::new(t[2], t[6], t[10]),
             );
-            bones.push(Bone {
+            bones.push(Affine {
                 q,
                 d: DVec3::new(t[3], t[7], t[11]),
             });
@@ -325,7 +325,7 @@ impl ExampleSet {
         let transforms: Vec<f32> = self
             .poses
             .iter()
-            .flat_map(|p| p.bones.iter().flat_map(|b| b.to_affine()))
+            .flat_map(|p| p.bones.iter().flat_map(|b| b.to_runtime()))
             .collect();
         let vertices = xyz(&mut self.poses.iter().flat_map(|p| p.vertices.iter()));
         let faces: Vec<i32> = self.faces.iter().flatten().map(|&a| a as i32).collect();

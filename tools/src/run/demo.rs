@@ -130,7 +130,7 @@ impl HeldOut {
         let bones: Vec<rrskin::predict::Affine> = set.poses[pose]
             .bones
             .iter()
-            .map(|b| b.to_affine())
+            .map(|b| b.to_runtime())
             .collect();
         let (rr, ssd) = (deform(ctx, model, &bones)?, deform(ctx, &baseline, &bones)?);
         let truth: Vec<[f32; 3]> = set.poses[pose]
@@ -319,7 +319,7 @@ fn worst_pose_for_ssd(
     let mut worst = (f64::MIN, poses[0]);
     for &i in &poses {
         let bones: Vec<rrskin::predict::Affine> =
-            set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+            set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
         evaluator.evaluate(&bones, &mut p, &mut n)?;
         let e: f64 = p
             .iter()

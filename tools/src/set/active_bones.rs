@@ -6,7 +6,7 @@
 //! it does. Neither gets a weight, a predictor term or a corrective driver.
 
 use crate::set::diagonal;
-use crate::set::{Bone, ExampleSet};
+use crate::set::{Affine, ExampleSet};
 
 /// Rotation elements and translations (over the mesh size) that differ by less are the same.
 const SAME: f64 = 1e-6;
@@ -84,7 +84,7 @@ impl ExampleSet {
         ))
     }
 
-    /// Bone b's name, or "bone b".
+    /// Affine b's name, or "bone b".
     pub fn bone_name(&self, b: usize) -> String {
         (self.bone_names.as_ref())
             .and_then(|n| n.get(b).cloned())
@@ -119,14 +119,14 @@ impl ExampleSet {
             .collect()
     }
 
-    /// Bone b's transform in pose i relative to its parent's (a root's own).
-    fn local(&self, i: usize, b: usize) -> Bone {
+    /// Affine b's transform in pose i relative to its parent's (a root's own).
+    fn local(&self, i: usize, b: usize) -> Affine {
         let bones = &self.poses[i].bones;
         match self.parents[b] {
             None => bones[b],
             Some(p) => {
                 let inverse = bones[p].q.transpose();
-                Bone {
+                Affine {
                     q: inverse * bones[b].q,
                     d: inverse * (bones[b].d - bones[p].d),
                 }
@@ -139,6 +139,6 @@ impl ExampleSet {
     }
 }
 
-fn same(x: Bone, y: Bone, size: f64) -> bool {
+fn same(x: Affine, y: Affine, size: f64) -> bool {
     x.q.abs_diff_eq(y.q, SAME) && (x.d - y.d).length() <= SAME * size
 }

@@ -6,9 +6,9 @@
 //! Letters: V vertices, T triangles, J bones, N poses; i indexes poses, a vertices, b bones.
 
 pub mod active_bones;
-pub mod bone;
+pub mod affine;
 
-pub use bone::{rotation_error, Bone, ROTATION_TOLERANCE};
+pub use affine::{rotation_error, Affine, ROTATION_TOLERANCE};
 
 use glam::DVec3;
 use std::fmt;
@@ -20,7 +20,7 @@ pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-3;
 /// One example: bone transforms (J) and the rig's vertex positions (V).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pose {
-    pub bones: Vec<Bone>,
+    pub bones: Vec<Affine>,
     pub vertices: Vec<DVec3>,
 }
 

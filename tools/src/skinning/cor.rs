@@ -17,7 +17,7 @@
 //! only, instead of every triangle.
 
 use super::dqs::{blended, DualQuat};
-use crate::set::Bone;
+use crate::set::Affine;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -60,7 +60,7 @@ pub fn deform(
     rest: &[DVec3],
     influences: &[Vec<(usize, f64)>],
     centres: &[DVec3],
-    bones: &[Bone],
+    bones: &[Affine],
 ) -> Vec<DVec3> {
     let dq: Vec<DualQuat> = bones.iter().map(DualQuat::of).collect();
     rest.iter()
@@ -296,11 +296,11 @@ mod tests {
             assert_eq!(c[v], rest[v]);
         }
         let bones = [
-            Bone {
+            Affine {
                 q: DMat3::from_rotation_z(0.7),
                 d: DVec3::new(0.5, -1.0, 2.0),
             },
-            Bone {
+            Affine {
                 q: DMat3::IDENTITY,
                 d: DVec3::ZERO,
             },

@@ -21,7 +21,7 @@
 //! `I + λ D⁻¹L` with an LDLᵀ that reads one triangle only; this follows the formulas instead.
 
 use crate::linalg::procrustes;
-use crate::set::Bone;
+use crate::set::Affine;
 use crate::{Error, Result};
 use faer::prelude::*;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -89,7 +89,7 @@ impl Ddm {
     }
 
     /// Each vertex of `rest` moved under `bones` (J).
-    pub fn deform(&self, rest: &[DVec3], bones: &[Bone]) -> Vec<DVec3> {
+    pub fn deform(&self, rest: &[DVec3], bones: &[Affine]) -> Vec<DVec3> {
         rest.par_iter()
             .enumerate()
             .map(|(i, &x)| {
@@ -101,7 +101,7 @@ impl Ddm {
 }
 
 /// The rigid motion (R_i, t_i) of a vertex of Ω `omega` under `bones`; None without weight.
-fn moved(omega: &[(usize, [f64; 10])], bones: &[Bone]) -> Option<(DMat3, DVec3)> {
+fn moved(omega: &[(usize, [f64; 10])], bones: &[Affine]) -> Option<(DMat3, DVec3)> {
     // Q's top three rows Σ_j [q_j | d_j] Ω_ij, and its last row Σ_j Ω_ij's.
     let (mut top, mut last) = ([[0.0; 4]; 3], [0.0; 4]);
     for (j, o) in omega {
@@ -404,13 +404,13 @@ mod tests {
         (rest, set.faces, weights)
     }
 
-    fn bones() -> Vec<Bone> {
+    fn bones() -> Vec<Affine> {
         vec![
-            Bone {
+            Affine {
                 q: DMat3::from_rotation_y(0.3),
                 d: DVec3::new(0.1, 0.2, -0.1),
             },
-            Bone {
+            Affine {
                 q: DMat3::from_quat(DQuat::from_axis_angle(
                     DVec3::new(1.0, 0.5, 0.2).normalize(),
                     1.9,

@@ -3,7 +3,7 @@
 //! skinning weights (each flipped into the hemisphere of the heaviest bone's), normalised, and
 //! applied as one rigid motion.
 
-use crate::set::Bone;
+use crate::set::Affine;
 use glam::{DQuat, DVec3};
 
 /// A rigid transform as a unit dual quaternion: real part r (rotation), dual part ½ (0, t) r.
@@ -14,7 +14,7 @@ pub(super) struct DualQuat {
 }
 
 impl DualQuat {
-    pub(super) fn of(bone: &Bone) -> DualQuat {
+    pub(super) fn of(bone: &Affine) -> DualQuat {
         let real = DQuat::from_mat3(&bone.q).normalize();
         let t = DQuat::from_xyzw(bone.d.x, bone.d.y, bone.d.z, 0.0);
         DualQuat {
@@ -25,7 +25,7 @@ impl DualQuat {
 }
 
 /// Each vertex of `rest` moved by its (bone, weight) list under `bones`.
-pub fn deform(rest: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Bone]) -> Vec<DVec3> {
+pub fn deform(rest: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Affine]) -> Vec<DVec3> {
     let dq: Vec<DualQuat> = bones.iter().map(DualQuat::of).collect();
     rest.iter()
         .zip(influences)
@@ -35,7 +35,7 @@ pub fn deform(rest: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Bone]) 
 
 /// Each of `normals` rotated by its vertex's blended dual quaternion's rotation: DQS's normal
 /// transform (a rigid motion's; a vertex without weight keeps its normal).
-pub fn rotate(normals: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Bone]) -> Vec<DVec3> {
+pub fn rotate(normals: &[DVec3], influences: &[Vec<(usize, f64)>], bones: &[Affine]) -> Vec<DVec3> {
     let dq: Vec<DualQuat> = bones.iter().map(DualQuat::of).collect();
     (normals.iter().zip(influences))
         .map(|(&n, inf)| blended(&dq, inf).map_or(n, |b| b.real * n))
@@ -80,8 +80,8 @@ mod tests {
     use super::*;
     use glam::DMat3;
 
-    fn bone(axis: DVec3, angle: f64, d: DVec3) -> Bone {
-        Bone {
+    fn bone(axis: DVec3, angle: f64, d: DVec3) -> Affine {
+        Affine {
             q: DMat3::from_axis_angle(axis.normalize(), angle),
             d,
         }

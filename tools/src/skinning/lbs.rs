@@ -1,7 +1,7 @@
 //! Linear blend skinning ([`Skinning`]) and the best rigid predictor (one bone per vertex, paper
 //! §4.2): the 100 % of the enveloping error.
 
-use crate::set::{Bone, ExampleSet};
+use crate::set::{Affine, ExampleSet};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -13,7 +13,7 @@ pub struct Skinning {
 
 impl Skinning {
     /// Linear blend skinning of the rest mesh by one pose's bones.
-    pub fn deform(&self, rest: &[DVec3], bones: &[Bone]) -> Vec<DVec3> {
+    pub fn deform(&self, rest: &[DVec3], bones: &[Affine]) -> Vec<DVec3> {
         rest.iter()
             .zip(&self.influences)
             .map(|(&p, inf)| inf.iter().map(|&(b, w)| bones[b].apply(p) * w).sum())

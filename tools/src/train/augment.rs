@@ -7,7 +7,7 @@
 //! bone transforms by forward kinematics about each joint's pivot c_b, the rest-space point
 //! that parent and child move alike (`T_b c_b = T_p c_b`, least squares over the poses).
 
-use crate::set::{Bone, ExampleSet, Pose};
+use crate::set::{Affine, ExampleSet, Pose};
 use crate::skinning::lbs::Skinning;
 use crate::train::full_model::{FullModel, Prepared};
 use crate::train::pivots::pivots;
@@ -21,23 +21,23 @@ pub fn scaled_pose(
     set: &ExampleSet,
     order: &[usize],
     pivots: &[DVec3],
-    bones: &[Bone],
+    bones: &[Affine],
     s: f64,
-) -> Vec<Bone> {
+) -> Vec<Affine> {
     let mut out = bones.to_vec();
     for &b in order {
         let t = bones[b];
         out[b] = match set.parents[b] {
             None => {
                 let q = exp_rotation(log_rotation(t.q) * s);
-                Bone { q, d: t.d * s }
+                Affine { q, d: t.d * s }
             }
             Some(p) => {
                 let joint = exp_rotation(log_rotation(bones[p].q.transpose() * t.q) * s);
                 let parent = out[p];
                 // x ↦ T_p(c + Q~ (x − c))
                 let q = parent.q * joint;
-                Bone {
+                Affine {
                     q,
                     d: parent.apply(pivots[b] - joint * pivots[b]),
                 }
@@ -128,7 +128,7 @@ mod tests {
         ];
         // World transforms by forward kinematics, root (bone 2) first.
         let mut bones = vec![
-            Bone {
+            Affine {
                 q: DMat3::IDENTITY,
                 d: DVec3::ZERO
             };
@@ -136,21 +136,21 @@ mod tests {
         ];
         for b in [2, 1, 0] {
             let parent = parents[b].map_or(
-                Bone {
+                Affine {
                     q: DMat3::IDENTITY,
                     d: DVec3::ZERO,
                 },
                 |p| bones[p],
             );
             let q = parent.q * joints[b];
-            bones[b] = Bone {
+            bones[b] = Affine {
                 q,
                 d: parent.apply(pivot[b] - joints[b] * pivot[b]),
             };
         }
-        let second: Vec<Bone> = bones
+        let second: Vec<Affine> = bones
             .iter()
-            .map(|b| Bone {
+            .map(|b| Affine {
                 q: b.q * b.q,
                 d: b.d,
             })

@@ -126,7 +126,7 @@ impl Residuals {
         };
         for &i in poses {
             let bones: Vec<rrskin::predict::Affine> =
-                set.poses[i].bones.iter().map(|b| b.to_affine()).collect();
+                set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
             evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
             palette.compute(&bones, &mut entries)?;
             let m: Vec<DMat3> = (0..v)

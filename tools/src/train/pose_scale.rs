@@ -48,12 +48,12 @@ pub fn own_rigid_pose_errors(set: &ExampleSet, poses: &[usize]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::set::{Bone, Pose};
+    use crate::set::{Affine, Pose};
     use glam::{DMat3, DVec3};
 
     /// One vertex on one bone that stays put: its pose errors are its displacements squared.
     fn set_with_offsets(offsets: &[f64]) -> ExampleSet {
-        let bone = Bone {
+        let bone = Affine {
             q: DMat3::IDENTITY,
             d: DVec3::ZERO,
         };

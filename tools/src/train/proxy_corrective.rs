@@ -26,7 +26,7 @@
 //!    the stronger ridge first.
 
 use crate::linalg::DenseCholesky;
-use crate::set::{Bone, ExampleSet};
+use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
 use crate::train::corrective;
 use crate::train::cross_validate::{cross_validate, Folds, Score};
@@ -145,7 +145,7 @@ impl ProxyCorrectives {
 
     /// Applies the corrections to `palette` (the P predicted proxies of a pose with features
     /// `phi`).
-    pub fn correct(&self, palette: &mut [Bone], phi: &[[f64; 9]]) {
+    pub fn correct(&self, palette: &mut [Affine], phi: &[[f64; 9]]) {
         let mut x = Vec::new();
         for c in &self.proxies {
             self.features(&c.drivers, phi, &mut x);
@@ -187,16 +187,16 @@ fn squared(x: &[f64; 9]) -> f64 {
 }
 
 /// `T (I + E)`, E as the rows of [A | b]: `[M (I + A) | t + M b]`.
-fn corrected(t: &Bone, e: &[f64; 12]) -> Bone {
+fn corrected(t: &Affine, e: &[f64; 12]) -> Affine {
     let a = DMat3::from_cols_array(&[e[0], e[4], e[8], e[1], e[5], e[9], e[2], e[6], e[10]]);
-    Bone {
+    Affine {
         q: t.q * (DMat3::IDENTITY + a),
         d: t.d + t.q * DVec3::new(e[3], e[7], e[11]),
     }
 }
 
 /// `T⁻¹ T* − I` as the rows of [A | b], None where T is singular.
-fn target(t: &Bone, best: &Bone) -> Option<[f64; 12]> {
+fn target(t: &Affine, best: &Affine) -> Option<[f64; 12]> {
     if t.q.determinant().abs() <= SINGULAR {
         return None;
     }
@@ -238,7 +238,7 @@ pub fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<u
 
 /// The training poses as the fit sees them (in `train` order).
 struct Poses {
-    predicted: Vec<Vec<Bone>>,
+    predicted: Vec<Vec<Affine>>,
     /// Per anchor ([`ANCHORS`]), pose and proxy: E*.
     targets: Vec<Vec<Vec<Option<[f64; 12]>>>>,
     phi: Vec<Vec<[f64; 9]>>,
@@ -317,7 +317,7 @@ pub fn fit(
         };
     };
     let drivers = drivers(set, ssd, reduced);
-    let predicted: Vec<Vec<Bone>> = (train.iter())
+    let predicted: Vec<Vec<Affine>> = (train.iter())
         .map(|&i| reduced.predict_proxies(set, &feats[i], &set.poses[i].bones))
         .collect();
     let targets = ANCHORS

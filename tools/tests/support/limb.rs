@@ -5,7 +5,7 @@
 //! LBS error is about the rigid one; the examples are still this rig's motion, and train.
 
 use glam::{DMat3, DVec3};
-use rrskin_tools::set::{Bone, ExampleSet, Pose};
+use rrskin_tools::set::{Affine, ExampleSet, Pose};
 
 const RINGS: usize = 7;
 const SEGMENTS: usize = 6;
@@ -38,8 +38,8 @@ type Angles = [(f64, f64); 2];
 
 /// The limb's bones in one pose, each joint's rotation about its own rest position, after its
 /// parent's motion.
-fn bones_of(angles: Angles) -> Vec<Bone> {
-    let mut bones = vec![Bone {
+fn bones_of(angles: Angles) -> Vec<Affine> {
+    let mut bones = vec![Affine {
         q: DMat3::IDENTITY,
         d: DVec3::ZERO,
     }];
@@ -48,7 +48,7 @@ fn bones_of(angles: Angles) -> Vec<Bone> {
         let parent = *bones.last().expect("the root");
         let joint = DVec3::new(x, 0.0, 0.0);
         let q = parent.q * local;
-        bones.push(Bone {
+        bones.push(Affine {
             q,
             d: parent.apply(joint) - q * joint,
         });
@@ -129,7 +129,7 @@ fn limb_of(angles: &[Angles], train: usize, rich: bool) -> ExampleSet {
 
 /// The muscle on the top of each bone after a joint swells with that joint's bend (by the radius
 /// times the bend in radians), outward along the rest radial direction, moved with the bone.
-fn bulge(p: DVec3, bones: &[Bone], bends: [f64; 2]) -> DVec3 {
+fn bulge(p: DVec3, bones: &[Affine], bends: [f64; 2]) -> DVec3 {
     let radial = DVec3::new(0.0, p.y, p.z).normalize_or_zero();
     (0..2)
         .map(|k| {
@@ -172,13 +172,13 @@ pub fn limb_with_controls(poses: usize, test: usize, moved: bool) -> ExampleSet 
             ),
         };
         let tip = DVec3::new(3.0, 0.0, 0.0);
-        pose.bones.push(Bone {
+        pose.bones.push(Affine {
             q: pole,
             d: DVec3::new(0.0, 0.5, 0.0) - pole * DVec3::new(0.0, 0.5, 0.0),
         });
         // The slot turned about the hand's tip, after the hand's motion.
         let q = hand.q * slot;
-        pose.bones.push(Bone {
+        pose.bones.push(Affine {
             q,
             d: hand.apply(tip) - q * tip,
         });

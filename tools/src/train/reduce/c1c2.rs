@@ -16,7 +16,7 @@
 //! determined while staying linear in q.
 
 use crate::linalg::DenseCholesky;
-use crate::set::{Bone, ExampleSet, Pose};
+use crate::set::{Affine, ExampleSet, Pose};
 use crate::skinning::lbs::Skinning;
 use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
@@ -237,12 +237,17 @@ impl Reduced {
     }
 
     /// The mesh in one pose, in f64: predictors, t = C1 d + C2 q, palette skinning.
-    pub fn predict(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<DVec3> {
+    pub fn predict(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Affine]) -> Vec<DVec3> {
         self.skin_with(set, &self.predict_proxies(set, f, bones), bones)
     }
 
     /// The proxies' transforms in one pose, in f64: predictors, t = C1 d + C2 q.
-    pub fn predict_proxies(&self, set: &ExampleSet, f: &PoseFeatures, bones: &[Bone]) -> Vec<Bone> {
+    pub fn predict_proxies(
+        &self,
+        set: &ExampleSet,
+        f: &PoseFeatures,
+        bones: &[Affine],
+    ) -> Vec<Affine> {
         let d: Vec<DMat3> = (self.predictors.iter())
             .map(|k| k.predict(f, &set.parents))
             .collect();
@@ -262,8 +267,8 @@ impl Reduced {
         &self,
         set: &ExampleSet,
         poses: &[usize],
-        anchor: Option<(&[Vec<Bone>], f64)>,
-    ) -> Vec<Vec<Bone>> {
+        anchor: Option<(&[Vec<Affine>], f64)>,
+    ) -> Vec<Vec<Affine>> {
         let p = self.proxies;
         let n4p = 4 * p;
         let normal = self.proxy_normal_matrix(set);
@@ -273,7 +278,7 @@ impl Reduced {
         for d in 0..n4p {
             gram[(d, d)] += ridge;
         }
-        let zero = Bone {
+        let zero = Affine {
             q: DMat3::ZERO,
             d: DVec3::ZERO,
         };
@@ -296,7 +301,7 @@ impl Reduced {
                 let rhs = Mat::<f64>::from_fn(n4p, 3, |r, c| targets[r][c] + prior(r, c));
                 let t = llt.solve(&rhs);
                 (0..p)
-                    .map(|e| Bone {
+                    .map(|e| Affine {
                         q: DMat3::from_cols_array(&std::array::from_fn(|k| {
                             t[(4 * e + k / 3, k % 3)]
                         })),
@@ -308,7 +313,7 @@ impl Reduced {
     }
 
     /// The proxies' transforms for key gradients `d` (P) and bones: t = C1 d + C2 q (§4.3).
-    pub fn proxy_transforms(&self, d: &[DMat3], bones: &[Bone]) -> Vec<Bone> {
+    pub fn proxy_transforms(&self, d: &[DMat3], bones: &[Affine]) -> Vec<Affine> {
         let (p, j) = (self.proxies, self.bones);
         let mut t = vec![[[0.0; 4]; 3]; p];
         for c in 0..3 {
@@ -330,7 +335,7 @@ impl Reduced {
             }
         }
         t.iter()
-            .map(|m| Bone {
+            .map(|m| Affine {
                 q: DMat3::from_cols_array(&[
                     m[0][0], m[1][0], m[2][0], m[0][1], m[1][1], m[2][1], m[0][2], m[1][2], m[2][2],
                 ]),
@@ -340,12 +345,12 @@ impl Reduced {
     }
 
     /// The mesh for key gradients `d` (P) and bones: t = C1 d + C2 q, palette skinning.
-    pub fn predict_with_keys(&self, set: &ExampleSet, d: &[DMat3], bones: &[Bone]) -> Vec<DVec3> {
+    pub fn predict_with_keys(&self, set: &ExampleSet, d: &[DMat3], bones: &[Affine]) -> Vec<DVec3> {
         self.skin_with(set, &self.proxy_transforms(d, bones), bones)
     }
 
     /// The mesh for the proxies' transforms `palette` (P) and bones: palette skinning.
-    pub fn skin_with(&self, set: &ExampleSet, palette: &[Bone], bones: &[Bone]) -> Vec<DVec3> {
+    pub fn skin_with(&self, set: &ExampleSet, palette: &[Affine], bones: &[Affine]) -> Vec<DVec3> {
         let p = self.proxies;
         set.rest
             .iter()
@@ -427,7 +432,7 @@ fn set_animation(set: &ExampleSet) -> Vec<rrskin::predict::Affine> {
     };
     poses
         .iter()
-        .flat_map(|&i| set.poses[i].bones.iter().map(Bone::to_affine))
+        .flat_map(|&i| set.poses[i].bones.iter().map(Affine::to_runtime))
         .collect()
 }
 

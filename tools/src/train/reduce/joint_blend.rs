@@ -14,7 +14,7 @@
 //! Everything is geometry but the weights, so the model extrapolates as the rig's joints do:
 //! a regression fitted on wide range-of-motion poses cannot bend it on gentle ones.
 
-use crate::set::{Bone, ExampleSet};
+use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
 use crate::train::pivots::pivots;
 use crate::train::reduce::c1c2::Reduced;
@@ -38,9 +38,9 @@ struct Proxy {
 }
 
 impl Proxy {
-    fn transform(&self, f: &PoseFeatures, bones: &[Bone]) -> Bone {
+    fn transform(&self, f: &PoseFeatures, bones: &[Affine]) -> Affine {
         let q = bones[self.parent].q * exp_rotation(f.theta[self.bone] * self.fraction);
-        Bone {
+        Affine {
             q,
             d: bones[self.parent].apply(self.pivot) - q * self.pivot,
         }
@@ -154,7 +154,7 @@ pub fn reweight(
     influences: usize,
     reduced: &mut Reduced,
 ) {
-    let palette: Vec<Vec<Bone>> = train
+    let palette: Vec<Vec<Affine>> = train
         .iter()
         .map(|&i| {
             let d: Vec<DMat3> = reduced
@@ -185,7 +185,7 @@ fn palettes(
     feats: &[PoseFeatures],
     train: &[usize],
     proxies: &[Proxy],
-) -> Vec<Vec<Bone>> {
+) -> Vec<Vec<Affine>> {
     train
         .iter()
         .map(|&i| {
@@ -211,7 +211,7 @@ fn joints(proxies: &[Proxy]) -> Vec<(usize, usize)> {
 fn weights(
     set: &ExampleSet,
     train: &[usize],
-    palette: &[Vec<Bone>],
+    palette: &[Vec<Affine>],
     joints: &[(usize, usize)],
     ssd: &Skinning,
     influences: usize,
@@ -305,13 +305,13 @@ mod tests {
     /// quaternion skinning's blend (DLB, which parametrises the angle differently elsewhere).
     #[test]
     fn a_proxy_is_the_screw_interpolation_of_its_joint() {
-        let parent = Bone {
+        let parent = Affine {
             q: exp_rotation(DVec3::new(0.2, -0.4, 0.3)),
             d: DVec3::new(0.5, -1.0, 0.25),
         };
         let pivot = DVec3::new(0.1, 1.2, -0.3);
         let joint = exp_rotation(DVec3::new(0.0, 1.1, 0.6));
-        let child = Bone {
+        let child = Affine {
             q: parent.q * joint,
             d: parent.apply(pivot - joint * pivot),
         };

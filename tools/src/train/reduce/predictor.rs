@@ -69,7 +69,7 @@ pub fn reduce(
     let mut d: Vec<Vec<DMat3>> = proxies
         .transforms
         .iter()
-        .map(|ts| ts.iter().map(|t| t.m).collect())
+        .map(|ts| ts.iter().map(|t| t.q).collect())
         .collect();
     let mut beta: Vec<Vec<(usize, f64)>> = Vec::new();
     for _ in 0..ROUNDS {

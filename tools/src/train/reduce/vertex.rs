@@ -12,24 +12,11 @@
 //!
 //! Index letters: b, g proxies (groups), i poses (in `train` order), a vertices, k triangles.
 
-use crate::set::ExampleSet;
+use crate::set::{Affine, ExampleSet};
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashSet};
-
-/// An affine map x ↦ m x + t, 3x4.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Affine {
-    pub m: DMat3,
-    pub t: DVec3,
-}
-
-impl Affine {
-    pub fn apply(&self, x: DVec3) -> DVec3 {
-        self.m * x + self.t
-    }
-}
 
 #[derive(Debug, Clone)]
 pub struct Proxies {
@@ -389,12 +376,12 @@ pub fn reduce(
 
 fn affine_of_rows(rows: &[DVec4; 3]) -> Affine {
     Affine {
-        m: DMat3::from_cols(
+        q: DMat3::from_cols(
             DVec3::new(rows[0].x, rows[1].x, rows[2].x),
             DVec3::new(rows[0].y, rows[1].y, rows[2].y),
             DVec3::new(rows[0].z, rows[1].z, rows[2].z),
         ),
-        t: DVec3::new(rows[0].w, rows[1].w, rows[2].w),
+        d: DVec3::new(rows[0].w, rows[1].w, rows[2].w),
     }
 }
 
@@ -446,7 +433,7 @@ fn fit_transforms(
             }
             for (b, t) in current[n].iter().enumerate() {
                 for c in 0..3 {
-                    let row = [t.m.x_axis[c], t.m.y_axis[c], t.m.z_axis[c], t.t[c]];
+                    let row = t.row(c);
                     for r in 0..4 {
                         rows[c][4 * b + r] += ridge * row[r];
                     }

@@ -1,19 +1,20 @@
-//! A bone's pose: the rigid transform of the rest pose it makes, and the check that a transform
-//! is rigid.
+//! The one affine map of the tools, x ↦ q x + d: a posed bone's transform of the rest pose (q a
+//! rotation, [`rotation_error`] checks it), a proxy's (q any 3x3). The runtime takes the 3x4
+//! row-major `f32` form ([`Affine::to_runtime`]) at its boundary.
 
 use glam::{DMat3, DVec3};
 
 /// Tolerance on the rotation part of a pose transform: |QᵀQ − I|∞ and |det Q − 1|.
 pub const ROTATION_TOLERANCE: f64 = 1e-3;
 
-/// A bone transform relative to the rest pose: x ↦ q x + d.
+/// An affine map x ↦ q x + d (a bone's: relative to the rest pose).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Bone {
+pub struct Affine {
     pub q: DMat3,
     pub d: DVec3,
 }
 
-impl Bone {
+impl Affine {
     pub fn apply(&self, x: DVec3) -> DVec3 {
         self.q * x + self.d
     }
@@ -29,7 +30,7 @@ impl Bone {
     }
 
     /// The 3x4 row-major form the runtime takes.
-    pub fn to_affine(&self) -> rrskin::predict::Affine {
+    pub fn to_runtime(&self) -> rrskin::predict::Affine {
         let (q, d) = (self.q, self.d);
         [
             q.x_axis.x, q.y_axis.x, q.z_axis.x, d.x, q.x_axis.y, q.y_axis.y, q.z_axis.y, d.y,
