@@ -28,83 +28,13 @@ impl Chain {
         if rings < 2 || segments < 3 || bones < 1 || poses < 2 {
             return None;
         }
-        let length = bones as f64;
-        let mut rest = Vec::with_capacity(rings * segments);
-        for r in 0..rings {
-            for s in 0..segments {
-                let a = std::f64::consts::TAU * s as f64 / segments as f64;
-                rest.push(DVec3::new(
-                    length * r as f64 / (rings - 1) as f64,
-                    0.25 * a.cos(),
-                    0.25 * a.sin(),
-                ));
-            }
-        }
-        let mut faces = Vec::with_capacity(2 * (rings - 1) * segments);
-        for r in 0..rings - 1 {
-            for s in 0..segments {
-                let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
-                faces.push([a, b, b + segments]);
-                faces.push([a, b + segments, a + segments]);
-            }
-        }
-        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
-        let mut uniform = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let rest = rest_cylinder(rings, segments, bones as f64);
+        let faces = cylinder_faces(rings, segments);
+        let mut uniform = xorshift();
         let mut examples = Vec::with_capacity(poses);
         for i in 0..poses {
-            // Affine b pivots at x = b; world rotations compose local bends (z, y) and twists (x).
-            let mut world = DMat3::IDENTITY;
-            let mut origin = DVec3::ZERO;
-            let mut pose_bones = Vec::with_capacity(bones);
-            for b in 0..bones {
-                let local = if i == 0 {
-                    DMat3::IDENTITY
-                } else {
-                    DMat3::from_rotation_z(0.5 * uniform())
-                        * DMat3::from_rotation_y(0.4 * uniform())
-                        * DMat3::from_rotation_x(0.9 * uniform())
-                };
-                let pivot = DVec3::new(b as f64, 0.0, 0.0);
-                let parent_apply = |p: DVec3| world * p + origin;
-                let moved_pivot = if b == 0 { pivot } else { parent_apply(pivot) };
-                world *= local;
-                origin = moved_pivot - world * pivot;
-                pose_bones.push(Affine {
-                    q: world,
-                    d: origin,
-                });
-            }
-            // The black box: around each joint, the rotation slerps from one bone's to the next over
-            // ±0.4 about the joint (like dual-quaternion skinning: no collapse, not linear blending).
-            let vertices = rest
-                .iter()
-                .map(|&p| {
-                    let b = (p.x.floor() as usize).min(bones - 1);
-                    let f = p.x - b as f64;
-                    let (lo, hi) = if f < 0.5 && b > 0 {
-                        (b - 1, b)
-                    } else {
-                        (b, (b + 1).min(bones - 1))
-                    };
-                    if lo == hi {
-                        return pose_bones[lo].apply(p);
-                    }
-                    let t = if f < 0.5 { 0.5 + f } else { f - 0.5 };
-                    let s = ((t - 0.1) / 0.8).clamp(0.0, 1.0);
-                    let s = s * s * (3.0 - 2.0 * s);
-                    let joint = DVec3::new(hi as f64, 0.0, 0.0);
-                    let (qa, qb) = (
-                        DQuat::from_mat3(&pose_bones[lo].q),
-                        DQuat::from_mat3(&pose_bones[hi].q),
-                    );
-                    DMat3::from_quat(qa.slerp(qb, s)) * (p - joint) + pose_bones[lo].apply(joint)
-                })
-                .collect();
+            let pose_bones = chain_pose(bones, i == 0, &mut uniform);
+            let vertices = rest.iter().map(|&p| black_box(&pose_bones, p)).collect();
             examples.push(Pose {
                 bones: pose_bones,
                 vertices,
@@ -122,6 +52,101 @@ impl Chain {
         // Valid by construction: rigid bones, a chain, 4 of 5 poses training poses.
         ExampleSet::new(parts, &SetFiles::one("<cylinder chain>")).ok()
     }
+}
+
+/// The rest cylinder: `rings` rings of `segments` vertices, radius 0.25, evenly spaced along
+/// the x axis from 0 to `length`, ring-major.
+fn rest_cylinder(rings: usize, segments: usize, length: f64) -> Vec<DVec3> {
+    let mut rest = Vec::with_capacity(rings * segments);
+    for r in 0..rings {
+        for s in 0..segments {
+            let a = std::f64::consts::TAU * s as f64 / segments as f64;
+            rest.push(DVec3::new(
+                length * r as f64 / (rings - 1) as f64,
+                0.25 * a.cos(),
+                0.25 * a.sin(),
+            ));
+        }
+    }
+    rest
+}
+
+/// The cylinder's side: two triangles between each pair of neighbouring rings per segment
+/// (the ends are left open).
+fn cylinder_faces(rings: usize, segments: usize) -> Vec<[usize; 3]> {
+    let mut faces = Vec::with_capacity(2 * (rings - 1) * segments);
+    for r in 0..rings - 1 {
+        for s in 0..segments {
+            let (a, b) = (r * segments + s, r * segments + (s + 1) % segments);
+            faces.push([a, b, b + segments]);
+            faces.push([a, b + segments, a + segments]);
+        }
+    }
+    faces
+}
+
+/// A fixed-seed xorshift generator of uniform numbers in [-1, 1): the same set every build.
+fn xorshift() -> impl FnMut() -> f64 {
+    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+    move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+}
+
+/// One pose's bones: the rest pose if `rest`, else a random bend (z, y) and twist (x) per bone,
+/// drawn from `uniform`. Affine b pivots at x = b; world rotations compose the local ones.
+fn chain_pose(bones: usize, rest: bool, uniform: &mut impl FnMut() -> f64) -> Vec<Affine> {
+    let mut world = DMat3::IDENTITY;
+    let mut origin = DVec3::ZERO;
+    let mut pose_bones = Vec::with_capacity(bones);
+    for b in 0..bones {
+        let local = if rest {
+            DMat3::IDENTITY
+        } else {
+            DMat3::from_rotation_z(0.5 * uniform())
+                * DMat3::from_rotation_y(0.4 * uniform())
+                * DMat3::from_rotation_x(0.9 * uniform())
+        };
+        let pivot = DVec3::new(b as f64, 0.0, 0.0);
+        let parent_apply = |p: DVec3| world * p + origin;
+        let moved_pivot = if b == 0 { pivot } else { parent_apply(pivot) };
+        world *= local;
+        origin = moved_pivot - world * pivot;
+        pose_bones.push(Affine {
+            q: world,
+            d: origin,
+        });
+    }
+    pose_bones
+}
+
+/// The black box: rest point `p` moved by the pose's bones, where around each joint the
+/// rotation slerps from one bone's to the next over ±0.4 about the joint (like dual-quaternion
+/// skinning: no collapse, not linear blending).
+fn black_box(pose_bones: &[Affine], p: DVec3) -> DVec3 {
+    let bones = pose_bones.len();
+    let b = (p.x.floor() as usize).min(bones - 1);
+    let f = p.x - b as f64;
+    let (lo, hi) = if f < 0.5 && b > 0 {
+        (b - 1, b)
+    } else {
+        (b, (b + 1).min(bones - 1))
+    };
+    if lo == hi {
+        return pose_bones[lo].apply(p);
+    }
+    let t = if f < 0.5 { 0.5 + f } else { f - 0.5 };
+    let s = ((t - 0.1) / 0.8).clamp(0.0, 1.0);
+    let s = s * s * (3.0 - 2.0 * s);
+    let joint = DVec3::new(hi as f64, 0.0, 0.0);
+    let (qa, qb) = (
+        DQuat::from_mat3(&pose_bones[lo].q),
+        DQuat::from_mat3(&pose_bones[hi].q),
+    );
+    DMat3::from_quat(qa.slerp(qb, s)) * (p - joint) + pose_bones[lo].apply(joint)
 }
 
 #[cfg(test)]

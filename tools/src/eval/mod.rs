@@ -170,8 +170,9 @@ impl Report {
         })
     }
 
+    /// The report as a table: one row of train and test EE per method, then the normals'
+    /// errors, what was chosen and how, and the stages' wall times.
     pub fn table(&self, name: &str) -> String {
-        let pct = |x: Option<f64>| x.map_or("     –".to_string(), |x| format!("{x:6.1}"));
         let test_label = if self.loocv {
             "LOOCV EE %"
         } else {
@@ -189,6 +190,21 @@ impl Report {
             "train EE %",
             test_label,
         );
+        s += &self.error_rows();
+        s += &normals::lines(&self.normal_error);
+        s += &self.choice_lines();
+        s += "stages:";
+        for (stage, t) in &self.stages {
+            s += &format!(" {stage} {t:.2} s;");
+        }
+        s
+    }
+
+    /// The table's rows: train and test EE per method, the runtime model's structure after its
+    /// row, and the error budget where diagnosed.
+    fn error_rows(&self) -> String {
+        let pct = |x: Option<f64>| x.map_or("     –".to_string(), |x| format!("{x:6.1}"));
+        let mut s = String::new();
         let row = |s: &mut String, label: &str, e: &Errors| {
             *s += &format!(
                 "{label:<34} {:>10} {:>10}\n",
@@ -234,7 +250,14 @@ impl Report {
             );
             row(&mut s, "  model + per-vertex pose-space", &b.pose_space);
         }
-        s += &normals::lines(&self.normal_error);
+        s
+    }
+
+    /// One line per choice the training made (the full model's settings, the joint-blend
+    /// ridges, the correctives, the proxy correctives, direct delta mush's parameters) and how
+    /// it was made.
+    fn choice_lines(&self) -> String {
+        let mut s = String::new();
         let chosen = match self.folds {
             0 | 1 => "fixed: too few training poses to cross-validate".to_string(),
             k => format!("chosen by {k}-fold cross-validation on the training poses"),
@@ -284,10 +307,6 @@ impl Report {
                 "direct delta mush: p = {}, λ = {}, κ = {}, α = {} (p and α chosen on the training poses)\n",
                 d.iterations, d.lambda, d.kappa, d.alpha
             );
-        }
-        s += "stages:";
-        for (stage, t) in &self.stages {
-            s += &format!(" {stage} {t:.2} s;");
         }
         s
     }

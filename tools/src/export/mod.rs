@@ -25,7 +25,7 @@ use crate::{Error, Result};
 use bake::{bake, Baked, NodePair};
 use glam::{DMat3, DQuat, DVec3};
 use glb::{Buffer, ARRAY_BUFFER};
-use rrskin::palette::Palette;
+use rrskin::palette::{Palette, Skin};
 use rrskin::predict::{rotation_of, Affine};
 use rrskin::Model;
 use serde_json::{json, Value};
@@ -519,43 +519,7 @@ fn primitives(
 ) -> Vec<Value> {
     let skin = palette.skin();
     let k = skin.influences;
-    let (mut no_normal, mut no_tangent) = (0usize, 0usize);
-    let normals: Vec<[f32; 3]> = skin
-        .rest_normals
-        .iter()
-        .map(|n| {
-            if n.iter().all(|x| *x == 0.0) {
-                no_normal += 1;
-                [0.0, 1.0, 0.0]
-            } else {
-                *n
-            }
-        })
-        .collect();
-    let tangents: Vec<[f32; 4]> = skin
-        .rest_tangents
-        .iter()
-        .zip(&normals)
-        .map(|(t, n)| {
-            if t[..3].iter().all(|x| *x == 0.0) {
-                no_tangent += 1;
-                let o = glam::Vec3::from(*n).any_orthonormal_vector();
-                [o.x, o.y, o.z, 1.0]
-            } else {
-                *t
-            }
-        })
-        .collect();
-    if no_normal > 0 {
-        notes.push(format!(
-            "{no_normal} vertices of no area have the normal +Y"
-        ));
-    }
-    if no_tangent > 0 {
-        notes.push(format!(
-            "{no_tangent} vertices without a rest tangent have one orthogonal to their normal"
-        ));
-    }
+    let (normals, tangents) = rest_frames(&skin, notes);
     let (joints, weights) = skin_sets(skin.indices, skin.weights, k);
     geometry
         .primitives
@@ -618,6 +582,50 @@ fn primitives(
             primitive
         })
         .collect()
+}
+
+/// The runtime's rest normals and tangents, each made usable where the runtime has none: +Y
+/// for a vertex of no area, a tangent orthogonal to its normal for one without a rest tangent
+/// (glTF needs unit vectors); a note says how many were filled in.
+fn rest_frames(skin: &Skin, notes: &mut Vec<String>) -> (Vec<[f32; 3]>, Vec<[f32; 4]>) {
+    let (mut no_normal, mut no_tangent) = (0usize, 0usize);
+    let normals: Vec<[f32; 3]> = skin
+        .rest_normals
+        .iter()
+        .map(|n| {
+            if n.iter().all(|x| *x == 0.0) {
+                no_normal += 1;
+                [0.0, 1.0, 0.0]
+            } else {
+                *n
+            }
+        })
+        .collect();
+    let tangents: Vec<[f32; 4]> = skin
+        .rest_tangents
+        .iter()
+        .zip(&normals)
+        .map(|(t, n)| {
+            if t[..3].iter().all(|x| *x == 0.0) {
+                no_tangent += 1;
+                let o = glam::Vec3::from(*n).any_orthonormal_vector();
+                [o.x, o.y, o.z, 1.0]
+            } else {
+                *t
+            }
+        })
+        .collect();
+    if no_normal > 0 {
+        notes.push(format!(
+            "{no_normal} vertices of no area have the normal +Y"
+        ));
+    }
+    if no_tangent > 0 {
+        notes.push(format!(
+            "{no_tangent} vertices without a rest tangent have one orthogonal to their normal"
+        ));
+    }
+    (normals, tangents)
 }
 
 /// The skin as glTF sets of 4 (JOINTS_n, WEIGHTS_n): per vertex the K (index, weight) pairs

@@ -151,6 +151,9 @@ struct Hypothesis {
     score: f64,
 }
 
+/// Lines `cache` up with animation `clip` of `rig` (at `fps`): its frames, its space and its
+/// vertex order, each fixed with a note, or an error where the cache is off the clip's keys
+/// or two hypotheses fit about as well.
 pub fn align(
     rig: &Rig,
     rig_path: &Path,
@@ -175,62 +178,15 @@ pub fn align(
         return Err(bad(off_the_keys(rig_path, cache, &keys, clip, fps)));
     }
     let size = diagonal(&rig.rest);
-    let mut objects: Vec<(DMat4, &'static str)> = Vec::new();
-    for object in [
-        rig.mesh_world.map(|m| (m, "the mesh node's world matrix")),
-        rig.bind.map(|m| (m, "the skin's bind matrix")),
-    ]
-    .into_iter()
-    .flatten()
-    {
-        let known = |m: &DMat4| m.abs_diff_eq(object.0, 1e-6 * object.0.w_axis.length().max(1.0));
-        if !known(&DMat4::IDENTITY) && !objects.iter().any(|o| known(&o.0)) {
-            objects.push(object);
-        }
-    }
-    let spaces: Vec<Space> = std::iter::once(None)
-        .chain(objects.into_iter().map(Some))
-        .flat_map(|object| [Up::Same, Up::Z, Up::Y].map(|up| (up, object)))
-        .flat_map(|(up, object)| UNITS.map(|units| Space { up, object, units }))
-        .collect();
-    let mut hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
-    hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));
-    let best = hypotheses[0];
-    if let Some(next) =
-        (hypotheses.get(1)).filter(|n| best.score <= PLAUSIBLE && best.score > MARGIN * n.score)
-    {
-        let what = |h: &Hypothesis| {
-            format!(
-                "{} with cache frame {} as the clip's frame {} ({:.2} % of the mesh size apart)",
-                h.space.describe(),
-                cache.frames[0],
-                cache.frames[0] + h.offset,
-                100.0 * h.score
-            )
-        };
-        return Err(bad(format!(
-            "cannot tell how the cache lines up with animation '{clip}' of {}: as {} or as {} (the glTF's own skin against the cache's points); export the cache in world space, in the glTF's Y-up, over the clip's own frame range",
-            rig_path.display(),
-            what(&best),
-            what(next)
-        )));
-    }
+    let spaces = spaces(rig);
+    let hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
+    let best = unambiguous(hypotheses, rig_path, cache, clip).map_err(bad)?;
 
     let mut notes: Vec<String> = best.space.note();
     let frames: Vec<f64> = cache.frames.iter().map(|f| f + best.offset).collect();
     let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
     if best.offset != 0.0 {
-        notes.push(format!(
-            "cache sample 0 holds the clip's frame {}, not frame {}{}: shifted by {} frame{}",
-            frames[0],
-            cache.frames[0],
-            match cache.format {
-                Format::Mdd => " (MDD times start at 0, whatever the scene's first frame)",
-                Format::Pc2 | Format::Alembic => "",
-            },
-            best.offset,
-            if best.offset.abs() == 1.0 { "" } else { "s" }
-        ));
+        notes.push(shift_note(cache, frames[0], best.offset));
     }
     let to_world = best.space.matrix();
     let world: Vec<Vec<DVec3>> = cache
@@ -265,6 +221,78 @@ pub fn align(
         bones,
         notes,
     })
+}
+
+/// The spaces the cache may be in: world space or each distinct object space the rig knows
+/// (the mesh node's world matrix, the skin's bind matrix; none that is the identity), each
+/// with every up axis and unit factor.
+fn spaces(rig: &Rig) -> Vec<Space> {
+    let mut objects: Vec<(DMat4, &'static str)> = Vec::new();
+    for object in [
+        rig.mesh_world.map(|m| (m, "the mesh node's world matrix")),
+        rig.bind.map(|m| (m, "the skin's bind matrix")),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        let known = |m: &DMat4| m.abs_diff_eq(object.0, 1e-6 * object.0.w_axis.length().max(1.0));
+        if !known(&DMat4::IDENTITY) && !objects.iter().any(|o| known(&o.0)) {
+            objects.push(object);
+        }
+    }
+    std::iter::once(None)
+        .chain(objects.into_iter().map(Some))
+        .flat_map(|object| [Up::Same, Up::Z, Up::Y].map(|up| (up, object)))
+        .flat_map(|(up, object)| UNITS.map(|units| Space { up, object, units }))
+        .collect()
+}
+
+/// The best-scoring hypothesis, or the message saying which two fit about as well (a
+/// plausible best not at most [`MARGIN`] of the next best).
+fn unambiguous(
+    mut hypotheses: Vec<Hypothesis>,
+    rig_path: &Path,
+    cache: &PointCache,
+    clip: &str,
+) -> Result<Hypothesis, String> {
+    hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));
+    let best = hypotheses[0];
+    if let Some(next) =
+        (hypotheses.get(1)).filter(|n| best.score <= PLAUSIBLE && best.score > MARGIN * n.score)
+    {
+        let what = |h: &Hypothesis| {
+            format!(
+                "{} with cache frame {} as the clip's frame {} ({:.2} % of the mesh size apart)",
+                h.space.describe(),
+                cache.frames[0],
+                cache.frames[0] + h.offset,
+                100.0 * h.score
+            )
+        };
+        return Err(format!(
+            "cannot tell how the cache lines up with animation '{clip}' of {}: as {} or as {} (the glTF's own skin against the cache's points); export the cache in world space, in the glTF's Y-up, over the clip's own frame range",
+            rig_path.display(),
+            what(&best),
+            what(next)
+        ));
+    }
+    Ok(best)
+}
+
+/// The note for a cache shifted by `offset` frames, whose sample 0 holds the clip's frame
+/// `first`.
+fn shift_note(cache: &PointCache, first: f64, offset: f64) -> String {
+    format!(
+        "cache sample 0 holds the clip's frame {}, not frame {}{}: shifted by {} frame{}",
+        first,
+        cache.frames[0],
+        match cache.format {
+            Format::Mdd => " (MDD times start at 0, whatever the scene's first frame)",
+            Format::Pc2 | Format::Alembic => "",
+        },
+        offset,
+        if offset.abs() == 1.0 { "" } else { "s" }
+    )
 }
 
 /// The whole-frame offsets under which every sample lands on a key of the clip.

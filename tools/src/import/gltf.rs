@@ -12,7 +12,7 @@ use crate::import::gltf_rig::Rig;
 use crate::import::point_cache::PointCache;
 use crate::import::preflight;
 use crate::import::tangents::{rest_tangents, Source};
-use crate::set::{ExampleSet, InputError, Pose, SetFiles, SetParts};
+use crate::set::{Affine, ExampleSet, InputError, Pose, SetFiles, SetParts};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -46,6 +46,8 @@ pub struct Imported {
     pub notes: Vec<(PathBuf, String)>,
 }
 
+/// The example set of the rig at `rig_path` posed by `options`' point cache, lined up with the
+/// rig's animation and welded across the glTF's seams.
 pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError> {
     if !(options.fps.is_finite() && options.fps > 0.0) {
         return Err(InputError {
@@ -65,27 +67,12 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
     )?;
     check_test_frames(options, &aligned.frames)?;
     let weld = weld(&rig.rest, &aligned.positions);
-    let representative = first_duplicates(&weld);
-    let faces: Vec<[usize; 3]> = rig
-        .triangles
-        .iter()
-        .map(|t| t.map(|g| weld[g]))
-        .filter(|[a, b, c]| a != b && b != c && a != c)
-        .collect();
-    let poses: Vec<Pose> = aligned
-        .positions
-        .iter()
-        .zip(aligned.bones)
-        .map(|(positions, bones)| Pose {
-            bones,
-            vertices: representative.iter().map(|&g| positions[g]).collect(),
-        })
-        .collect();
     let is_test: Vec<bool> = aligned
         .frames
         .iter()
         .map(|&f| options.test_frames.is_some_and(|r| in_range(f, r)))
         .collect();
+    let parts = set_parts(&rig, &weld, &aligned.positions, aligned.bones, is_test);
     let groups = normal_groups(&weld);
     let tangents = rest_tangents(
         &rig.rest,
@@ -94,32 +81,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         rig.uvs.as_deref(),
         rig.tangents.as_deref(),
     );
-    let parts = SetParts {
-        rest: representative.iter().map(|&g| rig.rest[g]).collect(),
-        faces,
-        parents: rig.parents.clone(),
-        poses,
-        is_test,
-        bone_names: Some(rig.names.clone()),
-        rig_weights: Some(
-            representative
-                .iter()
-                .map(|&g| rig.weights[g].clone())
-                .collect(),
-        ),
-    };
-    let files = SetFiles {
-        split: options.cache.clone(),
-        pose_labels: Some(
-            aligned
-                .times
-                .iter()
-                .enumerate()
-                .map(|(s, t)| format!("sample {s} (t = {t:.4} s)"))
-                .collect(),
-        ),
-        ..SetFiles::one(rig_path)
-    };
+    let files = set_files(rig_path, options, &aligned.times);
     let mut set = ExampleSet::new(parts, &files)?;
     if tangents.is_none() {
         set.warnings.push(format!(
@@ -148,6 +110,63 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         triangles: rig.triangles,
         tangents,
     })
+}
+
+/// The example set over the training vertices: each welded group of glTF vertices taken at
+/// its first (rest position, cache positions, the rig's weights), the triangles the weld does
+/// not collapse, one pose per cache sample (`positions`, `bones`, `is_test`).
+fn set_parts(
+    rig: &Rig,
+    weld: &[usize],
+    positions: &[Vec<DVec3>],
+    bones: Vec<Vec<Affine>>,
+    is_test: Vec<bool>,
+) -> SetParts {
+    let representative = first_duplicates(weld);
+    let faces: Vec<[usize; 3]> = rig
+        .triangles
+        .iter()
+        .map(|t| t.map(|g| weld[g]))
+        .filter(|[a, b, c]| a != b && b != c && a != c)
+        .collect();
+    let poses: Vec<Pose> = positions
+        .iter()
+        .zip(bones)
+        .map(|(positions, bones)| Pose {
+            bones,
+            vertices: representative.iter().map(|&g| positions[g]).collect(),
+        })
+        .collect();
+    SetParts {
+        rest: representative.iter().map(|&g| rig.rest[g]).collect(),
+        faces,
+        parents: rig.parents.clone(),
+        poses,
+        is_test,
+        bone_names: Some(rig.names.clone()),
+        rig_weights: Some(
+            representative
+                .iter()
+                .map(|&g| rig.weights[g].clone())
+                .collect(),
+        ),
+    }
+}
+
+/// Where the set's parts came from: the rig file, the split from the cache; each pose named by
+/// its cache sample and time (`times`).
+fn set_files(rig_path: &Path, options: &Options, times: &[f64]) -> SetFiles {
+    SetFiles {
+        split: options.cache.clone(),
+        pose_labels: Some(
+            times
+                .iter()
+                .enumerate()
+                .map(|(s, t)| format!("sample {s} (t = {t:.4} s)"))
+                .collect(),
+        ),
+        ..SetFiles::one(rig_path)
+    }
 }
 
 /// `--test-frames` must select samples inside the cache (`frames`: the clip's frame of each

@@ -490,38 +490,13 @@ impl RestMesh {
             ));
         }
         let reader = prim.reader(buffers.get());
-        let missing = |what: &str| {
-            bad(
-                path,
-                format!("mesh {}: a primitive without {what}", mesh.index()),
-            )
-        };
-        let positions: Vec<[f32; 3]> = reader
-            .read_positions()
-            .ok_or_else(|| missing("POSITION"))?
-            .collect();
-        let joints0: Vec<[u16; 4]> = reader
-            .read_joints(0)
-            .ok_or_else(|| missing("JOINTS_0"))?
-            .into_u16()
-            .collect();
-        let weights0: Vec<[f32; 4]> = reader
-            .read_weights(0)
-            .ok_or_else(|| missing("WEIGHTS_0"))?
-            .into_f32()
-            .collect();
+        let SkinAttributes {
+            positions,
+            joints: joints0,
+            weights: weights0,
+        } = skin_attributes(path, mesh, &reader)?;
         let positions = at_default_morph_weights(path, node, mesh, &reader, positions)?;
-        if mesh.primitives().next().map(|p| p.index()) == Some(prim.index())
-            && prim.morph_targets().len() > 0
-        {
-            self.notes.push(format!(
-                "mesh {}: {} morph target(s), the rest mesh at their default weights {:?}",
-                mesh.name()
-                    .map_or_else(|| mesh.index().to_string(), str::to_string),
-                prim.morph_targets().len(),
-                morph_weights(node, mesh)
-            ));
-        }
+        self.note_morph_targets(node, mesh, prim);
         let uv: Option<Vec<[f32; 2]>> = reader.read_tex_coords(0).map(|t| t.into_f32().collect());
         let tangent: Option<Vec<[f32; 4]>> = reader.read_tangents().map(Iterator::collect);
         let counts = [joints0.len(), weights0.len()]
@@ -541,27 +516,8 @@ impl RestMesh {
         let base = self.rest.len();
         for (i, ((p, js), ws)) in positions.iter().zip(&joints0).zip(&weights0).enumerate() {
             let p = DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
-            let mut blend = DMat4::ZERO;
-            let total: f64 = ws.iter().map(|&w| w.max(0.0) as f64).sum();
-            self.weights.push(
-                js.iter()
-                    .zip(ws)
-                    .filter(|(_, &w)| w > 0.0 && total > 0.0)
-                    .map(|(&j, &w)| (j as usize, w as f64 / total))
-                    .collect::<Vec<_>>(),
-            );
-            for (j, w) in js.iter().zip(ws) {
-                let m = joint_matrices.get(*j as usize).ok_or_else(|| {
-                    bad(
-                        path,
-                        format!(
-                            "JOINTS_0 index {j} outside the skin's {} joints",
-                            joint_matrices.len()
-                        ),
-                    )
-                })?;
-                blend += *m * *w as f64;
-            }
+            self.weights.push(vertex_weights(js, ws));
+            let blend = blend_matrix(path, js, ws, joint_matrices)?;
             self.rest.push((blend * p).truncate());
             match (self.tangents.as_mut(), &tangent) {
                 (Some(all), Some(t)) => all.push(rest_tangent(path, mesh, i, t[i], &blend)?),
@@ -570,19 +526,7 @@ impl RestMesh {
         }
         let count = positions.len();
         self.primitives.push(base..base + count);
-        let indices: Vec<usize> = match reader.read_indices() {
-            Some(i) => i.into_u32().map(|x| x as usize).collect(),
-            None => (0..count).collect(),
-        };
-        if let Some(&i) = indices.iter().find(|&&i| i >= count) {
-            return Err(bad(
-                path,
-                format!(
-                    "mesh {}: index {i} outside its {count} vertices",
-                    mesh.index()
-                ),
-            ));
-        }
+        let indices = triangle_indices(path, mesh, &reader, count)?;
         self.triangles.extend(
             indices
                 .chunks_exact(3)
@@ -590,6 +534,127 @@ impl RestMesh {
         );
         Ok(())
     }
+
+    /// Notes, once per mesh (at its first primitive), that its morph targets are taken at
+    /// their default weights.
+    fn note_morph_targets(&mut self, node: &gltf::Node, mesh: &gltf::Mesh, prim: &gltf::Primitive) {
+        if mesh.primitives().next().map(|p| p.index()) == Some(prim.index())
+            && prim.morph_targets().len() > 0
+        {
+            self.notes.push(format!(
+                "mesh {}: {} morph target(s), the rest mesh at their default weights {:?}",
+                mesh.name()
+                    .map_or_else(|| mesh.index().to_string(), str::to_string),
+                prim.morph_targets().len(),
+                morph_weights(node, mesh)
+            ));
+        }
+    }
+}
+
+/// A skinned primitive's required attributes, as stored: POSITION, JOINTS_0 and WEIGHTS_0.
+struct SkinAttributes {
+    positions: Vec<[f32; 3]>,
+    joints: Vec<[u16; 4]>,
+    weights: Vec<[f32; 4]>,
+}
+
+/// A skinned primitive's [`SkinAttributes`] (an error naming the first missing).
+fn skin_attributes<'a, 's, F>(
+    path: &Path,
+    mesh: &gltf::Mesh,
+    reader: &gltf::mesh::Reader<'a, 's, F>,
+) -> Result<SkinAttributes, InputError>
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    let missing = |what: &str| {
+        bad(
+            path,
+            format!("mesh {}: a primitive without {what}", mesh.index()),
+        )
+    };
+    let positions: Vec<[f32; 3]> = reader
+        .read_positions()
+        .ok_or_else(|| missing("POSITION"))?
+        .collect();
+    let joints: Vec<[u16; 4]> = reader
+        .read_joints(0)
+        .ok_or_else(|| missing("JOINTS_0"))?
+        .into_u16()
+        .collect();
+    let weights: Vec<[f32; 4]> = reader
+        .read_weights(0)
+        .ok_or_else(|| missing("WEIGHTS_0"))?
+        .into_f32()
+        .collect();
+    Ok(SkinAttributes {
+        positions,
+        joints,
+        weights,
+    })
+}
+
+/// A vertex's (joint, weight) pairs, normalised to sum to 1; non-positive weights (and every
+/// weight where none is positive) dropped.
+fn vertex_weights(js: &[u16; 4], ws: &[f32; 4]) -> Vec<(usize, f64)> {
+    let total: f64 = ws.iter().map(|&w| w.max(0.0) as f64).sum();
+    js.iter()
+        .zip(ws)
+        .filter(|(_, &w)| w > 0.0 && total > 0.0)
+        .map(|(&j, &w)| (j as usize, w as f64 / total))
+        .collect()
+}
+
+/// A vertex's blended joint matrix Σ w M_j, its weights as stored (an error for a joint index
+/// outside the skin).
+fn blend_matrix(
+    path: &Path,
+    js: &[u16; 4],
+    ws: &[f32; 4],
+    joint_matrices: &[DMat4],
+) -> Result<DMat4, InputError> {
+    let mut blend = DMat4::ZERO;
+    for (j, w) in js.iter().zip(ws) {
+        let m = joint_matrices.get(*j as usize).ok_or_else(|| {
+            bad(
+                path,
+                format!(
+                    "JOINTS_0 index {j} outside the skin's {} joints",
+                    joint_matrices.len()
+                ),
+            )
+        })?;
+        blend += *m * *w as f64;
+    }
+    Ok(blend)
+}
+
+/// The primitive's vertex indices (0..count where it has none), each checked to be one of its
+/// `count` vertices.
+fn triangle_indices<'a, 's, F>(
+    path: &Path,
+    mesh: &gltf::Mesh,
+    reader: &gltf::mesh::Reader<'a, 's, F>,
+    count: usize,
+) -> Result<Vec<usize>, InputError>
+where
+    F: Clone + Fn(gltf::Buffer<'a>) -> Option<&'s [u8]>,
+{
+    let indices: Vec<usize> = match reader.read_indices() {
+        Some(i) => i.into_u32().map(|x| x as usize).collect(),
+        None => (0..count).collect(),
+    };
+    if let Some(&i) = indices.iter().find(|&&i| i >= count) {
+        return Err(bad(
+            path,
+            format!(
+                "mesh {}: index {i} outside its {count} vertices",
+                mesh.index()
+            ),
+        ));
+    }
+    Ok(indices)
 }
 
 /// Vertex `i`'s TANGENT `t` taken to the rest mesh like its position: xyz through the blended

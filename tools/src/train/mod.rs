@@ -296,118 +296,22 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     clock.lap("ssd");
     progress.step();
 
+    let stages = Stages {
+        set,
+        train: &train,
+        feats: &feats,
+        rigid: &rigid,
+        ssd: &ssd,
+        options,
+        progress: &progress,
+    };
     let full = match with_full {
         false => None,
-        true => {
-            progress.stage("gradients");
-            let prep = Prepared::new(set, feats.clone());
-            clock.lap("gradients");
-            progress.stage("cross-validation");
-            let selection =
-                selection::choose(set, &prep, &train, &rigid, k, options.folds, &progress)?;
-            clock.lap("cross-validation");
-            progress.stage("full model");
-            let model = full_model::fit(set, &prep, &train, &ssd, &selection)?;
-            clock.lap("full model");
-            progress.step();
-            Some(Full {
-                prep,
-                selection,
-                model,
-            })
-        }
+        true => Some(stages.fit_full(&mut clock)?),
     };
-
-    let mut joint_blend = None;
-    let mut structure = None;
-    let mut correctives = None;
-    let mut proxy_correctives = None;
-    let (reduced, model) = match options.proxies {
-        0 => (None, None),
-        proxies => {
-            // Auto starts from its first candidate, which also fixes the ridges its folds use.
-            let first = structure::Structure {
-                method: match options.method {
-                    Method::Auto => Method::JointBlend,
-                    method => method,
-                },
-                proxies,
-                influences: k,
-            };
-            progress.stage("reduction");
-            let full_parts = full.as_ref().map(|f| (&f.prep, &f.model));
-            let (mut reduced, mut fitted) =
-                structure::build(set, &feats, &ssd, full_parts, &first, options, None);
-            clock.lap("reduction");
-            let chosen = match (options.method, &fitted) {
-                (Method::Auto, Some(f)) => {
-                    progress.stage("structure");
-                    let candidates = structure::candidates(options, pool);
-                    let c =
-                        structure::choose(set, &feats, &rigid, &candidates, f.ridges(), options);
-                    if c.structure != first {
-                        (reduced, fitted) = structure::build(
-                            set,
-                            &feats,
-                            &ssd,
-                            full_parts,
-                            &c.structure,
-                            options,
-                            None,
-                        );
-                    }
-                    clock.lap("structure");
-                    progress.step();
-                    c
-                }
-                _ => structure::Chosen {
-                    structure: first,
-                    candidates: Vec::new(),
-                    folds: 0,
-                    why: structure::Why::Asked,
-                },
-            };
-            joint_blend = fitted;
-            let mut model = reduced.to_runtime(set, chosen.structure.influences)?;
-            structure = Some(chosen);
-            if options.proxy_correctives {
-                progress.stage("proxy correctives");
-                let fit =
-                    proxy_corrective::fit(set, &feats, &ssd, &rigid, &reduced, &train, options);
-                if let Some(c) = &fit.correctives {
-                    model = rrskin::Model::new(rrskin::ModelParts {
-                        proxy_correctives: Some(c.to_runtime()),
-                        ..model.into_parts()
-                    })?;
-                }
-                proxy_correctives = Some(fit);
-                clock.lap("proxy correctives");
-                progress.step();
-            }
-            if options.correctives > 0 {
-                progress.stage("correctives");
-                let residuals = corrective::Residuals::of(set, &feats, &model, &train)?;
-                let fit = corrective::fit(
-                    set,
-                    &ssd,
-                    &rigid,
-                    &train,
-                    &residuals,
-                    options.correctives,
-                    options.folds,
-                );
-                if let Some(c) = &fit.correctives {
-                    model = rrskin::Model::new(rrskin::ModelParts {
-                        correctives: Some(c.to_runtime()),
-                        ..model.into_parts()
-                    })?;
-                }
-                correctives = Some(fit);
-                clock.lap("correctives");
-                progress.step();
-            }
-            (Some(reduced), Some(model))
-        }
+    let runtime = match options.proxies {
+        0 => Runtime::default(),
+        proxies => stages.fit_runtime(full.as_ref(), proxies, pool, &mut clock)?,
     };
     progress.step();
     progress.finish();
@@ -416,12 +320,199 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         rigid,
         ssd,
         full,
-        reduced,
-        joint_blend,
-        structure,
-        correctives,
-        proxy_correctives,
-        model,
+        reduced: runtime.reduced,
+        joint_blend: runtime.joint_blend,
+        structure: runtime.structure,
+        correctives: runtime.correctives,
+        proxy_correctives: runtime.proxy_correctives,
+        model: runtime.model,
         seconds: clock.seconds,
     })
+}
+
+/// What the stages after SSD read: the set, its training poses and their features, the two
+/// baselines, the options, and the progress bar each stage reports to.
+struct Stages<'a> {
+    set: &'a ExampleSet,
+    train: &'a [usize],
+    feats: &'a [PoseFeatures],
+    rigid: &'a Skinning,
+    ssd: &'a Skinning,
+    options: &'a TrainOptions,
+    progress: &'a Progress,
+}
+
+/// The runtime model and what its stages chose ([`Trained`]'s fields of the same names; all
+/// `None` for P = 0).
+#[derive(Default)]
+struct Runtime {
+    reduced: Option<Reduced>,
+    model: Option<rrskin::Model>,
+    joint_blend: Option<structure::JointBlendFit>,
+    structure: Option<structure::Chosen>,
+    correctives: Option<corrective::Fit>,
+    proxy_correctives: Option<proxy_corrective::Fit>,
+}
+
+impl Stages<'_> {
+    /// The full model, in three stages: the deformation gradients, the cross-validated
+    /// selection of its settings, and the Poisson fit.
+    fn fit_full(&self, clock: &mut Clock) -> Result<Full, TrainError> {
+        let (set, train, options, progress) = (self.set, self.train, self.options, self.progress);
+        progress.stage("gradients");
+        let prep = Prepared::new(set, self.feats.to_vec());
+        clock.lap("gradients");
+        progress.stage("cross-validation");
+        let k = options.influences;
+        let selection =
+            selection::choose(set, &prep, train, self.rigid, k, options.folds, progress)?;
+        clock.lap("cross-validation");
+        progress.stage("full model");
+        let model = full_model::fit(set, &prep, train, self.ssd, &selection)?;
+        clock.lap("full model");
+        progress.step();
+        Ok(Full {
+            prep,
+            selection,
+            model,
+        })
+    }
+
+    /// The runtime model of P = `proxies`: its reduction and structure, then the proxy
+    /// correctives and the correctives where asked for. `pool` bounds Auto's joint-blend
+    /// candidates.
+    fn fit_runtime(
+        &self,
+        full: Option<&Full>,
+        proxies: usize,
+        pool: usize,
+        clock: &mut Clock,
+    ) -> Result<Runtime, TrainError> {
+        let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock);
+        let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
+        let (model, proxy_correctives) = self.add_proxy_correctives(&reduced, model, clock)?;
+        let (model, correctives) = self.add_correctives(model, clock)?;
+        Ok(Runtime {
+            reduced: Some(reduced),
+            model: Some(model),
+            joint_blend,
+            structure: Some(chosen),
+            correctives,
+            proxy_correctives,
+        })
+    }
+
+    /// The reduction to the runtime model's structure: the one asked for, or with
+    /// [`Method::Auto`] the one its cross-validation chose (rebuilt unless it is the first
+    /// candidate, which is built anyway for the ridges the candidates' folds use).
+    fn reduce(
+        &self,
+        full: Option<&Full>,
+        proxies: usize,
+        pool: usize,
+        clock: &mut Clock,
+    ) -> (Reduced, Option<structure::JointBlendFit>, structure::Chosen) {
+        let (set, feats, ssd, options, progress) =
+            (self.set, self.feats, self.ssd, self.options, self.progress);
+        // Auto starts from its first candidate, which also fixes the ridges its folds use.
+        let first = structure::Structure {
+            method: match options.method {
+                Method::Auto => Method::JointBlend,
+                method => method,
+            },
+            proxies,
+            influences: options.influences,
+        };
+        progress.stage("reduction");
+        let full_parts = full.map(|f| (&f.prep, &f.model));
+        let (mut reduced, mut fitted) =
+            structure::build(set, feats, ssd, full_parts, &first, options, None);
+        clock.lap("reduction");
+        let chosen = match (options.method, &fitted) {
+            (Method::Auto, Some(f)) => {
+                progress.stage("structure");
+                let candidates = structure::candidates(options, pool);
+                let c = structure::choose(set, feats, self.rigid, &candidates, f.ridges(), options);
+                if c.structure != first {
+                    (reduced, fitted) =
+                        structure::build(set, feats, ssd, full_parts, &c.structure, options, None);
+                }
+                clock.lap("structure");
+                progress.step();
+                c
+            }
+            _ => structure::Chosen {
+                structure: first,
+                candidates: Vec::new(),
+                folds: 0,
+                why: structure::Why::Asked,
+            },
+        };
+        (reduced, fitted, chosen)
+    }
+
+    /// With `--proxy-correctives`, their stage: fitted to `reduced`'s proxies and added to
+    /// `model` where their cross-validation kept any.
+    fn add_proxy_correctives(
+        &self,
+        reduced: &Reduced,
+        mut model: rrskin::Model,
+        clock: &mut Clock,
+    ) -> Result<(rrskin::Model, Option<proxy_corrective::Fit>), TrainError> {
+        if !self.options.proxy_correctives {
+            return Ok((model, None));
+        }
+        self.progress.stage("proxy correctives");
+        let fit = proxy_corrective::fit(
+            self.set,
+            self.feats,
+            self.ssd,
+            self.rigid,
+            reduced,
+            self.train,
+            self.options,
+        );
+        if let Some(c) = &fit.correctives {
+            model = rrskin::Model::new(rrskin::ModelParts {
+                proxy_correctives: Some(c.to_runtime()),
+                ..model.into_parts()
+            })?;
+        }
+        clock.lap("proxy correctives");
+        self.progress.step();
+        Ok((model, Some(fit)))
+    }
+
+    /// With `--correctives N`, their stage: fitted to what `model` leaves on the training poses
+    /// and added to it where their cross-validation kept any.
+    fn add_correctives(
+        &self,
+        mut model: rrskin::Model,
+        clock: &mut Clock,
+    ) -> Result<(rrskin::Model, Option<corrective::Fit>), TrainError> {
+        let options = self.options;
+        if options.correctives == 0 {
+            return Ok((model, None));
+        }
+        self.progress.stage("correctives");
+        let residuals = corrective::Residuals::of(self.set, self.feats, &model, self.train)?;
+        let fit = corrective::fit(
+            self.set,
+            self.ssd,
+            self.rigid,
+            self.train,
+            &residuals,
+            options.correctives,
+            options.folds,
+        );
+        if let Some(c) = &fit.correctives {
+            model = rrskin::Model::new(rrskin::ModelParts {
+                correctives: Some(c.to_runtime()),
+                ..model.into_parts()
+            })?;
+        }
+        clock.lap("correctives");
+        self.progress.step();
+        Ok((model, Some(fit)))
+    }
 }

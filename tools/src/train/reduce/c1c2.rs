@@ -56,6 +56,40 @@ pub fn assemble(
 ) -> Reduced {
     let (p, j) = (proxies.count(), set.bone_count());
     let (n4p, n3p, n4j) = (4 * p, 3 * p, 4 * j);
+    let (mut gtg, gtb, mut gtlk) = normal_equations(set, ssd, fixed, blend, proxies, keys);
+    add_proxy_pull(set, ssd, proxies, &mut gtg, &mut gtlk);
+    let factor = DenseCholesky::new(&gtg, n4p);
+    let c1 = solve_columns(&factor, &gtb, n4p, n3p);
+    let c2 = solve_columns(&factor, &gtlk, n4p, n4j);
+    let skin = (0..set.vertex_count())
+        .map(|a| match fixed[a] {
+            true => ssd.influences[a].iter().map(|&(b, w)| (p + b, w)).collect(),
+            false => proxies.weights[a].clone(),
+        })
+        .collect();
+    Reduced {
+        proxies: p,
+        bones: j,
+        c1,
+        c2,
+        predictors,
+        skin,
+        baseline: ssd.influences.clone(),
+    }
+}
+
+/// GᵀG, GᵀB and Gᵀ(L − K) (row-major), summed over every edge row e = (k, j) with a free
+/// endpoint (rows of fixed vertices only are all zero in G and add nothing).
+fn normal_equations(
+    set: &ExampleSet,
+    ssd: &Skinning,
+    fixed: &[bool],
+    blend: &[f64],
+    proxies: &Proxies,
+    keys: &KeySequences,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (p, j) = (proxies.count(), set.bone_count());
+    let (n4p, n3p, n4j) = (4 * p, 3 * p, 4 * j);
     let h = |a: usize| DVec4::from((set.rest[a], 1.0)).to_array();
     // Sparse rows of φ (free), ψ (fixed) and ψ over all vertices.
     let phi = |a: usize| -> Vec<(usize, f64)> {
@@ -112,6 +146,19 @@ pub fn assemble(
             }
         }
     }
+    (gtg, gtb, gtlk)
+}
+
+/// The weak rows μ |t_b − q_bone(b)|² pulling each proxy toward its best-matching bone, added
+/// to GᵀG and Gᵀ(L − K); μ is [`PROXY_PULL`] times GᵀG's mean diagonal (at least 1e-12).
+fn add_proxy_pull(
+    set: &ExampleSet,
+    ssd: &Skinning,
+    proxies: &Proxies,
+    gtg: &mut [f64],
+    gtlk: &mut [f64],
+) {
+    let (n4p, n4j) = (4 * proxies.count(), 4 * set.bone_count());
     let mu = PROXY_PULL * (0..n4p).map(|d| gtg[d * n4p + d]).sum::<f64>() / n4p.max(1) as f64;
     let mu = mu.max(1e-12);
     for (b, bone) in proxy_bones(set, ssd, proxies).into_iter().enumerate() {
@@ -120,34 +167,18 @@ pub fn assemble(
             gtlk[(4 * b + r) * n4j + 4 * bone + r] += mu;
         }
     }
-    let factor = DenseCholesky::new(&gtg, n4p);
-    let solve_columns = |rhs: &[f64], cols: usize| -> Vec<f64> {
-        let mut out = vec![0.0; n4p * cols];
-        let mut col = vec![0.0; n4p];
-        for c in 0..cols {
-            (0..n4p).for_each(|r| col[r] = rhs[r * cols + c]);
-            factor.solve(&mut col);
-            (0..n4p).for_each(|r| out[r * cols + c] = col[r]);
-        }
-        out
-    };
-    let c1 = solve_columns(&gtb, n3p);
-    let c2 = solve_columns(&gtlk, n4j);
-    let skin = (0..set.vertex_count())
-        .map(|a| match fixed[a] {
-            true => ssd.influences[a].iter().map(|&(b, w)| (p + b, w)).collect(),
-            false => proxies.weights[a].clone(),
-        })
-        .collect();
-    Reduced {
-        proxies: p,
-        bones: j,
-        c1,
-        c2,
-        predictors,
-        skin,
-        baseline: ssd.influences.clone(),
+}
+
+/// `A⁻¹ rhs` for the factored n x n `A` and the row-major n x `cols` `rhs`, column by column.
+fn solve_columns(factor: &DenseCholesky, rhs: &[f64], n: usize, cols: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n * cols];
+    let mut col = vec![0.0; n];
+    for c in 0..cols {
+        (0..n).for_each(|r| col[r] = rhs[r * cols + c]);
+        factor.solve(&mut col);
+        (0..n).for_each(|r| out[r * cols + c] = col[r]);
     }
+    out
 }
 
 /// Sparse row difference x − y.

@@ -42,6 +42,8 @@ fn candidates(set: &ExampleSet, proxies: &Proxies, k: usize) -> Vec<usize> {
     c
 }
 
+/// The key sequences D_ℓ^i and blend weights β: [`ROUNDS`] rounds of coordinate descent (β,
+/// then D) from D_ℓ^i = the 3x3 part of proxy ℓ's transforms.
 pub fn reduce(
     set: &ExampleSet,
     prep: &Prepared,
@@ -61,11 +63,7 @@ pub fn reduce(
     let cands: Vec<Vec<usize>> = (0..set.faces.len())
         .map(|k| candidates(set, proxies, k))
         .collect();
-    // True edges (and normal) v_kj^i = D_k^i v̂_kj.
-    let target = |n: usize, k: usize, j: usize| {
-        let (r, s) = prep.polar[train[n]][k];
-        r * s * edges[k][j]
-    };
+    let targets = Targets { prep, train, edges };
     let mut d: Vec<Vec<DMat3>> = proxies
         .transforms
         .iter()
@@ -73,101 +71,135 @@ pub fn reduce(
         .collect();
     let mut beta: Vec<Vec<(usize, f64)>> = Vec::new();
     for _ in 0..ROUNDS {
-        // β-step: one small least-squares problem per triangle.
-        beta = (0..set.faces.len())
-            .into_par_iter()
-            .map(|k| {
-                let c = &cands[k];
-                let m = c.len();
-                let (mut g, mut h) = (vec![0.0; m * m], vec![0.0; m]);
-                for n in 0..train.len() {
-                    for j in 0..3 {
-                        let cols: Vec<DVec3> = c.iter().map(|&l| d[n][l] * edges[k][j]).collect();
-                        let v = target(n, k, j);
-                        for r in 0..m {
-                            h[r] += cols[r].dot(v);
-                            for s in 0..m {
-                                g[r * m + s] += cols[r].dot(cols[s]);
-                            }
+        beta = beta_step(&targets, &cands, &d);
+        d = d_step(&targets, &beta, &d, p);
+    }
+    KeySequences { beta, d }
+}
+
+/// What both descent steps fit to: the triangles' rest frames and, through the full model's
+/// polar factors, their posed ones.
+struct Targets<'a> {
+    prep: &'a Prepared,
+    train: &'a [usize],
+    /// Per triangle the three columns v̂2, v̂3, n̂ of its rest frame.
+    edges: Vec<[DVec3; 3]>,
+}
+
+impl Targets<'_> {
+    /// True edges (and normal) v_kj^i = D_k^i v̂_kj, of training pose `n` (train order).
+    fn target(&self, n: usize, k: usize, j: usize) -> DVec3 {
+        let (r, s) = self.prep.polar[self.train[n]][k];
+        r * s * self.edges[k][j]
+    }
+}
+
+/// The β-step: one small least-squares problem per triangle, over its candidate keys `cands`
+/// with the keys `d` fixed.
+fn beta_step(t: &Targets, cands: &[Vec<usize>], d: &[Vec<DMat3>]) -> Vec<Vec<(usize, f64)>> {
+    let edges = &t.edges;
+    (0..cands.len())
+        .into_par_iter()
+        .map(|k| {
+            let c = &cands[k];
+            let m = c.len();
+            let (mut g, mut h) = (vec![0.0; m * m], vec![0.0; m]);
+            for n in 0..t.train.len() {
+                for j in 0..3 {
+                    let cols: Vec<DVec3> = c.iter().map(|&l| d[n][l] * edges[k][j]).collect();
+                    let v = t.target(n, k, j);
+                    for r in 0..m {
+                        h[r] += cols[r].dot(v);
+                        for s in 0..m {
+                            g[r * m + s] += cols[r].dot(cols[s]);
                         }
                     }
                 }
-                // Ridge toward following the triangle's own group key (candidate 0): where
-                // several keys fit equally well (neighbours moving alike), β stays on its own.
-                let ridge = 1e-9 * (0..m).map(|r| g[r * m + r]).sum::<f64>().max(1e-300);
-                for r in 0..m {
-                    g[r * m + r] += ridge;
-                }
-                h[0] += ridge;
-                cholesky_solve(&g, &mut h, m);
-                c.iter().copied().zip(h).collect()
-            })
-            .collect();
-        // D-step: per pose and row c, the 3P unknowns (row c of every D_ℓ) share one normal
-        // matrix; a weak pull toward the current keys keeps unused keys determined.
-        let n3 = 3 * p;
-        let mut gram = vec![0.0; n3 * n3];
-        for (k, bk) in beta.iter().enumerate() {
-            for j in 0..3 {
-                let e = edges[k][j].to_array();
-                for &(l1, b1) in bk {
-                    for &(l2, b2) in bk {
-                        for r in 0..3 {
-                            for s in 0..3 {
-                                gram[(3 * l1 + r) * n3 + 3 * l2 + s] += b1 * b2 * e[r] * e[s];
+            }
+            // Ridge toward following the triangle's own group key (candidate 0): where
+            // several keys fit equally well (neighbours moving alike), β stays on its own.
+            let ridge = 1e-9 * (0..m).map(|r| g[r * m + r]).sum::<f64>().max(1e-300);
+            for r in 0..m {
+                g[r * m + r] += ridge;
+            }
+            h[0] += ridge;
+            cholesky_solve(&g, &mut h, m);
+            c.iter().copied().zip(h).collect()
+        })
+        .collect()
+}
+
+/// The D-step: per pose and row c, the 3P unknowns (row c of every D_ℓ) share one normal
+/// matrix; a weak pull toward the current keys `d` keeps unused keys determined.
+fn d_step(t: &Targets, beta: &[Vec<(usize, f64)>], d: &[Vec<DMat3>], p: usize) -> Vec<Vec<DMat3>> {
+    let n3 = 3 * p;
+    let mut gram = d_gram(&t.edges, beta, n3);
+    let ridge = 1e-6 * (0..n3).map(|x| gram[x * n3 + x]).sum::<f64>() / n3.max(1) as f64;
+    (0..n3).for_each(|x| gram[x * n3 + x] += ridge.max(1e-12));
+    let factor = DenseCholesky::new(&gram, n3);
+    (0..t.train.len())
+        .into_par_iter()
+        .map(|n| {
+            let mut rows = [vec![0.0; n3], vec![0.0; n3], vec![0.0; n3]];
+            for (k, bk) in beta.iter().enumerate() {
+                for j in 0..3 {
+                    let (e, v) = (t.edges[k][j].to_array(), t.target(n, k, j));
+                    for &(l, b) in bk {
+                        for c in 0..3 {
+                            for r in 0..3 {
+                                rows[c][3 * l + r] += b * e[r] * v[c];
                             }
                         }
                     }
                 }
             }
+            for (l, dl) in d[n].iter().enumerate() {
+                for c in 0..3 {
+                    let row = dl.row(c).to_array();
+                    for r in 0..3 {
+                        rows[c][3 * l + r] += ridge.max(1e-12) * row[r];
+                    }
+                }
+            }
+            rows.iter_mut().for_each(|x| factor.solve(x));
+            (0..p)
+                .map(|l| {
+                    DMat3::from_cols_array(&[
+                        rows[0][3 * l],
+                        rows[1][3 * l],
+                        rows[2][3 * l],
+                        rows[0][3 * l + 1],
+                        rows[1][3 * l + 1],
+                        rows[2][3 * l + 1],
+                        rows[0][3 * l + 2],
+                        rows[1][3 * l + 2],
+                        rows[2][3 * l + 2],
+                    ])
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The D-step's normal matrix (3P x 3P, the same for every pose and row): Σ over triangles k
+/// and frame columns j of the outer product of β_k ⊗ v̂_kj with itself.
+fn d_gram(edges: &[[DVec3; 3]], beta: &[Vec<(usize, f64)>], n3: usize) -> Vec<f64> {
+    let mut gram = vec![0.0; n3 * n3];
+    for (k, bk) in beta.iter().enumerate() {
+        for j in 0..3 {
+            let e = edges[k][j].to_array();
+            for &(l1, b1) in bk {
+                for &(l2, b2) in bk {
+                    for r in 0..3 {
+                        for s in 0..3 {
+                            gram[(3 * l1 + r) * n3 + 3 * l2 + s] += b1 * b2 * e[r] * e[s];
+                        }
+                    }
+                }
+            }
         }
-        let ridge = 1e-6 * (0..n3).map(|x| gram[x * n3 + x]).sum::<f64>() / n3.max(1) as f64;
-        (0..n3).for_each(|x| gram[x * n3 + x] += ridge.max(1e-12));
-        let factor = DenseCholesky::new(&gram, n3);
-        d = (0..train.len())
-            .into_par_iter()
-            .map(|n| {
-                let mut rows = [vec![0.0; n3], vec![0.0; n3], vec![0.0; n3]];
-                for (k, bk) in beta.iter().enumerate() {
-                    for j in 0..3 {
-                        let (e, v) = (edges[k][j].to_array(), target(n, k, j));
-                        for &(l, b) in bk {
-                            for c in 0..3 {
-                                for r in 0..3 {
-                                    rows[c][3 * l + r] += b * e[r] * v[c];
-                                }
-                            }
-                        }
-                    }
-                }
-                for (l, dl) in d[n].iter().enumerate() {
-                    for c in 0..3 {
-                        let row = dl.row(c).to_array();
-                        for r in 0..3 {
-                            rows[c][3 * l + r] += ridge.max(1e-12) * row[r];
-                        }
-                    }
-                }
-                rows.iter_mut().for_each(|x| factor.solve(x));
-                (0..p)
-                    .map(|l| {
-                        DMat3::from_cols_array(&[
-                            rows[0][3 * l],
-                            rows[1][3 * l],
-                            rows[2][3 * l],
-                            rows[0][3 * l + 1],
-                            rows[1][3 * l + 1],
-                            rows[2][3 * l + 1],
-                            rows[0][3 * l + 2],
-                            rows[1][3 * l + 2],
-                            rows[2][3 * l + 2],
-                        ])
-                    })
-                    .collect()
-            })
-            .collect();
     }
-    KeySequences { beta, d }
+    gram
 }
 
 /// A key predictor as trained, in f64 (its stored form is [`rrskin::KeyPredictor`]): rotation

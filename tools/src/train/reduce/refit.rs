@@ -173,6 +173,41 @@ impl Problem {
                 })
             })
             .collect();
+        let free = Self::free_columns(reduced, &c0);
+        let dense = reduced.proxy_normal_matrix(set);
+        let a: Vec<Vec<(usize, f64)>> = dense
+            .chunks(n4p)
+            .map(|row| {
+                row.iter()
+                    .enumerate()
+                    .filter(|x| *x.1 != 0.0)
+                    .map(|(q, &v)| (q, v))
+                    .collect()
+            })
+            .collect();
+        let mut free_of_row = vec![Vec::new(); n4p];
+        for (idx, s) in free.iter().enumerate() {
+            free_of_row[s.row].push(idx);
+        }
+        let pattern = Self::pattern(&a, &free, &free_of_row);
+        let terms = Self::pose_terms(set, feats, train, reduced);
+        Problem {
+            n4p,
+            f,
+            a,
+            c0,
+            free,
+            free_of_row,
+            pattern,
+            terms,
+        }
+    }
+
+    /// The columns of S: per row of Δ and entry k, every frame the row sees (key e, then the
+    /// bones its geometry uses or its key turns) that has an entry k, less the first such.
+    fn free_columns(reduced: &Reduced, c0: &[f64]) -> Vec<Free> {
+        let (p, j) = (reduced.proxies, reduced.bones);
+        let (n4p, f) = (4 * p, 3 * p + 4 * j);
         // Per row, the frames it sees (key e, then bones), each as the
         // column of its entry 0 and its entry count.
         let mut free = Vec::new();
@@ -198,23 +233,17 @@ impl Problem {
                 }
             }
         }
-        let dense = reduced.proxy_normal_matrix(set);
-        let a: Vec<Vec<(usize, f64)>> = dense
-            .chunks(n4p)
-            .map(|row| {
-                row.iter()
-                    .enumerate()
-                    .filter(|x| *x.1 != 0.0)
-                    .map(|(q, &v)| (q, v))
-                    .collect()
-            })
-            .collect();
-        let mut free_of_row = vec![Vec::new(); n4p];
-        for (idx, s) in free.iter().enumerate() {
-            free_of_row[s.row].push(idx);
-        }
-        let pattern = a
-            .iter()
+        free
+    }
+
+    /// Per row r of A, the columns where (A Δ)[r, ·] can be non-zero: those of the free
+    /// entries (and their references) of the rows A couples r to.
+    fn pattern(
+        a: &[Vec<(usize, f64)>],
+        free: &[Free],
+        free_of_row: &[Vec<usize>],
+    ) -> Vec<Vec<usize>> {
+        a.iter()
             .map(|row| {
                 let mut cols: Vec<usize> = row
                     .iter()
@@ -225,8 +254,20 @@ impl Problem {
                 cols.dedup();
                 cols
             })
-            .collect();
-        let terms = train
+            .collect()
+    }
+
+    /// Each training pose's sufficient statistics: x_c (the predicted key gradients, then the
+    /// bones' rows), Φᵀ r_c and Σ_c |r_c|².
+    fn pose_terms(
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        train: &[usize],
+        reduced: &Reduced,
+    ) -> Vec<PoseTerms> {
+        let (p, j) = (reduced.proxies, reduced.bones);
+        let f = 3 * p + 4 * j;
+        train
             .iter()
             .map(|&i| {
                 let pose = &set.poses[i];
@@ -250,17 +291,7 @@ impl Problem {
                 let (bm, s) = reduced.proxy_targets(set, pose);
                 PoseTerms { x, b: bm, s }
             })
-            .collect();
-        Problem {
-            n4p,
-            f,
-            a,
-            c0,
-            free,
-            free_of_row,
-            pattern,
-            terms,
-        }
+            .collect()
     }
 
     /// The non-zeros (row, column, value) of Δ = S v.
@@ -305,7 +336,31 @@ impl Problem {
     /// v for each ridge, fitted on `poses` (warm-started from the stronger ridge).
     fn solve(&self, poses: &[usize], ridges: &[Option<f64>]) -> Vec<Vec<f64>> {
         let (n4p, f, m) = (self.n4p, self.f, self.free.len());
-        // B = Σ x xᵀ over poses and coordinates (F x F).
+        let b = self.pose_gram(poses);
+        let rhs = self.rhs(poses);
+        let mean_a = (0..n4p).map(|r| self.diag_a(r)).sum::<f64>() / n4p.max(1) as f64;
+        let mean_b = (0..f).map(|d| b[d * f + d]).sum::<f64>() / f.max(1) as f64;
+        let mut h = vec![0.0; n4p * f];
+        let mut order: Vec<usize> = (0..ridges.len()).collect();
+        order.sort_by(|&x, &y| {
+            ridges[y]
+                .unwrap_or(f64::INFINITY)
+                .total_cmp(&ridges[x].unwrap_or(f64::INFINITY))
+        });
+        let mut out = vec![vec![0.0; m]; ridges.len()];
+        let mut delta = vec![0.0; m];
+        for idx in order {
+            let Some(rho) = ridges[idx] else { continue };
+            let lambda = rho * mean_a * mean_b;
+            self.conjugate_gradients(&b, &rhs, lambda, &mut h, &mut delta);
+            out[idx] = delta.clone();
+        }
+        out
+    }
+
+    /// B = Σ x xᵀ over `poses` and coordinates (F x F).
+    fn pose_gram(&self, poses: &[usize]) -> Vec<f64> {
+        let f = self.f;
         let mut b = vec![0.0; f * f];
         for &n in poses {
             let x = &self.terms[n].x;
@@ -315,7 +370,12 @@ impl Problem {
                 }
             }
         }
-        // Right-hand side: Sᵀ Σ (Φᵀ r − A C0 x) xᵀ.
+        b
+    }
+
+    /// The right-hand side over `poses`: Sᵀ Σ (Φᵀ r − A C0 x) xᵀ.
+    fn rhs(&self, poses: &[usize]) -> Vec<f64> {
+        let (n4p, m) = (self.n4p, self.free.len());
         let mut rhs = vec![0.0; m];
         for &n in poses {
             let t = &self.terms[n];
@@ -334,82 +394,91 @@ impl Problem {
                 *slot += at(s.row, s.col) - at(s.row, s.reference);
             }
         }
-        let diag_a = |r: usize| self.a[r].iter().find(|x| x.0 == r).map_or(0.0, |x| x.1);
-        let mean_a = (0..n4p).map(diag_a).sum::<f64>() / n4p.max(1) as f64;
-        let mean_b = (0..f).map(|d| b[d * f + d]).sum::<f64>() / f.max(1) as f64;
-        // Sᵀ(A (S v) B) through H = A Δ (4P x F, sparse rows: `pattern`); B is symmetric.
-        let mut h = vec![0.0; n4p * f];
-        let mut apply = |v: &[f64], lambda: f64| -> Vec<f64> {
-            for (r, row) in self.a.iter().enumerate() {
-                let hr = &mut h[r * f..(r + 1) * f];
-                self.pattern[r].iter().for_each(|&c| hr[c] = 0.0);
-                for &(q, a) in row {
-                    for &idx in &self.free_of_row[q] {
-                        let s = self.free[idx];
-                        hr[s.col] += a * v[idx];
-                        hr[s.reference] -= a * v[idx];
-                    }
-                }
-            }
-            self.free
-                .iter()
-                .zip(v)
-                .map(|(s, &x)| {
-                    let (hr, bc, bo) = (&h[s.row * f..], &b[s.col * f..], &b[s.reference * f..]);
-                    let hb: f64 = self.pattern[s.row]
-                        .iter()
-                        .map(|&c| hr[c] * (bc[c] - bo[c]))
-                        .sum();
-                    hb + lambda * x
-                })
-                .collect()
-        };
-        let dot = |x: &[f64], y: &[f64]| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>();
-        let mut order: Vec<usize> = (0..ridges.len()).collect();
-        order.sort_by(|&x, &y| {
-            ridges[y]
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&ridges[x].unwrap_or(f64::INFINITY))
-        });
-        let mut out = vec![vec![0.0; m]; ridges.len()];
-        let mut delta = vec![0.0; m];
-        for idx in order {
-            let Some(rho) = ridges[idx] else { continue };
-            let lambda = rho * mean_a * mean_b;
-            let diag: Vec<f64> = self
-                .free
-                .iter()
-                .map(|s| {
-                    let (c, o) = (s.col, s.reference);
-                    let bb = b[c * f + c] - 2.0 * b[c * f + o] + b[o * f + o];
-                    diag_a(s.row) * bb + lambda
-                })
-                .collect();
-            let applied = apply(&delta, lambda);
-            let mut res: Vec<f64> = rhs.iter().zip(&applied).map(|(x, y)| x - y).collect();
-            let mut z: Vec<f64> = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
-            let mut dir = z.clone();
-            let mut rz = dot(&res, &z);
-            let floor = 1e-20 * dot(&rhs, &rhs).max(1e-300);
-            for _ in 0..CG_ITERATIONS {
-                if dot(&res, &res) < floor {
-                    break;
-                }
-                let ad = apply(&dir, lambda);
-                let step = rz / dot(&dir, &ad).max(1e-300);
-                delta.iter_mut().zip(&dir).for_each(|(x, d)| *x += step * d);
-                res.iter_mut().zip(&ad).for_each(|(x, d)| *x -= step * d);
-                z = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
-                let rz_next = dot(&res, &z);
-                dir = z
-                    .iter()
-                    .zip(&dir)
-                    .map(|(x, d)| x + d * (rz_next / rz))
-                    .collect();
-                rz = rz_next;
-            }
-            out[idx] = delta.clone();
-        }
-        out
+        rhs
     }
+
+    /// A's diagonal entry r (0 where the row is empty).
+    fn diag_a(&self, r: usize) -> f64 {
+        self.a[r].iter().find(|x| x.0 == r).map_or(0.0, |x| x.1)
+    }
+
+    /// Sᵀ(A (S v) B) + λ v, through H = A Δ (4P x F, sparse rows: `pattern`; `h` holds it
+    /// between calls, only its pattern entries are ever written or read); B is symmetric.
+    fn normal_product(&self, b: &[f64], h: &mut [f64], v: &[f64], lambda: f64) -> Vec<f64> {
+        let f = self.f;
+        for (r, row) in self.a.iter().enumerate() {
+            let hr = &mut h[r * f..(r + 1) * f];
+            self.pattern[r].iter().for_each(|&c| hr[c] = 0.0);
+            for &(q, a) in row {
+                for &idx in &self.free_of_row[q] {
+                    let s = self.free[idx];
+                    hr[s.col] += a * v[idx];
+                    hr[s.reference] -= a * v[idx];
+                }
+            }
+        }
+        self.free
+            .iter()
+            .zip(v)
+            .map(|(s, &x)| {
+                let (hr, bc, bo) = (&h[s.row * f..], &b[s.col * f..], &b[s.reference * f..]);
+                let hb: f64 = self.pattern[s.row]
+                    .iter()
+                    .map(|&c| hr[c] * (bc[c] - bo[c]))
+                    .sum();
+                hb + lambda * x
+            })
+            .collect()
+    }
+
+    /// Solves (Sᵀ(A (S ·) B) + λ) v = `rhs` by conjugate gradients preconditioned with the
+    /// diagonal, from `delta` (the stronger ridge's v) and into it: [`CG_ITERATIONS`] at most,
+    /// stopping early once the residual is negligible.
+    fn conjugate_gradients(
+        &self,
+        b: &[f64],
+        rhs: &[f64],
+        lambda: f64,
+        h: &mut [f64],
+        delta: &mut [f64],
+    ) {
+        let f = self.f;
+        let diag: Vec<f64> = self
+            .free
+            .iter()
+            .map(|s| {
+                let (c, o) = (s.col, s.reference);
+                let bb = b[c * f + c] - 2.0 * b[c * f + o] + b[o * f + o];
+                self.diag_a(s.row) * bb + lambda
+            })
+            .collect();
+        let applied = self.normal_product(b, h, delta, lambda);
+        let mut res: Vec<f64> = rhs.iter().zip(&applied).map(|(x, y)| x - y).collect();
+        let mut z: Vec<f64> = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
+        let mut dir = z.clone();
+        let mut rz = dot(&res, &z);
+        let floor = 1e-20 * dot(rhs, rhs).max(1e-300);
+        for _ in 0..CG_ITERATIONS {
+            if dot(&res, &res) < floor {
+                break;
+            }
+            let ad = self.normal_product(b, h, &dir, lambda);
+            let step = rz / dot(&dir, &ad).max(1e-300);
+            delta.iter_mut().zip(&dir).for_each(|(x, d)| *x += step * d);
+            res.iter_mut().zip(&ad).for_each(|(x, d)| *x -= step * d);
+            z = res.iter().zip(&diag).map(|(x, d)| x / d).collect();
+            let rz_next = dot(&res, &z);
+            dir = z
+                .iter()
+                .zip(&dir)
+                .map(|(x, d)| x + d * (rz_next / rz))
+                .collect();
+            rz = rz_next;
+        }
+    }
+}
+
+/// The dot product of two vectors, summed in order.
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()
 }
