@@ -74,8 +74,8 @@ impl SetFiles {
     }
 
     fn pose(&self, i: usize) -> String {
-        match &self.pose_labels {
-            Some(labels) => labels[i].clone(),
+        match self.pose_labels.as_ref().and_then(|l| l.get(i)) {
+            Some(label) => label.clone(),
             None => format!("pose {i}"),
         }
     }
@@ -130,16 +130,17 @@ impl ExampleSet {
     pub fn new(parts: SetParts, files: &SetFiles) -> Result<ExampleSet, InputError> {
         check_mesh(&parts, files)?;
         check_skeleton(&parts.parents, &files.skeleton)?;
-        check_poses(&parts, files)?;
-        check_split(&parts, files)?;
-        if let Some(w) = &parts.rig_weights {
-            check_weights(w, parts.rest.len(), parts.parents.len(), &files.weights)?;
-        }
+        // Before the poses, whose errors name bones by these names.
         if let Some(names) = &parts.bone_names {
             if names.len() != parts.parents.len() {
                 let message = format!("{} names for {} bones", names.len(), parts.parents.len());
                 return Err(InputError::new(&files.skeleton, message));
             }
+        }
+        check_poses(&parts, files)?;
+        check_split(&parts, files)?;
+        if let Some(w) = &parts.rig_weights {
+            check_weights(w, parts.rest.len(), parts.parents.len(), &files.weights)?;
         }
         let warnings = mesh_warnings(&parts.rest, &parts.faces, &files.mesh);
         let SetParts {
@@ -382,4 +383,48 @@ fn mesh_warnings(rest: &[DVec3], faces: &[[usize; 3]], file: &Path) -> Vec<Strin
         ));
     }
     warnings
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DMat3;
+
+    /// Too few bone names and a sheared bone: an error naming the skeleton, not a panic while
+    /// naming the bone.
+    #[test]
+    fn bone_names_are_checked_before_the_poses_use_them() {
+        let sheared = Affine {
+            q: DMat3::from_cols_array(&[1.0, 0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+            d: DVec3::ZERO,
+        };
+        let parts = SetParts {
+            rest: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+            faces: vec![[0, 1, 2]],
+            parents: vec![None, Some(0)],
+            poses: vec![Pose {
+                bones: vec![sheared; 2],
+                vertices: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+            }],
+            is_test: vec![false],
+            bone_names: Some(vec!["root".into()]),
+            rig_weights: None,
+        };
+        let files = SetFiles {
+            pose_labels: Some(Vec::new()),
+            ..SetFiles::one("rig.glb")
+        };
+        let e = ExampleSet::new(parts.clone(), &files).err();
+        assert_eq!(e.map(|e| e.message), Some("1 names for 2 bones".into()));
+        let named = SetParts {
+            bone_names: Some(vec!["root".into(), "arm".into()]),
+            ..parts
+        };
+        let e = ExampleSet::new(named, &files).err().map(|e| e.message);
+        assert!(
+            e.as_deref()
+                .is_some_and(|m| m.starts_with("pose 0, bone root: ")),
+            "{e:?}"
+        );
+    }
 }
