@@ -143,6 +143,12 @@ impl ExampleSet {
             check_weights(w, parts.rest.len(), parts.parents.len(), &files.weights)?;
         }
         let warnings = mesh_warnings(&parts.rest, &parts.faces, &files.mesh);
+        let mut parts = parts;
+        // Within the tolerance of one, and then exactly one.
+        for row in parts.rig_weights.iter_mut().flatten() {
+            let sum: f64 = row.iter().map(|(_, w)| w).sum();
+            row.iter_mut().for_each(|(_, w)| *w /= sum);
+        }
         let SetParts {
             rest,
             faces,
@@ -333,9 +339,14 @@ fn check_weights(
         return Err(InputError::new(file, message));
     }
     for (a, row) in weights.iter().enumerate() {
-        if let Some(&(b, w)) = row.iter().find(|(b, w)| *b >= j || w.is_nan() || *w < 0.0) {
-            let message = format!("vertex {a}, bone {b}: weight {w} (bones 0..{j}, weights ≥ 0)");
-            return Err(InputError::new(file, message));
+        for &(b, w) in row {
+            let fault = match () {
+                _ if b >= j => format!("vertex {a}: weight on bone {b}, of bones 0..{j}"),
+                _ if !w.is_finite() => format!("vertex {a}, bone {b}: weight {w}"),
+                _ if w < 0.0 => format!("vertex {a}, bone {b}: negative weight {w}"),
+                _ => continue,
+            };
+            return Err(InputError::new(file, fault));
         }
         let sum: f64 = row.iter().map(|(_, w)| w).sum();
         if (sum - 1.0).abs() > WEIGHT_SUM_TOLERANCE {
