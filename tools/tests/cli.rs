@@ -266,6 +266,23 @@ fn reference_writes_the_c_examples_inputs() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The learning curve of `eval`'s report: four points of 4-fold held-out EE at a quarter to all
+/// of each fold's 30 or 31 fitted-on poses (41 training poses), falling from the first to the
+/// last (measured: 21.9 at 8 poses, 16.2 at 30), and its advice in a sentence.
+fn learning_curve_falls(e: &serde_json::Value) {
+    let points = e["learning_curve"].as_array().expect("a list of points");
+    let poses: Vec<u64> = points.iter().map(|p| p["poses"].as_u64().expect("n")).collect();
+    assert_eq!(poses, [8, 15, 23, 30], "{points:?}");
+    let ee: Vec<f64> = points.iter().map(|p| p["ee"].as_f64().expect("EE")).collect();
+    assert!(ee.iter().all(|x| x.is_finite() && *x > 0.0), "{ee:?}");
+    assert!(ee[3] < 0.9 * ee[0], "more poses, less error: {ee:?}");
+    let advice = &e["learning_curve_advice"];
+    assert_eq!(advice["training_poses"], 41);
+    assert!(advice["saturated"].is_boolean(), "{advice}");
+    let sentence = advice["sentence"].as_str().expect("a sentence");
+    assert!(sentence.contains("41 training poses"), "{sentence}");
+}
+
 /// `rrskin eval --json --diagnose` on CesiumMan: the JSON contract of docs/cli.md and the
 /// reference figures of docs/method.md §11 (SSD 37.4 / 41.0 ± 1; the full model at least as good
 /// as the reference's best row, 35.1 / 49.3), with every choice made on the training poses; the
@@ -318,10 +335,13 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "correctives",
         "proxy_correctives",
         "normal_error",
+        "learning_curve",
+        "learning_curve_advice",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 24, "{e}");
+    assert_eq!(keys.len(), 26, "{e}");
+    learning_curve_falls(&e);
     assert!(e["correctives"].is_null(), "off by default: {e}");
     assert!(
         e["rig_lbs"].is_null() && e["rig_dqs"].is_null() && e["rig_cor"].is_null(),
@@ -499,6 +519,7 @@ fn a_trained_model_file_evaluates_as_trained() {
     let evaluated = json(&rrskin(&["eval", set, "--model", m, "--json"]));
     assert_eq!(evaluated["proxies"], 20);
     assert_eq!(trained["structure"]["chosen"]["proxies"], 20);
+    assert!(trained["learning_curve"].is_null(), "train leaves it out unless asked");
     for split in ["train", "test"] {
         let (a, b) = (
             &trained["rr_reduced"][split],

@@ -21,6 +21,10 @@ pub struct EvalArgs {
     /// Evaluate this trained model (runtime CPU evaluator) as rr_reduced.
     #[arg(long)]
     pub model: Option<PathBuf>,
+    /// Leave out the learning curve (the runtime model retrained at fractions of the training
+    /// poses in every fold: k x 4 trainings, most of eval's time on a large rig).
+    #[arg(long)]
+    pub no_learning_curve: bool,
 }
 
 pub fn run(args: &EvalArgs) -> Outcome {
@@ -53,6 +57,7 @@ pub fn run(args: &EvalArgs) -> Outcome {
         loocv: args.loocv,
         diagnose: args.diagnose,
         skip_baselines: false,
+        learning_curve: !args.no_learning_curve,
     };
     let report = rrskin_tools::eval::run(&examples, &options)?;
     super::train::print_report(&report, &args.set, args.train.json);

@@ -17,6 +17,10 @@ pub struct TrainCommandArgs {
     pub train: TrainArgs,
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Also report the learning curve: the runtime model's held-out error at fractions of the
+    /// training poses, and whether more poses would help (k x 4 more trainings).
+    #[arg(long)]
+    pub learning_curve: bool,
 }
 
 pub fn run(args: &TrainCommandArgs) -> Outcome {
@@ -34,6 +38,7 @@ pub fn run(args: &TrainCommandArgs) -> Outcome {
     let options = Options {
         train: options,
         skip_baselines: true,
+        learning_curve: args.learning_curve,
         ..Default::default()
     };
     let report = rrskin_tools::eval::run(&examples, &options)?;

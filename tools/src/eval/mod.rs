@@ -7,6 +7,7 @@
 //! rigid predictor (one bone per vertex, chosen on the training poses).
 
 pub mod diagnose;
+pub mod learning_curve;
 pub mod normals;
 
 use crate::set::ExampleSet;
@@ -105,6 +106,9 @@ pub struct Report {
     pub stages: Vec<(&'static str, f64)>,
     /// Whether "test" is the leave-one-out error over the training poses.
     pub loocv: bool,
+    /// The runtime model's held-out error at fractions of the training poses, and what it says
+    /// about more poses (None: not asked for, or too few training poses).
+    pub learning_curve: Option<learning_curve::LearningCurve>,
 }
 
 impl Report {
@@ -155,6 +159,8 @@ impl Report {
                     .collect::<Vec<_>>(),
             })),
             "normal_error": normals::to_json(&self.normal_error),
+            "learning_curve": self.learning_curve.as_ref().map(learning_curve::points_json),
+            "learning_curve_advice": self.learning_curve.as_ref().map(learning_curve::advice_json),
             "diagnose": self.budget.as_ref().map(|b| serde_json::json!({
                 "full_exact_gradients": errors(&b.full_exact),
                 "reduced_oracle_proxies": errors(&b.reduced_oracle),
@@ -193,6 +199,9 @@ impl Report {
         s += &self.error_rows();
         s += &normals::lines(&self.normal_error);
         s += &self.choice_lines();
+        if let Some(curve) = &self.learning_curve {
+            s += &curve.lines();
+        }
         s += "stages:";
         for (stage, t) in &self.stages {
             s += &format!(" {stage} {t:.2} s;");
@@ -456,6 +465,8 @@ pub struct Options {
     /// Leave out the baselines that need a precomputation (CoR and DDM with SSD's weights, CoR
     /// with the rig's): `rrskin train`, which reports only what it trained.
     pub skip_baselines: bool,
+    /// Also measure the learning curve ([`learning_curve`]): k x 4 more trainings.
+    pub learning_curve: bool,
 }
 
 /// Trains on `set`'s training poses ([`crate::train::run`]) and scores every method.
@@ -498,6 +509,11 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         let loo = leave_one_out(set, &trained, &options.train)?;
         report.use_leave_one_out(&loo);
         stages.push(("leave-one-out", start.elapsed().as_secs_f64()));
+    }
+    if options.learning_curve && options.model.is_none() {
+        let start = std::time::Instant::now();
+        report.learning_curve = learning_curve::measure(set, &trained.rigid, &options.train)?;
+        stages.push(("learning curve", start.elapsed().as_secs_f64()));
     }
     report.stages = stages;
     report.folds = options.train.folds.min(scorer.train.len());
@@ -591,6 +607,7 @@ fn score(
         folds: 0,
         stages: Vec::new(),
         loocv: false,
+        learning_curve: None,
     })
 }
 
@@ -698,6 +715,26 @@ fn leave_one_out(
     })
 }
 
+/// A runtime model's meshes of `poses`, by the runtime's CPU evaluator.
+fn runtime_meshes(
+    set: &ExampleSet,
+    model: &rrskin::Model,
+    poses: &[usize],
+) -> rrskin::Result<Vec<Vec<DVec3>>> {
+    let mut evaluator = rrskin::cpu::CpuEvaluator::new(model);
+    let v = set.vertex_count();
+    let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+    poses
+        .iter()
+        .map(|&i| {
+            let bones: Vec<rrskin::predict::Affine> =
+                set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
+            evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
+            Ok(pos.iter().map(|p| DVec3::from(p.map(f64::from))).collect())
+        })
+        .collect()
+}
+
 /// EE of a runtime model evaluated by the runtime's CPU evaluator.
 fn runtime_errors(
     set: &ExampleSet,
@@ -706,20 +743,7 @@ fn runtime_errors(
     test: &[usize],
     rigid: &Skinning,
 ) -> Result<Errors> {
-    let predict = |poses: &[usize]| -> rrskin::Result<Vec<Vec<DVec3>>> {
-        let mut evaluator = rrskin::cpu::CpuEvaluator::new(model);
-        let v = set.vertex_count();
-        let (mut pos, mut nrm) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
-        poses
-            .iter()
-            .map(|&i| {
-                let bones: Vec<rrskin::predict::Affine> =
-                    set.poses[i].bones.iter().map(|b| b.to_runtime()).collect();
-                evaluator.evaluate(&bones, &mut pos, &mut nrm)?;
-                Ok(pos.iter().map(|p| DVec3::from(p.map(f64::from))).collect())
-            })
-            .collect()
-    };
+    let predict = |poses: &[usize]| runtime_meshes(set, model, poses);
     let train_e = enveloping_error(set, train, &predict(train)?, rigid);
     let test_e = match test.is_empty() {
         true => None,
