@@ -23,14 +23,24 @@ roots, a swing of up to --swing degrees about a random axis perpendicular to the
 axis, times a twist of up to +-twist degrees about it; numpy Generator seeded by --seed);
 then, with --test-action NAME, every frame of that action as held-out poses (split 1).
 
+How many: --poses auto exports in rounds. It starts from 40 random poses (or --budget, if
+fewer), asks `rrskin train --learning-curve` (the binary of --rrskin, default `rrskin` on PATH)
+whether more would help (docs/method.md §22), and exports again with the count it advises, at
+most twice the last and at most --budget (320), until the curve is saturated, advises no more,
+or the budget is reached. The random poses of a count are the first of every larger count of
+the same seed, so each round extends the last. The learning curve measures held-out error on
+range-of-motion poses like these: what more of them buy, not how well the rig's animations
+will do (docs/experiments.md, "Active pose sampling").
+
 Axes: everything is converted from Blender's Z-up world to glTF's Y-up, (x, y, z) ->
 (x, z, -y), the convention of Blender's glTF exporter (export_yup, on by default), so that a
 model trained from this folder matches a glTF export of the same rig and its vertices.
 
 Use it as an add-on (File > Export > rrskin example set) or headless:
 
-    blender -b RIG.blend --python export_examples.py -- --out DIR [--poses 40] [--seed S]
-        [--test-action NAME] [--swing DEG] [--twist DEG] [--armature NAME] [--mesh NAME]
+    blender -b RIG.blend --python export_examples.py -- --out DIR [--poses 40 | --poses auto
+        [--budget 320] [--rrskin PATH]] [--seed S] [--test-action NAME] [--swing DEG]
+        [--twist DEG] [--armature NAME] [--mesh NAME]
     blender -b --factory-startup --python export_examples.py -- --input FILE.glb --out DIR ...
 
 Headless, every stage prints one line, the last line says what was written, and a user
@@ -480,6 +490,62 @@ def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0
 
 
 # ---------------------------------------------------------------------------------------------
+# How many poses: rounds advised by the learning curve
+
+AUTO_START = 40
+
+
+def learning_curve(rrskin, out):
+    """`rrskin train OUT --learning-curve --json`'s curve and advice (the model is discarded)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as scratch:
+        try:
+            run = subprocess.run([rrskin, "train", out, "-o", os.path.join(scratch, "m.rrs"),
+                                  "--learning-curve", "--json"], capture_output=True, text=True)
+        except OSError as e:
+            raise UserError(f"--rrskin {rrskin}: cannot run it ({e.strerror})")
+    if run.returncode != 0:
+        lines = run.stderr.strip().splitlines() or ["no message"]
+        raise UserError(f"rrskin train {out} failed: {lines[-1]}")
+    report = json.loads(run.stdout)
+    return report["learning_curve"], report["learning_curve_advice"]
+
+
+def next_count(poses, advice, budget):
+    """The next round's random poses after `poses`, or None to stop (and why)."""
+    if poses >= budget:
+        return None, f"the budget of {budget} poses"
+    if advice is None or advice["saturated"] is None:
+        return None, "too few poses for a learning curve"
+    if advice["saturated"]:
+        return None, "the learning curve is saturated"
+    # The advice counts training poses, the rest pose among them.
+    advised = advice["poses"] - 1 if advice["poses"] is not None else budget
+    if advised <= poses:
+        return None, f"the learning curve advises {advised} random poses"
+    return min(advised, 2 * poses, budget), None
+
+
+def export_auto(context, out, budget=320, rrskin="rrskin", log=print, **options):
+    """Rounds of export_examples until the learning curve stops them; returns the last summary."""
+    if budget < 1:
+        raise UserError(f"--budget {budget}: must be at least 1")
+    poses = min(AUTO_START, budget)
+    while True:
+        summary = export_examples(context, out, poses=poses, log=log, **options)
+        curve, advice = learning_curve(rrskin, out)
+        points = ", ".join(f"{p['ee']:.2f} at {p['poses']}" for p in curve or [])
+        say(log, f"round of {poses} random poses: learning curve {points or 'none'}"
+                 + (f"; {advice['sentence']}" if advice else ""))
+        following, why = next_count(poses, advice, budget)
+        if following is None:
+            return f"{summary}; stopped at {poses} random poses: {why}"
+        poses = following
+
+
+# ---------------------------------------------------------------------------------------------
 # Headless use
 
 
@@ -520,14 +586,23 @@ def parse_args(argv):
                description="Export an rrskin example set (NumPy layout) from a rig.")
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--input", help="import this .glb/.gltf/.fbx/.blend first (empty scene)")
-    p.add_argument("--poses", type=int, default=40, help="random range-of-motion poses (40)")
+    p.add_argument("--poses", default="40",
+                   help="random range-of-motion poses (40), or auto: rounds the learning curve advises")
+    p.add_argument("--budget", type=int, default=320, help="--poses auto: at most this many (320)")
+    p.add_argument("--rrskin", default="rrskin", help="--poses auto: the rrskin binary (on PATH)")
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--test-action", help="append this action's frames as held-out poses")
     p.add_argument("--swing", type=float, default=40.0, help="largest swing, degrees (40)")
     p.add_argument("--twist", type=float, default=60.0, help="largest twist, degrees (60)")
     p.add_argument("--armature", help="the armature object (default: the selected or only one)")
     p.add_argument("--mesh", help="the deformed mesh object (needed when several)")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if args.poses != "auto":
+        try:
+            args.poses = int(args.poses)
+        except ValueError:
+            raise UserError(f"--poses {args.poses}: a count or auto")
+    return args
 
 
 def main(argv):
@@ -538,10 +613,13 @@ def main(argv):
         args = parse_args(argv)
         if args.input:
             import_input(args.input, log)
-        summary = export_examples(bpy.context, args.out, poses=args.poses, seed=args.seed,
-                                  test_action=args.test_action, swing=args.swing,
-                                  twist=args.twist, armature=args.armature, mesh=args.mesh,
-                                  log=log)
+        options = dict(seed=args.seed, test_action=args.test_action, swing=args.swing,
+                       twist=args.twist, armature=args.armature, mesh=args.mesh)
+        if args.poses == "auto":
+            summary = export_auto(bpy.context, args.out, budget=args.budget, rrskin=args.rrskin,
+                                  log=log, **options)
+        else:
+            summary = export_examples(bpy.context, args.out, poses=args.poses, log=log, **options)
     except UserError as e:
         print(f"rrskin export: error: {e}", file=sys.stderr, flush=True)
         return 1

@@ -9,10 +9,11 @@
 //!   predictor of all training poses, so that every point has the same denominator.
 //! - **The advice.** A power law with a floor, `EE(n) ≈ a + b n^(−c)` (a, b ≥ 0; c on a grid),
 //!   is fitted to the points by least squares ([`fit`]). Doubling the N training poses gains
-//!   `(EE(N) − EE(2N)) / EE(N)`. Below [`SATURATED`] the rig is saturated; otherwise the advice
-//!   is the pose count past which a further doubling gains less than that: `n* = (b (1 − s −
-//!   2^(−c)) / (s a))^(1/c)`, s = [`SATURATED`], or "more than [`MAX_MULTIPLE`] N" where the
-//!   fit shows no floor that near. It extrapolates from a few noisy points, and says so.
+//!   `(EE(N) − EE(2N)) / EE(N)`. Below [`SATURATED`], or below [`MIN_GAIN`] EE points, the rig
+//!   is saturated; otherwise the advice is the pose count past which a further doubling gains
+//!   less than either: the least of `(b (1 − s − 2^(−c)) / (s a))^(1/c)`, s = [`SATURATED`],
+//!   and `(b (1 − 2^(−c)) / g)^(1/c)`, g = [`MIN_GAIN`], or "more than [`MAX_MULTIPLE`] N"
+//!   where that lies further. It extrapolates from a few noisy points, and says so.
 //!
 //! Every model here is trained on training poses only; the test poses are never looked at.
 
@@ -30,6 +31,10 @@ pub const FRACTIONS: [f64; 4] = [0.25, 0.5, 0.75, 1.0];
 
 /// A doubling of the poses that gains less than this share of the error is not worth it.
 pub const SATURATED: f64 = 0.05;
+
+/// Nor one that gains less than this many EE points (percent of the rigid predictor's error): a
+/// model already near exact (a rig the runtime form reproduces) gains large shares of nothing.
+pub const MIN_GAIN: f64 = 0.5;
 
 /// The advice extrapolates at most this far past the training poses.
 pub const MAX_MULTIPLE: usize = 8;
@@ -238,23 +243,35 @@ impl PowerLaw {
     pub fn doubling_gain(&self, n: f64) -> f64 {
         let here = self.at(n);
         match here > 0.0 {
-            true => (here - self.at(2.0 * n)) / here,
+            true => self.doubling_points(n) / here,
             false => 0.0,
         }
+    }
+
+    /// The EE points that doubling n poses gains.
+    pub fn doubling_points(&self, n: f64) -> f64 {
+        self.at(n) - self.at(2.0 * n)
+    }
+
+    /// Whether doubling n poses gains too little to be worth it.
+    pub fn saturated_at(&self, n: f64) -> bool {
+        self.doubling_gain(n) < SATURATED || self.doubling_points(n) < MIN_GAIN
     }
 }
 
 /// What `law` says about more than the `poses` training poses.
 pub fn advise(law: &PowerLaw, poses: usize) -> Advice {
     let gain = law.doubling_gain(poses as f64);
-    if gain < SATURATED {
+    if law.saturated_at(poses as f64) {
         return Advice::Saturated { gain };
     }
-    // b n^(−c) (1 − s − 2^(−c)) = s a at the pose count n* where a doubling gains s.
+    // The pose count where a doubling gains s of the error, b n^(−c) (1 − s − 2^(−c)) = s a,
+    // or g points, b n^(−c) (1 − 2^(−c)) = g: whichever comes first.
     let c = law.exponent;
-    let numerator = law.scale * (1.0 - SATURATED - 2f64.powf(-c));
-    let needed = (law.floor > 0.0)
-        .then(|| (numerator / (SATURATED * law.floor)).powf(1.0 / c))
+    let relative = (law.scale * (1.0 - SATURATED - 2f64.powf(-c)) / (SATURATED * law.floor))
+        .powf(1.0 / c);
+    let absolute = (law.scale * (1.0 - 2f64.powf(-c)) / MIN_GAIN).powf(1.0 / c);
+    let needed = Some(relative.min(absolute))
         .filter(|n| n.is_finite() && *n <= (MAX_MULTIPLE * poses) as f64)
         .map(|n| n.ceil() as usize);
     let ee = law.at(needed.map_or((MAX_MULTIPLE * poses) as f64, |n| n as f64));
@@ -272,12 +289,13 @@ impl LearningCurve {
         match self.advice {
             None => "too few points to say whether more poses would help".into(),
             Some(Advice::Saturated { gain }) => format!(
-                "saturated: doubling the {n} training poses would lower the held-out error by about {:.0} %; more poses of this kind would add little",
-                100.0 * gain
+                "saturated: doubling the {n} training poses would lower the held-out error by about {:.0} % ({:.2} EE points); more poses of this kind would add little",
+                100.0 * gain,
+                self.fit.map_or(0.0, |f| f.doubling_points(n as f64))
             ),
             Some(Advice::MorePoses { gain, poses, ee }) => {
                 let target = match poses {
-                    Some(p) => format!("about {p} poses should bring it near {ee:.1} %, past which a doubling gains under {:.0} %", 100.0 * SATURATED),
+                    Some(p) => format!("about {p} poses should bring it near {ee:.1} %, past which a doubling gains under {:.0} % or {MIN_GAIN} EE points", 100.0 * SATURATED),
                     None => format!("the fit shows no floor within {MAX_MULTIPLE}x as many ({} poses: {ee:.1} %)", MAX_MULTIPLE * n),
                 };
                 format!(
@@ -373,9 +391,20 @@ mod tests {
         };
         assert!(gain > SATURATED && n > 40 && n <= MAX_MULTIPLE * 40, "{gain} {n}");
         // n is the first whole count past the threshold.
-        assert!(law.doubling_gain(n as f64) <= SATURATED + 1e-12);
-        assert!(law.doubling_gain(n as f64 - 1.0) > SATURATED);
+        assert!(law.saturated_at(n as f64 + 1e-9));
+        assert!(!law.saturated_at(n as f64 - 1.0));
         assert!((ee - law.at(n as f64)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_near_exact_model_is_saturated_whatever_its_share() {
+        // Halving a tenth of a percent is no reason for more poses.
+        let tiny = PowerLaw {
+            floor: 0.0,
+            scale: 1.0,
+            exponent: 1.0,
+        };
+        assert!(matches!(advise(&tiny, 40), Advice::Saturated { gain } if gain > 0.4));
     }
 
     #[test]
@@ -391,7 +420,7 @@ mod tests {
         let advice = advise(&fit(&points(&steep)), 40);
         assert!(
             matches!(advice, Advice::MorePoses { poses: None, .. }),
-            "no floor, no count: {advice:?}"
+            "no floor within 8 N: {advice:?}"
         );
     }
 
