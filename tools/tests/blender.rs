@@ -89,6 +89,58 @@ fn exports_the_bundled_rig_with_its_walk_as_test_poses() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--poses auto` on the bundled rig: rounds of random poses until the learning curve stops them
+/// or the budget does. The first round is 40 poses; a second, if the curve advises more, goes to
+/// the budget of 60. Each round's curve is printed, the last line says why it stopped, and the
+/// set holds the poses of the last round.
+#[test]
+fn exports_as_many_poses_as_the_learning_curve_advises() {
+    let dir = temp_dir("blender-auto");
+    let out = dir.join("set");
+    let binary = env!("CARGO_BIN_EXE_rrskin");
+    let run = blender_script(
+        &exporter(),
+        &[
+            "--input",
+            &bundled_rig(),
+            "--out",
+            out.to_str().expect("utf-8"),
+            "--poses",
+            "auto",
+            "--budget",
+            "60",
+            "--rrskin",
+            binary,
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    let rounds: Vec<&str> = stdout.lines().filter(|l| l.contains(": round of ")).collect();
+    assert!(
+        rounds[0].contains("round of 40 random poses: learning curve ")
+            && rounds[0].contains(" at 30;"),
+        "{stdout}"
+    );
+    let last = stdout.lines().rfind(|l| l.contains("wrote")).expect("the summary");
+    let set = ExampleSet::load(&out).expect("the exported set loads");
+    let poses = set.train().len() - 1;
+    match rounds.len() {
+        1 => assert!(
+            poses == 40
+                && (last.contains("stopped at 40 random poses: the learning curve is saturated")
+                    || last.contains("stopped at 40 random poses: the learning curve advises")),
+            "{stdout}"
+        ),
+        2 => assert!(
+            poses == 60
+                && rounds[1].contains("round of 60 random poses")
+                && last.contains("stopped at 60 random poses: the budget of 60 poses"),
+            "{stdout}"
+        ),
+        n => panic!("{n} rounds: {stdout}"),
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A black box saved as a .blend (tests/blender/make_rig.py: welded mesh, Preserve Volume, a
 /// driven corrective shape key, Corrective Smooth, and an IK pole and a helmet slot that deform
 /// nothing, Deform on, moved by the held-out walk), exported with `blender -b RIG.blend`: the
