@@ -3,7 +3,7 @@ CesiumMan glb and exported with export_examples.py (the first-party exporter):
 
     blender -b --factory-startup --python-exit-code 1 --python tools/blender/make_black_boxes.py \\
         -- --out DIR [--sets muscle,cage,smooth,soft] [--poses 40] [--seed 7] [--glb FILE]
-        [--swing 40] [--twist 60] [--save-blend]
+        [--swing 40] [--twist 60] [--sag 0.02] [--save-blend]
 
 writes DIR/cesium_muscle, DIR/cesium_cage, DIR/cesium_smooth and DIR/cesium_soft (the layout of
 data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`):
@@ -20,7 +20,8 @@ data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`
   hips, thighs and upper arms, strong elsewhere) and gravity pulls the flesh down (-Y). Each
   pose's shape is the energy minimum, solved from the LBS mesh (projective dynamics), so it is
   a function of the pose alone: flesh sags with the limb's orientation and the skin resists
-  LBS's collapse at twisted joints.
+  LBS's collapse at twisted joints. --sag: how far the softest flesh alone would sink, metres
+  (0.02; 0: no gravity, the elastic skin alone).
 
 Every set: pose 0 the rest pose, --poses random range-of-motion poses (export_examples.py's:
 swing <= --swing deg, twist <= +-(--twist) deg, numpy seeded by --seed; the same poses in every
@@ -287,7 +288,7 @@ def build_smooth(arm, body):
 SOFT_GOAL = {PELVIS: 0.05, SPINE: 0.08, LEG["L"][0]: 0.08, LEG["R"][0]: 0.08,
              ARM["L"][0]: 0.12, ARM["R"][0]: 0.12}
 HARD_GOAL = 4.0
-SAG = 0.02  # metres
+SAG = 0.02  # metres, the default of --sag
 ITERATIONS = 200
 
 
@@ -296,10 +297,11 @@ def build_soft(arm, body):
     return "LBS, then a quasi-static elastic skin under gravity (after the export)"
 
 
-def soften(folder, bone_names):
+def soften(folder, bone_names, sag):
     """Replaces the exported LBS positions by the soft skin's equilibria, pose by pose: the
     minimum over x of sum_edges (|x_i - x_j| - L_ij)^2 + sum_i k_i |x_i - g_i|^2 - 2 G . x
-    (L the rest lengths, g the LBS mesh, k the goal stiffness, G gravity along -Y). Vertices
+    (L the rest lengths, g the LBS mesh, k the goal stiffness, G gravity along -Y, as strong as
+    sinks the softest flesh alone by `sag` metres). Vertices
     with no weight on a soft bone are pinned to LBS (bone-hard skin); the others are solved
     by ITERATIONS steps of projective dynamics from the LBS mesh (a fixed matrix, inverted
     once), so each pose's shape is a fixed function of that pose."""
@@ -329,9 +331,9 @@ def soften(folder, bone_names):
     a[np.arange(v), np.arange(v)] += k
     a_inv = np.linalg.inv(a[np.ix_(free, free)])
     a_fp = a[np.ix_(free, pinned)]
-    # Gravity, the same on every vertex: the softest flesh alone would sink SAG metres.
+    # Gravity, the same on every vertex: the softest flesh alone would sink `sag` metres.
     g = np.zeros((v, 3))
-    g[:, 1] = -SAG * min(SOFT_GOAL.values()) * scale
+    g[:, 1] = -sag * min(SOFT_GOAL.values()) * scale
 
     def spread(d):  # sum over each vertex's edges of +-d
         return np.stack([np.bincount(edges[:, 0], d[:, c], v) - np.bincount(edges[:, 1], d[:, c], v)
@@ -367,7 +369,7 @@ def soften(folder, bone_names):
 BUILDERS = {"muscle": build_muscle, "cage": build_cage, "smooth": build_smooth, "soft": build_soft}
 
 
-def make_set(name, out_dir, glb, poses, seed, save_blend, swing, twist):
+def make_set(name, out_dir, glb, poses, seed, save_blend, swing, twist, sag):
     t0 = time.time()
     arm, body = import_character(glb)
     what = BUILDERS[name](arm, body)
@@ -379,7 +381,7 @@ def make_set(name, out_dir, glb, poses, seed, save_blend, swing, twist):
                                  twist=twist, test_action=TEST_ACTION, mesh=body.name,
                                  log=lambda t: say(f"{name}: {t}"))
     if name == "soft":
-        say(f"{name}: " + soften(folder, [b.name for b in ex.deform_bones(arm)[0]]))
+        say(f"{name}: " + soften(folder, [b.name for b in ex.deform_bones(arm)[0]], sag))
     say(f"{name}: {what}; {summary} ({time.time() - t0:.0f} s)")
 
 
@@ -394,6 +396,8 @@ def main(argv):
     p.add_argument("--save-blend", action="store_true")
     p.add_argument("--swing", type=float, default=40.0, help="largest swing, degrees (40)")
     p.add_argument("--twist", type=float, default=60.0, help="largest twist, degrees (60)")
+    p.add_argument("--sag", type=float, default=SAG,
+                   help="soft: how far the softest flesh alone sinks under gravity, metres (0.02)")
     args = p.parse_args(argv)
     names = [s for s in args.sets.split(",") if s]
     unknown = [s for s in names if s not in BUILDERS]
@@ -403,7 +407,7 @@ def main(argv):
         return 1
     for name in names:
         make_set(name, args.out, os.path.abspath(args.glb), args.poses, args.seed,
-                 args.save_blend, args.swing, args.twist)
+                 args.save_blend, args.swing, args.twist, args.sag)
     return 0
 
 
