@@ -318,10 +318,11 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "correctives",
         "proxy_correctives",
         "normal_error",
+        "mush",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 24, "{e}");
+    assert_eq!(keys.len(), 25, "{e}");
     assert!(e["correctives"].is_null(), "off by default: {e}");
     assert!(
         e["rig_lbs"].is_null() && e["rig_dqs"].is_null() && e["rig_cor"].is_null(),
