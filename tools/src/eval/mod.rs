@@ -524,6 +524,12 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         .map(|m| &m.1)
         .or(trained.model.as_ref());
     let mut report = score(set, &trained, &scorer, baselines.as_ref(), runtime)?;
+    report.budget = match options.diagnose {
+        true => budget(set, &trained, &scorer, runtime, options.train.folds)?,
+        false => None,
+    };
+    report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
+    stages.push(("evaluation", start.elapsed().as_secs_f64()));
     if let Some(b) = &baselines {
         let errors = |m: &crate::train::reduce::mush::MushProxies| {
             scorer.errors(&|p| {
@@ -544,12 +550,6 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         report.mush = Some(fitted);
         stages.push(("mush", mush_start.elapsed().as_secs_f64()));
     }
-    report.budget = match options.diagnose {
-        true => budget(set, &trained, &scorer, runtime, options.train.folds)?,
-        false => None,
-    };
-    report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
-    stages.push(("evaluation", start.elapsed().as_secs_f64()));
     if options.loocv {
         let start = std::time::Instant::now();
         let loo = leave_one_out(set, &trained, &options.train)?;
