@@ -81,7 +81,8 @@ pub struct Report {
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
     /// Delta-mush proxies beside the runtime model, and the cross-validation between them
-    /// ([`mush`]; None with [`Options::skip_baselines`]).
+    /// ([`mush`]; None with [`Options::skip_baselines`], and without a runtime model trained
+    /// here: P = 0 or [`Options::model`]).
     pub mush: Option<mush::Mush>,
     /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
     pub structure: Option<Chosen>,
@@ -530,7 +531,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     };
     report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
     stages.push(("evaluation", start.elapsed().as_secs_f64()));
-    if let Some(b) = &baselines {
+    if let Some(b) = baselines.as_ref().filter(|_| train_options.proxies > 0) {
         let errors = |m: &crate::train::reduce::mush::MushProxies| {
             scorer.errors(&|p| {
                 (p.iter())
