@@ -3,7 +3,8 @@ CesiumMan glb and exported with export_examples.py (the first-party exporter):
 
     blender -b --factory-startup --python-exit-code 1 --python tools/blender/make_black_boxes.py \\
         -- --out DIR [--sets muscle,cage,smooth,soft] [--poses 40] [--seed 7] [--glb FILE]
-        [--swing 40] [--twist 60] [--sag 0.02] [--save-blend]
+        [--swing 40] [--twist 60] [--sag 0.02] [--save-blend] [--prefix cesium]
+        [--test-action NAME] [--smooth-iterations 20]
 
 writes DIR/cesium_muscle, DIR/cesium_cage, DIR/cesium_smooth and DIR/cesium_soft (the layout of
 data/README.md; each trains with `rrskin train` and evaluates with `rrskin eval`):
@@ -28,6 +29,13 @@ swing <= --swing deg, twist <= +-(--twist) deg, numpy seeded by --seed; the same
 set), then the glb's own walk (Anim_0, 48 frames) as held-out test poses. Deterministic up to
 float rounding (Blender's threaded evaluation: runs differ by at most 2e-7 m). --save-blend also
 writes DIR/<set>.blend (the rig, for a look in Blender).
+
+Another character: --glb, --test-action (its animation's action, `NAME_ARMATURE`, or a prefix
+of it) and --prefix (DIR/<prefix>_<set>). Only smooth and cage are independent of CesiumMan's
+bones. The Khronos Fox (glTF-Sample-Models 2.0/Fox/glTF-Binary/Fox.glb; CC0 mesh, CC-BY 4.0
+rig by @tomkranis, not bundled) with its walk held out, as in docs/experiments.md:
+
+    ... make_black_boxes.py -- --out DIR --sets smooth --glb Fox.glb --test-action Walk --prefix fox
 """
 
 import math
@@ -271,14 +279,17 @@ def build_cage(arm, body):
 # smooth: LBS + Corrective Smooth
 
 
+SMOOTH_ITERATIONS = [20]  # --smooth-iterations
+
+
 def build_smooth(arm, body):
     skin(body).use_deform_preserve_volume = False
     cs = body.modifiers.new("CorrectiveSmooth", 'CORRECTIVE_SMOOTH')
-    cs.iterations = 20
+    cs.iterations = SMOOTH_ITERATIONS[0]
     cs.factor = 0.5
     cs.smooth_type = 'LENGTH_WEIGHTED'
     cs.rest_source = 'ORCO'
-    return "LBS + Corrective Smooth (20 iterations, factor 0.5, length weighted)"
+    return f"LBS + Corrective Smooth ({cs.iterations} iterations, factor 0.5, length weighted)"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -369,19 +380,34 @@ def soften(folder, bone_names, sag):
 BUILDERS = {"muscle": build_muscle, "cage": build_cage, "smooth": build_smooth, "soft": build_soft}
 
 
-def make_set(name, out_dir, glb, poses, seed, save_blend, swing, twist, sag):
+def test_action_name(wanted):
+    """The action named `wanted`, or the one whose name starts with it (a glb's `Walk` is the
+    action `Walk_<armature>`)."""
+    names = [a.name for a in bpy.data.actions]
+    if wanted in names:
+        return wanted
+    matches = [n for n in names if n.startswith(wanted)]
+    if len(matches) != 1:
+        raise RuntimeError(f"no single action named {wanted!r}: {names}")
+    return matches[0]
+
+
+def make_set(name, args):
+    """Builds the set `name` into args.out with the options of `args` (main's)."""
     t0 = time.time()
-    arm, body = import_character(glb)
+    arm, body = import_character(os.path.abspath(args.glb))
     what = BUILDERS[name](arm, body)
-    folder = os.path.join(out_dir, f"cesium_{name}")
-    os.makedirs(out_dir, exist_ok=True)
-    if save_blend:
+    folder = os.path.join(args.out, f"{args.prefix}_{name}")
+    os.makedirs(args.out, exist_ok=True)
+    if args.save_blend:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(folder + ".blend"))
-    summary = ex.export_examples(bpy.context, folder, poses=poses, seed=seed, swing=swing,
-                                 twist=twist, test_action=TEST_ACTION, mesh=body.name,
-                                 log=lambda t: say(f"{name}: {t}"))
+    summary = ex.export_examples(bpy.context, folder, poses=args.poses, seed=args.seed,
+                                 swing=args.swing, twist=args.twist,
+                                 test_action=test_action_name(args.test_action),
+                                 mesh=body.name, log=lambda t: say(f"{name}: {t}"))
     if name == "soft":
-        say(f"{name}: " + soften(folder, [b.name for b in ex.deform_bones(arm)[0]], sag))
+        bones = [b.name for b in ex.deform_bones(arm)[0]]
+        say(f"{name}: " + soften(folder, bones, args.sag))
     say(f"{name}: {what}; {summary} ({time.time() - t0:.0f} s)")
 
 
@@ -398,7 +424,12 @@ def main(argv):
     p.add_argument("--twist", type=float, default=60.0, help="largest twist, degrees (60)")
     p.add_argument("--sag", type=float, default=SAG,
                    help="soft: how far the softest flesh alone sinks under gravity, metres (0.02)")
+    p.add_argument("--prefix", default="cesium", help="the sets' folder prefix (cesium)")
+    p.add_argument("--test-action", default=TEST_ACTION, help="held-out action (or its prefix)")
+    p.add_argument("--smooth-iterations", type=int, default=20,
+                   help="Corrective Smooth iterations of the smooth set (20)")
     args = p.parse_args(argv)
+    SMOOTH_ITERATIONS[0] = args.smooth_iterations
     names = [s for s in args.sets.split(",") if s]
     unknown = [s for s in names if s not in BUILDERS]
     if unknown:
@@ -406,8 +437,7 @@ def main(argv):
               file=sys.stderr)
         return 1
     for name in names:
-        make_set(name, args.out, os.path.abspath(args.glb), args.poses, args.seed,
-                 args.save_blend, args.swing, args.twist, args.sag)
+        make_set(name, args)
     return 0
 
 

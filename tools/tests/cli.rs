@@ -337,10 +337,11 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "normal_error",
         "learning_curve",
         "learning_curve_advice",
+        "mush",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 26, "{e}");
+    assert_eq!(keys.len(), 27, "{e}");
     learning_curve_falls(&e);
     assert!(e["correctives"].is_null(), "off by default: {e}");
     assert!(

@@ -8,6 +8,7 @@
 
 pub mod diagnose;
 pub mod learning_curve;
+pub mod mush;
 pub mod normals;
 
 use crate::set::ExampleSet;
@@ -80,6 +81,10 @@ pub struct Report {
     /// The reduced runtime model, evaluated by the runtime's CPU evaluator.
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
+    /// Delta-mush proxies beside the runtime model, and the cross-validation between them
+    /// ([`mush`]; None with [`Options::skip_baselines`], and without a runtime model trained
+    /// here: P = 0 or [`Options::model`]).
+    pub mush: Option<mush::Mush>,
     /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
     pub structure: Option<Chosen>,
     pub budget: Option<Budget>,
@@ -140,6 +145,11 @@ impl Report {
             "rig_cor": self.rig_cor.as_ref().map(errors),
             "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
+            "mush": self.mush.as_ref().map(|m| serde_json::json!({
+                "proxies": m.proxies, "influences": m.influences, "mean_bones": m.mean_bones,
+                "errors": errors(&m.errors), "chosen": m.chosen,
+                "candidates": m.scores.iter().map(|(score, se)| serde_json::json!({"score": score, "standard_error": se})).collect::<Vec<_>>(),
+            })),
             "structure": self.structure.as_ref().map(structure_json),
             "correctives": self.correctives.as_ref().map(|c| serde_json::json!({
                 "ridge": c.ridge, "targets": c.targets, "drivers": c.drivers,
@@ -247,6 +257,11 @@ impl Report {
         }
         if let Some(c) = &self.structure {
             s += &structure_line(c);
+        }
+        if let Some(m) = &self.mush {
+            let label = format!("delta-mush proxies, P = {}", m.proxies);
+            row(&mut s, &label, &m.errors);
+            s += &mush_line(m);
         }
         if let Some(b) = &self.budget {
             s += "error budget (oracle ceilings, then what the training poses support):\n";
@@ -384,6 +399,29 @@ fn structure_line(c: &Chosen) -> String {
     line + ")\n"
 }
 
+/// The cross-validation's verdict between the delta-mush proxies and the runtime model.
+fn mush_line(m: &mush::Mush) -> String {
+    let mut s = String::new();
+    let ee = |(score, se): (f64, f64)| {
+        let e = 100.0 * score.sqrt();
+        format!("{e:.2} ± {:.2}", 50.0 * se / score.sqrt().max(1e-300))
+    };
+    if let [runtime, proxies] = m.scores[..] {
+        let verdict = match m.chosen {
+            true => "delta-mush proxies",
+            false => "the runtime model",
+        };
+        s += &format!(
+            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the runtime model (cross-validation on the training poses, held-out pose EE %): runtime {}, delta-mush {}: {verdict} kept\n",
+            m.influences,
+            m.mean_bones,
+            ee(runtime),
+            ee(proxies),
+        );
+    }
+    s
+}
+
 fn dqs_all(set: &ExampleSet, influences: &[Vec<(usize, f64)>], poses: &[usize]) -> Vec<Vec<DVec3>> {
     poses
         .iter()
@@ -504,6 +542,26 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     };
     report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
     stages.push(("evaluation", start.elapsed().as_secs_f64()));
+    if let Some(b) = baselines.as_ref().filter(|_| train_options.proxies > 0) {
+        let errors = |m: &crate::train::reduce::mush::MushProxies| {
+            scorer.errors(&|p| {
+                (p.iter())
+                    .map(|&i| m.deform(&set.rest, &set.poses[i].bones))
+                    .collect()
+            })
+        };
+        let mush_start = std::time::Instant::now();
+        let fitted = mush::evaluate(
+            set,
+            &trained,
+            &b.ddm,
+            &b.ddm_params,
+            &options.train,
+            &errors,
+        )?;
+        report.mush = Some(fitted);
+        stages.push(("mush", mush_start.elapsed().as_secs_f64()));
+    }
     if options.loocv {
         let start = std::time::Instant::now();
         let loo = leave_one_out(set, &trained, &options.train)?;
@@ -585,6 +643,7 @@ fn score(
             .map(|m| runtime_errors(set, m, &scorer.train, &scorer.test, scorer.rigid))
             .transpose()?,
         reduced_proxies: runtime.map(|m| m.proxy_count()),
+        mush: None,
         structure: trained.structure.clone(),
         budget: None,
         normal_error: Vec::new(),
@@ -653,9 +712,15 @@ impl Report {
         }
         // Leave-one-out retrains SSD and the full model only: the reduced row and the
         // baselines precomputed from SSD's weights have no such figure.
-        for e in [&mut self.rr_reduced, &mut self.cor, &mut self.ddm]
-            .into_iter()
-            .flatten()
+        let mush = self.mush.as_mut().map(|m| &mut m.errors);
+        for e in [
+            self.rr_reduced.as_mut(),
+            self.cor.as_mut(),
+            self.ddm.as_mut(),
+            mush,
+        ]
+        .into_iter()
+        .flatten()
         {
             e.test = None;
         }

@@ -3,6 +3,7 @@
 
 pub mod c1c2;
 pub mod joint_blend;
+pub mod mush;
 pub mod predictor;
 pub mod refit;
 pub mod stretch;
