@@ -503,7 +503,8 @@ pub struct Options {
     /// Leave out the baselines that need a precomputation (CoR and DDM with SSD's weights, CoR
     /// with the rig's): `rrskin train`, which reports only what it trained.
     pub skip_baselines: bool,
-    /// Also measure the learning curve ([`learning_curve`]): k x 4 more trainings.
+    /// Also measure the learning curve ([`learning_curve`]; with a runtime model trained here:
+    /// P > 0, no [`Options::model`]): k x 4 more trainings.
     pub learning_curve: bool,
 }
 
@@ -568,7 +569,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         report.use_leave_one_out(&loo);
         stages.push(("leave-one-out", start.elapsed().as_secs_f64()));
     }
-    if options.learning_curve && options.model.is_none() {
+    if options.learning_curve && options.model.is_none() && options.train.proxies > 0 {
         let start = std::time::Instant::now();
         report.learning_curve = learning_curve::measure(set, &trained.rigid, &options.train)?;
         stages.push(("learning curve", start.elapsed().as_secs_f64()));
