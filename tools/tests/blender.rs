@@ -114,13 +114,19 @@ fn exports_as_many_poses_as_the_learning_curve_advises() {
         ],
     );
     let stdout = String::from_utf8_lossy(&run.stdout);
-    let rounds: Vec<&str> = stdout.lines().filter(|l| l.contains(": round of ")).collect();
+    let rounds: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.contains(": round of "))
+        .collect();
     assert!(
         rounds[0].contains("round of 40 random poses: learning curve ")
             && rounds[0].contains(" at 30;"),
         "{stdout}"
     );
-    let last = stdout.lines().rfind(|l| l.contains("wrote")).expect("the summary");
+    let last = stdout
+        .lines()
+        .rfind(|l| l.contains("wrote"))
+        .expect("the summary");
     let set = ExampleSet::load(&out).expect("the exported set loads");
     let poses = set.train().len() - 1;
     match rounds.len() {

@@ -271,9 +271,15 @@ fn reference_writes_the_c_examples_inputs() {
 /// last (measured: 21.9 at 8 poses, 16.2 at 30), and its advice in a sentence.
 fn learning_curve_falls(e: &serde_json::Value) {
     let points = e["learning_curve"].as_array().expect("a list of points");
-    let poses: Vec<u64> = points.iter().map(|p| p["poses"].as_u64().expect("n")).collect();
+    let poses: Vec<u64> = points
+        .iter()
+        .map(|p| p["poses"].as_u64().expect("n"))
+        .collect();
     assert_eq!(poses, [8, 15, 23, 30], "{points:?}");
-    let ee: Vec<f64> = points.iter().map(|p| p["ee"].as_f64().expect("EE")).collect();
+    let ee: Vec<f64> = points
+        .iter()
+        .map(|p| p["ee"].as_f64().expect("EE"))
+        .collect();
     assert!(ee.iter().all(|x| x.is_finite() && *x > 0.0), "{ee:?}");
     assert!(ee[3] < 0.9 * ee[0], "more poses, less error: {ee:?}");
     let advice = &e["learning_curve_advice"];
@@ -520,7 +526,10 @@ fn a_trained_model_file_evaluates_as_trained() {
     let evaluated = json(&rrskin(&["eval", set, "--model", m, "--json"]));
     assert_eq!(evaluated["proxies"], 20);
     assert_eq!(trained["structure"]["chosen"]["proxies"], 20);
-    assert!(trained["learning_curve"].is_null(), "train leaves it out unless asked");
+    assert!(
+        trained["learning_curve"].is_null(),
+        "train leaves it out unless asked"
+    );
     for split in ["train", "test"] {
         let (a, b) = (
             &trained["rr_reduced"][split],

@@ -118,10 +118,18 @@ pub fn measure(
         .par_iter()
         .map(|&(f, n)| {
             let fold = &folds[f];
-            let inner: Vec<usize> = order.iter().filter(|p| fold.inner.contains(p)).copied().collect();
+            let inner: Vec<usize> = order
+                .iter()
+                .filter(|p| fold.inner.contains(p))
+                .copied()
+                .collect();
             let kept: Vec<usize> = inner[..n].iter().map(|&p| train[p]).collect();
             let (_, held) = fold.poses(&train);
-            let left_out: Vec<usize> = train.iter().copied().filter(|i| !kept.contains(i)).collect();
+            let left_out: Vec<usize> = train
+                .iter()
+                .copied()
+                .filter(|i| !kept.contains(i))
+                .collect();
             let error = held_out_error(&set.holding_out(&left_out), set, &held, &options)?;
             let reference = squared_error(set, &held, &deform_all(set, rigid, &held));
             progress.step();
@@ -208,7 +216,10 @@ pub fn fit(points: &[Point]) -> PowerLaw {
 
 /// Floor and scale ≥ 0 minimising Σ (ee − floor − scale n^(−c))² for a fixed c.
 fn fit_linear(points: &[Point], exponent: f64) -> PowerLaw {
-    let x: Vec<f64> = points.iter().map(|p| (p.poses as f64).powf(-exponent)).collect();
+    let x: Vec<f64> = points
+        .iter()
+        .map(|p| (p.poses as f64).powf(-exponent))
+        .collect();
     let y: Vec<f64> = points.iter().map(|p| p.ee).collect();
     let m = x.len() as f64;
     let (sx, sy) = (x.iter().sum::<f64>(), y.iter().sum::<f64>());
@@ -268,8 +279,8 @@ pub fn advise(law: &PowerLaw, poses: usize) -> Advice {
     // The pose count where a doubling gains s of the error, b n^(−c) (1 − s − 2^(−c)) = s a,
     // or g points, b n^(−c) (1 − 2^(−c)) = g: whichever comes first.
     let c = law.exponent;
-    let relative = (law.scale * (1.0 - SATURATED - 2f64.powf(-c)) / (SATURATED * law.floor))
-        .powf(1.0 / c);
+    let relative =
+        (law.scale * (1.0 - SATURATED - 2f64.powf(-c)) / (SATURATED * law.floor)).powf(1.0 / c);
     let absolute = (law.scale * (1.0 - 2f64.powf(-c)) / MIN_GAIN).powf(1.0 / c);
     let needed = Some(relative.min(absolute))
         .filter(|n| n.is_finite() && *n <= (MAX_MULTIPLE * poses) as f64)
@@ -389,7 +400,10 @@ mod tests {
         else {
             panic!("{:?}", advise(&law, 40));
         };
-        assert!(gain > SATURATED && n > 40 && n <= MAX_MULTIPLE * 40, "{gain} {n}");
+        assert!(
+            gain > SATURATED && n > 40 && n <= MAX_MULTIPLE * 40,
+            "{gain} {n}"
+        );
         // n is the first whole count past the threshold.
         assert!(law.saturated_at(n as f64 + 1e-9));
         assert!(!law.saturated_at(n as f64 - 1.0));
