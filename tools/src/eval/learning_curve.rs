@@ -104,15 +104,17 @@ pub fn measure(
     if counts.len() < 2 {
         return Ok(None);
     }
+    let progress = Progress::new("learning curve", folds.len() * counts.len(), options.quiet);
+    // Each training quiet: the curve's own progress counts them.
     let options = TrainOptions {
         quiet: true,
         full_model: false,
         ..options.clone()
     };
-    let progress = Progress::new("learning curve", folds.len() * counts.len(), options.quiet);
     let jobs: Vec<(usize, usize)> = (0..folds.len())
         .flat_map(|f| counts.iter().map(move |&n| (f, n)))
         .collect();
+    progress.stage(&format!("{} trainings, on {counts:?} poses", jobs.len()));
     // Per job: (the model's, the rigid predictor's) squared error over the fold's held poses.
     let errors: Vec<(f64, f64)> = jobs
         .par_iter()
