@@ -30,7 +30,7 @@ most twice the last and at most --budget (320), until the curve is saturated, ad
 or the budget is reached. The random poses of a count are the first of every larger count of
 the same seed, so each round extends the last. The learning curve measures held-out error on
 range-of-motion poses like these: what more of them buy, not how well the rig's animations
-will do (docs/experiments.md, "Active pose sampling").
+will do (docs/experiments.md, "How many poses, and which").
 
 Axes: everything is converted from Blender's Z-up world to glTF's Y-up, (x, y, z) ->
 (x, z, -y), the convention of Blender's glTF exporter (export_yup, on by default), so that a

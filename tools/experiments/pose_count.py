@@ -1,5 +1,5 @@
 """The runtime model's held-out error on a rig's own animation as random poses are added
-(docs/experiments.md, "Active pose sampling"): what `export_examples.py --poses auto` buys,
+(docs/experiments.md, "How many poses, and which"): what `export_examples.py --poses auto` buys,
 replayed from a pool exported once:
 
     python3 tools/experiments/pose_count.py POOL --rrskin target/release/rrskin \\
