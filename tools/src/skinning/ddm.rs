@@ -226,7 +226,11 @@ pub fn choose(
             break;
         }
     }
-    let (_, params, ddm) = best.expect("ITERATIONS and ALPHAS are not empty");
+    // None only with no candidates (ITERATIONS or ALPHAS empty).
+    let (_, params, ddm) = best.ok_or_else(|| Error::Baseline {
+        method: "direct delta mush",
+        problem: "no smoothing parameters to choose from".into(),
+    })?;
     Ok((params, ddm))
 }
 
