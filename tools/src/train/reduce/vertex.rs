@@ -229,8 +229,7 @@ pub fn merge_groups(
             break;
         }
         spent += join.cost;
-        let ma = moments[a].take().expect("checked above");
-        if let Some(mb) = moments[b].as_mut() {
+        if let (Some(ma), Some(mb)) = (moments[a].take(), moments[b].as_mut()) {
             mb.add(&ma);
             fits[b] = mb.fit();
         }
