@@ -243,6 +243,30 @@ fn the_rigs_own_weights_load_when_present() {
     assert_eq!(w.len(), V);
 }
 
+/// A row off one by less than the tolerance (f32 exports round) loads, rescaled to sum to one.
+#[test]
+fn rig_weights_within_the_tolerance_are_rescaled_to_one() {
+    let dir = temp_dir("set-weights-rescaled");
+    write_valid(&dir);
+    let weights = [1.0, 0.0, 0.25, 0.75, 0.0, 1.0, 0.5, 0.5005];
+    write_f32(&dir.join("skin_weights.npy"), &[V, 2], &weights);
+    write_f32(
+        &dir.join("pose_vertices.npy"),
+        &[N, V, 3],
+        &skinned_by(&weights),
+    );
+    let set = ExampleSet::load(&dir).expect("within the tolerance");
+    std::fs::remove_dir_all(&dir).ok();
+    let w = set.rig_weights.expect("weights");
+    let sum: f64 = w[3].iter().map(|(_, x)| x).sum();
+    assert!((sum - 1.0).abs() < 1e-12, "row 3 sums to {sum}");
+    assert!(
+        (w[3][1].1 / w[3][0].1 - 1.001).abs() < 1e-6,
+        "proportions kept: {:?}",
+        w[3]
+    );
+}
+
 #[test]
 fn bad_rig_weights_name_the_file_and_the_vertex() {
     let file = "skin_weights.npy";
