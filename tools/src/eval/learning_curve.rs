@@ -115,37 +115,35 @@ pub fn measure(
         .flat_map(|f| counts.iter().map(move |&n| (f, n)))
         .collect();
     progress.stage(&format!("{} trainings, on {counts:?} poses", jobs.len()));
-    // Per job: (the model's, the rigid predictor's) squared error over the fold's held poses.
-    let errors: Vec<(f64, f64)> = jobs
+    let held: Vec<Vec<usize>> = folds.iter().map(|f| f.poses(&train).1).collect();
+    // Every point's denominator: the rigid predictor's squared error over all held poses.
+    let reference: f64 = (held.iter())
+        .map(|h| squared_error(set, h, &deform_all(set, rigid, h)))
+        .sum();
+    // Per job: the model's squared error over its fold's held poses.
+    let errors: Vec<f64> = jobs
         .par_iter()
         .map(|&(f, n)| {
-            let fold = &folds[f];
-            let inner: Vec<usize> = order
-                .iter()
-                .filter(|p| fold.inner.contains(p))
-                .copied()
+            let kept: Vec<usize> = (order.iter())
+                .filter(|p| folds[f].inner.contains(p))
+                .take(n)
+                .map(|&p| train[p])
                 .collect();
-            let kept: Vec<usize> = inner[..n].iter().map(|&p| train[p]).collect();
-            let (_, held) = fold.poses(&train);
-            let left_out: Vec<usize> = train
-                .iter()
-                .copied()
+            let left_out: Vec<usize> = (train.iter().copied())
                 .filter(|i| !kept.contains(i))
                 .collect();
-            let error = held_out_error(&set.holding_out(&left_out), set, &held, &options)?;
-            let reference = squared_error(set, &held, &deform_all(set, rigid, &held));
+            let error = held_out_error(&set.holding_out(&left_out), set, &held[f], &options)?;
             progress.step();
-            Ok((error, reference))
+            Ok(error)
         })
         .collect::<Result<_>>()?;
     progress.finish();
     let points: Vec<Point> = (counts.iter().enumerate())
         .map(|(c, &poses)| {
-            let of_count = (0..folds.len()).map(|f| errors[f * counts.len() + c]);
-            let (e, r) = of_count.fold((0.0, 0.0), |(e, r), (x, y)| (e + x, r + y));
+            let error: f64 = (0..folds.len()).map(|f| errors[f * counts.len() + c]).sum();
             Point {
                 poses,
-                ee: 100.0 * (e / r.max(1e-300)).sqrt(),
+                ee: 100.0 * (error / reference.max(1e-300)).sqrt(),
             }
         })
         .collect();
@@ -192,28 +190,19 @@ fn shuffled(n: usize) -> Vec<usize> {
 /// The least-squares power law with a floor through `points`: for each exponent of a grid, the
 /// non-negative floor and scale solve a 2 x 2 least-squares problem (clamped to ≥ 0).
 pub fn fit(points: &[Point]) -> PowerLaw {
-    let exponents = (1..=60).map(|i| 0.05 * i as f64);
     let residual = |law: &PowerLaw| -> f64 {
         (points.iter())
             .map(|p| (p.ee - law.at(p.poses as f64)).powi(2))
             .sum()
     };
-    let mut best: Option<(f64, PowerLaw)> = None;
-    for exponent in exponents {
-        let law = fit_linear(points, exponent);
-        let r = residual(&law);
-        if best.is_none_or(|(b, _)| r < b) {
-            best = Some((r, law));
+    // The first exponent of least residual; the grid is never empty.
+    let grid = (2..=60).map(|i| fit_linear(points, 0.05 * i as f64));
+    grid.fold(fit_linear(points, 0.05), |best, law| {
+        match residual(&law) < residual(&best) {
+            true => law,
+            false => best,
         }
-    }
-    best.map_or(
-        PowerLaw {
-            floor: 0.0,
-            scale: 0.0,
-            exponent: 1.0,
-        },
-        |(_, law)| law,
-    )
+    })
 }
 
 /// Floor and scale ≥ 0 minimising Σ (ee − floor − scale n^(−c))² for a fixed c.

@@ -127,7 +127,7 @@ impl std::error::Error for InputError {}
 impl ExampleSet {
     /// Validates `parts` (the struct docs say what), naming the file of `files` at fault, and
     /// adds the mesh's warnings.
-    pub fn new(parts: SetParts, files: &SetFiles) -> Result<ExampleSet, InputError> {
+    pub fn new(mut parts: SetParts, files: &SetFiles) -> Result<ExampleSet, InputError> {
         check_mesh(&parts, files)?;
         check_skeleton(&parts.parents, &files.skeleton)?;
         // Before the poses, whose errors name bones by these names.
@@ -143,7 +143,6 @@ impl ExampleSet {
             check_weights(w, parts.rest.len(), parts.parents.len(), &files.weights)?;
         }
         let warnings = mesh_warnings(&parts.rest, &parts.faces, &files.mesh);
-        let mut parts = parts;
         // Within the tolerance of one, and then exactly one.
         for row in parts.rig_weights.iter_mut().flatten() {
             let sum: f64 = row.iter().map(|(_, w)| w).sum();
