@@ -19,7 +19,7 @@ layout(std430, set = 0, binding = 0) readonly buffer ProductOffsets { uint offse
 layout(std430, set = 0, binding = 1) readonly buffer ProductColumns { uint columns[]; };  // stored
 layout(std430, set = 0, binding = 2) readonly buffer ProductValues { vec4 vals[]; };      // stored
 layout(std430, set = 0, binding = 3) readonly buffer Bones { Affine bones[]; };         // chars x J
-layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J
+layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J, keys
 layout(std430, set = 0, binding = 5) readonly buffer Predictors { Predictor preds[]; }; // P
 layout(std430, set = 0, binding = 6) buffer Palette { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 #ifdef CORRECTIVES
@@ -33,6 +33,7 @@ layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C;
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 #endif
 
+#include "polar.glsl"
 #include "predictor.glsl"
 #ifdef CORRECTIVES
 #include "joint_features.glsl"

@@ -10,13 +10,14 @@ layout(local_size_x = 64) in;
 #include "predictor_types.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer Bones { Affine bones[]; };           // chars x J
-layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };          // J
+layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };          // J, keys
 layout(std430, set = 0, binding = 2) readonly buffer Predictors { Predictor preds[]; };   // P
 layout(std430, set = 0, binding = 3) buffer Rhs { float bmat[]; };      // (3P + 4J) x 3 chars
 layout(std430, set = 0, binding = 4) buffer Palette { Affine palette[]; };   // chars x (P + J)
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
+#include "polar.glsl"
 #include "predictor.glsl"
 
 void main() {

@@ -1,7 +1,8 @@
 // Key predictor D_l(q) = R(q) S(q) (paper §3, Eq. 3-4; docs/method.md §2-3), shared by predict.comp
 // and fused_product.comp. Mirrors src/predict.rs in f32 with the same branch thresholds, so CPU
 // and GPU agree away from the log's branch cut at pi. Reads the including shader's `bones`
-// (chars x J Affine), `parents` (J int) and `preds` (P Predictor).
+// (chars x J Affine), `parents` (J int, then the delta-mush keys, read by mush()), `preds`
+// (P Predictor) and `pc.J`, and needs polar.glsl.
 
 const float NEAR_PI_SIN = 1e-2;
 const float SMALL_ANGLE = 1e-4;
@@ -89,8 +90,42 @@ mat3 scale_shear(uint l, vec3 theta_b, vec3 theta_p) {
     return transpose(mat3(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]));
 }
 
+// Word i of the delta-mush keys after the J parents (src/vk/gpu_model.rs): P + 1 offsets into
+// these words, key l's terms being words mush(l)..mush(l + 1) (none for a predictor's key),
+// then the terms, 13 words each: the bone, then its 4x3 row-major Omega as float bits.
+uint mush(uint i) {
+    return uint(parents[pc.J + i]);
+}
+
+// Delta-mush key l's D = polar(sum_i [Q_i | d_i] Omega_i) (src/model/mod.rs, MushKeys), its
+// terms being words first..end of mush().
+mat3 mush_gradient(uint first, uint end, uint base) {
+    float a[9];
+    for (uint i = 0u; i < 9u; i++) {
+        a[i] = 0.0;
+    }
+    for (uint o = first; o < end; o += 13u) {
+        Affine m = bones[base + mush(o)];
+        for (uint c = 0u; c < 3u; c++) {
+            vec4 omega = vec4(uintBitsToFloat(mush(o + 1u + c)), uintBitsToFloat(mush(o + 4u + c)),
+                uintBitsToFloat(mush(o + 7u + c)), uintBitsToFloat(mush(o + 10u + c)));
+            a[c] += dot(m.r0, omega);
+            a[3u + c] += dot(m.r1, omega);
+            a[6u + c] += dot(m.r2, omega);
+        }
+    }
+    float r[9];
+    nearest_rotation(a, r);
+    return transpose(mat3(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]));
+}
+
 // D_l(q) of the character whose bones start at `base`.
 mat3 key_gradient(uint l, uint base) {
+    uint first = mush(l);
+    uint end = mush(l + 1u);
+    if (first < end) {
+        return mush_gradient(first, end, base);
+    }
     uint bone = preds[l].bone;
     uint second = preds[l].second;
     vec3 theta_b = joint_rotation(base, bone);

@@ -1,7 +1,7 @@
 //! CPU reference evaluator of the whole per-frame pipeline (paper §6, docs/method.md §9), in `f64`:
 //! the oracle every GPU test compares against.
 //!
-//! Per character: (1) key gradients `d = D_ℓ(q)`; (2) proxy transforms `t_c = C1 d_c + C2 q_c`
+//! Per character: (1) key gradients `d = D_ℓ(q)` (predictors', then delta-mush keys'); (2) proxy transforms `t_c = C1 d_c + C2 q_c`
 //! for c = x, y, z (Eq. 5 in the separable form of docs/method.md §8); (3) palette skinning over
 //! `[t (P); q (J)]` with K influences; (4) normals as [`NormalMode`] says (`crate::normals`):
 //! recomputed, the area-weighted sum of incident triangle normals, normalised (zero where the sum
@@ -16,7 +16,7 @@
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::normals::{area_weighted_sums, cofactor_times, NormalMode};
-use crate::predict::{apply_proxy_correctives, corrective_weights, key_gradient, Affine};
+use crate::predict::{apply_proxy_correctives, corrective_weights, key_gradients, Affine};
 use glam::{DMat3, DVec3};
 
 /// Evaluates C characters of one model. Holds its scratch, so repeated frames allocate nothing.
@@ -169,9 +169,7 @@ impl<'m> CpuEvaluator<'m> {
     fn palette_of(&mut self, q: &[Affine]) {
         let model = self.model;
         let (p, j) = (model.proxy_count(), model.bone_count());
-        for (g, pred) in self.gradients.iter_mut().zip(&model.parts().predictors) {
-            *g = key_gradient(model, pred, q);
-        }
+        key_gradients(model, q, &mut self.gradients);
         let width = 3 * p + 4 * j;
         for c in 0..3 {
             for (l, g) in self.gradients.iter().enumerate() {

@@ -135,9 +135,12 @@ pub mod ffi;
 pub mod model;
 pub mod normals;
 pub mod palette;
+pub mod polar;
 pub mod predict;
 pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};
-pub use model::{Correctives, KeyPredictor, Model, ModelParts, ProxyCorrectives, SecondBone};
+pub use model::{
+    Correctives, KeyPredictor, Model, ModelParts, MushKeys, ProxyCorrectives, SecondBone,
+};
 pub use normals::NormalMode;

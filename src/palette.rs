@@ -34,7 +34,8 @@
 use crate::cpu::characters;
 use crate::error::{Error, Result};
 use crate::model::{BlockSparse, Model, ProxyCorrectives};
-use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation, Affine};
+use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation};
+use crate::predict::{mush_gradient_f32 as mush_gradient, Affine};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
 
@@ -384,8 +385,10 @@ impl Palette {
                 None => log_rotation(rotation(b)),
             };
         }
-        for (l, key) in self.keys.iter().enumerate() {
-            let d = key.gradient(&scratch.theta, rotation);
+        let mushed = (self.model.mush_keys().into_iter())
+            .flat_map(|keys| (0..keys.count()).map(move |s| mush_gradient(keys, s, q)));
+        let predicted = (self.keys.iter()).map(|key| key.gradient(&scratch.theta, rotation));
+        for (l, d) in predicted.chain(mushed).enumerate() {
             scratch.rhs[3 * l..3 * l + 3].copy_from_slice(&[d.x_axis, d.y_axis, d.z_axis]);
         }
         for (b, t) in q.iter().enumerate() {

@@ -3,7 +3,7 @@
 //! (same branch thresholds), so the two agree away from the rotation log's branch cut at π.
 
 use crate::error::{Error, Result};
-use crate::model::{KeyPredictor, Mat3Rows, Model};
+use crate::model::{KeyPredictor, Mat3Rows, Model, MushKeys};
 use glam::{DMat3, DVec3, Mat3, Vec3};
 
 /// A bone transform relative to the rest pose, 3x4 row-major: `x ↦ Q x + d`.
@@ -257,6 +257,54 @@ pub fn corrected(t: &[f64; 12], e: &[f64; 12]) -> [f64; 12] {
     }
     out
 }
+
+/// Every key gradient `D_ℓ(q)` of `model` (P) for one character's J bone transforms: the
+/// predictors' keys ([`key_gradient`]), then the delta-mush keys ([`mush_gradient`]).
+pub fn key_gradients(model: &Model, bones: &[Affine], out: &mut [DMat3]) {
+    let parts = model.parts();
+    let (predicted, mushed) = out.split_at_mut(parts.predictors.len());
+    for (g, pred) in predicted.iter_mut().zip(&parts.predictors) {
+        *g = key_gradient(model, pred, bones);
+    }
+    if let Some(keys) = model.mush_keys() {
+        for (s, g) in mushed.iter_mut().enumerate() {
+            *g = mush_gradient(keys, s, bones);
+        }
+    }
+}
+
+/// A delta-mush key's gradient in one body for `f64` (the CPU reference) and `f32` (the CPU
+/// palette), with the order of operations of `glsl/predictor.glsl`.
+macro_rules! mush_gradient {
+    ($name:ident, $mat:ident, $f:ty, $polar:path) => {
+        /// `D_s(q) = polar(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)` of delta-mush key s
+        /// ([`crate::MushKeys`]) for one character's J bone transforms.
+        pub fn $name(keys: &MushKeys, s: usize, bones: &[Affine]) -> $mat {
+            let (ids, terms) = keys.key(s);
+            let mut a = [[0.0 as $f; 3]; 3];
+            for (&b, omega) in ids.iter().zip(terms) {
+                let m = &bones[b as usize];
+                for (r, row) in a.iter_mut().enumerate() {
+                    for (c, x) in row.iter_mut().enumerate() {
+                        *x += (0..4)
+                            .map(|k| <$f>::from(m[4 * r + k]) * <$f>::from(omega[3 * k + c]))
+                            .sum::<$f>();
+                    }
+                }
+            }
+            // Rows as columns, transposed.
+            $mat::from_cols_array_2d(&$polar(a)).transpose()
+        }
+    };
+}
+
+mush_gradient!(mush_gradient, DMat3, f64, crate::polar::nearest_rotation);
+mush_gradient!(
+    mush_gradient_f32,
+    Mat3,
+    f32,
+    crate::polar::nearest_rotation_f32
+);
 
 /// `D_ℓ(q) = R(q) S(q)` for one predictor and one character's J bone transforms.
 pub fn key_gradient(model: &Model, pred: &KeyPredictor, bones: &[Affine]) -> DMat3 {

@@ -6,7 +6,8 @@
 mod common;
 
 use common::{
-    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives, Spec,
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_mush_keys,
+    with_proxy_correctives, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
 use std::path::{Path, PathBuf};
@@ -282,21 +283,18 @@ fn the_c_palette_example_skins_without_vulkan() {
 fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     use rrskin::ffi::*;
     // With pose-space and proxy correctives (rrskin_model_info reports their sizes; proxies
-    // 0, 2 and 3 corrected, by 1, 3 and 0 drivers).
+    // 0, 2 and 3 corrected, by 1, 3 and 0 drivers), and keys 2 and 3 delta-mush keys.
+    let keys = random_model(
+        Spec {
+            grid: 8,
+            bones: 5,
+            proxies: 4,
+            influences: 4,
+        },
+        9,
+    );
     let model = with_proxy_correctives(
-        &with_correctives(
-            &random_model(
-                Spec {
-                    grid: 8,
-                    bones: 5,
-                    proxies: 4,
-                    influences: 4,
-                },
-                9,
-            ),
-            4,
-            2,
-        ),
+        &with_correctives(&with_mush_keys(&keys, 2, 9).expect("delta-mush keys"), 4, 2),
         true,
         2,
         3,
@@ -474,6 +472,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         proxy_corrective_kernels: 2,
         proxy_corrective_linear: 1,
         normal_fan_entries: model.normal_fans().entries.len() as u32,
+        mush_terms: rrskin::vk::ModelSizes::of(&model).mush_terms as u32,
     };
     let mut reported = RrskinModelInfo::default();
     // SAFETY: `out` points to a live value.
@@ -488,6 +487,8 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         (info.blend_columns, 1, 4, 3)
     );
     assert_eq!(reported.normal_fan_entries, info.normal_fan_entries);
+    assert!(info.mush_terms >= 2);
+    assert_eq!(reported.mush_terms, info.mush_terms);
     assert_eq!(
         (
             reported.proxy_correctives,

@@ -75,6 +75,7 @@ fn one_vertex_and_one_driver_match_the_formula() {
             targets: vec![target],
         }),
         proxy_correctives: None,
+        mush_keys: None,
     };
     let model = Model::new(parts).expect("valid");
     // Q_0: 90° about z, d_0 = (1, 0, 0); Q_1 (world): α about x.

@@ -661,7 +661,10 @@ fn proxy_correctives_round_trip_and_version_2_files_still_load() {
         let m = proxy_corrected(linear, kernels, k);
         assert_eq!(m.proxy_corrective_count(), 3);
         let bytes = m.to_bytes();
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().expect("4")), 3);
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
+            FORMAT_VERSION
+        );
         let back = Model::from_bytes(&bytes).expect("round trip");
         assert_eq!(back, m);
         assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
@@ -979,4 +982,149 @@ proptest! {
             Err(other) => prop_assert!(false, "unexpected error kind {:?}", other),
         }
     }
+}
+
+/// A model of the tests' shape (J = 4, P = 5) whose last 3 keys are delta-mush keys.
+fn mushed(influences: u32) -> Model {
+    let m = common::with_mush_keys(&model(5, influences), 3, 5).expect("3 of 5 keys");
+    assert_eq!((m.proxy_count(), m.parts().predictors.len()), (5, 2));
+    m
+}
+
+#[test]
+fn delta_mush_keys_round_trip_and_version_3_files_still_load() {
+    for k in [4, 8] {
+        let m = mushed(k);
+        let bytes = m.to_bytes();
+        let back = Model::from_bytes(&bytes).expect("round trip");
+        assert_eq!(back, m);
+        assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
+        // MUSH: S, N, S + 1 offsets, N bones, 12 N terms; PRED: the 2 predictors' records.
+        let n = m.mush_keys().expect("delta-mush keys").bones.len() as u64;
+        assert_eq!(table_entry(&bytes, b"MUSH").1, 4 * (2 + 4 + 13 * n));
+        assert_eq!(table_entry(&bytes, b"PRED").1, 4 * 2 * 85);
+    }
+    // Beside both correctives.
+    let all =
+        common::with_proxy_correctives(&common::with_correctives(&mushed(4), 2, 1), true, 1, 2);
+    assert_eq!(Model::from_bytes(&all.to_bytes()).expect("round trip"), all);
+    // A version-3 file (no MUSH: what this format was before delta-mush keys) loads as it did.
+    let m = proxy_corrected(true, 2, 4);
+    let mut v3 = m.to_bytes();
+    put_u32(&mut v3, 8, 3);
+    reseal(&mut v3);
+    assert_eq!(Model::from_bytes(&v3).expect("a version-3 file"), m);
+}
+
+#[test]
+fn malformed_delta_mush_sections_are_refused() {
+    let bytes = mushed(4).to_bytes();
+    let at = section(&bytes, b"MUSH");
+    let edit = |f: &dyn Fn(&mut Vec<u8>)| {
+        let mut bad = bytes.clone();
+        f(&mut bad);
+        reseal(&mut bad);
+        problem(Model::from_bytes(&bad))
+    };
+    // More keys or bones than the section holds.
+    for (word, value) in [(0, 4), (1, 1000)] {
+        let p = edit(&|b| put_u32(b, at + 4 * word, value));
+        assert!(
+            matches!(&p, ModelProblem::SectionLength { tag, .. } if tag == "MUSH"),
+            "{p:?}"
+        );
+    }
+    // More delta-mush keys than DIMS's P = 5 keys, the section's length kept: S = 16 and one
+    // bone fewer take as many words (13 a bone).
+    let n = u32::from_le_bytes(bytes[at + 4..at + 8].try_into().expect("4"));
+    let p = edit(&|b| {
+        put_u32(b, at, 16);
+        put_u32(b, at + 4, n - 1);
+    });
+    assert!(
+        matches!(
+            p,
+            ModelProblem::Dimension {
+                what: "the MUSH section's key count",
+                value: 16,
+                ..
+            }
+        ),
+        "{p:?}"
+    );
+}
+
+#[test]
+fn inconsistent_delta_mush_keys_are_refused_by_validation() {
+    let parts = mushed(4).into_parts();
+    let with = |f: &dyn Fn(&mut rrskin::MushKeys)| {
+        let mut p = parts.clone();
+        f(p.mush_keys.as_mut().expect("delta-mush keys"));
+        problem(Model::new(p))
+    };
+    let bad = |p: ModelProblem| match p {
+        ModelProblem::BadMushKey { key, reason } => (key, reason),
+        p => panic!("not a BadMushKey: {p:?}"),
+    };
+    // No keys at all: a model without them has no MUSH section.
+    let mut none = model(5, 4).into_parts();
+    none.mush_keys = Some(rrskin::MushKeys {
+        offsets: vec![0],
+        bones: Vec::new(),
+        terms: Vec::new(),
+    });
+    let p = problem(Model::new(none));
+    assert!(
+        matches!(
+            p,
+            ModelProblem::Dimension {
+                what: "delta-mush key count (S)",
+                ..
+            }
+        ),
+        "{p:?}"
+    );
+    assert_eq!(bad(with(&|k| k.offsets[0] = 1)).0, 0);
+    let empty = with(&|k| k.offsets[2] = k.offsets[1]);
+    assert_eq!(bad(empty), (1, "has no bone (offsets must increase)"));
+    let twice = with(&|k| {
+        let first = k.offsets[0] as usize;
+        k.offsets = vec![0, 2, 3, 4];
+        k.bones = vec![1, 1, 2, 3];
+        k.terms = vec![k.terms[first]; 4];
+    });
+    assert_eq!(bad(twice), (0, "lists a bone twice"));
+    let many = with(&|k| {
+        k.offsets = vec![0, 257, 258, 259];
+        k.bones = (0..259).map(|b| b % 4).collect();
+        k.terms = vec![[0.0; 12]; 259];
+    });
+    assert!(bad(many).1.contains("256"));
+    let p = with(&|k| k.bones[0] = 4);
+    assert!(
+        matches!(
+            p,
+            ModelProblem::IndexOutOfRange {
+                what: "delta-mush bones",
+                bound: 4,
+                ..
+            }
+        ),
+        "{p:?}"
+    );
+    let p = with(&|k| k.terms[1][5] = f32::NAN);
+    assert!(
+        matches!(
+            p,
+            ModelProblem::NonFinite {
+                what: "delta-mush terms",
+                index: 17
+            }
+        ),
+        "{p:?}"
+    );
+    let p = with(&|k| {
+        k.terms.pop();
+    });
+    assert!(matches!(p, ModelProblem::Length { .. }), "{p:?}");
 }

@@ -1,13 +1,14 @@
 //! The CPU palette (`rrskin::palette`, and its C ABI in-process) against the f64 CPU reference
 //! evaluator: positions skinned from the f32 palette within `PALETTE_TOLERANCE * max(1, |p|)`
 //! of `CpuEvaluator`'s, on dense, block-sparse (joint-blend pattern), plain-LBS and K = 8
-//! models, with and without pose-space and proxy correctives; the serial, batched and threaded
+//! models, with and without delta-mush keys, pose-space and proxy correctives; the serial, batched and threaded
 //! forms agree bit for bit; bad input is an error.
 
 mod common;
 
 use common::{
-    joint_blend_pattern, random_model, random_poses, with_correctives, with_proxy_correctives, Spec,
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_mush_keys,
+    with_proxy_correctives, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
 use rrskin::palette::{Palette, REST};
@@ -34,7 +35,20 @@ fn models() -> Vec<(&'static str, Model)> {
             "two keys per proxy",
             joint_blend_pattern(&random_model(spec(9, 7, 12, 8), 5), 2),
         ),
+        (
+            "delta-mush keys after predictors' keys",
+            mushed(random_model(spec(9, 7, 8, 4), 6), 5),
+        ),
+        (
+            "delta-mush keys only, one per proxy",
+            joint_blend_pattern(&mushed(random_model(spec(9, 7, 12, 8), 7), 12), 1),
+        ),
     ]
+}
+
+/// `model` with its last `keys` keys delta-mush keys.
+fn mushed(model: Model, keys: usize) -> Model {
+    with_mush_keys(&model, keys, 3).expect("no more delta-mush keys than keys")
 }
 
 /// Positions skinned from the palette within the tolerance of the reference's, and the

@@ -90,6 +90,7 @@ fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
             drivers: vec![1],
             maps,
         }),
+        mush_keys: None,
     };
     let model = Model::new(parts).expect("valid");
     assert_eq!(model.proxy_corrective_count(), 1);

@@ -1185,6 +1185,48 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
 /// validation on. The corrections move the mesh (without them the CPU reference differs), and
 /// at the rest pose the corrected models render the uncorrected rest mesh. `in_product`: the
 /// fused product applies them itself (what GPUs run) or their own pass does (CPU devices).
+/// Delta-mush keys (docs/method.md §23) in every product: beside predictors' keys in the dense
+/// GEMM, and as every key in the sparse product after the predictor pass (two keys a proxy) and
+/// in the fused product (one key a proxy, its rigid fit evaluated where it is used), K = 4 and
+/// 8, with the rig's children listed before their parents too; 1, 7 and 300 characters.
+#[test]
+fn delta_mush_keys_match_cpu_in_every_product() {
+    let ctx = validated_context();
+    let mushed = |spec, keys, seed| {
+        with_mush_keys(&random_model(spec, seed), keys, seed).expect("delta-mush keys")
+    };
+    let wide = Spec {
+        proxies: 20,
+        influences: 8,
+        ..RR
+    };
+    let fused = joint_blend_pattern(&mushed(wide, 20, 72), 1);
+    let reversed: Vec<usize> = (0..fused.bone_count()).rev().collect();
+    let models = [
+        mushed(RR, 3, 71),
+        fused.clone(),
+        joint_blend_pattern(&mushed(Spec { proxies: 20, ..RR }, 20, 73), 2),
+        renumber_bones(&fused, &reversed).expect("a permutation"),
+    ];
+    for (i, model) in models.iter().enumerate() {
+        let gpu = GpuModel::new(&ctx, model).expect("upload");
+        let kind = (gpu.is_block_sparse(), gpu.fuses_predictors());
+        assert_eq!(
+            kind,
+            [(false, false), (true, true), (true, false), (true, true)][i]
+        );
+        for c in [1, 7, 300] {
+            check(
+                &ctx,
+                model,
+                c,
+                CrowdOptions::default(),
+                5 * c as u64 + i as u64,
+            );
+        }
+    }
+}
+
 fn proxy_correctives_after_each_product(in_product: bool) {
     let ctx = validated_context();
     let k8 = Spec {

@@ -94,6 +94,7 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             proxy_corrective_kernels: sizes.proxy_corrective_kernels as u32,
             proxy_corrective_linear: u32::from(sizes.proxy_corrective_linear),
             normal_fan_entries: sizes.normal_fans as u32,
+            mush_terms: sizes.mush_terms as u32,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }

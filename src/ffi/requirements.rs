@@ -109,6 +109,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             proxy_corrective_kernels: i.proxy_corrective_kernels as usize,
             proxy_corrective_linear: i.proxy_corrective_linear != 0,
             normal_fans: i.normal_fan_entries as usize,
+            mush_terms: i.mush_terms as usize,
         };
         let options = if options.is_null() {
             CrowdOptions::default()

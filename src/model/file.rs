@@ -3,8 +3,8 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION (3; versions 1, without CORR and
-//!                    PCOR, and 2, without PCOR, read too)
+//! 8       4          format version (u32) = FORMAT_VERSION (4; versions 1, without CORR,
+//!                    PCOR and MUSH, 2, without PCOR and MUSH, and 3, without MUSH, read too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -22,7 +22,7 @@
 //! | PRNT | J i32 (-1: root)                                     |
 //! | SKIX | V x K u32 palette indices                            |
 //! | SKIW | V x K f32 weights                                    |
-//! | PRED | P records of 85 words: bone u32, second bone u32 (0xFFFFFFFF: none), u f32, u2 f32, W 9 f32, W2 9 f32, H 63 f32 |
+//! | PRED | P − S records (S: MUSH's key count, else 0) of 85 words: bone u32, second bone u32 (0xFFFFFFFF: none), u f32, u2 f32, W 9 f32, W2 9 f32, H 63 f32 |
 //! | C1   | 4P x 3P f32 (row-major)                              |
 //! | C2   | 4P x 4J f32 (row-major)                              |
 //! | NGRP | optional: V u32 normal groups (absent: no groups)    |
@@ -32,16 +32,17 @@
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
 //! | PCOR | optional (version 3): proxy correctives: E u32, C u32, linear u32 (0 or 1), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), maps 12 D (9 linear + C) f32 |
+//! | MUSH | optional (version 4): delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
 
-use super::{Correctives, KeyPredictor, ModelParts, ProxyCorrectives, SecondBone};
+use super::{Correctives, KeyPredictor, ModelParts, MushKeys, ProxyCorrectives, SecondBone};
 use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 /// The version this build writes; it reads every version from 1 to this one.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
@@ -66,6 +67,7 @@ const ANIM: [u8; 4] = *b"ANIM";
 const TANG: [u8; 4] = *b"TANG";
 const CORR: [u8; 4] = *b"CORR";
 const PCOR: [u8; 4] = *b"PCOR";
+const MUSH: [u8; 4] = *b"MUSH";
 
 pub fn encode(m: &ModelParts) -> Vec<u8> {
     let sections = sections(m);
@@ -95,13 +97,14 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
 /// The model's sections in file order, tag and payload: the required ones, then the optional
 /// ones it has.
 fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
+    let mush_count = m.mush_keys.as_ref().map_or(0, MushKeys::count);
     let (v, t, j, p) = (
         m.rest_positions.len(),
         m.triangles.len(),
         m.bone_parents.len(),
-        m.predictors.len(),
+        m.predictors.len() + mush_count,
     );
-    let mut pred = Vec::with_capacity(p * PREDICTOR_WORDS * 4);
+    let mut pred = Vec::with_capacity(m.predictors.len() * PREDICTOR_WORDS * 4);
     for k in &m.predictors {
         push_u32s(&mut pred, &predictor_words(k));
     }
@@ -140,7 +143,20 @@ fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
     if let Some(c) = &m.proxy_correctives {
         sections.push((PCOR, proxy_correctives_bytes(c, j)));
     }
+    if let Some(keys) = &m.mush_keys {
+        sections.push((MUSH, mush_keys_bytes(keys)));
+    }
     sections
+}
+
+/// The MUSH payload: S, N, then the offsets, bones and terms.
+fn mush_keys_bytes(keys: &MushKeys) -> Vec<u8> {
+    let mut mush = Vec::new();
+    push_u32s(&mut mush, &[keys.count() as u32, keys.bones.len() as u32]);
+    push_u32s(&mut mush, &keys.offsets);
+    push_u32s(&mut mush, &keys.bones);
+    push_f32s(&mut mush, keys.terms.as_flattened());
+    mush
 }
 
 /// The CORR payload: N, D, the drivers, the map, the targets.
@@ -208,7 +224,19 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
     let prnt = table.section(body, PRNT, words(&[j]))?;
     let skix = table.section(body, SKIX, words(&[v, k]))?;
     let skiw = table.section(body, SKIW, words(&[v, k]))?;
-    let pred = table.section(body, PRED, words(&[p, PREDICTOR_WORDS as u64]))?;
+    let mush_keys = match table.entry(MUSH) {
+        Some(length) => Some(mush_keys(&table, body, length)?),
+        None => None,
+    };
+    let mush_count = mush_keys.as_ref().map_or(0, |m| m.count() as u64);
+    if mush_count > p {
+        return Err(ModelProblem::Dimension {
+            what: "the MUSH section's key count",
+            value: mush_count,
+            reason: "must not exceed DIMS's P",
+        });
+    }
+    let pred = table.section(body, PRED, words(&[p - mush_count, PREDICTOR_WORDS as u64]))?;
     let c1 = table.section(body, C1, words(&[4, p, 3, p]))?;
     let c2 = table.section(body, C2, words(&[4, p, 4, j]))?;
     let normal_groups = match table.has(NGRP) {
@@ -265,6 +293,40 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         rest_tangents,
         correctives,
         proxy_correctives,
+        mush_keys,
+    })
+}
+
+/// The MUSH section: S and N, then the lengths they give (checked before anything else is read).
+fn mush_keys(table: &SectionTable, body: &[u8], length: u64) -> Result<MushKeys, ModelProblem> {
+    const HEAD: u64 = 8;
+    if length < HEAD {
+        return Err(ModelProblem::SectionLength {
+            tag: "MUSH".into(),
+            expected: HEAD,
+            actual: length,
+        });
+    }
+    let head = table.section(body, MUSH, length)?;
+    let [s, n] = [0, 1].map(|i| le_u32(head, 4 * i) as u64);
+    let words = [2, s + 1, n, n.saturating_mul(12)]
+        .into_iter()
+        .fold(0u64, u64::saturating_add);
+    let mush = table.section(body, MUSH, words.saturating_mul(4))?;
+    let (s, n) = (s as usize, n as usize);
+    let mut at = 8;
+    let mut take = |count: usize| {
+        let slice = &mush[at..at + 4 * count];
+        at += 4 * count;
+        slice
+    };
+    let offsets = u32s(take(s + 1));
+    let bones = u32s(take(n));
+    let terms = f32s(take(12 * n)).chunks_exact(12).map(array).collect();
+    Ok(MushKeys {
+        offsets,
+        bones,
+        terms,
     })
 }
 

@@ -28,11 +28,18 @@
 //! | `  .driver_offsets`| E + 1            | CSR offsets into `drivers`                             |
 //! | `  .drivers`       | Σ D_i            | driver joints of each corrected proxy                  |
 //! | `  .maps`          | Σ F_i x 12       | G_ef per feature f (F_i = D_i (9·linear + C))          |
+//! | `mush_keys`        | optional         | delta-mush keys (docs/method.md §23): keys R..P, R = predictors |
+//! | `  .offsets`       | S + 1            | CSR offsets into `bones`/`terms`                       |
+//! | `  .bones`         | Σ n_s            | the bones of each key's rigid fit                      |
+//! | `  .terms`         | Σ n_s x 12       | Ω_si, 4x3 row-major, per (key, bone)                   |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
 //! transform b, 3x4), `d_c[3ℓ + j] = D_ℓ[c][j]` (key gradient ℓ, 3x3).
 //! A model with P = 0 is plain linear blend skinning: every index points at a bone.
+//!
+//! Keys: the first R = `predictors.len()` are key predictors (paper §3), the other S are
+//! delta-mush keys ([`MushKeys`]); P = R + S.
 //!
 //! Pose-space correctives (paper §8, docs/method.md §20): for driver i, bone d = `drivers[i]`
 //! with parent p, `R_i = rot(Q_p)ᵀ rot(Q_d)` (rot: the 3x3 of the bone transform, as
@@ -177,6 +184,44 @@ impl ProxyCorrectives {
     }
 }
 
+/// The most bones one delta-mush key's fit may read (n_s): the GPU passes loop over them.
+pub const MAX_MUSH_BONES: usize = 256;
+
+/// Delta-mush keys (docs/method.md §23): keys whose gradient is the rotation of a rigid fit of
+/// several bones' motions, Direct Delta Mush's fit for one group of vertices. Key R + s (R =
+/// `predictors.len()`) is delta-mush key s, with bones b_i and terms Ω_i (i in its CSR range):
+///
+/// `D(q) = polar(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)`
+///
+/// where `[Q | d]` is the bone's 3x4 transform, Ω_i is 4x3 (row-major, 12 floats) and
+/// `polar(A)` is the rotation nearest to A, the R maximising tr(Rᵀ A)
+/// ([`crate::polar::nearest_rotation`]; the identity for A = 0). The key's proxy takes its
+/// translation from C1 and C2 as any proxy does (for a group's fit, `t = Σ_i M_i ω_i − D p`).
+///
+/// Limits: S ≥ 1 keys, each with 1 to [`MAX_MUSH_BONES`] distinct bones.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MushKeys {
+    /// S + 1 offsets into `bones` and `terms` (CSR), starting at 0, increasing.
+    pub offsets: Vec<u32>,
+    /// The bones of each key (< J, distinct within a key).
+    pub bones: Vec<u32>,
+    /// Ω_i per bone entry: 4x3 row-major.
+    pub terms: Vec<[f32; 12]>,
+}
+
+impl MushKeys {
+    /// S
+    pub fn count(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// Key s's bones and terms.
+    pub fn key(&self, s: usize) -> (&[u32], &[[f32; 12]]) {
+        let range = self.offsets[s] as usize..self.offsets[s + 1] as usize;
+        (&self.bones[range.clone()], &self.terms[range])
+    }
+}
+
 /// Everything a model holds, unchecked. Turn it into a [`Model`] with [`Model::new`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelParts {
@@ -211,6 +256,9 @@ pub struct ModelParts {
     /// Proxy correctives (docs/method.md §21): affine corrections of some proxies' transforms,
     /// from the rotations of their driver joints, applied before skinning. None: no correction.
     pub proxy_correctives: Option<ProxyCorrectives>,
+    /// Delta-mush keys (docs/method.md §23), after the predictors' keys. None: every key is a
+    /// predictor.
+    pub mush_keys: Option<MushKeys>,
 }
 
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
@@ -331,9 +379,14 @@ impl Model {
         self.parts.bone_parents.len()
     }
 
-    /// P (0: plain linear blend skinning)
+    /// P (0: plain linear blend skinning): R predictors' keys, then S delta-mush keys.
     pub fn proxy_count(&self) -> usize {
-        self.parts.predictors.len()
+        self.parts.predictors.len() + self.parts.mush_keys.as_ref().map_or(0, MushKeys::count)
+    }
+
+    /// The model's delta-mush keys, if it has any.
+    pub fn mush_keys(&self) -> Option<&MushKeys> {
+        self.parts.mush_keys.as_ref()
     }
 
     /// K
@@ -443,6 +496,7 @@ impl Model {
             baseline_weights: Vec::new(),
             correctives: None,
             proxy_correctives: None,
+            mush_keys: None,
             ..self.parts.clone()
         };
         Model::new(parts).ok()

@@ -2,8 +2,8 @@
 //! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
 
 use super::{
-    Correctives, KeyPredictor, Mat3Rows, ModelParts, ProxyCorrectives, MAX_CORRECTIVES,
-    MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS, SUPPORTED_INFLUENCES,
+    Correctives, KeyPredictor, Mat3Rows, ModelParts, MushKeys, ProxyCorrectives, MAX_CORRECTIVES,
+    MAX_MUSH_BONES, MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS, SUPPORTED_INFLUENCES,
 };
 use crate::error::ModelProblem;
 
@@ -21,7 +21,7 @@ pub fn check(m: &ModelParts) -> Check {
     sizes(m)?;
     let v = m.rest_positions.len();
     let j = m.bone_parents.len();
-    let p = m.predictors.len();
+    let p = key_count(m);
     let k = m.influences as usize;
     finite("rest positions", m.rest_positions.iter().flatten())?;
     finite("skin weights", m.skin_weights.iter())?;
@@ -31,6 +31,9 @@ pub fn check(m: &ModelParts) -> Check {
     weights(&m.skin_weights, k)?;
     for (l, pred) in m.predictors.iter().enumerate() {
         predictor(l, pred, j)?;
+    }
+    if let Some(keys) = &m.mush_keys {
+        mush_keys(keys, j)?;
     }
     if !m.baseline_indices.is_empty() || !m.baseline_weights.is_empty() {
         baseline(m, v, j, k)?;
@@ -55,7 +58,7 @@ pub fn check(m: &ModelParts) -> Check {
 fn sizes(m: &ModelParts) -> Check {
     let v = m.rest_positions.len();
     let j = m.bone_parents.len();
-    let p = m.predictors.len();
+    let p = key_count(m);
     let k = m.influences as usize;
     dimension("vertex count", v, 1)?;
     dimension("bone count", j, 1)?;
@@ -411,6 +414,47 @@ fn predictor(l: usize, pred: &KeyPredictor, j: usize) -> Check {
         rotation("predictor W2", l, &second.w)?;
     }
     Ok(())
+}
+
+/// P: the predictors' keys and the delta-mush keys.
+fn key_count(m: &ModelParts) -> usize {
+    m.predictors.len() + m.mush_keys.as_ref().map_or(0, MushKeys::count)
+}
+
+/// S ≥ 1 keys of 1 to MAX_MUSH_BONES distinct bones each, in range, with finite terms.
+fn mush_keys(keys: &MushKeys, j: usize) -> Check {
+    let bad = |key: usize, reason: &'static str| ModelProblem::BadMushKey { key, reason };
+    if keys.count() == 0 {
+        return Err(ModelProblem::Dimension {
+            what: "delta-mush key count (S)",
+            value: 0,
+            reason: "must be at least 1 (a model without them has no MUSH section)",
+        });
+    }
+    if keys.offsets[0] != 0 {
+        return Err(bad(0, "its first offset is not 0"));
+    }
+    for (s, w) in keys.offsets.windows(2).enumerate() {
+        if w[1] <= w[0] {
+            return Err(bad(s, "has no bone (offsets must increase)"));
+        }
+        if (w[1] - w[0]) as usize > MAX_MUSH_BONES {
+            return Err(bad(s, "has more than 256 bones (MAX_MUSH_BONES)"));
+        }
+    }
+    let last = keys.offsets[keys.count()] as usize;
+    length("delta-mush bones (the last offset)", last, keys.bones.len())?;
+    length("delta-mush terms (one per bone)", last, keys.terms.len())?;
+    if let Some(i) = keys.bones.iter().position(|&b| b as usize >= j) {
+        return Err(out_of_range("delta-mush bones", i, keys.bones[i] as i64, j));
+    }
+    for s in 0..keys.count() {
+        let (bones, _) = keys.key(s);
+        if (1..bones.len()).any(|i| bones[..i].contains(&bones[i])) {
+            return Err(bad(s, "lists a bone twice"));
+        }
+    }
+    finite("delta-mush terms", keys.terms.iter().flatten())
 }
 
 fn dimension(what: &'static str, value: usize, min: usize) -> Check {

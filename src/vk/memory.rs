@@ -48,6 +48,8 @@ pub struct ModelSizes {
     pub proxy_corrective_kernels: usize,
     /// Whether the proxy correctives have the 9 linear features per driver.
     pub proxy_corrective_linear: bool,
+    /// The delta-mush keys' terms, all keys together (0 without them).
+    pub mush_terms: usize,
 }
 
 impl ModelSizes {
@@ -75,6 +77,7 @@ impl ModelSizes {
             proxy_corrective_kernels: (model.proxy_correctives())
                 .map_or(0, |c| c.kernel_count(model.bone_count())),
             proxy_corrective_linear: model.proxy_correctives().is_some_and(|c| c.linear),
+            mush_terms: model.mush_keys().map_or(0, |k| k.bones.len()),
         }
     }
 
@@ -130,7 +133,8 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         // The rest positions, the N corrective targets, then the rest normals.
         ModelBuffer::Rest => 3 * v * (2 + corr),
         ModelBuffer::SkinIndex | ModelBuffer::SkinWeight => k * v,
-        ModelBuffer::Parents => j,
+        // The parents, then P + 1 key offsets and 13 words per delta-mush term.
+        ModelBuffer::Parents => j + p + 1 + 13 * s.mush_terms as u64,
         ModelBuffer::Predictors => PREDICTOR_WORDS as u64 * p,
         ModelBuffer::ProductMatrix if sparse => 0,
         ModelBuffer::ProductMatrix => 4 * p * (3 * p + 4 * j),

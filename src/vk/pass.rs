@@ -76,7 +76,10 @@ indexed_enum! {
         Rest,
         SkinIndex,
         SkinWeight,
+        /// J i32 bone parents, then the keys' words: P + 1 offsets and 13 words per
+        /// delta-mush term (`gpu_model::key_words`; one buffer, so that no pass binds more)
         Parents,
+        /// P records of `PREDICTOR_WORDS` (zeros for the delta-mush keys)
         Predictors,
         /// [C1 | C2] dense: 4P x (3P + 4J) f32, row-major (empty where block-sparse)
         ProductMatrix,

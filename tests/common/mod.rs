@@ -7,6 +7,8 @@ pub mod engine;
 use glam::DVec3;
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
+#[allow(unused_imports)] // each test binary uses a different subset
+pub use rrskin_render::synthetic::with_mush_keys;
 pub use rrskin_render::synthetic::{random_poses, Spec};
 use std::path::{Path, PathBuf};
 use std::process::Command;

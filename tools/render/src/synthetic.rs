@@ -202,7 +202,60 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         rest_tangents,
         correctives: None,
         proxy_correctives: None,
+        mush_keys: None,
     };
+    Model::new(parts)
+}
+
+/// `model` with its last `keys` keys made delta-mush keys ([`rrskin::MushKeys`]): each a rigid
+/// fit of 1 to 6 distinct random bones, bone i's term `Ω_i = w_i [I + N_i; c_iᵀ]` (4x3, rows)
+/// with a weight w_i in [0.1, 1], a small random N_i and a random centre c_i, as a group's
+/// smoothed weights give. Errors if `keys` exceeds the model's predictors.
+pub fn with_mush_keys(model: &Model, keys: usize, seed: u64) -> Result<Model> {
+    let mut parts = model.parts().clone();
+    let r = parts
+        .predictors
+        .len()
+        .checked_sub(keys)
+        .ok_or(Error::OutOfRange {
+            what: "delta-mush keys (more than the model's predictors)",
+            index: keys,
+            count: parts.predictors.len(),
+        })?;
+    parts.predictors.truncate(r);
+    let mut rng = Rng::new(seed ^ 0x00D0_3A54);
+    let j = model.bone_count();
+    let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
+    for _ in 0..keys {
+        let first = bones.len();
+        for _ in 0..1 + rng.below(6.min(j)) {
+            let b = rng.below(j) as u32;
+            if bones[first..].contains(&b) {
+                continue;
+            }
+            let w = rng.range(0.1, 1.0);
+            let (n, c) = (
+                DMat3::IDENTITY
+                    + DMat3::from_cols_array(&[0.0; 9].map(|_: f64| rng.range(-0.3, 0.3))),
+                rng.vec3(0.5),
+            );
+            let t = rows(n);
+            bones.push(b);
+            terms.push(
+                [
+                    t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], c.x as f32, c.y as f32,
+                    c.z as f32,
+                ]
+                .map(|x| x * w as f32),
+            );
+        }
+        offsets.push(bones.len() as u32);
+    }
+    parts.mush_keys = (keys > 0).then_some(rrskin::MushKeys {
+        offsets,
+        bones,
+        terms,
+    });
     Model::new(parts)
 }
 
@@ -280,6 +333,9 @@ pub fn renumber_bones(model: &Model, new_index: &[usize]) -> Result<Model> {
         if let Some(second) = pred.second.as_mut() {
             second.bone = bone(second.bone);
         }
+    }
+    if let Some(keys) = parts.mush_keys.as_mut() {
+        keys.bones.iter_mut().for_each(|b| *b = bone(*b));
     }
     // C2: 4P x 4J, columns 4b..4b+4 belong to bone b.
     for (row, old) in parts

@@ -248,6 +248,7 @@ impl Imported {
                     ..c.clone()
                 }),
             proxy_correctives: parts.proxy_correctives.clone(),
+            mush_keys: parts.mush_keys.clone(),
         })
     }
 }
@@ -324,6 +325,7 @@ impl Imported {
                     ..c.clone()
                 }),
             proxy_correctives: parts.proxy_correctives.clone(),
+            mush_keys: parts.mush_keys.clone(),
         })
     }
 }

@@ -41,6 +41,18 @@ pub struct Params {
     pub alpha: f64,
 }
 
+/// An entry's rigid fit ([`Ddm::motions`]) in linear form, what the runtime's delta-mush keys
+/// carry ([`rrskin::MushKeys`]): with M_j = [Q_j | d_j] (3x4) the bone transforms,
+/// `R = polar(Σ_j M_j A_j)` and `t = Σ_j M_j ω_j − R p`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearFit {
+    /// Per bone j of the entry: (j, A_j: 4x3 rows, ω_j: 4). With s = Σ_j Ω_j[3][3],
+    /// `A_j = (Ω_j[.., 0..3] − Ω_j[.., 3] pᵀ) / s` and `ω_j = Ω_j[.., 3] / s`.
+    pub terms: Vec<(usize, [[f64; 3]; 4], [f64; 4])>,
+    /// p = Σ_j Ω_j[3][0..3] / s: the entry's smoothed rest centre.
+    pub centre: DVec3,
+}
+
 /// The precomputed Ω: per vertex, for the bones j whose smoothed weight at it is above
 /// [`NEGLIGIBLE`], the upper triangle of the symmetric 4x4 Ω_ij, row by row: (0,0) (0,1) (0,2)
 /// (0,3) (1,1) (1,2) (1,3) (2,2) (2,3) (3,3).
@@ -128,6 +140,34 @@ impl Ddm {
                 Affine { q, d }
             })
             .collect()
+    }
+
+    /// Entry i's rigid fit in linear form (the same motion as [`Ddm::motions`]); None for an
+    /// entry without weight (which stays at rest).
+    pub fn linear_fit(&self, i: usize) -> Option<LinearFit> {
+        let omega = &self.omega[self.starts[i]..self.starts[i + 1]];
+        let full = |o: &[f64; 10]| -> [[f64; 4]; 4] {
+            std::array::from_fn(|r| std::array::from_fn(|c| o[UPPER[r][c]]))
+        };
+        let scale: f64 = omega.iter().map(|(_, o)| o[9]).sum();
+        if scale.is_nan() || scale <= 0.0 {
+            return None;
+        }
+        let p: [f64; 3] =
+            std::array::from_fn(|c| omega.iter().map(|(_, o)| o[UPPER[3][c]]).sum::<f64>() / scale);
+        let terms = (omega.iter())
+            .map(|(j, o)| {
+                let o = full(o);
+                let a = std::array::from_fn(|k| {
+                    std::array::from_fn(|c| (o[k][c] - o[k][3] * p[c]) / scale)
+                });
+                (*j, a, std::array::from_fn(|k| o[k][3] / scale))
+            })
+            .collect();
+        Some(LinearFit {
+            terms,
+            centre: DVec3::from(p),
+        })
     }
 
     /// The entries: vertices, or groups of [`Ddm::grouped`].

@@ -426,30 +426,47 @@ impl Reduced {
                 },
             })
             .collect();
-        let (skin_indices, skin_weights) = padded(&self.skin, influences);
-        let (baseline_indices, baseline_weights) = padded(&self.baseline, influences);
         rrskin::Model::new(rrskin::ModelParts {
-            rest_positions: set.rest.iter().map(|p| p.as_vec3().to_array()).collect(),
-            triangles: set.faces.iter().map(|t| t.map(|a| a as u32)).collect(),
-            bone_parents: set
-                .parents
-                .iter()
-                .map(|p| p.map_or(-1, |p| p as i32))
-                .collect(),
-            influences: influences as u32,
-            skin_indices,
-            skin_weights,
             predictors,
             c1: self.c1.iter().map(|&x| x as f32).collect(),
             c2: self.c2.iter().map(|&x| x as f32).collect(),
-            normal_groups: Vec::new(),
-            baseline_indices,
-            baseline_weights,
-            animation: set_animation(set),
-            rest_tangents: Vec::new(),
-            correctives: None,
-            proxy_correctives: None,
+            ..runtime_parts(set, influences, &self.skin, &self.baseline)
         })
+    }
+}
+
+/// The parts of a runtime model of `set` every kind shares, K = `influences`: the mesh, the
+/// bones, the skin (`skin`: per vertex (palette entry, weight)) and the SSD baseline
+/// (`baseline`), with the set's animation; no keys (predictors, C1 and C2 empty), no
+/// correctives.
+pub fn runtime_parts(
+    set: &ExampleSet,
+    influences: usize,
+    skin: &[Vec<(usize, f64)>],
+    baseline: &[Vec<(usize, f64)>],
+) -> rrskin::ModelParts {
+    let (skin_indices, skin_weights) = padded(skin, influences);
+    let (baseline_indices, baseline_weights) = padded(baseline, influences);
+    rrskin::ModelParts {
+        rest_positions: set.rest.iter().map(|p| p.as_vec3().to_array()).collect(),
+        triangles: set.faces.iter().map(|t| t.map(|a| a as u32)).collect(),
+        bone_parents: (set.parents.iter())
+            .map(|p| p.map_or(-1, |p| p as i32))
+            .collect(),
+        influences: influences as u32,
+        skin_indices,
+        skin_weights,
+        predictors: Vec::new(),
+        c1: Vec::new(),
+        c2: Vec::new(),
+        normal_groups: Vec::new(),
+        baseline_indices,
+        baseline_weights,
+        animation: set_animation(set),
+        rest_tangents: Vec::new(),
+        correctives: None,
+        proxy_correctives: None,
+        mush_keys: None,
     }
 }
 

@@ -26,6 +26,7 @@
 
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::ddm::Ddm;
+use crate::train::reduce::c1c2::runtime_parts;
 use crate::train::reduce::vertex::{merge_groups, Stop};
 use crate::train::ssd::fit_weights_best_subset;
 use glam::DVec3;
@@ -104,6 +105,52 @@ impl MushProxies {
             proxies: groups,
             weights,
         }
+    }
+
+    /// The runtime model (f32) of these proxies, K = `influences`, with SSD's (bone, weight)
+    /// lists `baseline` as its baseline: P delta-mush keys ([`rrskin::MushKeys`]), proxy g's
+    /// transform `T_g = [D_g | Σ_j M_j ω_j − D_g p_g]` ([`Ddm::linear_fit`]) through C1 (its
+    /// key's D, and −p) and C2 (the ω_j), in docs/method.md §8's index convention.
+    pub fn to_runtime(
+        &self,
+        set: &ExampleSet,
+        influences: usize,
+        baseline: &[Vec<(usize, f64)>],
+    ) -> rrskin::Result<rrskin::Model> {
+        let (p, j) = (self.proxies.entries(), set.bone_count());
+        let (mut c1, mut c2) = (vec![0.0f32; 12 * p * p], vec![0.0f32; 16 * p * j]);
+        let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
+        for g in 0..p {
+            (0..3).for_each(|k| c1[(4 * g + k) * 3 * p + 3 * g + k] = 1.0);
+            let Some(fit) = self.proxies.linear_fit(g) else {
+                // No weight: at rest, as `Ddm::motions` leaves it (D = polar(0) = I).
+                bones.push(0);
+                terms.push([0.0; 12]);
+                offsets.push(bones.len() as u32);
+                continue;
+            };
+            for (b, a, omega) in &fit.terms {
+                bones.push(*b as u32);
+                terms.push(std::array::from_fn(|i| a[i / 3][i % 3] as f32));
+                for (m, w) in omega.iter().enumerate() {
+                    c2[(4 * g + 3) * 4 * j + 4 * b + m] = *w as f32;
+                }
+            }
+            for k in 0..3 {
+                c1[(4 * g + 3) * 3 * p + 3 * g + k] = -fit.centre[k] as f32;
+            }
+            offsets.push(bones.len() as u32);
+        }
+        rrskin::Model::new(rrskin::ModelParts {
+            c1,
+            c2,
+            mush_keys: Some(rrskin::MushKeys {
+                offsets,
+                bones,
+                terms,
+            }),
+            ..runtime_parts(set, influences, &self.weights, baseline)
+        })
     }
 
     /// The mesh (V) under `bones` (J).
@@ -191,5 +238,46 @@ mod tests {
         for (y, &x) in moved.iter().zip(&set.rest) {
             assert!((*y - turn.apply(x)).length() < 1e-5, "{y:?}");
         }
+    }
+
+    /// The runtime model's CPU reference deforms every pose as the proxies do, to f32
+    /// round-off (the mesh is about 1 across).
+    #[test]
+    fn the_runtime_model_moves_the_mesh_as_the_proxies_do() {
+        let chain = Chain {
+            rings: 10,
+            segments: 8,
+            bones: 4,
+            poses: 10,
+        };
+        let set = chain.build().expect("a valid chain");
+        let train = set.train();
+        let errors = crate::skinning::lbs::rigid_errors(&set, &train);
+        let skin = ssd::fit(&set, &train, &errors, 4);
+        let params = Params {
+            iterations: 4,
+            lambda: 3.0,
+            kappa: 1.0,
+            alpha: 0.5,
+        };
+        let ddm =
+            Ddm::new(&set.rest, &set.faces, &skin.influences, 4, &params).expect("precomputation");
+        let groups = Groups::merge(&set, &train, 8);
+        let mush = MushProxies::fit(&set, &train, &ddm, &skin.influences, &groups, 4);
+        let model = mush.to_runtime(&set, 4, &skin.influences).expect("a valid model");
+        assert_eq!(model.mush_keys().map(|k| k.count()), Some(8));
+        let mut cpu = rrskin::cpu::CpuEvaluator::new(&model);
+        let v = set.vertex_count();
+        let (mut got, mut normals) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+        let mut worst = 0.0f64;
+        for pose in &set.poses {
+            let bones: Vec<_> = pose.bones.iter().map(Affine::to_runtime).collect();
+            cpu.evaluate(&bones, &mut got, &mut normals).expect("evaluation");
+            let want = mush.deform(&set.rest, &pose.bones);
+            for (g, w) in got.iter().zip(&want) {
+                worst = worst.max((DVec3::from(g.map(f64::from)) - *w).length());
+            }
+        }
+        assert!(worst < 1e-4, "{worst}");
     }
 }

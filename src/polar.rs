@@ -1,0 +1,202 @@
+//! The rotation nearest to a 3x3 matrix A: the proper rotation R maximising tr(Rᵀ A), the
+//! rotational part of its polar decomposition where det A > 0 (what a delta-mush key's rigid fit
+//! needs, [`crate::model::MushKeys`]).
+//!
+//! Horn's quaternion method (Horn 1987, "Closed-form solution of absolute orientation using unit
+//! quaternions", §4): `tr(R(q)ᵀ A) = qᵀ N q` for a unit quaternion q = (w, x, y, z) and the
+//! symmetric 4x4 N below, so R is the rotation of N's eigenvector of largest eigenvalue. The
+//! eigenvectors come from [`SWEEPS`] cyclic Jacobi sweeps, a fixed amount of work with no
+//! data-dependent loop, which `glsl/polar.glsl` mirrors line for line in `f32`: CPU and GPU then
+//! agree wherever the largest eigenvalue is simple (A of rank 2 or more). Unlike an SVD this
+//! never needs a reflection fixed, and it degrades gracefully: rank 2 still gives the one best
+//! rotation, and A = 0 gives the identity.
+
+/// Cyclic Jacobi sweeps over N's 6 off-diagonal pairs. Jacobi converges quadratically; on a 4x4
+/// four sweeps reach `f64` round-off from any start, so five leave a margin (the tests check).
+pub const SWEEPS: usize = 5;
+
+/// The off-diagonal pairs of a 4x4, in sweep order.
+const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
+
+/// The nearest rotation in one body for `f64` (the CPU reference, training) and `f32` (the CPU
+/// palette), with the order of operations of `glsl/polar.glsl`.
+macro_rules! nearest_rotation {
+    ($name:ident, $f:ty) => {
+        /// The rotation nearest to `a` (row-major 3x3), row-major: the proper rotation R
+        /// maximising tr(Rᵀ a); the identity for a = 0.
+        pub fn $name(a: [[$f; 3]; 3]) -> [[$f; 3]; 3] {
+            let mut n = [
+                [
+                    a[0][0] + a[1][1] + a[2][2],
+                    a[2][1] - a[1][2],
+                    a[0][2] - a[2][0],
+                    a[1][0] - a[0][1],
+                ],
+                [
+                    0.0,
+                    a[0][0] - a[1][1] - a[2][2],
+                    a[1][0] + a[0][1],
+                    a[0][2] + a[2][0],
+                ],
+                [0.0, 0.0, a[1][1] - a[0][0] - a[2][2], a[2][1] + a[1][2]],
+                [0.0, 0.0, 0.0, a[2][2] - a[0][0] - a[1][1]],
+            ];
+            for r in 1..4 {
+                for c in 0..r {
+                    n[r][c] = n[c][r];
+                }
+            }
+            let mut v = [[0.0 as $f; 4]; 4];
+            (0..4).for_each(|i| v[i][i] = 1.0);
+            for _ in 0..SWEEPS {
+                for (p, q) in PAIRS {
+                    let apq = n[p][q];
+                    if apq == 0.0 {
+                        continue;
+                    }
+                    // The rotation in the (p, q) plane that zeroes n[p][q] (Numerical Recipes
+                    // §11.1), t = tan of its angle, the smaller root.
+                    let theta = (n[q][q] - n[p][p]) / (2.0 * apq);
+                    let t = if theta.abs() > 1e15 {
+                        0.5 / theta
+                    } else {
+                        let t = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
+                        if theta < 0.0 {
+                            -t
+                        } else {
+                            t
+                        }
+                    };
+                    let c = 1.0 / (t * t + 1.0).sqrt();
+                    let s = t * c;
+                    for k in 0..4 {
+                        let (kp, kq) = (n[k][p], n[k][q]);
+                        n[k][p] = c * kp - s * kq;
+                        n[k][q] = s * kp + c * kq;
+                    }
+                    for k in 0..4 {
+                        let (pk, qk) = (n[p][k], n[q][k]);
+                        n[p][k] = c * pk - s * qk;
+                        n[q][k] = s * pk + c * qk;
+                    }
+                    for k in 0..4 {
+                        let (kp, kq) = (v[k][p], v[k][q]);
+                        v[k][p] = c * kp - s * kq;
+                        v[k][q] = s * kp + c * kq;
+                    }
+                }
+            }
+            // The largest eigenvalue's column; ties go to the first (the identity for a = 0).
+            let mut best = 0;
+            for k in 1..4 {
+                if n[k][k] > n[best][best] {
+                    best = k;
+                }
+            }
+            let (w, x, y, z) = (v[0][best], v[1][best], v[2][best], v[3][best]);
+            let s = 2.0 / (w * w + x * x + y * y + z * z);
+            [
+                [
+                    1.0 - s * (y * y + z * z),
+                    s * (x * y - w * z),
+                    s * (x * z + w * y),
+                ],
+                [
+                    s * (x * y + w * z),
+                    1.0 - s * (x * x + z * z),
+                    s * (y * z - w * x),
+                ],
+                [
+                    s * (x * z - w * y),
+                    s * (y * z + w * x),
+                    1.0 - s * (x * x + y * y),
+                ],
+            ]
+        }
+    };
+}
+
+nearest_rotation!(nearest_rotation, f64);
+nearest_rotation!(nearest_rotation_f32, f32);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DMat3, DQuat, DVec3};
+
+    fn rows(m: DMat3) -> [[f64; 3]; 3] {
+        let t = m.transpose();
+        [
+            t.x_axis.to_array(),
+            t.y_axis.to_array(),
+            t.z_axis.to_array(),
+        ]
+    }
+
+    fn distance(a: [[f64; 3]; 3], b: [[f64; 3]; 3]) -> f64 {
+        (0..9)
+            .map(|k| (a[k / 3][k % 3] - b[k / 3][k % 3]).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// Rotations of every size, axis and sign of the quaternion's scalar.
+    fn rotations() -> impl Iterator<Item = DMat3> {
+        (0..40).map(|i| {
+            let f = i as f64;
+            let axis = DVec3::new((f * 1.3).sin(), (f * 0.7).cos(), (f * 2.1).sin() + 0.3);
+            DMat3::from_quat(DQuat::from_axis_angle(axis.normalize(), 0.08 * f))
+        })
+    }
+
+    #[test]
+    fn the_rotation_of_a_rotated_stretch_is_the_rotation() {
+        for r in rotations() {
+            let stretch = DMat3::from_cols(
+                DVec3::new(2.0, 0.3, 0.1),
+                DVec3::new(0.3, 1.0, -0.2),
+                DVec3::new(0.1, -0.2, 0.5),
+            );
+            let got = nearest_rotation(rows(r * stretch));
+            assert!(distance(got, rows(r)) < 1e-12, "{r:?}: {got:?}");
+        }
+    }
+
+    #[test]
+    fn a_flat_group_still_has_its_one_best_rotation() {
+        // Rank 2: a group of vertices in one plane.
+        for r in rotations() {
+            let flat = DMat3::from_diagonal(DVec3::new(1.0, 0.4, 0.0));
+            assert!(distance(nearest_rotation(rows(r * flat)), rows(r)) < 1e-10);
+        }
+    }
+
+    #[test]
+    fn a_reflection_gives_the_best_proper_rotation() {
+        // diag(1, 1, -1): the best rotation keeps the two positive axes, tr = 1 + 1 - 1.
+        let got = nearest_rotation(rows(DMat3::from_diagonal(DVec3::new(3.0, 2.0, -1.0))));
+        assert!(distance(got, rows(DMat3::IDENTITY)) < 1e-12, "{got:?}");
+        let flip = DMat3::from_diagonal(DVec3::new(-3.0, -2.0, 1.0));
+        let got = nearest_rotation(rows(flip));
+        let half_turn = DMat3::from_diagonal(DVec3::new(-1.0, -1.0, 1.0));
+        assert!(distance(got, rows(half_turn)) < 1e-12, "{got:?}");
+    }
+
+    #[test]
+    fn zero_gives_the_identity() {
+        assert_eq!(nearest_rotation([[0.0; 3]; 3]), rows(DMat3::IDENTITY));
+        assert_eq!(
+            nearest_rotation_f32([[0.0; 3]; 3]),
+            rows(DMat3::IDENTITY).map(|r| r.map(|x| x as f32))
+        );
+    }
+
+    #[test]
+    fn single_precision_agrees() {
+        for r in rotations() {
+            let a = rows(r * DMat3::from_diagonal(DVec3::new(1.5, 1.0, 0.7)));
+            let got = nearest_rotation_f32(a.map(|r| r.map(|x| x as f32)));
+            let got = got.map(|r| r.map(f64::from));
+            assert!(distance(got, rows(r)) < 2e-6, "{got:?}");
+        }
+    }
+}
