@@ -38,6 +38,11 @@ pub struct TrainArgs {
     /// without on the rigs measured and worse on some (docs/experiments.md).
     #[arg(long)]
     pub proxy_kernels: bool,
+    /// No delta-mush proxies (offered against the joint-blend model and kept where the
+    /// cross-validation over the training poses prefers them: smoothing rigs, such as Delta
+    /// Mush or Corrective Smooth; they cost training a mesh merging and a cross-validation).
+    #[arg(long)]
+    pub no_delta_mush: bool,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     pub no_gentle_poses: bool,
@@ -63,6 +68,7 @@ impl TrainArgs {
             correctives: self.correctives,
             proxy_correctives: !self.no_proxy_correctives,
             proxy_kernels: self.proxy_kernels,
+            delta_mush: !self.no_delta_mush,
             method: match self.reduction {
                 Reduction::Auto => Method::Auto,
                 Reduction::JointBlend => Method::JointBlend,

@@ -472,10 +472,15 @@ impl Baselines {
         let ssd_weights = &trained.ssd.influences;
         let cor = cor::centres(&set.rest, &set.faces, ssd_weights);
         lap("cor");
-        let train = set.train();
-        let error = |d: &ddm::Ddm| squared_error(set, &train, &ddm_all(set, d, &train));
-        let (ddm_params, ddm) =
-            ddm::choose(&set.rest, &set.faces, ssd_weights, set.bone_count(), &error)?;
+        // Training chose DDM's smoothing already where it offered delta-mush proxies.
+        let (ddm_params, ddm) = match &trained.delta_mush {
+            Some(m) => (m.params, m.ddm.clone()),
+            None => {
+                let train = set.train();
+                let error = |d: &ddm::Ddm| squared_error(set, &train, &ddm_all(set, d, &train));
+                ddm::choose(&set.rest, &set.faces, ssd_weights, set.bone_count(), &error)?
+            }
+        };
         lap("ddm");
         let rig_cor = set.rig_weights.as_ref().map(|w| {
             let centres = cor::centres(&set.rest, &set.faces, w);
@@ -543,26 +548,15 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     };
     report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
     stages.push(("evaluation", start.elapsed().as_secs_f64()));
-    if let Some(b) = baselines.as_ref().filter(|_| train_options.proxies > 0) {
-        let errors = |m: &crate::train::reduce::mush::MushProxies| {
-            scorer.errors(&|p| {
-                (p.iter())
-                    .map(|&i| m.deform(&set.rest, &set.poses[i].bones))
-                    .collect()
-            })
-        };
-        let mush_start = std::time::Instant::now();
-        let fitted = mush::evaluate(
-            set,
-            &trained,
-            &b.ddm,
-            &b.ddm_params,
-            &options.train,
-            &errors,
-        )?;
-        report.mush = Some(fitted);
-        stages.push(("mush", mush_start.elapsed().as_secs_f64()));
-    }
+    report.mush = trained.delta_mush.as_ref().map(|m| {
+        let proxies = &m.proxies;
+        let errors = scorer.errors(&|p| {
+            (p.iter())
+                .map(|&i| proxies.deform(&set.rest, &set.poses[i].bones))
+                .collect()
+        });
+        mush::Mush::of(m, errors)
+    });
     if options.loocv {
         let start = std::time::Instant::now();
         let loo = leave_one_out(set, &trained, &options.train)?;
@@ -571,7 +565,13 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     }
     if options.learning_curve && options.model.is_none() && options.train.proxies > 0 {
         let start = std::time::Instant::now();
-        report.learning_curve = learning_curve::measure(set, &trained.rigid, &options.train)?;
+        // The curve retrains the kind of model that ships: delta-mush proxies are offered
+        // again only where they were kept (each offer costs a merging and a cross-validation).
+        let kind = TrainOptions {
+            delta_mush: (trained.delta_mush.as_ref()).is_some_and(|m| m.chosen),
+            ..options.train.clone()
+        };
+        report.learning_curve = learning_curve::measure(set, &trained.rigid, &kind)?;
         stages.push(("learning curve", start.elapsed().as_secs_f64()));
     }
     report.stages = stages;

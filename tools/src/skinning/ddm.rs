@@ -56,6 +56,7 @@ pub struct LinearFit {
 /// The precomputed Ω: per vertex, for the bones j whose smoothed weight at it is above
 /// [`NEGLIGIBLE`], the upper triangle of the symmetric 4x4 Ω_ij, row by row: (0,0) (0,1) (0,2)
 /// (0,3) (1,1) (1,2) (1,3) (2,2) (2,3) (3,3).
+#[derive(Debug, Clone)]
 pub struct Ddm {
     /// V + 1 offsets: vertex i's entries are `omega[starts[i]..starts[i + 1]]`.
     starts: Vec<usize>,
@@ -102,10 +103,16 @@ impl Ddm {
 
     /// Ω of `count` groups of vertices, Ω_gj = Σ_i s_ig Ω_ij, for `shares[i]` = vertex i's
     /// (group g, share s_ig) list; each group keeps the bones j carrying at least `floor` of its
-    /// Ω's mass Σ_j Ω_gj[3][3] (none dropped for 0). A group's [`Ddm::motions`] entry is then
+    /// Ω's mass Σ_j Ω_gj[3][3] (none dropped for 0), the `cap` heaviest at most. A group's [`Ddm::motions`] entry is then
     /// the rigid motion Direct Delta Mush gives all its vertices together: a rigid fit of the
     /// group's smoothed, weighted bone motions.
-    pub fn grouped(&self, shares: &[Vec<(usize, f64)>], count: usize, floor: f64) -> Ddm {
+    pub fn grouped(
+        &self,
+        shares: &[Vec<(usize, f64)>],
+        count: usize,
+        floor: f64,
+        cap: usize,
+    ) -> Ddm {
         let mut sums: Vec<HashMap<usize, [f64; 10]>> = vec![HashMap::new(); count];
         for (i, vertex_shares) in shares.iter().enumerate() {
             for &(g, share) in vertex_shares {
@@ -123,6 +130,8 @@ impl Ddm {
                 .into_iter()
                 .filter(|(_, o)| o[9] >= floor * mass)
                 .collect();
+            kept.sort_by(|a, b| b.1[9].total_cmp(&a.1[9]));
+            kept.truncate(cap);
             kept.sort_by_key(|(j, _)| *j);
             omega.extend(kept);
             starts.push(omega.len());
@@ -575,7 +584,7 @@ mod tests {
         };
         let ddm = Ddm::new(&rest, &faces, &weights, 2, &params).expect("precomputation");
         let alone: Vec<Vec<(usize, f64)>> = (0..rest.len()).map(|i| vec![(i, 1.0)]).collect();
-        let singles = ddm.grouped(&alone, rest.len(), 0.0);
+        let singles = ddm.grouped(&alone, rest.len(), 0.0, usize::MAX);
         assert_eq!(singles.entries(), rest.len());
         let moved = ddm.deform(&rest, &bones());
         for ((m, x), y) in singles.motions(&bones()).iter().zip(&rest).zip(&moved) {
@@ -590,7 +599,10 @@ mod tests {
             q: DMat3::from_rotation_y(0.7),
             d: DVec3::new(0.1, -0.2, 0.3),
         };
-        for m in ddm.grouped(&halves, 2, 1e-3).motions(&[turn, turn]) {
+        for m in ddm
+            .grouped(&halves, 2, 1e-3, usize::MAX)
+            .motions(&[turn, turn])
+        {
             assert!(m.q.abs_diff_eq(turn.q, 1e-9) && (m.d - turn.d).length() < 1e-9);
         }
     }

@@ -19,6 +19,7 @@
 //! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //! | how many joint-blend proxies: chosen per set | [`structure`] | beyond the paper |
+//! | or delta-mush proxies, where cross-validation prefers them | [`delta_mush`], [`reduce::mush`] | beyond the paper |
 //! | pose-space correctives on the runtime model | [`corrective`] | §8 (suggested there) |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
@@ -26,6 +27,7 @@
 pub mod augment;
 pub mod corrective;
 pub mod cross_validate;
+pub mod delta_mush;
 pub mod full_model;
 pub mod gradients;
 pub mod pivots;
@@ -93,6 +95,10 @@ pub struct TrainOptions {
     /// Also offer the proxy correctives a kernel per training pose and driver (docs/method.md
     /// §21): more accurate on some rigs, but they cost the runtime's proxy pass per kernel.
     pub proxy_kernels: bool,
+    /// Offer delta-mush proxies ([`delta_mush`], docs/method.md §23) against the joint-blend
+    /// model, kept where cross-validation prefers them (smoothing rigs: Delta Mush, Corrective
+    /// Smooth). Off: the joint-blend model always.
+    pub delta_mush: bool,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -110,6 +116,7 @@ impl Default for TrainOptions {
             correctives: 0,
             proxy_correctives: true,
             proxy_kernels: false,
+            delta_mush: true,
             quiet: false,
         }
     }
@@ -132,6 +139,9 @@ pub enum TrainError {
     TooManyProxies { proxies: usize, triangles: usize },
     /// The Poisson system cannot be factored (a component without a fixed vertex).
     Poisson { problem: String },
+    /// Direct Delta Mush's smoothing could not be precomputed (its system not positive
+    /// definite: a bug if it happens, the system is by construction).
+    Smoothing { problem: String },
     /// The runtime refused the trained model (a bug if it happens: training makes valid models).
     Model { source: rrskin::Error },
 }
@@ -156,6 +166,7 @@ impl fmt::Display for TrainError {
                 "--proxies {proxies}: the reduction makes at most one proxy per triangle ({triangles})"
             ),
             TrainError::Poisson { problem } => write!(f, "Poisson system: {problem}"),
+            TrainError::Smoothing { problem } => write!(f, "delta-mush proxies: {problem}"),
             TrainError::Model { source } => write!(f, "the trained model is invalid: {source}"),
         }
     }
@@ -202,6 +213,9 @@ pub struct Trained {
     pub correctives: Option<corrective::Fit>,
     /// What the proxy corrective fit chose (None: not asked for, or no runtime model).
     pub proxy_correctives: Option<proxy_corrective::Fit>,
+    /// The delta-mush proxies and their cross-validation against the joint-blend model (None:
+    /// not asked for, or no joint-blend model to compare with).
+    pub delta_mush: Option<delta_mush::Fit>,
     pub model: Option<rrskin::Model>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
@@ -282,7 +296,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     let steps = steps
         + usize::from(options.method == Method::Auto)
         + usize::from(options.proxies > 0 && options.correctives > 0)
-        + usize::from(options.proxies > 0 && options.proxy_correctives);
+        + usize::from(options.proxies > 0 && options.proxy_correctives)
+        + usize::from(options.proxies > 0 && options.delta_mush && options.method != Method::Paper);
     let progress = Progress::new("training", steps, options.quiet);
     let mut clock = Clock {
         last: Instant::now(),
@@ -325,6 +340,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         structure: runtime.structure,
         correctives: runtime.correctives,
         proxy_correctives: runtime.proxy_correctives,
+        delta_mush: runtime.delta_mush,
         model: runtime.model,
         seconds: clock.seconds,
     })
@@ -352,6 +368,7 @@ struct Runtime {
     structure: Option<structure::Chosen>,
     correctives: Option<corrective::Fit>,
     proxy_correctives: Option<proxy_corrective::Fit>,
+    delta_mush: Option<delta_mush::Fit>,
 }
 
 impl Stages<'_> {
@@ -389,8 +406,24 @@ impl Stages<'_> {
         clock: &mut Clock,
     ) -> Result<Runtime, TrainError> {
         let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock);
-        let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
-        let (model, proxy_correctives) = self.add_proxy_correctives(&reduced, model, clock)?;
+        let delta_mush = match &joint_blend {
+            Some(fit) => self.fit_delta_mush(&chosen, fit, clock)?,
+            None => None,
+        };
+        let (model, proxy_correctives) = match delta_mush.as_ref().filter(|m| m.chosen) {
+            // Nothing corrects delta-mush proxies: their fit is the rig's smoothing.
+            Some(m) => {
+                let k = chosen.structure.influences;
+                (
+                    m.proxies.to_runtime(self.set, k, &self.ssd.influences)?,
+                    None,
+                )
+            }
+            None => {
+                let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
+                self.add_proxy_correctives(&reduced, model, clock)?
+            }
+        };
         let (model, correctives) = self.add_correctives(model, clock)?;
         Ok(Runtime {
             reduced: Some(reduced),
@@ -399,7 +432,35 @@ impl Stages<'_> {
             structure: Some(chosen),
             correctives,
             proxy_correctives,
+            delta_mush,
         })
+    }
+
+    /// With [`TrainOptions::delta_mush`], its stage: delta-mush proxies of the chosen
+    /// structure's P and K, cross-validated against it.
+    fn fit_delta_mush(
+        &self,
+        chosen: &structure::Chosen,
+        joint_blend: &structure::JointBlendFit,
+        clock: &mut Clock,
+    ) -> Result<Option<delta_mush::Fit>, TrainError> {
+        if !self.options.delta_mush {
+            return Ok(None);
+        }
+        self.progress.stage("delta-mush proxies");
+        let inputs = delta_mush::Inputs {
+            set: self.set,
+            train: self.train,
+            feats: self.feats,
+            rigid: self.rigid,
+            ssd: self.ssd,
+            chosen,
+            joint_blend,
+        };
+        let fit = delta_mush::fit(&inputs, self.options.proxies, self.options)?;
+        clock.lap("delta-mush proxies");
+        self.progress.step();
+        Ok(Some(fit))
     }
 
     /// The reduction to the runtime model's structure: the one asked for, or with

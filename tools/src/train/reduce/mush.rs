@@ -11,7 +11,7 @@
 //! - groups: the vertex reduction's greedy merging of contiguous triangles (paper §5.1,
 //!   [`merge_groups`]) on the training poses, P groups;
 //! - Ω_g = Σ_a s_ag Ω_a, s_ag the share of vertex a's incident triangles in group g, bones
-//!   below [`FLOOR`] of the group's mass left out;
+//!   below [`FLOOR`] of the group's mass left out (and past the runtime's 256 heaviest);
 //! - per pose, T_g = [`Ddm::motions`]: `Q_g = Σ_j M_j Ω_gj`, the rotation nearest to its
 //!   covariance part, and the translation that keeps the group's smoothed centre;
 //! - per vertex, NNLS weights (at most K, Σ = 1) over its own groups, the adjacent ones and its
@@ -82,7 +82,8 @@ impl MushProxies {
         influences: usize,
     ) -> MushProxies {
         let (shares, adjacency) = (&groups.shares, &groups.adjacency);
-        let groups = vertex_ddm.grouped(shares, adjacency.len(), FLOOR);
+        let cap = rrskin::model::MAX_MUSH_BONES;
+        let groups = vertex_ddm.grouped(shares, adjacency.len(), FLOOR, cap);
         let p = adjacency.len();
         let motions: Vec<Vec<Affine>> = (train.iter())
             .map(|&i| palette(&groups, &set.poses[i].bones))
@@ -264,7 +265,9 @@ mod tests {
             Ddm::new(&set.rest, &set.faces, &skin.influences, 4, &params).expect("precomputation");
         let groups = Groups::merge(&set, &train, 8);
         let mush = MushProxies::fit(&set, &train, &ddm, &skin.influences, &groups, 4);
-        let model = mush.to_runtime(&set, 4, &skin.influences).expect("a valid model");
+        let model = mush
+            .to_runtime(&set, 4, &skin.influences)
+            .expect("a valid model");
         assert_eq!(model.mush_keys().map(|k| k.count()), Some(8));
         let mut cpu = rrskin::cpu::CpuEvaluator::new(&model);
         let v = set.vertex_count();
@@ -272,7 +275,8 @@ mod tests {
         let mut worst = 0.0f64;
         for pose in &set.poses {
             let bones: Vec<_> = pose.bones.iter().map(Affine::to_runtime).collect();
-            cpu.evaluate(&bones, &mut got, &mut normals).expect("evaluation");
+            cpu.evaluate(&bones, &mut got, &mut normals)
+                .expect("evaluation");
             let want = mush.deform(&set.rest, &pose.bones);
             for (g, w) in got.iter().zip(&want) {
                 worst = worst.max((DVec3::from(g.map(f64::from)) - *w).length());
