@@ -21,16 +21,18 @@ pub fn run(args: &InfoArgs) -> Outcome {
             "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
             "tangents": m.has_tangents(), "correctives": m.corrective_count(),
             "proxy_correctives": m.proxy_corrective_count(),
+            "mush_keys": m.mush_keys().map_or(0, |k| k.count()),
         });
         out!("{dims}");
     } else {
         out!(
-            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies, K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies",
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies ({} delta-mush keys), K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies",
             model.display(),
             m.vertex_count(),
             m.triangle_count(),
             m.bone_count(),
             m.proxy_count(),
+            m.mush_keys().map_or(0, |k| k.count()),
             m.influences(),
             if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
             if m.has_tangents() { "rest tangents" } else { "no rest tangents" },

@@ -200,17 +200,21 @@ mod tests {
     use super::*;
     use crate::cylinder_chain::Chain;
     use crate::skinning::ddm::Params;
+    use crate::skinning::lbs::Skinning;
     use crate::train::ssd;
     use glam::DMat3;
 
-    /// Every proxy follows a motion of the whole character exactly, and the weights of every
-    /// vertex on a triangle sum to one: the mesh moves rigidly with it.
-    #[test]
-    fn a_rigid_motion_of_every_bone_moves_the_mesh_rigidly() {
+    /// A chain of `bones` bones, its SSD (K = 4) and `groups` delta-mush proxies over Ω of
+    /// `iterations` smoothing steps, fitted to its training poses.
+    fn fitted(
+        bones: usize,
+        groups: usize,
+        iterations: usize,
+    ) -> (ExampleSet, Skinning, MushProxies) {
         let chain = Chain {
             rings: 12,
             segments: 8,
-            bones: 3,
+            bones,
             poses: 12,
         };
         let set = chain.build().expect("a valid chain");
@@ -218,15 +222,23 @@ mod tests {
         let errors = crate::skinning::lbs::rigid_errors(&set, &train);
         let skin = ssd::fit(&set, &train, &errors, 4);
         let params = Params {
-            iterations: 2,
+            iterations,
             lambda: 3.0,
             kappa: 1.0,
             alpha: 0.5,
         };
-        let ddm =
-            Ddm::new(&set.rest, &set.faces, &skin.influences, 3, &params).expect("precomputation");
-        let groups = Groups::merge(&set, &train, 6);
+        let ddm = Ddm::new(&set.rest, &set.faces, &skin.influences, bones, &params)
+            .expect("precomputation");
+        let groups = Groups::merge(&set, &train, groups);
         let mush = MushProxies::fit(&set, &train, &ddm, &skin.influences, &groups, 4);
+        (set, skin, mush)
+    }
+
+    /// Every proxy follows a motion of the whole character exactly, and the weights of every
+    /// vertex on a triangle sum to one: the mesh moves rigidly with it.
+    #[test]
+    fn a_rigid_motion_of_every_bone_moves_the_mesh_rigidly() {
+        let (set, _, mush) = fitted(3, 6, 2);
         assert_eq!(mush.proxies.entries(), 6);
         for w in &mush.weights {
             assert!(w.len() <= 4 && (w.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-6);
@@ -245,26 +257,7 @@ mod tests {
     /// round-off (the mesh is about 1 across).
     #[test]
     fn the_runtime_model_moves_the_mesh_as_the_proxies_do() {
-        let chain = Chain {
-            rings: 10,
-            segments: 8,
-            bones: 4,
-            poses: 10,
-        };
-        let set = chain.build().expect("a valid chain");
-        let train = set.train();
-        let errors = crate::skinning::lbs::rigid_errors(&set, &train);
-        let skin = ssd::fit(&set, &train, &errors, 4);
-        let params = Params {
-            iterations: 4,
-            lambda: 3.0,
-            kappa: 1.0,
-            alpha: 0.5,
-        };
-        let ddm =
-            Ddm::new(&set.rest, &set.faces, &skin.influences, 4, &params).expect("precomputation");
-        let groups = Groups::merge(&set, &train, 8);
-        let mush = MushProxies::fit(&set, &train, &ddm, &skin.influences, &groups, 4);
+        let (set, skin, mush) = fitted(4, 8, 4);
         let model = mush
             .to_runtime(&set, 4, &skin.influences)
             .expect("a valid model");

@@ -1,0 +1,156 @@
+//! Training chooses delta-mush proxies where the rig smooths (docs/method.md §23): a cylinder
+//! chain deformed by a smoothing black box (Direct Delta Mush of rigid weights: every vertex
+//! follows one bone, the smoothing reaches the others) gets a runtime model of delta-mush keys,
+//! which the runtime's CPU reference evaluates as the training proxies deform, and which beats
+//! the joint-blend model on the held-out poses; the chain's own black box (each joint's rotation
+//! slerped along the cylinder: no smoothing) keeps the joint-blend model.
+
+use glam::DVec3;
+use rrskin_tools::cylinder_chain::Chain;
+use rrskin_tools::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
+use rrskin_tools::skinning::ddm::{Ddm, Params};
+use rrskin_tools::skinning::error::enveloping_error;
+use rrskin_tools::train::{self, TrainOptions};
+
+const CHAIN: Chain = Chain {
+    rings: 24,
+    segments: 8,
+    bones: 6,
+    poses: 40,
+};
+
+fn options() -> TrainOptions {
+    TrainOptions {
+        proxies: 12,
+        full_model: false,
+        quiet: true,
+        ..TrainOptions::default()
+    }
+}
+
+/// The chain's poses, deformed instead by Direct Delta Mush of rigid weights (each vertex on
+/// the bone under it), 16 smoothing steps.
+fn smoothed_chain() -> ExampleSet {
+    let set = CHAIN.build().expect("a valid chain");
+    let rigid: Vec<Vec<(usize, f64)>> = (set.rest.iter())
+        .map(|p| vec![((p.x.max(0.0) as usize).min(CHAIN.bones - 1), 1.0)])
+        .collect();
+    let params = Params {
+        iterations: 16,
+        lambda: 3.0,
+        kappa: 1.0,
+        alpha: 0.5,
+    };
+    let rig = Ddm::new(&set.rest, &set.faces, &rigid, CHAIN.bones, &params).expect("smoothing");
+    let test = set.test();
+    let poses = (set.poses.iter())
+        .map(|p| Pose {
+            bones: p.bones.clone(),
+            vertices: rig.deform(&set.rest, &p.bones),
+        })
+        .collect();
+    let parts = SetParts {
+        rest: set.rest.clone(),
+        faces: set.faces.clone(),
+        parents: set.parents.clone(),
+        poses,
+        is_test: (0..set.poses.len()).map(|i| test.contains(&i)).collect(),
+        bone_names: None,
+        rig_weights: None,
+    };
+    ExampleSet::new(parts, &SetFiles::one("<smoothed chain>")).expect("a valid set")
+}
+
+/// The runtime model's meshes of `poses`, by the runtime's CPU reference.
+fn runtime_meshes(set: &ExampleSet, model: &rrskin::Model, poses: &[usize]) -> Vec<Vec<DVec3>> {
+    let mut cpu = rrskin::cpu::CpuEvaluator::new(model);
+    let v = set.vertex_count();
+    let (mut positions, mut normals) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
+    (poses.iter())
+        .map(|&i| {
+            let bones: Vec<_> = set.poses[i].bones.iter().map(Affine::to_runtime).collect();
+            cpu.evaluate(&bones, &mut positions, &mut normals)
+                .expect("evaluation");
+            positions
+                .iter()
+                .map(|p| DVec3::from(p.map(f64::from)))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
+    let set = smoothed_chain();
+    let trained = train::run(&set, &options()).expect("training");
+    let fit = trained
+        .delta_mush
+        .as_ref()
+        .expect("the delta-mush stage ran");
+    let model = trained.model.as_ref().expect("a runtime model");
+    assert!(
+        fit.chosen,
+        "scores (joint-blend, delta-mush): {:?}",
+        fit.scores
+    );
+    let keys = model.mush_keys().expect("a model of delta-mush keys");
+    assert_eq!(
+        (keys.count(), model.proxy_count()),
+        (fit.proxies(), fit.proxies())
+    );
+    assert!(model.proxy_correctives().is_none());
+    let test = set.test();
+    // The shipped model is the proxies, to f32 round-off.
+    let shipped = runtime_meshes(&set, model, &test);
+    for (mesh, &i) in shipped.iter().zip(&test) {
+        let want = fit.proxies.deform(&set.rest, &set.poses[i].bones);
+        let worst = (mesh.iter().zip(&want))
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "pose {i}: {worst}");
+    }
+    let reduced = trained.reduced.as_ref().expect("the joint-blend model");
+    let joint_blend: Vec<Vec<DVec3>> = (test.iter())
+        .map(|&i| reduced.predict(&set, &trained.feats[i], &set.poses[i].bones))
+        .collect();
+    let (mush, blend) = (
+        enveloping_error(&set, &test, &shipped, &trained.rigid),
+        enveloping_error(&set, &test, &joint_blend, &trained.rigid),
+    );
+    eprintln!(
+        "held out EE: delta-mush {mush:.2}, joint-blend {blend:.2}; scores {:?}",
+        fit.scores
+    );
+    assert!(
+        mush < blend,
+        "held out: delta-mush {mush}, joint-blend {blend}"
+    );
+}
+
+#[test]
+fn a_rig_that_does_not_smooth_keeps_joint_blend_proxies() {
+    let set = CHAIN.build().expect("a valid chain");
+    let trained = train::run(&set, &options()).expect("training");
+    let fit = trained
+        .delta_mush
+        .as_ref()
+        .expect("the delta-mush stage ran");
+    eprintln!("scores (joint-blend, delta-mush): {:?}", fit.scores);
+    assert!(
+        !fit.chosen,
+        "scores (joint-blend, delta-mush): {:?}",
+        fit.scores
+    );
+    let model = trained.model.as_ref().expect("a runtime model");
+    assert!(model.mush_keys().is_none());
+    let off = TrainOptions {
+        delta_mush: false,
+        ..options()
+    };
+    let without = train::run(&set, &off).expect("training");
+    assert!(without.delta_mush.is_none());
+    assert_eq!(
+        without.model.as_ref().map(|m| m.to_bytes()),
+        Some(model.to_bytes())
+    );
+}
