@@ -29,7 +29,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Mat, Side};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// The smoothing: p iterations of step λ for the rotations, κ for the translations, and α, the
 /// share of the translation taken from the smoothed weights.
@@ -125,11 +125,11 @@ impl Ddm {
         let mut starts = vec![0];
         let mut omega = Vec::new();
         for group in sums {
-            let mass: f64 = group.values().map(|o| o[9]).sum();
-            let mut kept: Vec<(usize, [f64; 10])> = group
-                .into_iter()
-                .filter(|(_, o)| o[9] >= floor * mass)
-                .collect();
+            // By bone, so that the mass is summed in one order on every run.
+            let mut kept: Vec<(usize, [f64; 10])> = group.into_iter().collect();
+            kept.sort_by_key(|(j, _)| *j);
+            let mass: f64 = kept.iter().map(|(_, o)| o[9]).sum();
+            kept.retain(|(_, o)| o[9] >= floor * mass);
             kept.sort_by(|a, b| b.1[9].total_cmp(&a.1[9]));
             kept.truncate(cap);
             kept.sort_by_key(|(j, _)| *j);
@@ -379,7 +379,7 @@ struct Step {
 }
 
 impl Step {
-    fn new(vertices: usize, edges: &HashMap<(usize, usize), f64>, lambda: f64) -> Result<Step> {
+    fn new(vertices: usize, edges: &BTreeMap<(usize, usize), f64>, lambda: f64) -> Result<Step> {
         let mut diagonal = vec![0.0; vertices];
         for (&(a, b), &w) in edges {
             diagonal[a] += w;
@@ -441,9 +441,10 @@ impl Step {
 }
 
 /// The cotangent Laplacian's edge weights `½ (cot α + cot β)` (a < b), negative ones clamped to
-/// zero; degenerate triangles add nothing.
-fn cotangent_weights(rest: &[DVec3], faces: &[[usize; 3]]) -> HashMap<(usize, usize), f64> {
-    let mut edges: HashMap<(usize, usize), f64> = HashMap::new();
+/// zero; degenerate triangles add nothing. Ordered, so that the Laplacian's sums, and the
+/// models made from it, are the same bytes on every run.
+fn cotangent_weights(rest: &[DVec3], faces: &[[usize; 3]]) -> BTreeMap<(usize, usize), f64> {
+    let mut edges: BTreeMap<(usize, usize), f64> = BTreeMap::new();
     for f in faces {
         let corners = [0, 1, 2].map(|c| rest[f[c]]);
         let area2 = (corners[1] - corners[0])

@@ -16,7 +16,7 @@ use crate::set::{Affine, ExampleSet};
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use rayon::prelude::*;
 use std::cmp::Ordering;
-use std::collections::{BinaryHeap, HashSet};
+use std::collections::{BinaryHeap, HashMap, HashSet};
 
 #[derive(Debug, Clone)]
 pub struct Proxies {
@@ -180,38 +180,8 @@ pub fn merge_groups(
     stop: Stop,
 ) -> (Vec<usize>, Vec<Vec<usize>>) {
     let t = set.faces.len();
-    let mut moments: Vec<Option<Moments>> = (0..t)
-        .into_par_iter()
-        .map(|k| Some(triangle_moments(set, train, k)))
-        .collect();
-    let mut fits: Vec<Vec<[DVec4; 3]>> = moments
-        .par_iter()
-        .map(|m| m.as_ref().map_or(Vec::new(), |m| m.fit()))
-        .collect();
-    let mut neighbours: Vec<HashSet<usize>> = triangle_adjacency(set);
-    let mut version = vec![0u32; t];
+    let mut merging = Merging::new(set, train);
     let mut owner: Vec<usize> = (0..t).collect(); // union-find parent
-    let mut heap = BinaryHeap::new();
-    let push = |heap: &mut BinaryHeap<Join>,
-                moments: &[Option<Moments>],
-                fits: &[Vec<[DVec4; 3]>],
-                version: &[u32],
-                a: usize,
-                b: usize| {
-        if let Some(ma) = &moments[a] {
-            heap.push(Join {
-                cost: ma.error_with(&fits[b]),
-                from: a,
-                into: b,
-                versions: (version[a], version[b]),
-            });
-        }
-    };
-    for a in 0..t {
-        for &b in &neighbours[a] {
-            push(&mut heap, &moments, &fits, &version, a, b);
-        }
-    }
     let mut groups = t;
     // ε bounds the RMS over 4 samples per triangle and pose: a budget on the summed join costs.
     let budget = stop
@@ -219,42 +189,22 @@ pub fn merge_groups(
         .map_or(f64::INFINITY, |e| e * e * (4 * t * train.len()) as f64);
     let mut spent = 0.0;
     while groups > stop.proxies.max(1) {
-        let Some(join) = heap.pop() else { break };
-        let (a, b) = (join.from, join.into);
-        if moments[a].is_none() || moments[b].is_none() || join.versions != (version[a], version[b])
-        {
+        let Some(join) = merging.heap.pop() else {
+            break;
+        };
+        if !merging.is_current(&join) {
             continue; // stale
         }
         if spent + join.cost > budget {
             break;
         }
         spent += join.cost;
-        if let (Some(ma), Some(mb)) = (moments[a].take(), moments[b].as_mut()) {
-            mb.add(&ma);
-            fits[b] = mb.fit();
-        }
-        fits[a] = Vec::new();
-        owner[a] = b;
-        version[b] += 1;
-        version[a] += 1;
-        let moved: Vec<usize> = neighbours[a].drain().collect();
-        for x in moved {
-            neighbours[x].remove(&a);
-            if x != b {
-                neighbours[x].insert(b);
-                neighbours[b].insert(x);
-            }
-        }
-        neighbours[b].remove(&b);
+        merging.join(join.from, join.into);
+        owner[join.from] = join.into;
         groups -= 1;
-        let around: Vec<usize> = neighbours[b].iter().copied().collect();
-        for x in around {
-            push(&mut heap, &moments, &fits, &version, b, x);
-            push(&mut heap, &moments, &fits, &version, x, b);
-        }
     }
     // Renumber surviving groups 0..P and map every triangle to its group.
-    let roots: Vec<usize> = (0..t).filter(|&g| moments[g].is_some()).collect();
+    let roots: Vec<usize> = (0..t).filter(|&g| merging.moments[g].is_some()).collect();
     let mut index = vec![usize::MAX; t];
     roots.iter().enumerate().for_each(|(n, &g)| index[g] = n);
     let find = |mut x: usize| {
@@ -266,9 +216,122 @@ pub fn merge_groups(
     let triangle_group: Vec<usize> = (0..t).map(|k| index[find(k)]).collect();
     let adjacency = roots
         .iter()
-        .map(|&g| neighbours[g].iter().map(|&x| index[x]).collect())
+        .map(|&g| merging.costs[g].keys().map(|&x| index[x]).collect())
         .collect();
     (triangle_group, adjacency)
+}
+
+/// The greedy merging's state. Per live group g: its moments and per-pose fits, and the cost
+/// of joining it into each neighbour x (`costs[g][x]`: g's samples mapped by x's fits). The heap
+/// holds each group's cheapest join, pushed whenever it changes (the previous one then stale:
+/// its version is behind the group's), so the global cheapest join is the heap's valid top,
+/// and the heap grows by about one entry per affected group a merge, not two per neighbour.
+struct Merging {
+    moments: Vec<Option<Moments>>,
+    fits: Vec<Vec<[DVec4; 3]>>,
+    costs: Vec<HashMap<usize, f64>>,
+    /// Each group's cheapest join (into, cost) as last pushed.
+    best: Vec<Option<(usize, f64)>>,
+    version: Vec<u32>,
+    heap: BinaryHeap<Join>,
+}
+
+impl Merging {
+    /// One group per triangle of `set`, fitted on the poses `train`, each with its cheapest join.
+    fn new(set: &ExampleSet, train: &[usize]) -> Merging {
+        let t = set.faces.len();
+        let moments: Vec<Option<Moments>> = (0..t)
+            .into_par_iter()
+            .map(|k| Some(triangle_moments(set, train, k)))
+            .collect();
+        let fits = (moments.par_iter())
+            .map(|m| m.as_ref().map_or(Vec::new(), |m| m.fit()))
+            .collect();
+        let mut merging = Merging {
+            moments,
+            fits,
+            costs: Vec::new(),
+            best: vec![None; t],
+            version: vec![0; t],
+            heap: BinaryHeap::new(),
+        };
+        let adjacency = triangle_adjacency(set);
+        merging.costs = (0..t)
+            .into_par_iter()
+            .map(|g| {
+                adjacency[g]
+                    .iter()
+                    .map(|&x| (x, merging.cost(g, x)))
+                    .collect()
+            })
+            .collect();
+        (0..t).for_each(|g| merging.refresh(g));
+        merging
+    }
+
+    /// The cost of joining group `a` into group `b`.
+    fn cost(&self, a: usize, b: usize) -> f64 {
+        self.moments[a]
+            .as_ref()
+            .map_or(f64::INFINITY, |m| m.error_with(&self.fits[b]))
+    }
+
+    /// Whether `join` is still its group's cheapest, with both groups alive.
+    fn is_current(&self, join: &Join) -> bool {
+        let (a, b) = (join.from, join.into);
+        self.moments[a].is_some() && self.moments[b].is_some() && join.versions.0 == self.version[a]
+    }
+
+    /// Group `g`'s cheapest join, pushed if it changed (ties to the lower neighbour index).
+    fn refresh(&mut self, g: usize) {
+        let best = (self.costs[g].iter())
+            .min_by(|p, q| p.1.total_cmp(q.1).then(p.0.cmp(q.0)))
+            .map(|(&x, &c)| (x, c));
+        if best == self.best[g] {
+            return;
+        }
+        self.best[g] = best;
+        self.version[g] += 1;
+        if let Some((into, cost)) = best {
+            self.heap.push(Join {
+                cost,
+                from: g,
+                into,
+                versions: (self.version[g], 0),
+            });
+        }
+    }
+
+    /// Group `a` joins group `b`: b's moments and fits grow, a's neighbours become b's, and
+    /// every join from or into b is costed again.
+    fn join(&mut self, a: usize, b: usize) {
+        if let (Some(ma), Some(mb)) = (self.moments[a].take(), self.moments[b].as_mut()) {
+            mb.add(&ma);
+            self.fits[b] = mb.fit();
+        }
+        self.fits[a] = Vec::new();
+        self.version[a] += 1;
+        for x in std::mem::take(&mut self.costs[a]).into_keys() {
+            self.costs[x].remove(&a);
+            if x != b {
+                self.costs[x].insert(b, 0.0);
+                self.costs[b].insert(x, 0.0);
+            }
+        }
+        let mut around: Vec<usize> = self.costs[b].keys().copied().collect();
+        around.sort_unstable();
+        let fresh: Vec<(f64, f64)> = (around.iter())
+            .map(|&x| (self.cost(b, x), self.cost(x, b)))
+            .collect();
+        for (&x, (bx, xb)) in around.iter().zip(fresh) {
+            self.costs[b].insert(x, bx);
+            self.costs[x].insert(b, xb);
+        }
+        for x in around {
+            self.refresh(x);
+        }
+        self.refresh(b);
+    }
 }
 
 /// Triangles sharing an edge.
