@@ -10,7 +10,7 @@ use blender::{blender_script, repo, rrskin, temp_dir};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::predict::Affine;
 use rrskin::{Model, ModelParts};
-use rrskin_render::synthetic::{palette_error, random_model, random_poses, Spec};
+use rrskin_render::synthetic::{palette_error, random_model, random_poses, with_mush_keys, Spec};
 use rrskin_tools::export::animation_pose;
 use rrskin_tools::import::gltf_rig::Rig;
 use std::path::Path;
@@ -98,8 +98,8 @@ fn s(path: &Path) -> &str {
     path.to_str().expect("utf-8 path")
 }
 
-/// Models of every shape (proxies and plain LBS, K = 4 and 8) export to files without errors,
-/// whose skins, joints and clips say what the model holds.
+/// Models of every shape (proxies and plain LBS, K = 4 and 8, delta-mush keys) export to files
+/// without errors, whose skins, joints and clips say what the model holds.
 #[test]
 fn every_kind_of_model_exports_to_a_valid_gltf() {
     let dir = temp_dir("export-kinds");
@@ -109,12 +109,13 @@ fn every_kind_of_model_exports_to_a_valid_gltf() {
         proxies,
         influences,
     };
-    for (name, spec) in [
-        ("k4", spec(6, 5, 4)),
-        ("k8", spec(7, 9, 8)),
-        ("lbs", spec(5, 0, 4)),
+    let mushed = with_mush_keys(&animated(spec(6, 7, 4), 4, 6), 7, 4).expect("7 of 7 keys");
+    for (name, model) in [
+        ("k4", animated(spec(6, 5, 4), 3, 6)),
+        ("k8", animated(spec(7, 9, 8), 3, 6)),
+        ("lbs", animated(spec(5, 0, 4), 3, 6)),
+        ("delta-mush keys", mushed),
     ] {
-        let model = animated(spec, 3, 6);
         let (m, glb) = (
             dir.join(format!("{name}.rrs")),
             dir.join(format!("{name}.glb")),
