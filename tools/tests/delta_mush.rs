@@ -3,14 +3,15 @@
 //! follows one bone, the smoothing reaches the others) gets a runtime model of delta-mush keys,
 //! which the runtime's CPU reference evaluates as the training proxies deform, and which beats
 //! the joint-blend model on the held-out poses; the chain's own black box (each joint's rotation
-//! slerped along the cylinder: no smoothing) keeps the joint-blend model.
+//! slerped along the cylinder: no smoothing) keeps the joint-blend model, unless delta-mush
+//! proxies are asked for.
 
 use glam::DVec3;
 use rrskin_tools::cylinder_chain::Chain;
 use rrskin_tools::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::ddm::{Ddm, Params};
 use rrskin_tools::skinning::error::enveloping_error;
-use rrskin_tools::train::{self, TrainOptions};
+use rrskin_tools::train::{self, Method, TrainOptions};
 
 const CHAIN: Chain = Chain {
     rings: 24,
@@ -152,5 +153,28 @@ fn a_rig_that_does_not_smooth_keeps_joint_blend_proxies() {
     assert_eq!(
         without.model.as_ref().map(|m| m.to_bytes()),
         Some(model.to_bytes())
+    );
+}
+
+#[test]
+fn asked_for_delta_mush_proxies_are_kept_without_cross_validation() {
+    let set = CHAIN.build().expect("a valid chain");
+    let asked = TrainOptions {
+        method: Method::DeltaMush,
+        delta_mush: false,
+        ..options()
+    };
+    let trained = train::run(&set, &asked).expect("training");
+    let fit = trained
+        .delta_mush
+        .as_ref()
+        .expect("the delta-mush stage ran");
+    assert!(fit.chosen && fit.scores.is_empty());
+    let model = trained.model.as_ref().expect("a runtime model");
+    let keys = model.mush_keys().expect("a model of delta-mush keys");
+    assert_eq!(keys.count(), options().proxies);
+    assert!(
+        trained.reduced.is_some(),
+        "the joint-blend model, for comparison"
     );
 }

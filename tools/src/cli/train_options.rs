@@ -20,8 +20,10 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = TrainOptions::default().influences)]
     pub influences: usize,
     /// How the runtime model is made: joint-blend proxies, as many as cross-validation over the
-    /// training poses chooses (auto, the default: a sixth or a third of P, P, or 1.5 P),
-    /// joint-blend proxies with P, or the paper's reduction of the full model.
+    /// training poses chooses (auto, the default: a sixth or a third of P, P, or 1.5 P; or P
+    /// delta-mush proxies where the cross-validation prefers them), joint-blend proxies with P,
+    /// the paper's reduction of the full model, or P delta-mush proxies whatever the
+    /// cross-validation says.
     #[arg(long, value_enum, default_value_t = Reduction::Auto)]
     pub reduction: Reduction,
     /// At most this many pose-space corrective targets on the runtime model (0: none; the
@@ -56,6 +58,7 @@ pub enum Reduction {
     Auto,
     JointBlend,
     Paper,
+    DeltaMush,
 }
 
 impl TrainArgs {
@@ -73,6 +76,7 @@ impl TrainArgs {
                 Reduction::Auto => Method::Auto,
                 Reduction::JointBlend => Method::JointBlend,
                 Reduction::Paper => Method::Paper,
+                Reduction::DeltaMush => Method::DeltaMush,
             },
             gentle_scales: if self.no_gentle_poses {
                 Vec::new()

@@ -348,6 +348,7 @@ fn method_name(s: &Structure) -> &'static str {
         Method::JointBlend => "joint_blend",
         Method::Paper => "paper",
         Method::Auto => "auto",
+        Method::DeltaMush => "delta_mush",
     }
 }
 
@@ -406,6 +407,12 @@ fn mush_line(m: &mush::Mush) -> String {
         let e = 100.0 * score.sqrt();
         format!("{e:.2} ± {:.2}", 50.0 * se / score.sqrt().max(1e-300))
     };
+    if m.scores.is_empty() && m.chosen {
+        s += &format!(
+            "delta-mush proxies (K = {}, {:.1} bones per proxy): the runtime model, as asked (--reduction delta-mush; the joint-blend model above is trained for comparison)\n",
+            m.influences, m.mean_bones,
+        );
+    }
     if let [runtime, proxies] = m.scores[..] {
         let verdict = match m.chosen {
             true => "delta-mush proxies",

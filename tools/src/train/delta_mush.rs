@@ -19,7 +19,7 @@ use crate::train::cross_validate::{try_cross_validate, Folds};
 use crate::train::reduce::mush::{Groups, MushProxies};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
-use crate::train::{pose_scale, ssd, TrainError, TrainOptions};
+use crate::train::{pose_scale, ssd, Method, TrainError, TrainOptions};
 use glam::DVec3;
 
 /// What the stage fitted and chose.
@@ -32,7 +32,8 @@ pub struct Fit {
     pub proxies: MushProxies,
     pub influences: usize,
     /// (score, standard error) of the joint-blend structure, then of the delta-mush proxies;
-    /// empty with fewer training poses than folds (then the joint-blend model stays).
+    /// empty with fewer training poses than folds (then the joint-blend model stays) or with
+    /// [`Method::DeltaMush`] (then they are kept unasked).
     pub scores: Vec<(f64, f64)>,
     /// Whether the cross-validation keeps the delta-mush proxies: the runtime model is theirs.
     pub chosen: bool,
@@ -62,7 +63,8 @@ pub struct Inputs<'a> {
 }
 
 /// Fits delta-mush proxies of P = `proxies` and K = `options.influences` to the training poses
-/// and cross-validates them against the chosen joint-blend structure.
+/// and cross-validates them against the chosen joint-blend structure (kept without asking with
+/// [`Method::DeltaMush`]).
 pub fn fit(inputs: &Inputs, proxies: usize, options: &TrainOptions) -> Result<Fit, TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let smoothing = |e: crate::Error| TrainError::Smoothing {
@@ -83,6 +85,10 @@ pub fn fit(inputs: &Inputs, proxies: usize, options: &TrainOptions) -> Result<Fi
         scores: Vec::new(),
         chosen: false,
     };
+    if options.method == Method::DeltaMush {
+        out.chosen = true;
+        return Ok(out);
+    }
     let Some(split) = Folds::new(train.len(), options.folds) else {
         return Ok(out);
     };

@@ -63,6 +63,9 @@ pub enum Method {
     /// Joint-blend proxies, P chosen by cross-validation over the training poses
     /// ([`structure`]).
     Auto,
+    /// Delta-mush proxies with P ([`delta_mush`]; beyond the paper), without the
+    /// cross-validation against the joint-blend model (trained still, for evaluation).
+    DeltaMush,
 }
 
 /// Every training default, in one place.
@@ -244,6 +247,16 @@ pub const MIN_TRAINING_POSES: usize = 2;
 const PROXIES_PER_BONE_OF_GAIN: usize = 3;
 
 impl TrainOptions {
+    /// Whether training fits delta-mush proxies ([`delta_mush`]): asked for, or offered against
+    /// a joint-blend model.
+    pub fn offers_delta_mush(&self) -> bool {
+        match self.method {
+            Method::DeltaMush => true,
+            Method::Paper => false,
+            Method::JointBlend | Method::Auto => self.delta_mush,
+        }
+    }
+
     /// Refuses what cannot train on `set`; returns warnings of what trains poorly. [`run`]
     /// checks the same, so a caller needs this only to show the warnings before training.
     pub fn check(&self, set: &ExampleSet) -> Result<Vec<String>, TrainError> {
@@ -297,7 +310,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         + usize::from(options.method == Method::Auto)
         + usize::from(options.proxies > 0 && options.correctives > 0)
         + usize::from(options.proxies > 0 && options.proxy_correctives)
-        + usize::from(options.proxies > 0 && options.delta_mush && options.method != Method::Paper);
+        + usize::from(options.proxies > 0 && options.offers_delta_mush());
     let progress = Progress::new("training", steps, options.quiet);
     let mut clock = Clock {
         last: Instant::now(),
@@ -444,7 +457,7 @@ impl Stages<'_> {
         joint_blend: &structure::JointBlendFit,
         clock: &mut Clock,
     ) -> Result<Option<delta_mush::Fit>, TrainError> {
-        if !self.options.delta_mush {
+        if !self.options.offers_delta_mush() {
             return Ok(None);
         }
         self.progress.stage("delta-mush proxies");
@@ -478,7 +491,7 @@ impl Stages<'_> {
         // Auto starts from its first candidate, which also fixes the ridges its folds use.
         let first = structure::Structure {
             method: match options.method {
-                Method::Auto => Method::JointBlend,
+                Method::Auto | Method::DeltaMush => Method::JointBlend,
                 method => method,
             },
             proxies,
