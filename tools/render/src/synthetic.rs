@@ -151,29 +151,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
             }
         }
     }
-    let predictors: Vec<KeyPredictor> = (0..p)
-        .map(|_| {
-            let mut h = [0.0f32; 63];
-            for (i, x) in h.iter_mut().enumerate() {
-                *x = rng.range(-0.1, 0.1) as f32;
-                if i % 7 == 6 && [0, 4, 8].contains(&(i / 7)) {
-                    *x += 1.0; // bias column ≈ vec(I)
-                }
-            }
-            let second = (rng.unit() < 0.5).then(|| SecondBone {
-                bone: rng.below(j) as u32,
-                u: rng.range(-1.0, 1.0) as f32,
-                w: rows(rng.rotation(3.0)),
-            });
-            KeyPredictor {
-                bone: rng.below(j) as u32,
-                u: rng.range(-1.5, 1.5) as f32,
-                w: rows(rng.rotation(3.0)),
-                second,
-                h,
-            }
-        })
-        .collect();
+    let predictors = (0..p).map(|_| random_predictor(&mut rng, j)).collect();
     let mut c1 = vec![0.0f32; 4 * p * 3 * p];
     for x in c1.iter_mut() {
         *x = rng.range(-0.05, 0.05) as f32;
@@ -205,6 +183,30 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         mush_keys: None,
     };
     Model::new(parts)
+}
+
+/// A key predictor of a random bone of J, with a random scale, rotation and second bone (half
+/// the time), and a scale/shear map H near the identity's.
+fn random_predictor(rng: &mut Rng, j: usize) -> KeyPredictor {
+    let mut h = [0.0f32; 63];
+    for (i, x) in h.iter_mut().enumerate() {
+        *x = rng.range(-0.1, 0.1) as f32;
+        if i % 7 == 6 && [0, 4, 8].contains(&(i / 7)) {
+            *x += 1.0; // bias column ≈ vec(I)
+        }
+    }
+    let second = (rng.unit() < 0.5).then(|| SecondBone {
+        bone: rng.below(j) as u32,
+        u: rng.range(-1.0, 1.0) as f32,
+        w: rows(rng.rotation(3.0)),
+    });
+    KeyPredictor {
+        bone: rng.below(j) as u32,
+        u: rng.range(-1.5, 1.5) as f32,
+        w: rows(rng.rotation(3.0)),
+        second,
+        h,
+    }
 }
 
 /// `model` with its last `keys` keys made delta-mush keys ([`rrskin::MushKeys`]): each a rigid
