@@ -147,6 +147,7 @@ impl Report {
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
             "mush": self.mush.as_ref().map(|m| serde_json::json!({
                 "proxies": m.proxies, "influences": m.influences, "mean_bones": m.mean_bones,
+                "smoothing": {"iterations": m.smoothing.iterations, "alpha": m.smoothing.alpha},
                 "errors": errors(&m.errors), "chosen": m.chosen,
                 "candidates": m.scores.iter().map(|(score, se)| serde_json::json!({"score": score, "standard_error": se})).collect::<Vec<_>>(),
             })),

@@ -12,6 +12,8 @@ pub struct Mush {
     pub influences: usize,
     /// Bones per proxy's rigid fit, mean over the proxies (the run-time cost of the fits).
     pub mean_bones: f64,
+    /// The smoothing of the proxies' Ω: DDM's p and α, or p = 0 (none).
+    pub smoothing: crate::skinning::ddm::Params,
     pub errors: Errors,
     /// (score, standard error) of the runtime model's joint-blend structure, then of the
     /// delta-mush proxies; empty with too few poses.
@@ -27,6 +29,7 @@ impl Mush {
             proxies: fit.proxies(),
             influences: fit.influences,
             mean_bones: fit.mean_bones(),
+            smoothing: fit.proxy_params,
             errors,
             scores: fit.scores.clone(),
             chosen: fit.chosen,

@@ -28,6 +28,9 @@ pub struct Fit {
     /// (evaluation's DDM baseline too).
     pub ddm: Ddm,
     pub params: ddm::Params,
+    /// The proxies' smoothing: `params`, or none (p = 0) where that fits the training poses
+    /// better.
+    pub proxy_params: ddm::Params,
     /// The delta-mush proxies fitted to all training poses (P and K of the runtime model).
     pub proxies: MushProxies,
     pub influences: usize,
@@ -76,10 +79,32 @@ pub fn fit(inputs: &Inputs, proxies: usize, options: &TrainOptions) -> Result<Fi
         ddm::choose(&set.rest, &set.faces, ssd_weights, set.bone_count(), &error)
             .map_err(smoothing)?;
     let groups = Groups::merge(set, train, proxies);
-    let fitted = MushProxies::fit(set, train, &vertex_ddm, ssd_weights, &groups, k);
+    // The proxies' smoothing: DDM's, or none (each group's rigid fit of its LBS motion),
+    // whichever fits the training poses better; the same models, so no cross-validation.
+    let unsmoothed = ddm::Params {
+        iterations: 0,
+        ..params
+    };
+    let bones = set.bone_count();
+    let plain =
+        Ddm::new(&set.rest, &set.faces, ssd_weights, bones, &unsmoothed).map_err(smoothing)?;
+    let fit_with = |d: &Ddm| {
+        let m = MushProxies::fit(set, train, d, ssd_weights, &groups, k);
+        let meshes: Vec<Vec<DVec3>> = (train.iter())
+            .map(|&i| m.deform(&set.rest, &set.poses[i].bones))
+            .collect();
+        (squared_error(set, train, &meshes), m)
+    };
+    let ((smoothed_error, smoothed), (plain_error, unsmoothed_fit)) =
+        (fit_with(&vertex_ddm), fit_with(&plain));
+    let (proxy_params, fitted) = match plain_error < smoothed_error {
+        true => (unsmoothed, unsmoothed_fit),
+        false => (params, smoothed),
+    };
     let mut out = Fit {
         ddm: vertex_ddm,
         params,
+        proxy_params,
         proxies: fitted,
         influences: k,
         scores: Vec::new(),
@@ -109,8 +134,7 @@ pub fn fit(inputs: &Inputs, proxies: usize, options: &TrainOptions) -> Result<Fi
             options,
             Some(ridges),
         );
-        let bones = set.bone_count();
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, &params)?;
+        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, &proxy_params)?;
         let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, &groups, k);
         let held_error = |predict: &dyn Fn(usize) -> Vec<DVec3>| -> Vec<f64> {
             (held.iter())
