@@ -97,12 +97,11 @@ pub fn encode(m: &ModelParts) -> Vec<u8> {
 /// The model's sections in file order, tag and payload: the required ones, then the optional
 /// ones it has.
 fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
-    let mush_count = m.mush_keys.as_ref().map_or(0, MushKeys::count);
     let (v, t, j, p) = (
         m.rest_positions.len(),
         m.triangles.len(),
         m.bone_parents.len(),
-        m.predictors.len() + mush_count,
+        m.key_count(),
     );
     let mut pred = Vec::with_capacity(m.predictors.len() * PREDICTOR_WORDS * 4);
     for k in &m.predictors {

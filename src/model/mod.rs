@@ -261,6 +261,13 @@ pub struct ModelParts {
     pub mush_keys: Option<MushKeys>,
 }
 
+impl ModelParts {
+    /// P: the predictors' keys, then the delta-mush keys.
+    pub fn key_count(&self) -> usize {
+        self.predictors.len() + self.mush_keys.as_ref().map_or(0, MushKeys::count)
+    }
+}
+
 /// A validated runtime model. Immutable: every invariant in the module docs holds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
@@ -381,7 +388,7 @@ impl Model {
 
     /// P (0: plain linear blend skinning): R predictors' keys, then S delta-mush keys.
     pub fn proxy_count(&self) -> usize {
-        self.parts.predictors.len() + self.parts.mush_keys.as_ref().map_or(0, MushKeys::count)
+        self.parts.key_count()
     }
 
     /// The model's delta-mush keys, if it has any.

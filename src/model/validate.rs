@@ -21,7 +21,7 @@ pub fn check(m: &ModelParts) -> Check {
     sizes(m)?;
     let v = m.rest_positions.len();
     let j = m.bone_parents.len();
-    let p = key_count(m);
+    let p = m.key_count();
     let k = m.influences as usize;
     finite("rest positions", m.rest_positions.iter().flatten())?;
     finite("skin weights", m.skin_weights.iter())?;
@@ -58,7 +58,7 @@ pub fn check(m: &ModelParts) -> Check {
 fn sizes(m: &ModelParts) -> Check {
     let v = m.rest_positions.len();
     let j = m.bone_parents.len();
-    let p = key_count(m);
+    let p = m.key_count();
     let k = m.influences as usize;
     dimension("vertex count", v, 1)?;
     dimension("bone count", j, 1)?;
@@ -414,11 +414,6 @@ fn predictor(l: usize, pred: &KeyPredictor, j: usize) -> Check {
         rotation("predictor W2", l, &second.w)?;
     }
     Ok(())
-}
-
-/// P: the predictors' keys and the delta-mush keys.
-fn key_count(m: &ModelParts) -> usize {
-    m.predictors.len() + m.mush_keys.as_ref().map_or(0, MushKeys::count)
 }
 
 /// S ≥ 1 keys of 1 to MAX_MUSH_BONES distinct bones each, in range, with finite terms.
