@@ -82,8 +82,8 @@ pub struct Report {
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
     /// Delta-mush proxies beside the runtime model, and the cross-validation between them
-    /// ([`mush`]; None with [`Options::skip_baselines`], and without a runtime model trained
-    /// here: P = 0 or [`Options::model`]).
+    /// ([`mush`]; None where training did not offer them, `TrainOptions::offers_delta_mush`,
+    /// or trained no runtime model: P = 0 or [`Options::model`]).
     pub mush: Option<mush::Mush>,
     /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
     pub structure: Option<Chosen>,
@@ -449,13 +449,6 @@ fn cor_all(
         .collect()
 }
 
-fn ddm_all(set: &ExampleSet, ddm: &ddm::Ddm, poses: &[usize]) -> Vec<Vec<DVec3>> {
-    poses
-        .iter()
-        .map(|&i| ddm.deform(&set.rest, &set.poses[i].bones))
-        .collect()
-}
-
 /// The baselines' precomputations: centres of rotation for SSD's weights (and the rig's), and
 /// direct delta mush's Ω for SSD's weights with its parameters chosen on the training poses.
 struct Baselines {
@@ -483,11 +476,7 @@ impl Baselines {
         // Training chose DDM's smoothing already where it offered delta-mush proxies.
         let (ddm_params, ddm) = match &trained.delta_mush {
             Some(m) => (m.params, m.ddm.clone()),
-            None => {
-                let train = set.train();
-                let error = |d: &ddm::Ddm| squared_error(set, &train, &ddm_all(set, d, &train));
-                ddm::choose(&set.rest, &set.faces, ssd_weights, set.bone_count(), &error)?
-            }
+            None => ddm::choose(set, &set.train(), ssd_weights)?,
         };
         lap("ddm");
         let rig_cor = set.rig_weights.as_ref().map(|w| {
@@ -639,7 +628,7 @@ fn score(
         ssd: scorer.errors(&|p| deform_all(set, &trained.ssd, p)),
         dqs: scorer.errors(&|p| dqs_all(set, ssd_weights, p)),
         cor: baselines.map(|b| scorer.errors(&|p| cor_all(set, ssd_weights, &b.cor, p))),
-        ddm: baselines.map(|b| scorer.errors(&|p| ddm_all(set, &b.ddm, p))),
+        ddm: baselines.map(|b| scorer.errors(&|p| b.ddm.deform_poses(set, p))),
         ddm_params: baselines.map(|b| b.ddm_params),
         rig_lbs: with_rig(&|s| scorer.errors(&|p| deform_all(set, s, p))),
         rig_dqs: with_rig(&|s| scorer.errors(&|p| dqs_all(set, &s.influences, p))),

@@ -16,7 +16,7 @@ pub struct Mush {
     pub smoothing: crate::skinning::ddm::Params,
     pub errors: Errors,
     /// (score, standard error) of the runtime model's joint-blend structure, then of the
-    /// delta-mush proxies; empty with too few poses.
+    /// delta-mush proxies; empty with too few poses, or with `--reduction delta-mush`.
     pub scores: Vec<(f64, f64)>,
     /// Whether the cross-validation kept the delta-mush proxies: the runtime model is theirs.
     pub chosen: bool,

@@ -21,7 +21,8 @@
 //! `I + λ D⁻¹L` with an LDLᵀ that reads one triangle only; this follows the formulas instead.
 
 use crate::linalg::procrustes;
-use crate::set::Affine;
+use crate::set::{Affine, ExampleSet};
+use crate::skinning::error::squared_error;
 use crate::{Error, Result};
 use faer::prelude::*;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
@@ -190,6 +191,13 @@ impl Ddm {
         self.omega.len() as f64 / (self.starts.len() - 1).max(1) as f64
     }
 
+    /// The mesh of each of the poses `poses` of `set`.
+    pub fn deform_poses(&self, set: &ExampleSet, poses: &[usize]) -> Vec<Vec<DVec3>> {
+        (poses.iter())
+            .map(|&i| self.deform(&set.rest, &set.poses[i].bones))
+            .collect()
+    }
+
     /// Each vertex of `rest` moved under `bones` (J).
     pub fn deform(&self, rest: &[DVec3], bones: &[Affine]) -> Vec<DVec3> {
         rest.par_iter()
@@ -239,14 +247,15 @@ pub const ITERATIONS: [usize; 6] = [1, 2, 4, 8, 16, 32];
 pub const ALPHAS: [f64; 3] = [0.2, 0.5, 0.8];
 
 /// Of the candidates [`ITERATIONS`] x [`ALPHAS`] (λ = [`LAMBDA`], κ = [`KAPPA`]), the one of
-/// least `error` (the training poses' squared error of its Ω), and its Ω.
+/// least squared error over the poses `poses` of `set` for the (bone, weight) lists
+/// `influences` (V; SSD's), and its Ω.
 pub fn choose(
-    rest: &[DVec3],
-    faces: &[[usize; 3]],
+    set: &ExampleSet,
+    poses: &[usize],
     influences: &[Vec<(usize, f64)>],
-    bones: usize,
-    error: &dyn Fn(&Ddm) -> f64,
 ) -> Result<(Params, Ddm)> {
+    let error = |d: &Ddm| squared_error(set, poses, &d.deform_poses(set, poses));
+    let (rest, faces, bones) = (&set.rest, &set.faces, set.bone_count());
     let mut params = Params {
         iterations: 0,
         lambda: LAMBDA,

@@ -65,20 +65,17 @@ pub struct Inputs<'a> {
     pub joint_blend: &'a JointBlendFit,
 }
 
-/// Fits delta-mush proxies of P = `proxies` and K = `options.influences` to the training poses
+/// Fits delta-mush proxies of P = `options.proxies` and K = `options.influences` to the training poses
 /// and cross-validates them against the chosen joint-blend structure (kept without asking with
 /// [`Method::DeltaMush`]).
-pub fn fit(inputs: &Inputs, proxies: usize, options: &TrainOptions) -> Result<Fit, TrainError> {
+pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let smoothing = |e: crate::Error| TrainError::Smoothing {
         problem: e.to_string(),
     };
-    let error = |d: &Ddm| squared_error(set, train, &deform_all(set, d, train));
     let ssd_weights = &inputs.ssd.influences;
-    let (params, vertex_ddm) =
-        ddm::choose(&set.rest, &set.faces, ssd_weights, set.bone_count(), &error)
-            .map_err(smoothing)?;
-    let groups = Groups::merge(set, train, proxies);
+    let (params, vertex_ddm) = ddm::choose(set, train, ssd_weights).map_err(smoothing)?;
+    let groups = Groups::merge(set, train, options.proxies);
     // The proxies' smoothing: DDM's, or none (each group's rigid fit of its LBS motion),
     // whichever fits the training poses better; the same models, so no cross-validation.
     let unsmoothed = ddm::Params {
@@ -150,11 +147,4 @@ pub fn fit(inputs: &Inputs, proxies: usize, options: &TrainOptions) -> Result<Fi
     out.scores = validated.scores;
     out.chosen = validated.chosen == 1;
     Ok(out)
-}
-
-/// Direct Delta Mush's mesh of each of `poses`.
-pub fn deform_all(set: &ExampleSet, ddm: &Ddm, poses: &[usize]) -> Vec<Vec<DVec3>> {
-    (poses.iter())
-        .map(|&i| ddm.deform(&set.rest, &set.poses[i].bones))
-        .collect()
 }

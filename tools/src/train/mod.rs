@@ -425,13 +425,11 @@ impl Stages<'_> {
         };
         let (model, proxy_correctives) = match delta_mush.as_ref().filter(|m| m.chosen) {
             // Nothing corrects delta-mush proxies: their fit is the rig's smoothing.
-            Some(m) => {
-                let k = chosen.structure.influences;
-                (
-                    m.proxies.to_runtime(self.set, k, &self.ssd.influences)?,
-                    None,
-                )
-            }
+            Some(m) => (
+                m.proxies
+                    .to_runtime(self.set, m.influences, &self.ssd.influences)?,
+                None,
+            ),
             None => {
                 let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
                 self.add_proxy_correctives(&reduced, model, clock)?
@@ -449,8 +447,8 @@ impl Stages<'_> {
         })
     }
 
-    /// With [`TrainOptions::delta_mush`], its stage: delta-mush proxies of the chosen
-    /// structure's P and K, cross-validated against it.
+    /// Where [`TrainOptions::offers_delta_mush`], its stage: delta-mush proxies of the P and K
+    /// asked for, cross-validated against the chosen joint-blend structure.
     fn fit_delta_mush(
         &self,
         chosen: &structure::Chosen,
@@ -470,7 +468,7 @@ impl Stages<'_> {
             chosen,
             joint_blend,
         };
-        let fit = delta_mush::fit(&inputs, self.options.proxies, self.options)?;
+        let fit = delta_mush::fit(&inputs, self.options)?;
         clock.lap("delta-mush proxies");
         self.progress.step();
         Ok(Some(fit))

@@ -1,6 +1,7 @@
-//! Delta-mush proxies (a prototype of a runtime key; docs/method.md §23): P proxy bones whose
-//! transforms are Direct Delta Mush's rigid fits ([`crate::skinning::ddm`]) for whole groups of
-//! vertices, and K-influence palette skinning over them.
+//! Delta-mush proxies (docs/method.md §23): P proxy bones whose transforms are Direct Delta
+//! Mush's rigid fits ([`crate::skinning::ddm`]) for whole groups of vertices, and K-influence
+//! palette skinning over them; the runtime model of the delta-mush keys ([`rrskin::MushKeys`],
+//! [`MushProxies::to_runtime`]) where [`crate::train::delta_mush`] keeps them.
 //!
 //! A smoothing rig (Blender's Corrective Smooth, Delta Mush) moves a vertex by a rigid fit of
 //! the bone motions of a whole neighbourhood of the mesh: on the Fox, about 11 bones reach each
@@ -21,7 +22,7 @@
 //!   48.6 % EE held out, with them 41.6 %.
 //!
 //! Nothing else is fitted to the poses: no predictor, no refit, no stretch. Run-time cost per
-//! character: P rigid fits of about `mean_bones` bones each (48 multiply-adds a bone and a
+//! character: P rigid fits of about `mean_bones` bones each (36 multiply-adds a bone and a
 //! 3x3 rotation fit a proxy, once per character), then the palette skinning of any model.
 
 use crate::set::{Affine, ExampleSet};
