@@ -5,7 +5,8 @@
 //!    join A → B of contiguous groups with the smallest error
 //!    `E_A→B = Σ_i s_A^i − 2 tr(T_B^i N_A^iᵀ) + tr(T_B^i M_A T_B^iᵀ)` is performed next. All a
 //!    cost needs is in per-group moments (M 4x4, N^i 3x4, s^i), so a join costs O(N) whatever the
-//!    group sizes; a binary heap with per-group versions skips stale entries.
+//!    group sizes; a binary heap holds each group's cheapest join, per-group versions skipping
+//!    the stale ones.
 //! 2. Alternation (paper steps 3–4): per free vertex, NNLS weights α over the proxies of its own
 //!    group and the adjacent groups (at most K, Σα = 1); then all proxy transforms by least
 //!    squares, one (4P x 4P) normal matrix shared by every pose and coordinate.
@@ -145,7 +146,8 @@ struct Join {
     cost: f64,
     from: usize,
     into: usize,
-    versions: (u32, u32),
+    /// The version of `from` it was pushed at: stale once `from`'s cheapest join changed.
+    version: u32,
 }
 
 impl Eq for Join {}
@@ -279,7 +281,7 @@ impl Merging {
     /// Whether `join` is still its group's cheapest, with both groups alive.
     fn is_current(&self, join: &Join) -> bool {
         let (a, b) = (join.from, join.into);
-        self.moments[a].is_some() && self.moments[b].is_some() && join.versions.0 == self.version[a]
+        self.moments[a].is_some() && self.moments[b].is_some() && join.version == self.version[a]
     }
 
     /// Group `g`'s cheapest join, pushed if it changed (ties to the lower neighbour index).
@@ -297,7 +299,7 @@ impl Merging {
                 cost,
                 from: g,
                 into,
-                versions: (self.version[g], 0),
+                version: self.version[g],
             });
         }
     }
