@@ -21,6 +21,14 @@ fn bundled_rig() -> String {
     glb.to_str().expect("utf-8 path").to_string()
 }
 
+/// The exporter run on the bundled rig, writing the set to `out`, with `args` after those two.
+fn export_bundled_rig(out: &std::path::Path, args: &[&str]) -> std::process::Output {
+    let (rig, out) = (bundled_rig(), out.to_str().expect("utf-8"));
+    let mut all = vec!["--input", &rig, "--out", out];
+    all.extend_from_slice(args);
+    blender_script(&exporter(), &all)
+}
+
 /// The bundled glb, plain linear blend skinning in Blender: 12 random poses and the file's own
 /// walk (Blender names the unnamed glTF animation `Anim_0`, 48 frames) as test poses. Blender's
 /// Armature modifier without Preserve Volume is LBS with the vertex-group weights, so the set's
@@ -31,19 +39,7 @@ fn bundled_rig() -> String {
 fn exports_the_bundled_rig_with_its_walk_as_test_poses() {
     let dir = temp_dir("blender-export");
     let out = dir.join("set");
-    let run = blender_script(
-        &exporter(),
-        &[
-            "--input",
-            &bundled_rig(),
-            "--out",
-            out.to_str().expect("utf-8"),
-            "--poses",
-            "12",
-            "--test-action",
-            "Anim_0",
-        ],
-    );
+    let run = export_bundled_rig(&out, &["--poses", "12", "--test-action", "Anim_0"]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     let last = stdout
         .lines()
@@ -98,21 +94,8 @@ fn exports_as_many_poses_as_the_learning_curve_advises() {
     let dir = temp_dir("blender-auto");
     let out = dir.join("set");
     let binary = env!("CARGO_BIN_EXE_rrskin");
-    let run = blender_script(
-        &exporter(),
-        &[
-            "--input",
-            &bundled_rig(),
-            "--out",
-            out.to_str().expect("utf-8"),
-            "--poses",
-            "auto",
-            "--budget",
-            "60",
-            "--rrskin",
-            binary,
-        ],
-    );
+    let args = ["--poses", "auto", "--budget", "60", "--rrskin", binary];
+    let run = export_bundled_rig(&out, &args);
     let stdout = String::from_utf8_lossy(&run.stdout);
     let rounds: Vec<&str> = stdout
         .lines()
