@@ -33,7 +33,9 @@ layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C;
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 #endif
 
+#ifdef MUSH
 #include "polar.glsl"
+#endif
 #include "predictor.glsl"
 #ifdef CORRECTIVES
 #include "joint_features.glsl"

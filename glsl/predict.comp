@@ -17,7 +17,9 @@ layout(std430, set = 0, binding = 4) buffer Palette { Affine palette[]; };   // 
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
+#ifdef MUSH
 #include "polar.glsl"
+#endif
 #include "predictor.glsl"
 
 void main() {

@@ -2,7 +2,9 @@
 // and fused_product.comp. Mirrors src/predict.rs in f32 with the same branch thresholds, so CPU
 // and GPU agree away from the log's branch cut at pi. Reads the including shader's `bones`
 // (chars x J Affine), `parents` (J int, then the delta-mush keys, read by mush()), `preds`
-// (P Predictor) and `pc.J`, and needs polar.glsl.
+// (P Predictor) and `pc.J`. Built with MUSH for models with delta-mush keys (then it needs
+// polar.glsl): without it, a model's predictors carry neither the keys' branch nor the rotation
+// fit's registers.
 
 const float NEAR_PI_SIN = 1e-2;
 const float SMALL_ANGLE = 1e-4;
@@ -90,6 +92,7 @@ mat3 scale_shear(uint l, vec3 theta_b, vec3 theta_p) {
     return transpose(mat3(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8]));
 }
 
+#ifdef MUSH
 // Word i of the delta-mush keys after the J parents (src/vk/gpu_model.rs): P + 1 offsets into
 // these words, key l's terms being words mush(l)..mush(l + 1) (none for a predictor's key),
 // then the terms, 13 words each: the bone, then its 4x3 row-major Omega as float bits.
@@ -118,14 +121,17 @@ mat3 mush_gradient(uint first, uint end, uint base) {
     nearest_rotation(a, r);
     return transpose(mat3(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]));
 }
+#endif
 
 // D_l(q) of the character whose bones start at `base`.
 mat3 key_gradient(uint l, uint base) {
+#ifdef MUSH
     uint first = mush(l);
     uint end = mush(l + 1u);
     if (first < end) {
         return mush_gradient(first, end, base);
     }
+#endif
     uint bone = preds[l].bone;
     uint second = preds[l].second;
     vec3 theta_b = joint_rotation(base, bone);

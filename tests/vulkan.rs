@@ -1235,12 +1235,16 @@ fn proxy_correctives_after_each_product(in_product: bool) {
     };
     let sparse =
         |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
+    let mushed = with_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 20, 66)
+        .expect("delta-mush keys");
     let models = [
         with_proxy_correctives(&random_model(k8, 61), true, 0, 1),
         with_proxy_correctives(&sparse(2, 62), false, 3, 2),
         with_proxy_correctives(&with_correctives(&sparse(1, 63), 4, 3), true, 2, 3),
         random_model(RR, 64),
         random_model(LBS, 65),
+        // Delta-mush keys: the fused product's MUSH builds, with and without the correction.
+        with_proxy_correctives(&joint_blend_pattern(&mushed, 1), true, 2, 3),
     ];
     let settings = GpuModelDebugSettings {
         correctives_in_product: Some(in_product),
@@ -1250,6 +1254,7 @@ fn proxy_correctives_after_each_product(in_product: bool) {
         .map(|m| GpuModel::with_debug_settings(&ctx, m, settings).expect("upload"))
         .collect();
     assert_eq!(gpu[2].applies_correctives_in_product(), in_product);
+    assert_eq!(gpu[5].applies_correctives_in_product(), in_product);
     assert!(!gpu[1].applies_correctives_in_product());
     let kinds: Vec<(bool, bool, usize)> = (gpu.iter())
         .map(|g| {
@@ -1268,12 +1273,13 @@ fn proxy_correctives_after_each_product(in_product: bool) {
             (true, false, 13),
             (true, true, 13),
             (false, false, 0),
-            (false, false, 0)
+            (false, false, 0),
+            (true, true, 13)
         ]
     );
     // 300 characters: the pass corrects four characters 64 apart an invocation, 256 a
     // workgroup, so this covers full and partial invocations of two workgroups.
-    let counts = [300, 70, 5, 3, 2];
+    let counts = [300, 70, 5, 3, 2, 9];
     let v = models[0].vertex_count() as u64;
     let mut crowds: Vec<Crowd> = (gpu.iter().zip(counts).enumerate())
         .map(|(i, (g, c))| {

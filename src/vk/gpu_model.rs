@@ -319,6 +319,7 @@ fn model_dims(model: &Model, sparse: Option<&BlockSparse>, in_product: bool) -> 
         kernels: (model.proxy_correctives())
             .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
         linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
+        mush: model.mush_keys().is_some(),
     }
 }
 

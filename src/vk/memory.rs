@@ -107,6 +107,7 @@ impl ModelSizes {
             corrected_proxies: word("corrected proxies", self.proxy_correctives)?,
             kernels: word("proxy corrective kernels", self.proxy_corrective_kernels)?,
             linear_features: self.proxy_corrective_linear,
+            mush: self.mush_terms > 0,
         })
     }
 }

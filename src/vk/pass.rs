@@ -49,6 +49,9 @@ pub struct Dims {
     pub kernels: u32,
     /// Whether the proxy correctives' features include the 9 linear φ_b per driver.
     pub linear_features: bool,
+    /// Whether some key is a delta-mush key (its predictors are built with them; a model
+    /// without pays nothing for them).
+    pub mush: bool,
 }
 
 /// An enum whose variants index arrays: `ALL` lists them in declaration order
@@ -425,6 +428,7 @@ mod tests {
         corrected_proxies: 0,
         kernels: 0,
         linear_features: false,
+        mush: false,
     };
 
     #[test]
