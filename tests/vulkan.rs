@@ -1235,7 +1235,7 @@ fn proxy_correctives_after_each_product(in_product: bool) {
     };
     let sparse =
         |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
-    let mushed = with_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 20, 66)
+    let mushed = with_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 12, 66)
         .expect("delta-mush keys");
     let models = [
         with_proxy_correctives(&random_model(k8, 61), true, 0, 1),
@@ -1243,7 +1243,8 @@ fn proxy_correctives_after_each_product(in_product: bool) {
         with_proxy_correctives(&with_correctives(&sparse(1, 63), 4, 3), true, 2, 3),
         random_model(RR, 64),
         random_model(LBS, 65),
-        // Delta-mush keys: the fused product's MUSH builds, with and without the correction.
+        // Delta-mush keys after predictors: the fused product's MUSH builds, with and without
+        // the correction.
         with_proxy_correctives(&joint_blend_pattern(&mushed, 1), true, 2, 3),
     ];
     let settings = GpuModelDebugSettings {
