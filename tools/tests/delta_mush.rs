@@ -4,13 +4,16 @@
 //! which the runtime's CPU reference evaluates as the training proxies deform, and which beats
 //! the joint-blend model on the held-out poses; the chain's own black box (each joint's rotation
 //! slerped along the cylinder: no smoothing) keeps the joint-blend model, unless delta-mush
-//! proxies are asked for.
+//! proxies are asked for; a chain that smooths past its second joint only gets both kinds in
+//! one palette.
 
 use glam::DVec3;
 use rrskin_tools::cylinder_chain::Chain;
 use rrskin_tools::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::ddm::{Ddm, Params};
 use rrskin_tools::skinning::error::enveloping_error;
+use rrskin_tools::skinning::lbs::Skinning;
+use rrskin_tools::train::delta_mush::Choice;
 use rrskin_tools::train::{self, Method, TrainOptions};
 
 const CHAIN: Chain = Chain {
@@ -32,6 +35,12 @@ fn options() -> TrainOptions {
 /// The chain's poses, deformed instead by Direct Delta Mush of rigid weights (each vertex on
 /// the bone under it), 16 smoothing steps.
 fn smoothed_chain() -> ExampleSet {
+    smoothed_from(0.0)
+}
+
+/// The chain's poses, each vertex past x = `from` (the chain runs along x from 0 to its bone
+/// count) deformed by [`smoothed_chain`]'s black box, the others by the chain's own.
+fn smoothed_from(from: f64) -> ExampleSet {
     let set = CHAIN.build().expect("a valid chain");
     let rigid: Vec<Vec<(usize, f64)>> = (set.rest.iter())
         .map(|p| vec![((p.x.max(0.0) as usize).min(CHAIN.bones - 1), 1.0)])
@@ -47,7 +56,10 @@ fn smoothed_chain() -> ExampleSet {
     let poses = (set.poses.iter())
         .map(|p| Pose {
             bones: p.bones.clone(),
-            vertices: rig.deform(&set.rest, &p.bones),
+            vertices: (rig.deform(&set.rest, &p.bones).into_iter())
+                .zip(set.rest.iter().zip(&p.vertices))
+                .map(|(smoothed, (rest, own))| if rest.x > from { smoothed } else { *own })
+                .collect(),
         })
         .collect();
     let parts = SetParts {
@@ -80,6 +92,17 @@ fn runtime_meshes(set: &ExampleSet, model: &rrskin::Model, poses: &[usize]) -> V
         .collect()
 }
 
+/// The held-out EE of the joint-blend model alone (`--no-delta-mush`) on `test`.
+fn joint_blend_error(set: &ExampleSet, test: &[usize], rigid: &Skinning) -> f64 {
+    let off = TrainOptions {
+        delta_mush: false,
+        ..options()
+    };
+    let trained = train::run(set, &off).expect("training");
+    let model = trained.model.as_ref().expect("a runtime model");
+    enveloping_error(set, test, &runtime_meshes(set, model, test), rigid)
+}
+
 #[test]
 fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
     let set = smoothed_chain();
@@ -88,44 +111,25 @@ fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
         .delta_mush
         .as_ref()
         .expect("the delta-mush stage ran");
-    let model = trained.model.as_ref().expect("a runtime model");
+    eprintln!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
+    // Alone or after the joint-blend model's (which, on the smoothed chain too, win by more
+    // than their margin): the delta-mush keys are in the model.
     assert!(
-        fit.chosen,
-        "scores (joint-blend, delta-mush): {:?}",
+        !matches!(fit.choice, Choice::JointBlend),
+        "scores (joint-blend, delta-mush, both): {:?}",
         fit.scores
     );
+    let model = trained.model.as_ref().expect("a runtime model");
     let keys = model.mush_keys().expect("a model of delta-mush keys");
-    assert_eq!(
-        (keys.count(), model.proxy_count()),
-        (fit.proxies(), fit.proxies())
-    );
-    assert!(model.proxy_correctives().is_none());
+    assert_eq!(keys.count(), fit.proxies());
     let test = set.test();
-    // The shipped model is the proxies, to f32 round-off.
     let shipped = runtime_meshes(&set, model, &test);
-    for (mesh, &i) in shipped.iter().zip(&test) {
-        let want = fit.proxies.deform(&set.rest, &set.poses[i].bones);
-        let worst = (mesh.iter().zip(&want))
-            .map(|(a, b)| (*a - *b).length())
-            .fold(0.0, f64::max);
-        assert!(worst < 1e-4, "pose {i}: {worst}");
-    }
-    let reduced = trained.reduced.as_ref().expect("the joint-blend model");
-    let joint_blend: Vec<Vec<DVec3>> = (test.iter())
-        .map(|&i| reduced.predict(&set, &trained.feats[i], &set.poses[i].bones))
-        .collect();
     let (mush, blend) = (
         enveloping_error(&set, &test, &shipped, &trained.rigid),
-        enveloping_error(&set, &test, &joint_blend, &trained.rigid),
+        joint_blend_error(&set, &test, &trained.rigid),
     );
-    eprintln!(
-        "held out EE: delta-mush {mush:.2}, joint-blend {blend:.2}; scores {:?}",
-        fit.scores
-    );
-    assert!(
-        mush < blend,
-        "held out: delta-mush {mush}, joint-blend {blend}"
-    );
+    eprintln!("held out EE: shipped {mush:.2}, joint-blend {blend:.2}");
+    assert!(mush < blend, "held out: shipped {mush}, joint-blend {blend}");
 }
 
 #[test]
@@ -136,10 +140,10 @@ fn a_rig_that_does_not_smooth_keeps_joint_blend_proxies() {
         .delta_mush
         .as_ref()
         .expect("the delta-mush stage ran");
-    eprintln!("scores (joint-blend, delta-mush): {:?}", fit.scores);
+    eprintln!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
     assert!(
-        !fit.chosen,
-        "scores (joint-blend, delta-mush): {:?}",
+        matches!(fit.choice, Choice::JointBlend),
+        "scores (joint-blend, delta-mush, both): {:?}",
         fit.scores
     );
     let model = trained.model.as_ref().expect("a runtime model");
@@ -169,12 +173,65 @@ fn asked_for_delta_mush_proxies_are_kept_without_cross_validation() {
         .delta_mush
         .as_ref()
         .expect("the delta-mush stage ran");
-    assert!(fit.chosen && fit.scores.is_empty());
+    assert!(matches!(fit.choice, Choice::DeltaMush) && fit.scores.is_empty());
     let model = trained.model.as_ref().expect("a runtime model");
     let keys = model.mush_keys().expect("a model of delta-mush keys");
     assert_eq!(keys.count(), options().proxies);
-    assert!(
-        trained.reduced.is_some(),
-        "the joint-blend model, for comparison"
+    let reduced = trained.reduced.as_ref().expect("the shipped model in f64");
+    assert!(reduced.predictors.is_empty() && reduced.mush.is_some());
+    assert!(model.proxy_correctives().is_none());
+    // The runtime's CPU reference deforms every pose as the proxies do, to f32 round-off.
+    let test = set.test();
+    for (mesh, &i) in runtime_meshes(&set, model, &test).iter().zip(&test) {
+        let want = fit.proxies.deform(&set.rest, &set.poses[i].bones);
+        let worst = (mesh.iter().zip(&want))
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "pose {i}: {worst}");
+    }
+}
+
+/// The chain smooths past its second joint only: each kind of proxy fits one part, and the runtime
+/// model holds both (the joint-blend model's keys, then the delta-mush keys), with proxy
+/// correctives; its CPU reference deforms as the trained model does in f64, and it beats
+/// either kind alone held out.
+#[test]
+fn a_rig_that_smooths_in_part_gets_both_kinds_in_one_palette() {
+    let set = smoothed_from(2.0);
+    let trained = train::run(&set, &options()).expect("training");
+    let fit = (trained.delta_mush.as_ref()).expect("the delta-mush stage ran");
+    eprintln!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
+    let Choice::Both(both) = &fit.choice else {
+        panic!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
+    };
+    let model = trained.model.as_ref().expect("a runtime model");
+    let keys = model.mush_keys().expect("delta-mush keys");
+    assert_eq!(keys.count(), fit.proxies());
+    assert_eq!(model.proxy_count(), both.predictors.len() + fit.proxies());
+    assert!(!both.predictors.is_empty());
+    let test = set.test();
+    let plain = rrskin::Model::new(rrskin::ModelParts {
+        proxy_correctives: None,
+        ..model.parts().clone()
+    })
+    .expect("valid");
+    for (mesh, &i) in runtime_meshes(&set, &plain, &test).iter().zip(&test) {
+        let want = both.predict(&set, &trained.feats[i], &set.poses[i].bones);
+        let worst = (mesh.iter().zip(&want))
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-4, "pose {i}: {worst}");
+    }
+    let shipped = runtime_meshes(&set, model, &test);
+    let ee = |meshes: &[Vec<DVec3>]| enveloping_error(&set, &test, meshes, &trained.rigid);
+    let alone: Vec<Vec<DVec3>> = (test.iter())
+        .map(|&i| fit.proxies.deform(&set.rest, &set.poses[i].bones))
+        .collect();
+    let (shipped, mush, blend) = (
+        ee(&shipped),
+        ee(&alone),
+        joint_blend_error(&set, &test, &trained.rigid),
     );
+    eprintln!("held out EE: both {shipped:.2}, delta-mush {mush:.2}, joint-blend {blend:.2}");
+    assert!(shipped < mush.min(blend), "{shipped} {mush} {blend}");
 }

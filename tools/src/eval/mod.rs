@@ -408,23 +408,22 @@ fn mush_line(m: &mush::Mush) -> String {
         let e = 100.0 * score.sqrt();
         format!("{e:.2} ± {:.2}", 50.0 * se / score.sqrt().max(1e-300))
     };
-    if m.scores.is_empty() && m.chosen {
+    if m.scores.is_empty() && m.chosen == "delta-mush" {
         s += &format!(
             "delta-mush proxies (K = {}, {:.1} bones per proxy): the runtime model, as asked (--reduction delta-mush; the joint-blend model above is trained for comparison)\n",
             m.influences, m.mean_bones,
         );
     }
-    if let [runtime, proxies] = m.scores[..] {
-        let verdict = match m.chosen {
-            true => "delta-mush proxies",
-            false => "the runtime model",
-        };
+    if let [joint_blend, proxies, both] = m.scores[..] {
         s += &format!(
-            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the runtime model (cross-validation on the training poses, held-out pose EE %): runtime {}, delta-mush {}: {verdict} kept\n",
+            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the joint-blend model (cross-validation on the training poses, held-out pose EE %): joint-blend {}, delta-mush {}, both in one palette {} (to win by {:.0} %): {} kept\n",
             m.influences,
             m.mean_bones,
-            ee(runtime),
+            ee(joint_blend),
             ee(proxies),
+            ee(both),
+            100.0 * crate::train::delta_mush::BOTH_MARGIN,
+            m.chosen,
         );
     }
     s
@@ -563,9 +562,11 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     if options.learning_curve && options.model.is_none() && options.train.proxies > 0 {
         let start = std::time::Instant::now();
         // The curve retrains the kind of model that ships: delta-mush proxies are offered
-        // again only where they were kept (each offer costs a merging and a cross-validation).
+        // again only where they were kept, alone or with the joint-blend model's (each offer
+        // costs a merging and a cross-validation).
         let kind = TrainOptions {
-            delta_mush: (trained.delta_mush.as_ref()).is_some_and(|m| m.chosen),
+            delta_mush: (trained.delta_mush.as_ref())
+                .is_some_and(|m| !matches!(m.choice, crate::train::delta_mush::Choice::JointBlend)),
             ..options.train.clone()
         };
         report.learning_curve = learning_curve::measure(set, &trained.rigid, &kind)?;

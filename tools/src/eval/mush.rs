@@ -15,11 +15,12 @@ pub struct Mush {
     /// The smoothing of the proxies' Ω: DDM's p and α, or p = 0 (none).
     pub smoothing: crate::skinning::ddm::Params,
     pub errors: Errors,
-    /// (score, standard error) of the runtime model's joint-blend structure, then of the
-    /// delta-mush proxies; empty with too few poses, or with `--reduction delta-mush`.
+    /// (score, standard error) of the runtime model's joint-blend structure, the delta-mush
+    /// proxies alone, then both in one palette; empty with too few poses, or with
+    /// `--reduction delta-mush`.
     pub scores: Vec<(f64, f64)>,
-    /// Whether the cross-validation kept the delta-mush proxies: the runtime model is theirs.
-    pub chosen: bool,
+    /// What the runtime model is ([`crate::train::delta_mush::Choice::name`]).
+    pub chosen: &'static str,
 }
 
 impl Mush {
@@ -32,7 +33,7 @@ impl Mush {
             smoothing: fit.proxy_params,
             errors,
             scores: fit.scores.clone(),
-            chosen: fit.chosen,
+            chosen: fit.choice.name(),
         }
     }
 }

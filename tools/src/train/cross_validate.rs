@@ -83,6 +83,23 @@ pub type Score = (f64, f64);
 pub struct Validated {
     pub scores: Vec<Score>,
     pub chosen: usize,
+    /// Candidates x training poses (list order): each held-out pose's relative error.
+    pub relative: Vec<Vec<f64>>,
+}
+
+impl Validated {
+    /// The rule again over the first `n` candidates alone, with `tolerance`: the choice had the
+    /// later ones not been offered (a costlier candidate that did not win by its margin).
+    pub fn among_first(&self, n: usize, tolerance: f64) -> Validated {
+        let relative = self.relative[..n].to_vec();
+        let scores = scores(&relative);
+        let chosen = first_within(&scores, tolerance);
+        Validated {
+            scores,
+            chosen,
+            relative,
+        }
+    }
 }
 
 /// Cross-validates `candidates` candidates, listed most robust first, over `folds`.
@@ -146,7 +163,11 @@ where
     }
     let scores = scores(&relative);
     let chosen = first_within(&scores, tolerance);
-    Ok(Validated { scores, chosen })
+    Ok(Validated {
+        scores,
+        chosen,
+        relative,
+    })
 }
 
 /// Per candidate (rows of `relative`: its per-pose relative errors, every row over the same

@@ -1,14 +1,16 @@
-//! Delta-mush proxies as the runtime model (beyond the paper; docs/method.md §23): fitted to the
-//! training poses ([`crate::train::reduce::mush`]) and kept in place of the joint-blend model
-//! where the k-fold cross-validation over the training poses prefers them (§18's folds,
-//! pose-relative score and one-standard-error rule with its tolerance, the joint-blend
-//! structure first, so that it stays unless the delta-mush proxies win clearly).
+//! Delta-mush proxies in the runtime model (beyond the paper; docs/method.md §23): fitted to the
+//! training poses ([`crate::train::reduce::mush`]), alone or after the joint-blend model's
+//! proxies in one palette ([`join`]), and kept in place of the joint-blend model where the
+//! k-fold cross-validation over the training poses prefers them (§18's folds, pose-relative
+//! score and one-standard-error rule with its tolerance; the joint-blend structure first, then
+//! the delta-mush proxies alone, then both, so that the simpler stays unless the richer wins
+//! clearly).
 //!
 //! Direct Delta Mush's smoothing (p, α) is chosen on all training poses, with SSD's weights
 //! ([`ddm::choose`]); the proxies' groups are merged once, on all training poses, and fixed
 //! inside the folds, as the joint-blend model's ridges are there (the merging is most of the
 //! cost); SSD, Ω and the weights are fitted per fold. The joint-blend side of each fold is its
-//! structure as chosen, without proxy correctives: both sides are compared as fitted to the
+//! structure as chosen, without proxy correctives: every side is compared as fitted to the
 //! poses, before anything corrects them.
 
 use crate::set::ExampleSet;
@@ -16,11 +18,19 @@ use crate::skinning::ddm::{self, Ddm};
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::{rigid_errors, Skinning};
 use crate::train::cross_validate::{try_cross_validate, Folds};
-use crate::train::reduce::mush::{Groups, MushProxies};
+use crate::train::reduce::c1c2::Reduced;
+use crate::train::reduce::mush::{join, Groups, MushProxies};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
 use crate::train::{pose_scale, ssd, Method, TrainError, TrainOptions};
 use glam::DVec3;
+
+/// By how much of the better EE alone both kinds in one palette must win on the training
+/// folds: they add P delta-mush keys to the joint-blend model's, about doubling the product's
+/// work (CesiumMan on lavapipe, 256 characters: paired RR / SSD 1.09 → 1.4–1.5; on a GPU the
+/// product is a smaller share of the frame). The margin is a run-time cost policy, not a fit:
+/// the joint-blend ladder asks 3 % ([`TOLERANCE`]) for 1.5 times the proxies.
+pub const BOTH_MARGIN: f64 = 0.10;
 
 /// What the stage fitted and chose.
 pub struct Fit {
@@ -34,12 +44,33 @@ pub struct Fit {
     /// The delta-mush proxies fitted to all training poses (P and K of the runtime model).
     pub proxies: MushProxies,
     pub influences: usize,
-    /// (score, standard error) of the joint-blend structure, then of the delta-mush proxies;
-    /// empty with fewer training poses than folds (then the joint-blend model stays) or with
-    /// [`Method::DeltaMush`] (then they are kept unasked).
+    /// (score, standard error) of the joint-blend structure, the delta-mush proxies, then
+    /// both; empty with fewer training poses than folds (then the joint-blend model stays) or
+    /// with [`Method::DeltaMush`] (then the proxies are kept alone unasked).
     pub scores: Vec<(f64, f64)>,
-    /// Whether the cross-validation keeps the delta-mush proxies: the runtime model is theirs.
-    pub chosen: bool,
+    /// What the runtime model is.
+    pub choice: Choice,
+}
+
+/// The runtime model the cross-validation keeps.
+pub enum Choice {
+    /// The joint-blend model (the structure stage's).
+    JointBlend,
+    /// The delta-mush proxies alone ([`Fit::proxies`]).
+    DeltaMush,
+    /// Both kinds in one palette ([`join`]), fitted to all training poses.
+    Both(Reduced),
+}
+
+impl Choice {
+    /// As `rrskin eval --json` names it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Choice::JointBlend => "joint-blend",
+            Choice::DeltaMush => "delta-mush",
+            Choice::Both(_) => "both",
+        }
+    }
 }
 
 impl Fit {
@@ -63,11 +94,13 @@ pub struct Inputs<'a> {
     pub ssd: &'a Skinning,
     pub chosen: &'a Chosen,
     pub joint_blend: &'a JointBlendFit,
+    /// The joint-blend model of `chosen`, fitted to all training poses.
+    pub reduced: &'a Reduced,
 }
 
-/// Fits delta-mush proxies of P = `options.proxies` and K = `options.influences` to the training poses
-/// and cross-validates them against the chosen joint-blend structure (kept without asking with
-/// [`Method::DeltaMush`]).
+/// Fits delta-mush proxies of P = `options.proxies` and K = `options.influences` to the
+/// training poses and cross-validates them, alone and after the joint-blend model's, against the
+/// chosen joint-blend structure (kept alone without asking with [`Method::DeltaMush`]).
 pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let smoothing = |e: crate::Error| TrainError::Smoothing {
@@ -105,10 +138,10 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
         proxies: fitted,
         influences: k,
         scores: Vec::new(),
-        chosen: false,
+        choice: Choice::JointBlend,
     };
     if options.method == Method::DeltaMush {
-        out.chosen = true;
+        out.choice = Choice::DeltaMush;
         return Ok(out);
     }
     let Some(split) = Folds::new(train.len(), options.folds) else {
@@ -116,7 +149,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
     };
     let (structure, ridges) = (inputs.chosen.structure, inputs.joint_blend.ridges());
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
-    let validated = try_cross_validate(&split, &normaliser, 2, TOLERANCE, |fold| {
+    let validated = try_cross_validate(&split, &normaliser, 3, TOLERANCE, |fold| {
         let (_, held) = fold.poses(train);
         let inner_set = set.holding_out(&held);
         let inner = inner_set.train();
@@ -133,6 +166,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
         );
         let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, &proxy_params)?;
         let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, &groups, k);
+        let both = join(&reduced, &mush, &inner_set, &inner, inputs.feats, k);
         let held_error = |predict: &dyn Fn(usize) -> Vec<DVec3>| -> Vec<f64> {
             (held.iter())
                 .map(|&i| squared_error(set, &[i], &[predict(i)]))
@@ -141,10 +175,28 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
         Ok::<_, crate::Error>(vec![
             held_error(&|i| reduced.predict(set, &inputs.feats[i], &set.poses[i].bones)),
             held_error(&|i| mush.deform(&set.rest, &set.poses[i].bones)),
+            held_error(&|i| both.predict(set, &inputs.feats[i], &set.poses[i].bones)),
         ])
     })
     .map_err(smoothing)?;
-    out.scores = validated.scores;
-    out.chosen = validated.chosen == 1;
+    out.scores = validated.scores.clone();
+    let best_alone = validated.scores[..2].iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+    let both_wins = validated.scores[2].0 * (1.0 + BOTH_MARGIN).powi(2) <= best_alone;
+    let chosen = match validated.chosen == 2 && !both_wins {
+        true => validated.among_first(2, TOLERANCE).chosen,
+        false => validated.chosen,
+    };
+    out.choice = match chosen {
+        0 => Choice::JointBlend,
+        1 => Choice::DeltaMush,
+        _ => Choice::Both(join(
+            inputs.reduced,
+            &out.proxies,
+            set,
+            train,
+            inputs.feats,
+            k,
+        )),
+    };
     Ok(out)
 }

@@ -44,6 +44,7 @@ pub mod structure;
 use crate::progress::Progress;
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
+use delta_mush::Choice;
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use rotreg::PoseFeatures;
@@ -420,20 +421,22 @@ impl Stages<'_> {
     ) -> Result<Runtime, TrainError> {
         let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock);
         let delta_mush = match &joint_blend {
-            Some(fit) => self.fit_delta_mush(&chosen, fit, clock)?,
+            Some(fit) => self.fit_delta_mush(&chosen, fit, &reduced, clock)?,
             None => None,
         };
-        let (model, proxy_correctives) = match delta_mush.as_ref().filter(|m| m.chosen) {
-            // Nothing corrects delta-mush proxies: their fit is the rig's smoothing.
-            Some(m) => (
-                m.proxies
-                    .to_runtime(self.set, m.influences, &self.ssd.influences)?,
-                None,
-            ),
-            None => {
-                let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
-                self.add_proxy_correctives(&reduced, model, clock)?
+        let (reduced, correctable) = match delta_mush.as_ref().map(|m| (m, &m.choice)) {
+            // Nothing corrects delta-mush proxies alone: their fit is the rig's smoothing.
+            Some((m, Choice::DeltaMush)) => {
+                let bones = self.set.bone_count();
+                (m.proxies.reduced(bones, &self.ssd.influences), false)
             }
+            Some((_, Choice::Both(both))) => (both.clone(), true),
+            _ => (reduced, true),
+        };
+        let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
+        let (model, proxy_correctives) = match correctable {
+            true => self.add_proxy_correctives(&reduced, model, clock)?,
+            false => (model, None),
         };
         let (model, correctives) = self.add_correctives(model, clock)?;
         Ok(Runtime {
@@ -453,6 +456,7 @@ impl Stages<'_> {
         &self,
         chosen: &structure::Chosen,
         joint_blend: &structure::JointBlendFit,
+        reduced: &Reduced,
         clock: &mut Clock,
     ) -> Result<Option<delta_mush::Fit>, TrainError> {
         if !self.options.offers_delta_mush() {
@@ -467,6 +471,7 @@ impl Stages<'_> {
             ssd: self.ssd,
             chosen,
             joint_blend,
+            reduced,
         };
         let fit = delta_mush::fit(&inputs, self.options)?;
         clock.lap("delta-mush proxies");

@@ -17,6 +17,7 @@
 
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet, Pose};
+use crate::skinning::ddm::Ddm;
 use crate::skinning::lbs::Skinning;
 use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
@@ -34,7 +35,10 @@ pub struct Reduced {
     pub c1: Vec<f64>,
     /// 4P x 4J, row-major.
     pub c2: Vec<f64>,
+    /// The keys, as the runtime orders them (P in all): the predictors' (paper §3), then the
+    /// delta-mush keys' (docs/method.md §23), Direct Delta Mush's Ω of their groups.
     pub predictors: Vec<TrainedPredictor>,
+    pub mush: Option<Ddm>,
     /// Per vertex: (palette entry, weight); entries < P are proxies, P + b bone b.
     pub skin: Vec<Vec<(usize, f64)>>,
     /// Per vertex: SSD's (bone, weight), the baseline the runtime model carries.
@@ -73,6 +77,7 @@ pub fn assemble(
         c1,
         c2,
         predictors,
+        mush: None,
         skin,
         baseline: ssd.influences.clone(),
     }
@@ -279,9 +284,12 @@ impl Reduced {
         f: &PoseFeatures,
         bones: &[Affine],
     ) -> Vec<Affine> {
-        let d: Vec<DMat3> = (self.predictors.iter())
+        let mut d: Vec<DMat3> = (self.predictors.iter())
             .map(|k| k.predict(f, &set.parents))
             .collect();
+        if let Some(mush) = &self.mush {
+            d.extend(mush.motions(bones).into_iter().map(|m| m.q));
+        }
         self.proxy_transforms(&d, bones)
     }
 
@@ -430,8 +438,36 @@ impl Reduced {
             predictors,
             c1: self.c1.iter().map(|&x| x as f32).collect(),
             c2: self.c2.iter().map(|&x| x as f32).collect(),
+            mush_keys: self.mush.as_ref().map(mush_keys),
             ..runtime_parts(set, influences, &self.skin, &self.baseline)
         })
+    }
+}
+
+/// The runtime's delta-mush keys of the groups of `mush` ([`Ddm::linear_fit`]); a group
+/// without weight keeps one zero term, whose rotation fit is the identity (as
+/// [`Ddm::motions`] leaves it).
+fn mush_keys(mush: &Ddm) -> rrskin::MushKeys {
+    let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
+    for g in 0..mush.entries() {
+        match mush.linear_fit(g) {
+            Some(fit) => {
+                for (b, a, _) in &fit.terms {
+                    bones.push(*b as u32);
+                    terms.push(std::array::from_fn(|i| a[i / 3][i % 3] as f32));
+                }
+            }
+            None => {
+                bones.push(0);
+                terms.push([0.0; 12]);
+            }
+        }
+        offsets.push(bones.len() as u32);
+    }
+    rrskin::MushKeys {
+        offsets,
+        bones,
+        terms,
     }
 }
 

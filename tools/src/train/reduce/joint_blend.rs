@@ -290,6 +290,7 @@ fn assemble(
         c1,
         c2,
         predictors,
+        mush: None,
         skin,
         baseline: ssd.influences.clone(),
     }

@@ -27,8 +27,9 @@
 
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::ddm::Ddm;
-use crate::train::reduce::c1c2::runtime_parts;
+use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::vertex::{merge_groups, Stop};
+use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::fit_weights_best_subset;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -92,9 +93,7 @@ impl MushProxies {
         let weights = (0..set.vertex_count())
             .into_par_iter()
             .map(|a| {
-                let mut candidates: Vec<usize> = (shares[a].iter())
-                    .flat_map(|&(g, _)| std::iter::once(g).chain(adjacency[g].iter().copied()))
-                    .collect();
+                let mut candidates: Vec<usize> = groups_near(shares, adjacency, a).collect();
                 candidates.extend(bones[a].iter().map(|&(b, _)| p + b));
                 candidates.sort_unstable();
                 candidates.dedup();
@@ -109,50 +108,20 @@ impl MushProxies {
         }
     }
 
-    /// The runtime model (f32) of these proxies, K = `influences`, with SSD's (bone, weight)
-    /// lists `baseline` as its baseline: P delta-mush keys ([`rrskin::MushKeys`]), proxy g's
-    /// transform `T_g = [D_g | Σ_j M_j ω_j − D_g p_g]` ([`Ddm::linear_fit`]) through C1 (its
-    /// key's D, and −p) and C2 (the ω_j), in docs/method.md §8's index convention.
-    pub fn to_runtime(
-        &self,
-        set: &ExampleSet,
-        influences: usize,
-        baseline: &[Vec<(usize, f64)>],
-    ) -> rrskin::Result<rrskin::Model> {
-        let (p, j) = (self.proxies.entries(), set.bone_count());
-        let (mut c1, mut c2) = (vec![0.0f32; 12 * p * p], vec![0.0f32; 16 * p * j]);
-        let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
-        for g in 0..p {
-            (0..3).for_each(|k| c1[(4 * g + k) * 3 * p + 3 * g + k] = 1.0);
-            let Some(fit) = self.proxies.linear_fit(g) else {
-                // No weight: at rest, as `Ddm::motions` leaves it (D = polar(0) = I).
-                bones.push(0);
-                terms.push([0.0; 12]);
-                offsets.push(bones.len() as u32);
-                continue;
-            };
-            for (b, a, omega) in &fit.terms {
-                bones.push(*b as u32);
-                terms.push(std::array::from_fn(|i| a[i / 3][i % 3] as f32));
-                for (m, w) in omega.iter().enumerate() {
-                    c2[(4 * g + 3) * 4 * j + 4 * b + m] = *w as f32;
-                }
-            }
-            for k in 0..3 {
-                c1[(4 * g + 3) * 3 * p + 3 * g + k] = -fit.centre[k] as f32;
-            }
-            offsets.push(bones.len() as u32);
-        }
-        rrskin::Model::new(rrskin::ModelParts {
+    /// These proxies as a reduced model of P delta-mush keys and no predictor, over J =
+    /// `bones`, with SSD's (bone, weight) lists `baseline` as its baseline ([`key_rows`]).
+    pub fn reduced(&self, bones: usize, baseline: &[Vec<(usize, f64)>]) -> Reduced {
+        let (c1, c2) = key_rows(&self.proxies, bones);
+        Reduced {
+            proxies: self.proxies.entries(),
+            bones,
             c1,
             c2,
-            mush_keys: Some(rrskin::MushKeys {
-                offsets,
-                bones,
-                terms,
-            }),
-            ..runtime_parts(set, influences, &self.weights, baseline)
-        })
+            predictors: Vec::new(),
+            mush: Some(self.proxies.clone()),
+            skin: self.weights.clone(),
+            baseline: baseline.to_vec(),
+        }
     }
 
     /// The mesh (V) under `bones` (J).
@@ -164,6 +133,99 @@ impl MushProxies {
                 false => w.iter().map(|&(g, s)| motions[g].apply(x) * s).sum(),
             })
             .collect()
+    }
+}
+
+/// Vertex a's candidate groups: those of its triangles and their neighbours (with repeats).
+fn groups_near<'a>(
+    shares: &'a [Vec<(usize, f64)>],
+    adjacency: &'a [Vec<usize>],
+    a: usize,
+) -> impl Iterator<Item = usize> + 'a {
+    (shares[a].iter()).flat_map(|&(g, _)| std::iter::once(g).chain(adjacency[g].iter().copied()))
+}
+
+/// C1 (4P x 3P) and C2 (4P x 4J, J = `bones`), row-major, of P delta-mush keys' proxies in
+/// docs/method.md §8's index convention: proxy g's transform `T_g = [D_g | Σ_j M_j ω_j − D_g
+/// p_g]` ([`Ddm::linear_fit`]) takes its key's D through C1 (and −p, its last row) and the
+/// ω_j through C2. A group without weight stays at rest (its D is the identity).
+fn key_rows(keys: &Ddm, bones: usize) -> (Vec<f64>, Vec<f64>) {
+    let (p, j) = (keys.entries(), bones);
+    let (mut c1, mut c2) = (vec![0.0; 12 * p * p], vec![0.0; 16 * p * j]);
+    for g in 0..p {
+        (0..3).for_each(|k| c1[(4 * g + k) * 3 * p + 3 * g + k] = 1.0);
+        let Some(fit) = keys.linear_fit(g) else {
+            continue;
+        };
+        for (b, _, omega) in &fit.terms {
+            for (m, w) in omega.iter().enumerate() {
+                c2[(4 * g + 3) * 4 * j + 4 * b + m] = *w;
+            }
+        }
+        for k in 0..3 {
+            c1[(4 * g + 3) * 3 * p + 3 * g + k] = -fit.centre[k];
+        }
+    }
+    (c1, c2)
+}
+
+/// Both kinds of proxy in one palette (docs/method.md §23): `base`'s (its predictors' keys,
+/// no delta-mush key), then `mush`'s; each vertex's K = `influences` weights refitted on the
+/// poses `train` of `set` (`feats`: every pose's features), by NNLS as [`MushProxies::fit`]'s,
+/// over its entries in either palette and its SSD bones (each kind's own best K, so at most
+/// 2K + K candidates).
+pub fn join(
+    base: &Reduced,
+    mush: &MushProxies,
+    set: &ExampleSet,
+    train: &[usize],
+    feats: &[PoseFeatures],
+    influences: usize,
+) -> Reduced {
+    let (p1, p2, j) = (base.proxies, mush.proxies.entries(), set.bone_count());
+    let p = p1 + p2;
+    let (mush_c1, mush_c2) = key_rows(&mush.proxies, j);
+    let mut c1 = vec![0.0; 12 * p * p];
+    for r in 0..4 * p1 {
+        c1[r * 3 * p..r * 3 * p + 3 * p1].copy_from_slice(&base.c1[r * 3 * p1..(r + 1) * 3 * p1]);
+    }
+    for r in 0..4 * p2 {
+        let row = (4 * p1 + r) * 3 * p + 3 * p1;
+        c1[row..row + 3 * p2].copy_from_slice(&mush_c1[r * 3 * p2..(r + 1) * 3 * p2]);
+    }
+    let palettes: Vec<Vec<Affine>> = (train.iter())
+        .map(|&i| {
+            let bones = &set.poses[i].bones;
+            let mut out = base.predict_proxies(set, &feats[i], bones);
+            out.extend(palette(&mush.proxies, bones));
+            out
+        })
+        .collect();
+    let skin = (0..set.vertex_count())
+        .into_par_iter()
+        .map(|a| {
+            let mut candidates: Vec<usize> = (base.skin[a].iter())
+                .map(|&(e, _)| if e < p1 { e } else { e + p2 })
+                // Group g is entry P1 + g, bone P2 + b (in the delta-mush palette) P + b.
+                .chain(mush.weights[a].iter().map(|&(e, _)| p1 + e))
+                .chain(base.baseline[a].iter().map(|&(b, _)| p + b))
+                .collect();
+            candidates.sort_unstable();
+            candidates.dedup();
+            let moved = |n: usize, e: usize| palettes[n][e].apply(set.rest[a]);
+            let target = |n: usize| set.poses[train[n]].vertices[a];
+            fit_weights_best_subset(train.len(), &candidates, influences, moved, target)
+        })
+        .collect();
+    Reduced {
+        proxies: p,
+        bones: j,
+        c1,
+        c2: [base.c2.as_slice(), &mush_c2].concat(),
+        predictors: base.predictors.clone(),
+        mush: Some(mush.proxies.clone()),
+        skin,
+        baseline: base.baseline.clone(),
     }
 }
 
@@ -259,8 +321,8 @@ mod tests {
     #[test]
     fn the_runtime_model_moves_the_mesh_as_the_proxies_do() {
         let (set, skin, mush) = fitted(4, 8, 4);
-        let model = mush
-            .to_runtime(&set, 4, &skin.influences)
+        let model = (mush.reduced(4, &skin.influences))
+            .to_runtime(&set, 4)
             .expect("a valid model");
         assert_eq!(model.mush_keys().map(|k| k.count()), Some(8));
         let mut cpu = rrskin::cpu::CpuEvaluator::new(&model);
