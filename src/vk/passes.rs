@@ -101,7 +101,11 @@ impl Pass {
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
     corrected_model_kinds().flat_map(|d| {
-        let mush: &[bool] = if d.proxies > 0 { &[false, true] } else { &[false] };
+        let mush: &[bool] = if d.proxies > 0 {
+            &[false, true]
+        } else {
+            &[false]
+        };
         mush.iter().map(move |&mush| Dims { mush, ..d })
     })
 }
@@ -769,7 +773,10 @@ mod tests {
         // Delta-mush keys: the predictors' other build, the same bindings.
         for d in [separate, proxy_corrected] {
             let mush = Dims { mush: true, ..d };
-            assert_eq!(Pass::descriptors_per_chunk(&mush), Pass::descriptors_per_chunk(&d));
+            assert_eq!(
+                Pass::descriptors_per_chunk(&mush),
+                Pass::descriptors_per_chunk(&d)
+            );
             let runs = |d: &Dims, p: Pass| Pass::of_model(d).any(|q| q == p);
             let (plain, with_mush) = match d.fused {
                 false => (Pass::Predict, Pass::PredictMush),

@@ -129,7 +129,10 @@ fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
         joint_blend_error(&set, &test, &trained.rigid),
     );
     eprintln!("held out EE: shipped {mush:.2}, joint-blend {blend:.2}");
-    assert!(mush < blend, "held out: shipped {mush}, joint-blend {blend}");
+    assert!(
+        mush < blend,
+        "held out: shipped {mush}, joint-blend {blend}"
+    );
 }
 
 #[test]

@@ -21,7 +21,8 @@ pub struct TrainArgs {
     pub influences: usize,
     /// How the runtime model is made: joint-blend proxies, as many as cross-validation over the
     /// training poses chooses (auto, the default: a sixth or a third of P, P, or 1.5 P; or P
-    /// delta-mush proxies where the cross-validation prefers them), joint-blend proxies with P,
+    /// delta-mush proxies, alone or after the joint-blend ones, where the cross-validation
+    /// prefers them), joint-blend proxies with P (or P delta-mush proxies alone where preferred),
     /// the paper's reduction of the full model, or P delta-mush proxies whatever the
     /// cross-validation says.
     #[arg(long, value_enum, default_value_t = Reduction::Auto)]

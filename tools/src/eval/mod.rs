@@ -414,15 +414,17 @@ fn mush_line(m: &mush::Mush) -> String {
             m.influences, m.mean_bones,
         );
     }
-    if let [joint_blend, proxies, both] = m.scores[..] {
+    if let [joint_blend, proxies, ref both @ ..] = m.scores[..] {
+        let both = both.first().map_or(String::new(), |&b| {
+            let margin = 100.0 * crate::train::delta_mush::BOTH_MARGIN;
+            format!(", both in one palette {} (to win by {margin:.0} %)", ee(b))
+        });
         s += &format!(
-            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the joint-blend model (cross-validation on the training poses, held-out pose EE %): joint-blend {}, delta-mush {}, both in one palette {} (to win by {:.0} %): {} kept\n",
+            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the joint-blend model (cross-validation on the training poses, held-out pose EE %): joint-blend {}, delta-mush {}{both}: {} kept\n",
             m.influences,
             m.mean_bones,
             ee(joint_blend),
             ee(proxies),
-            ee(both),
-            100.0 * crate::train::delta_mush::BOTH_MARGIN,
             m.chosen,
         );
     }

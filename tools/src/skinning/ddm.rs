@@ -95,6 +95,17 @@ impl Ddm {
         bones: usize,
         params: &Params,
     ) -> Result<Ddm> {
+        // Without a step, no step's factorisation either (λ = κ = 0 make the identity).
+        let unsmoothed = Params {
+            lambda: 0.0,
+            kappa: 0.0,
+            ..*params
+        };
+        let params = if params.iterations == 0 {
+            &unsmoothed
+        } else {
+            params
+        };
         let mut smoothing = Smoothed::new(rest, faces, influences, bones, params)?;
         for _ in 0..params.iterations {
             smoothing.step();

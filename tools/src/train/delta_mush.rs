@@ -17,7 +17,7 @@ use crate::set::ExampleSet;
 use crate::skinning::ddm::{self, Ddm};
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::{rigid_errors, Skinning};
-use crate::train::cross_validate::{try_cross_validate, Folds};
+use crate::train::cross_validate::{try_cross_validate, Folds, Validated};
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::mush::{join, Groups, MushProxies};
 use crate::train::rotreg::PoseFeatures;
@@ -147,9 +147,43 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
     let Some(split) = Folds::new(train.len(), options.folds) else {
         return Ok(out);
     };
+    // Both kinds add P proxies to the joint-blend model's: where P is asked for
+    // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
+    let offers_both = options.method == Method::Auto;
+    let validated = cross_validate(inputs, options, &split, &groups, &proxy_params, offers_both)
+        .map_err(smoothing)?;
+    out.scores = validated.scores.clone();
+    out.choice = match kept(&validated) {
+        0 => Choice::JointBlend,
+        1 => Choice::DeltaMush,
+        _ => Choice::Both(join(
+            inputs.reduced,
+            &out.proxies,
+            set,
+            train,
+            inputs.feats,
+            k,
+        )),
+    };
+    Ok(out)
+}
+
+/// The candidates' scores over the folds of `split`: the chosen joint-blend structure, the
+/// delta-mush proxies of `groups` with Ω of smoothing `params`, and, if `offers_both`, both in
+/// one palette.
+fn cross_validate(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    split: &Folds,
+    groups: &Groups,
+    params: &ddm::Params,
+    offers_both: bool,
+) -> crate::Result<Validated> {
+    let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let (structure, ridges) = (inputs.chosen.structure, inputs.joint_blend.ridges());
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
-    let validated = try_cross_validate(&split, &normaliser, 3, TOLERANCE, |fold| {
+    let candidates = 2 + usize::from(offers_both);
+    try_cross_validate(split, &normaliser, candidates, TOLERANCE, |fold| {
         let (_, held) = fold.poses(train);
         let inner_set = set.holding_out(&held);
         let inner = inner_set.train();
@@ -164,39 +198,36 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
             options,
             Some(ridges),
         );
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, &proxy_params)?;
-        let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, &groups, k);
-        let both = join(&reduced, &mush, &inner_set, &inner, inputs.feats, k);
+        let bones = set.bone_count();
+        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, params)?;
+        let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, groups, k);
         let held_error = |predict: &dyn Fn(usize) -> Vec<DVec3>| -> Vec<f64> {
             (held.iter())
                 .map(|&i| squared_error(set, &[i], &[predict(i)]))
                 .collect()
         };
-        Ok::<_, crate::Error>(vec![
+        let mut rows = vec![
             held_error(&|i| reduced.predict(set, &inputs.feats[i], &set.poses[i].bones)),
             held_error(&|i| mush.deform(&set.rest, &set.poses[i].bones)),
-            held_error(&|i| both.predict(set, &inputs.feats[i], &set.poses[i].bones)),
-        ])
+        ];
+        if offers_both {
+            let both = join(&reduced, &mush, &inner_set, &inner, inputs.feats, k);
+            rows.push(held_error(&|i| {
+                both.predict(set, &inputs.feats[i], &set.poses[i].bones)
+            }));
+        }
+        Ok(rows)
     })
-    .map_err(smoothing)?;
-    out.scores = validated.scores.clone();
-    let best_alone = validated.scores[..2].iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
-    let both_wins = validated.scores[2].0 * (1.0 + BOTH_MARGIN).powi(2) <= best_alone;
-    let chosen = match validated.chosen == 2 && !both_wins {
-        true => validated.among_first(2, TOLERANCE).chosen,
-        false => validated.chosen,
-    };
-    out.choice = match chosen {
-        0 => Choice::JointBlend,
-        1 => Choice::DeltaMush,
-        _ => Choice::Both(join(
-            inputs.reduced,
-            &out.proxies,
-            set,
-            train,
-            inputs.feats,
-            k,
-        )),
-    };
-    Ok(out)
+}
+
+/// The candidate kept: the rule's, but both kinds only where they beat the better kind alone
+/// by [`BOTH_MARGIN`] (else the rule again over the two alone).
+fn kept(validated: &Validated) -> usize {
+    let alone = &validated.scores[..2];
+    let best_alone = alone.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+    let clear = |both: f64| both * (1.0 + BOTH_MARGIN).powi(2) <= best_alone;
+    match validated.chosen {
+        2 if !clear(validated.scores[2].0) => validated.among_first(2, TOLERANCE).chosen,
+        chosen => chosen,
+    }
 }

@@ -19,7 +19,7 @@
 //! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //! | how many joint-blend proxies: chosen per set | [`structure`] | beyond the paper |
-//! | or delta-mush proxies, where cross-validation prefers them | [`delta_mush`], [`reduce::mush`] | beyond the paper |
+//! | or delta-mush proxies, alone or after the joint-blend ones, where cross-validation prefers them | [`delta_mush`], [`reduce::mush`] | beyond the paper |
 //! | pose-space correctives on the runtime model | [`corrective`] | §8 (suggested there) |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
@@ -206,7 +206,8 @@ pub struct Trained {
     pub ssd: Skinning,
     /// The full model, when asked for ([`TrainOptions::full_model`]) or needed.
     pub full: Option<Full>,
-    /// The reduced model in f64 and the runtime model (None when P = 0).
+    /// The reduced model in f64, the one that ships (joint-blend, delta-mush proxies or both;
+    /// None when P = 0).
     pub reduced: Option<Reduced>,
     /// What the joint-blend model's stretch fit and refit chose (None for the paper's
     /// reduction).
@@ -217,8 +218,8 @@ pub struct Trained {
     pub correctives: Option<corrective::Fit>,
     /// What the proxy corrective fit chose (None: not asked for, or no runtime model).
     pub proxy_correctives: Option<proxy_corrective::Fit>,
-    /// The delta-mush proxies and their cross-validation against the joint-blend model (None:
-    /// not asked for, or no joint-blend model to compare with).
+    /// The delta-mush proxies and their cross-validation against the joint-blend model and
+    /// both in one palette (None: not asked for, or no joint-blend model to compare with).
     pub delta_mush: Option<delta_mush::Fit>,
     pub model: Option<rrskin::Model>,
     /// Wall time per stage, in order.

@@ -1,7 +1,8 @@
 //! Delta-mush proxies (docs/method.md §23): P proxy bones whose transforms are Direct Delta
 //! Mush's rigid fits ([`crate::skinning::ddm`]) for whole groups of vertices, and K-influence
-//! palette skinning over them; the runtime model of the delta-mush keys ([`rrskin::MushKeys`],
-//! [`MushProxies::to_runtime`]) where [`crate::train::delta_mush`] keeps them.
+//! palette skinning over them; a reduced model of delta-mush keys ([`rrskin::MushKeys`],
+//! [`MushProxies::reduced`]), alone or after a joint-blend model's proxies ([`join`]), where
+//! [`crate::train::delta_mush`] keeps them.
 //!
 //! A smoothing rig (Blender's Corrective Smooth, Delta Mush) moves a vertex by a rigid fit of
 //! the bone motions of a whole neighbourhood of the mesh: on the Fox, about 11 bones reach each
