@@ -1,8 +1,11 @@
 // The rotation nearest to a 3x3 matrix A, the proper R maximising tr(R^T A) (Horn's quaternion
-// method by cyclic Jacobi sweeps): src/polar.rs line for line in f32, same sweeps and ties.
+// method by cyclic Jacobi sweeps from a guess): src/polar.rs in f32, same guess, sweeps and ties.
 // A and the result are row-major: a[3r + c] = A[r][c].
 
-const uint POLAR_SWEEPS = 5u;
+const uint POLAR_SWEEPS = 4u;
+// Below this sine of the angle between A's first two columns (or with either zero), the guess
+// is the identity.
+const float GUESS_SINE = 1e-4;
 
 // One Jacobi rotation of the symmetric 4x4 n (row-major) in the (p, q) plane, zeroing n[p][q]
 // (Numerical Recipes 11.1, t the smaller root), accumulated into the eigenvectors v.
@@ -43,7 +46,41 @@ void jacobi(inout float n[16], inout float v[16], uint p, uint q) {
     }
 }
 
-void nearest_rotation(float a[9], out float rot[9]) {
+// The guess G (row-major) of src/polar.rs: the Gram-Schmidt frame of A's first two columns,
+// the identity below GUESS_SINE. The sweeps then work on A' = G^T A, nearly symmetric wherever
+// A is nearly a rotation times a stretch, and the result is G R'.
+void guess(float a[9], out float g[9]) {
+    vec3 c0 = vec3(a[0], a[3], a[6]);
+    vec3 c1 = vec3(a[1], a[4], a[7]);
+    vec3 x = vec3(c0.y * c1.z - c0.z * c1.y, c0.z * c1.x - c0.x * c1.z, c0.x * c1.y - c0.y * c1.x);
+    float l0 = sqrt(dot(c0, c0));
+    float l1 = sqrt(dot(c1, c1));
+    float lx = sqrt(dot(x, x));
+    vec3 g0 = vec3(1.0, 0.0, 0.0);
+    vec3 g1 = vec3(0.0, 1.0, 0.0);
+    vec3 g2 = vec3(0.0, 0.0, 1.0);
+    if (lx > GUESS_SINE * l0 * l1) {
+        g0 = c0 / l0;
+        g2 = x / lx;
+        g1 = vec3(g2.y * g0.z - g2.z * g0.y, g2.z * g0.x - g2.x * g0.z, g2.x * g0.y - g2.y * g0.x);
+    }
+    g[0] = g0.x; g[1] = g1.x; g[2] = g2.x;
+    g[3] = g0.y; g[4] = g1.y; g[5] = g2.y;
+    g[6] = g0.z; g[7] = g1.z; g[8] = g2.z;
+}
+
+void nearest_rotation(float a_in[9], out float rot[9]) {
+    float g[9];
+    guess(a_in, g);
+    // A' = G^T A, written out: a local array indexed in a loop costs CPU drivers a round trip
+    // through memory per lane.
+    mat3 gm = mat3(g[0], g[3], g[6], g[1], g[4], g[7], g[2], g[5], g[8]);   // columns
+    mat3 am = mat3(a_in[0], a_in[3], a_in[6], a_in[1], a_in[4], a_in[7], a_in[2], a_in[5], a_in[8]);
+    mat3 ap = transpose(gm) * am;
+    float a[9];
+    a[0] = ap[0][0]; a[1] = ap[1][0]; a[2] = ap[2][0];
+    a[3] = ap[0][1]; a[4] = ap[1][1]; a[5] = ap[2][1];
+    a[6] = ap[0][2]; a[7] = ap[1][2]; a[8] = ap[2][2];
     float n[16];
     n[0] = a[0] + a[4] + a[8];
     n[1] = a[7] - a[5];
@@ -94,13 +131,19 @@ void nearest_rotation(float a[9], out float rot[9]) {
     float y = e.z;
     float z = e.w;
     float s = 2.0 / (w * w + x * x + y * y + z * z);
-    rot[0] = 1.0 - s * (y * y + z * z);
-    rot[1] = s * (x * y - w * z);
-    rot[2] = s * (x * z + w * y);
-    rot[3] = s * (x * y + w * z);
-    rot[4] = 1.0 - s * (x * x + z * z);
-    rot[5] = s * (y * z - w * x);
-    rot[6] = s * (x * z - w * y);
-    rot[7] = s * (y * z + w * x);
-    rot[8] = 1.0 - s * (x * x + y * y);
+    float r[9];
+    r[0] = 1.0 - s * (y * y + z * z);
+    r[1] = s * (x * y - w * z);
+    r[2] = s * (x * z + w * y);
+    r[3] = s * (x * y + w * z);
+    r[4] = 1.0 - s * (x * x + z * z);
+    r[5] = s * (y * z - w * x);
+    r[6] = s * (x * z - w * y);
+    r[7] = s * (y * z + w * x);
+    r[8] = 1.0 - s * (x * x + y * y);
+    // R = G R'
+    mat3 rm = gm * mat3(r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8]);
+    rot[0] = rm[0][0]; rot[1] = rm[1][0]; rot[2] = rm[2][0];
+    rot[3] = rm[0][1]; rot[4] = rm[1][1]; rot[5] = rm[2][1];
+    rot[6] = rm[0][2]; rot[7] = rm[1][2]; rot[8] = rm[2][2];
 }

@@ -27,7 +27,7 @@ use glam::DVec3;
 
 /// By how much of the better EE alone both kinds in one palette must win on the training
 /// folds: they add P delta-mush keys to the joint-blend model's, each a rigid fit per character
-/// (cesium_cage on lavapipe, 256 characters: paired RR / SSD 1.09 → 1.48; unmeasured on a
+/// (cesium_cage on lavapipe, 256 characters: paired RR / SSD 1.12 → 1.44; unmeasured on a
 /// GPU). The margin is a run-time cost policy, not a fit: the joint-blend ladder asks 3 %
 /// ([`TOLERANCE`]) for 1.5 times the proxies.
 pub const BOTH_MARGIN: f64 = 0.10;
