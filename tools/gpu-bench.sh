@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # The GPU check (issue 16): the runtime on a real GPU against the CPU reference, and `rrskin
 # bench` at 1, 256, 4096 and 16384 characters on the CesiumMan and human_heavy models (and
-# CesiumMan with 32 pose-space correctives, and CesiumMan of delta-mush keys, for their cost on a
-# GPU), into one JSON file. The GPU machine has no network and maybe no Rust, so the work is in two steps:
+# CesiumMan with 32 pose-space correctives, CesiumMan of delta-mush keys, and CesiumMan of both
+# kinds of proxy in one palette, for their cost on a GPU), into one JSON file. The GPU machine has no network and maybe no Rust, so the work is in two steps:
 #
 #   tools/gpu-bench.sh prepare [DIR]     here (network, Rust): build, train, download, into DIR
 #   tools/gpu-bench.sh run [DIR] [OUT]   there, from the repository root: one run, a few minutes
 #
 # DIR (default target/gpu-bench, ~60 MiB, an ignored path: hand it to the device's `carry`)
-# holds release builds of `rrskin` and of the Vulkan test binaries, the four trained models and
+# holds release builds of `rrskin` and of the Vulkan test binaries, the five trained models and
 # the Debian packages of the Vulkan loader and the validation layer (docs/gpu-measurement.md:
 # unpacked with dpkg -x, then ldconfig). OUT defaults to $OUT/gpu-bench.json when
 # $OUT is set (the device's output folder), else DIR/gpu-bench.json. CHARACTERS (default
@@ -36,6 +36,7 @@ for line in sys.stdin:
     target/release/rrskin train data/human_heavy -o "$dir/human_heavy.rrs"
     target/release/rrskin train data/cesiumman --correctives 32 -o "$dir/cesiumman_correctives.rrs"
     target/release/rrskin train data/cesiumman --reduction delta-mush -o "$dir/cesiumman_mush.rrs"
+    target/release/rrskin train data/cesiumman --reduction both -o "$dir/cesiumman_both.rrs"
     (cd "$dir/debs" && apt-get download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 \
         libgles2 vulkan-validationlayers)
     du -sh "$dir"
@@ -59,7 +60,7 @@ run() {
         # The trained-file check (ignored by default) runs on every trained model.
         if ! "$t" --test-threads 1 >>"$log" 2>&1; then status=failed; fi
         if [[ $name == vulkan ]]; then
-            for m in cesiumman human_heavy cesiumman_correctives cesiumman_mush; do
+            for m in cesiumman human_heavy cesiumman_correctives cesiumman_mush cesiumman_both; do
                 RRSKIN_MODEL="$dir/$m.rrs" "$t" --ignored --test-threads 1 >>"$log" 2>&1 \
                     || status=failed
             done
@@ -67,7 +68,7 @@ run() {
         tests+=("\"$name\": \"$status\"")
     done
     local benches=()
-    for m in cesiumman human_heavy cesiumman_correctives cesiumman_mush; do
+    for m in cesiumman human_heavy cesiumman_correctives cesiumman_mush cesiumman_both; do
         for c in ${CHARACTERS:-1 256 4096 16384}; do
             local b
             b=$("$dir/bin/rrskin" bench "$dir/$m.rrs" --characters "$c" \

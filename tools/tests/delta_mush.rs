@@ -194,6 +194,29 @@ fn asked_for_delta_mush_proxies_are_kept_without_cross_validation() {
     }
 }
 
+/// `--reduction both`: the joint-blend proxies then the delta-mush proxies, unasked.
+#[test]
+fn asked_for_both_kinds_are_kept_without_cross_validation() {
+    let set = CHAIN.build().expect("a valid chain");
+    let asked = TrainOptions {
+        method: Method::Both,
+        ..options()
+    };
+    let trained = train::run(&set, &asked).expect("training");
+    let fit = (trained.delta_mush.as_ref()).expect("the delta-mush stage ran");
+    let Choice::Both(both) = &fit.choice else {
+        panic!("not both kinds");
+    };
+    assert!(fit.scores.is_empty() && !both.predictors.is_empty());
+    let model = trained.model.as_ref().expect("a runtime model");
+    let keys = model.mush_keys().expect("delta-mush keys");
+    assert_eq!(keys.count(), options().proxies);
+    assert_eq!(
+        model.proxy_count(),
+        both.predictors.len() + options().proxies
+    );
+}
+
 /// The chain smooths past its second joint only: each kind of proxy fits one part, and the runtime
 /// model holds both (the joint-blend model's keys, then the delta-mush keys), with proxy
 /// correctives; its CPU reference deforms as the trained model does in f64, and it beats

@@ -23,8 +23,8 @@ pub struct TrainArgs {
     /// training poses chooses (auto, the default: a sixth or a third of P, P, or 1.5 P; or P
     /// delta-mush proxies, alone or after the joint-blend ones, where the cross-validation
     /// prefers them), joint-blend proxies with P (or P delta-mush proxies alone where preferred),
-    /// the paper's reduction of the full model, or P delta-mush proxies whatever the
-    /// cross-validation says.
+    /// the paper's reduction of the full model, P delta-mush proxies whatever the
+    /// cross-validation says, or both: joint-blend proxies with P then P delta-mush proxies.
     #[arg(long, value_enum, default_value_t = Reduction::Auto)]
     pub reduction: Reduction,
     /// At most this many pose-space corrective targets on the runtime model (0: none; the
@@ -60,6 +60,7 @@ pub enum Reduction {
     JointBlend,
     Paper,
     DeltaMush,
+    Both,
 }
 
 impl TrainArgs {
@@ -78,6 +79,7 @@ impl TrainArgs {
                 Reduction::JointBlend => Method::JointBlend,
                 Reduction::Paper => Method::Paper,
                 Reduction::DeltaMush => Method::DeltaMush,
+                Reduction::Both => Method::Both,
             },
             gentle_scales: if self.no_gentle_poses {
                 Vec::new()

@@ -350,6 +350,7 @@ fn method_name(s: &Structure) -> &'static str {
         Method::Paper => "paper",
         Method::Auto => "auto",
         Method::DeltaMush => "delta_mush",
+        Method::Both => "both",
     }
 }
 
@@ -408,9 +409,14 @@ fn mush_line(m: &mush::Mush) -> String {
         let e = 100.0 * score.sqrt();
         format!("{e:.2} ± {:.2}", 50.0 * se / score.sqrt().max(1e-300))
     };
-    if m.scores.is_empty() && m.chosen == "delta-mush" {
+    let asked = match m.chosen {
+        "delta-mush" => "the runtime model, as asked (--reduction delta-mush; the joint-blend model above is trained for comparison)",
+        "both" => "after the joint-blend proxies, the runtime model, as asked (--reduction both)",
+        _ => "",
+    };
+    if m.scores.is_empty() && !asked.is_empty() {
         s += &format!(
-            "delta-mush proxies (K = {}, {:.1} bones per proxy): the runtime model, as asked (--reduction delta-mush; the joint-blend model above is trained for comparison)\n",
+            "delta-mush proxies (K = {}, {:.1} bones per proxy): {asked}\n",
             m.influences, m.mean_bones,
         );
     }

@@ -46,7 +46,7 @@ pub struct Fit {
     pub influences: usize,
     /// (score, standard error) of the joint-blend structure, the delta-mush proxies, then
     /// both; empty with fewer training poses than folds (then the joint-blend model stays) or
-    /// with [`Method::DeltaMush`] (then the proxies are kept alone unasked).
+    /// with [`Method::DeltaMush`] or [`Method::Both`] (then kept unasked).
     pub scores: Vec<(f64, f64)>,
     /// What the runtime model is.
     pub choice: Choice,
@@ -100,7 +100,8 @@ pub struct Inputs<'a> {
 
 /// Fits delta-mush proxies of P = `options.proxies` and K = `options.influences` to the
 /// training poses and cross-validates them, alone and after the joint-blend model's, against the
-/// chosen joint-blend structure (kept alone without asking with [`Method::DeltaMush`]).
+/// chosen joint-blend structure (kept without asking with [`Method::DeltaMush`], alone, and
+/// [`Method::Both`], after the joint-blend proxies).
 pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let smoothing = |e: crate::Error| TrainError::Smoothing {
@@ -140,8 +141,15 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
         scores: Vec::new(),
         choice: Choice::JointBlend,
     };
-    if options.method == Method::DeltaMush {
-        out.choice = Choice::DeltaMush;
+    match options.method {
+        Method::DeltaMush => out.choice = Choice::DeltaMush,
+        Method::Both => {
+            let both = join(inputs.reduced, &out.proxies, set, train, inputs.feats, k);
+            out.choice = Choice::Both(both);
+        }
+        _ => {}
+    }
+    if matches!(out.choice, Choice::DeltaMush | Choice::Both(_)) {
         return Ok(out);
     }
     let Some(split) = Folds::new(train.len(), options.folds) else {

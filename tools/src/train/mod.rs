@@ -67,6 +67,9 @@ pub enum Method {
     /// Delta-mush proxies with P ([`delta_mush`]; beyond the paper), without the
     /// cross-validation against the joint-blend model (trained still, for evaluation).
     DeltaMush,
+    /// Joint-blend proxies with P, then P delta-mush proxies in one palette
+    /// ([`reduce::mush::join`]; beyond the paper), without the cross-validation.
+    Both,
 }
 
 /// Every training default, in one place.
@@ -253,7 +256,7 @@ impl TrainOptions {
     /// a joint-blend model.
     pub fn offers_delta_mush(&self) -> bool {
         match self.method {
-            Method::DeltaMush => true,
+            Method::DeltaMush | Method::Both => true,
             Method::Paper => false,
             Method::JointBlend | Method::Auto => self.delta_mush,
         }
@@ -495,7 +498,7 @@ impl Stages<'_> {
         // Auto starts from its first candidate, which also fixes the ridges its folds use.
         let first = structure::Structure {
             method: match options.method {
-                Method::Auto | Method::DeltaMush => Method::JointBlend,
+                Method::Auto | Method::DeltaMush | Method::Both => Method::JointBlend,
                 method => method,
             },
             proxies,
