@@ -376,7 +376,7 @@ fn structure_line(c: &Chosen) -> String {
             s.influences
         )
     };
-    let mut line = format!("runtime model: {}", name(&c.structure));
+    let mut line = format!("structure: {}", name(&c.structure));
     let why = match c.why {
         Why::Asked => " (as asked)",
         Why::OnlyCandidate => {
