@@ -94,13 +94,9 @@ impl MushProxies {
         let weights = (0..set.vertex_count())
             .into_par_iter()
             .map(|a| {
-                let mut candidates: Vec<usize> = groups_near(shares, adjacency, a).collect();
-                candidates.extend(bones[a].iter().map(|&(b, _)| p + b));
-                candidates.sort_unstable();
-                candidates.dedup();
-                let moved = |n: usize, g: usize| motions[n][g].apply(set.rest[a]);
-                let target = |n: usize| set.poses[train[n]].vertices[a];
-                fit_weights_best_subset(train.len(), &candidates, influences, moved, target)
+                let candidates =
+                    (groups_near(shares, adjacency, a)).chain(bones[a].iter().map(|&(b, _)| p + b));
+                vertex_weights(set, train, &motions, a, candidates, influences)
             })
             .collect();
         MushProxies {
@@ -205,17 +201,12 @@ pub fn join(
     let skin = (0..set.vertex_count())
         .into_par_iter()
         .map(|a| {
-            let mut candidates: Vec<usize> = (base.skin[a].iter())
+            let candidates = (base.skin[a].iter())
                 .map(|&(e, _)| if e < p1 { e } else { e + p2 })
                 // Group g is entry P1 + g, bone P2 + b (in the delta-mush palette) P + b.
                 .chain(mush.weights[a].iter().map(|&(e, _)| p1 + e))
-                .chain(base.baseline[a].iter().map(|&(b, _)| p + b))
-                .collect();
-            candidates.sort_unstable();
-            candidates.dedup();
-            let moved = |n: usize, e: usize| palettes[n][e].apply(set.rest[a]);
-            let target = |n: usize| set.poses[train[n]].vertices[a];
-            fit_weights_best_subset(train.len(), &candidates, influences, moved, target)
+                .chain(base.baseline[a].iter().map(|&(b, _)| p + b));
+            vertex_weights(set, train, &palettes, a, candidates, influences)
         })
         .collect();
     Reduced {
@@ -228,6 +219,25 @@ pub fn join(
         skin,
         baseline: base.baseline.clone(),
     }
+}
+
+/// Vertex a's weights (at most `influences`, Σ = 1; best-subset NNLS) over the palette entries
+/// `candidates` (repeats allowed), fitted on the poses `train` of `set`, whose palettes (in
+/// `train` order) are `palettes`.
+fn vertex_weights(
+    set: &ExampleSet,
+    train: &[usize],
+    palettes: &[Vec<Affine>],
+    a: usize,
+    candidates: impl Iterator<Item = usize>,
+    influences: usize,
+) -> Vec<(usize, f64)> {
+    let mut candidates: Vec<usize> = candidates.collect();
+    candidates.sort_unstable();
+    candidates.dedup();
+    let moved = |n: usize, e: usize| palettes[n][e].apply(set.rest[a]);
+    let target = |n: usize| set.poses[train[n]].vertices[a];
+    fit_weights_best_subset(train.len(), &candidates, influences, moved, target)
 }
 
 /// The palette of a pose (P + J): the P proxies' motions, then the J `bones`.
