@@ -13,7 +13,7 @@ use rrskin_tools::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::ddm::{Ddm, Params};
 use rrskin_tools::skinning::error::enveloping_error;
 use rrskin_tools::skinning::lbs::Skinning;
-use rrskin_tools::train::delta_mush::Choice;
+use rrskin_tools::train::delta_mush::Kept;
 use rrskin_tools::train::{self, Method, TrainOptions};
 
 const CHAIN: Chain = Chain {
@@ -115,7 +115,7 @@ fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
     // Alone or after the joint-blend model's (which, on the smoothed chain too, win by more
     // than their margin): the delta-mush keys are in the model.
     assert!(
-        !matches!(fit.choice, Choice::JointBlend),
+        fit.kept != Kept::JointBlend,
         "scores (joint-blend, delta-mush, both): {:?}",
         fit.scores
     );
@@ -145,7 +145,7 @@ fn a_rig_that_does_not_smooth_keeps_joint_blend_proxies() {
         .expect("the delta-mush stage ran");
     eprintln!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
     assert!(
-        matches!(fit.choice, Choice::JointBlend),
+        fit.kept == Kept::JointBlend,
         "scores (joint-blend, delta-mush, both): {:?}",
         fit.scores
     );
@@ -176,7 +176,7 @@ fn asked_for_delta_mush_proxies_are_kept_without_cross_validation() {
         .delta_mush
         .as_ref()
         .expect("the delta-mush stage ran");
-    assert!(matches!(fit.choice, Choice::DeltaMush) && fit.scores.is_empty());
+    assert!(fit.kept == Kept::DeltaMush && fit.scores.is_empty());
     let model = trained.model.as_ref().expect("a runtime model");
     let keys = model.mush_keys().expect("a model of delta-mush keys");
     assert_eq!(keys.count(), options().proxies);
@@ -204,9 +204,8 @@ fn asked_for_both_kinds_are_kept_without_cross_validation() {
     };
     let trained = train::run(&set, &asked).expect("training");
     let fit = (trained.delta_mush.as_ref()).expect("the delta-mush stage ran");
-    let Choice::Both(both) = &fit.choice else {
-        panic!("not both kinds");
-    };
+    assert_eq!(fit.kept, Kept::Both);
+    let both = trained.reduced.as_ref().expect("the shipped model in f64");
     assert!(fit.scores.is_empty() && !both.predictors.is_empty());
     let model = trained.model.as_ref().expect("a runtime model");
     let keys = model.mush_keys().expect("delta-mush keys");
@@ -227,9 +226,13 @@ fn a_rig_that_smooths_in_part_gets_both_kinds_in_one_palette() {
     let trained = train::run(&set, &options()).expect("training");
     let fit = (trained.delta_mush.as_ref()).expect("the delta-mush stage ran");
     eprintln!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
-    let Choice::Both(both) = &fit.choice else {
-        panic!("scores (joint-blend, delta-mush, both): {:?}", fit.scores);
-    };
+    assert_eq!(
+        fit.kept,
+        Kept::Both,
+        "scores (joint-blend, delta-mush, both): {:?}",
+        fit.scores
+    );
+    let both = trained.reduced.as_ref().expect("the shipped model in f64");
     let model = trained.model.as_ref().expect("a runtime model");
     let keys = model.mush_keys().expect("delta-mush keys");
     assert_eq!(keys.count(), fit.proxies());

@@ -574,7 +574,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         // costs a merging and a cross-validation).
         let kind = TrainOptions {
             delta_mush: (trained.delta_mush.as_ref())
-                .is_some_and(|m| !matches!(m.choice, crate::train::delta_mush::Choice::JointBlend)),
+                .is_some_and(|m| m.kept != crate::train::delta_mush::Kept::JointBlend),
             ..options.train.clone()
         };
         report.learning_curve = learning_curve::measure(set, &trained.rigid, &kind)?;

@@ -19,7 +19,7 @@ pub struct Mush {
     /// proxies alone, then both in one palette; empty with too few poses, or with
     /// `--reduction delta-mush`.
     pub scores: Vec<(f64, f64)>,
-    /// What the runtime model is ([`crate::train::delta_mush::Choice::name`]).
+    /// What the runtime model is ([`crate::train::delta_mush::Kept::name`]).
     pub chosen: &'static str,
 }
 
@@ -33,7 +33,7 @@ impl Mush {
             smoothing: fit.proxy_params,
             errors,
             scores: fit.scores.clone(),
-            chosen: fit.choice.name(),
+            chosen: fit.kept.name(),
         }
     }
 }

@@ -49,26 +49,27 @@ pub struct Fit {
     /// with [`Method::DeltaMush`] or [`Method::Both`] (then kept unasked).
     pub scores: Vec<(f64, f64)>,
     /// What the runtime model is.
-    pub choice: Choice,
+    pub kept: Kept,
 }
 
-/// The runtime model the cross-validation keeps.
-pub enum Choice {
+/// The runtime model the stage keeps (asked for, or by the cross-validation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kept {
     /// The joint-blend model (the structure stage's).
     JointBlend,
     /// The delta-mush proxies alone ([`Fit::proxies`]).
     DeltaMush,
-    /// Both kinds in one palette ([`join`]), fitted to all training poses.
-    Both(Reduced),
+    /// Both kinds in one palette ([`join`]).
+    Both,
 }
 
-impl Choice {
+impl Kept {
     /// As `rrskin eval --json` names it.
-    pub fn name(&self) -> &'static str {
+    pub fn name(self) -> &'static str {
         match self {
-            Choice::JointBlend => "joint-blend",
-            Choice::DeltaMush => "delta-mush",
-            Choice::Both(_) => "both",
+            Kept::JointBlend => "joint-blend",
+            Kept::DeltaMush => "delta-mush",
+            Kept::Both => "both",
         }
     }
 }
@@ -101,8 +102,9 @@ pub struct Inputs<'a> {
 /// Fits delta-mush proxies of P = `options.proxies` and K = `options.influences` to the
 /// training poses and cross-validates them, alone and after the joint-blend model's, against the
 /// chosen joint-blend structure (kept without asking with [`Method::DeltaMush`], alone, and
-/// [`Method::Both`], after the joint-blend proxies).
-pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
+/// [`Method::Both`], after the joint-blend proxies). With the fit, the reduced model that ships
+/// in place of the joint-blend one (None where that stays), fitted to all training poses.
+pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduced>), TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let smoothing = |e: crate::Error| TrainError::Smoothing {
         problem: e.to_string(),
@@ -139,32 +141,27 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
         proxies: fitted,
         influences: k,
         scores: Vec::new(),
-        choice: Choice::JointBlend,
+        kept: Kept::JointBlend,
     };
-    match options.method {
-        Method::DeltaMush => out.choice = Choice::DeltaMush,
-        Method::Both => {
-            let both = join(inputs.reduced, &out.proxies, set, train, inputs.feats, k);
-            out.choice = Choice::Both(both);
+    out.kept = match (options.method, Folds::new(train.len(), options.folds)) {
+        (Method::DeltaMush, _) => Kept::DeltaMush,
+        (Method::Both, _) => Kept::Both,
+        (_, None) => Kept::JointBlend,
+        (_, Some(split)) => {
+            // Both kinds add P proxies to the joint-blend model's: where P is asked for
+            // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
+            let offers_both = options.method == Method::Auto;
+            let validated =
+                cross_validate(inputs, options, &split, &groups, &proxy_params, offers_both)
+                    .map_err(smoothing)?;
+            out.scores = validated.scores.clone();
+            [Kept::JointBlend, Kept::DeltaMush, Kept::Both][kept(&validated)]
         }
-        _ => {}
-    }
-    if matches!(out.choice, Choice::DeltaMush | Choice::Both(_)) {
-        return Ok(out);
-    }
-    let Some(split) = Folds::new(train.len(), options.folds) else {
-        return Ok(out);
     };
-    // Both kinds add P proxies to the joint-blend model's: where P is asked for
-    // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
-    let offers_both = options.method == Method::Auto;
-    let validated = cross_validate(inputs, options, &split, &groups, &proxy_params, offers_both)
-        .map_err(smoothing)?;
-    out.scores = validated.scores.clone();
-    out.choice = match kept(&validated) {
-        0 => Choice::JointBlend,
-        1 => Choice::DeltaMush,
-        _ => Choice::Both(join(
+    let shipped = match out.kept {
+        Kept::JointBlend => None,
+        Kept::DeltaMush => Some(out.proxies.reduced(bones, ssd_weights)),
+        Kept::Both => Some(join(
             inputs.reduced,
             &out.proxies,
             set,
@@ -173,7 +170,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<Fit, TrainError> {
             k,
         )),
     };
-    Ok(out)
+    Ok((out, shipped))
 }
 
 /// The candidates' scores over the folds of `split`: the chosen joint-blend structure, the

@@ -44,7 +44,7 @@ pub mod structure;
 use crate::progress::Progress;
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
-use delta_mush::Choice;
+use delta_mush::Kept;
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use rotreg::PoseFeatures;
@@ -424,23 +424,16 @@ impl Stages<'_> {
         clock: &mut Clock,
     ) -> Result<Runtime, TrainError> {
         let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock);
-        let delta_mush = match &joint_blend {
+        let (delta_mush, shipped) = match &joint_blend {
             Some(fit) => self.fit_delta_mush(&chosen, fit, &reduced, clock)?,
-            None => None,
+            None => (None, None),
         };
-        let (reduced, correctable) = match delta_mush.as_ref().map(|m| (m, &m.choice)) {
-            // Nothing corrects delta-mush proxies alone: their fit is the rig's smoothing.
-            Some((m, Choice::DeltaMush)) => {
-                let bones = self.set.bone_count();
-                (m.proxies.reduced(bones, &self.ssd.influences), false)
-            }
-            Some((_, Choice::Both(both))) => (both.clone(), true),
-            _ => (reduced, true),
-        };
+        let reduced = shipped.unwrap_or(reduced);
         let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
-        let (model, proxy_correctives) = match correctable {
-            true => self.add_proxy_correctives(&reduced, model, clock)?,
-            false => (model, None),
+        // Nothing corrects delta-mush proxies alone: their fit is the rig's smoothing.
+        let (model, proxy_correctives) = match delta_mush.as_ref().map(|m| m.kept) {
+            Some(Kept::DeltaMush) => (model, None),
+            _ => self.add_proxy_correctives(&reduced, model, clock)?,
         };
         let (model, correctives) = self.add_correctives(model, clock)?;
         Ok(Runtime {
@@ -455,16 +448,17 @@ impl Stages<'_> {
     }
 
     /// Where [`TrainOptions::offers_delta_mush`], its stage: delta-mush proxies of the P and K
-    /// asked for, cross-validated against the chosen joint-blend structure.
+    /// asked for, cross-validated against the chosen joint-blend structure; with the reduced
+    /// model that ships in place of `reduced`, the joint-blend one, where it does not.
     fn fit_delta_mush(
         &self,
         chosen: &structure::Chosen,
         joint_blend: &structure::JointBlendFit,
         reduced: &Reduced,
         clock: &mut Clock,
-    ) -> Result<Option<delta_mush::Fit>, TrainError> {
+    ) -> Result<(Option<delta_mush::Fit>, Option<Reduced>), TrainError> {
         if !self.options.offers_delta_mush() {
-            return Ok(None);
+            return Ok((None, None));
         }
         self.progress.stage("delta-mush proxies");
         let inputs = delta_mush::Inputs {
@@ -477,10 +471,10 @@ impl Stages<'_> {
             joint_blend,
             reduced,
         };
-        let fit = delta_mush::fit(&inputs, self.options)?;
+        let (fit, shipped) = delta_mush::fit(&inputs, self.options)?;
         clock.lap("delta-mush proxies");
         self.progress.step();
-        Ok(Some(fit))
+        Ok((Some(fit), shipped))
     }
 
     /// The reduction to the runtime model's structure: the one asked for, or with
