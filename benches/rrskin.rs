@@ -131,7 +131,7 @@ fn palette(c: &mut Criterion) {
                 |b| {
                     b.iter(|| {
                         palette
-                            .compute_batch_parallel(&bones, &mut out, threads)
+                            .compute_batch_parallel(&bones, &[], &mut out, threads)
                             .expect("palette")
                     })
                 },

@@ -4,7 +4,8 @@
 // T'_e = T_e (I + E_e) = [M (I + A) | t + M b] with E_e = [A | b] = sum over features f of
 // x_f G_ef. The features of proxy e, driver after driver (b, its parent p, in order): if L,
 // phi_b = vec(R_b - I) row-major with R_b = rot(Q_p)^T rot(Q_b) (joint_features.glsl),
-// then for each kernel centre c < C, exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b) with
+// with GRAVITY gamma_b = rot(Q_b)^T u_c - u (u_c the character's up, u the model's, stored after
+// the kernels' data), then for each kernel centre c < C, exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b) with
 // z_cb the 9 floats of centre c * J + b and w_b = widths[b] (both terms computed alike: exactly
 // zero at the rest pose).
 //
@@ -26,6 +27,9 @@ layout(std430, set = 0, binding = 2) readonly buffer ProxyTopology { uint topolo
 layout(std430, set = 0, binding = 3) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J
 layout(std430, set = 0, binding = 4) readonly buffer ProxyMaps { vec4 maps[]; };            // sum F_i x 3 (x 4)
 layout(std430, set = 0, binding = 5) buffer Palette { Affine proxies[]; };                  // chars x (P + J)
+#ifdef GRAVITY
+layout(std430, set = 0, binding = 6) readonly buffer Ups { vec4 ups[]; };                   // chars
+#endif
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;
 
@@ -38,6 +42,15 @@ void add(inout mat4 e0, inout mat4 e1, inout mat4 e2, uint m, vec4 x) {
     e1 += outerProduct(maps[m + 1u], x);
     e2 += outerProduct(maps[m + 2u], x);
 }
+
+#ifdef GRAVITY
+// gamma_b = rot(Q_b)^T u_c - u of character ch: (Q^T u_c)_j = sum_k Q[k][j] u_c[k].
+vec3 gravity(uint ch, uint b, vec3 u) {
+    Affine q = bones[ch * pc.J + b];
+    vec3 uc = ups[ch].xyz;
+    return uc.x * q.r0.xyz + uc.y * q.r1.xyz + uc.z * q.r2.xyz - u;
+}
+#endif
 
 // Character ch's proxy T becomes T (I + E), E's rows e0, e1, e2: row r of T plus M[r][0] E row
 // 0 + M[r][1] E row 1 + M[r][2] E row 2 (E's bottom row is zero). Nothing past the crowd.
@@ -67,8 +80,14 @@ void main() {
     mat4 e2 = mat4(0.0);
     uint first = topology[pc.E + i];
     uint last = topology[pc.E + i + 1u];
-    uint m = 3u * first * (9u * pc.L + pc.C);
+    uint g = 0u;
     uint widths = 9u * pc.C * pc.J;
+#ifdef GRAVITY
+    g = 3u;
+    uint up_at = widths + (pc.C > 0u ? pc.J : 0u);
+    vec3 u = vec3(kernels[up_at], kernels[up_at + 1u], kernels[up_at + 2u]);
+#endif
+    uint m = 3u * first * (9u * pc.L + g + pc.C);
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
         mat3 f0 = joint_features(ch.x, b);
@@ -89,6 +108,16 @@ void main() {
             add(e0, e1, e2, m + 24u, vec4(f0[2][2], f1[2][2], f2[2][2], f3[2][2]));
             m += 27u;
         }
+#ifdef GRAVITY
+        vec3 g0 = gravity(ch.x, b, u);
+        vec3 g1 = gravity(ch.y, b, u);
+        vec3 g2 = gravity(ch.z, b, u);
+        vec3 g3 = gravity(ch.w, b, u);
+        add(e0, e1, e2, m, vec4(g0.x, g1.x, g2.x, g3.x));
+        add(e0, e1, e2, m + 3u, vec4(g0.y, g1.y, g2.y, g3.y));
+        add(e0, e1, e2, m + 6u, vec4(g0.z, g1.z, g2.z, g3.z));
+        m += 9u;
+#endif
         if (pc.C > 0u) {
             float w = kernels[widths + b];
             mat3 zero = mat3(0.0);

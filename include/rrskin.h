@@ -80,11 +80,13 @@
  * write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
  * vertex attribute reads. In between, per crowd and frame slot f (pass n of the list above; the
  * bounds are written with the normals, a fused product reads the bones, and the proxy
- * correctives read the bones and update the palette's proxies in place):
+ * correctives read the bones (and, where they see gravity, the characters' up vectors) and
+ * update the palette's proxies in place):
  *
  * | buffer | access | memory |
  * |---|---|---|
  * | bone transforms, slot f | compute read (passes 1, 2, 3, 4, 6) | host-visible, written by setting the bones of slot f |
+ * | up vectors, slot f | compute read (pass 3) | host-visible, written by setting the up vectors of slot f (models whose proxy correctives see gravity) |
  * | model buffers | compute read | device-local, written once at upload |
  * | B = [d; q] | compute write (pass 1), then read (pass 2) | device-local, internal |
  * | palette [t; q] | compute write (passes 1, 2, 3), then read (passes 3, 4, 6) | device-local, internal |
@@ -132,7 +134,10 @@
  * still be dropped.
  *
  * Units and layouts. Bone transforms are 3x4 row-major `f32` (`predict::Affine`), world
- * space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs
+ * space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Up
+ * vectors are 3 `f32` per character in the frame of its bones, the direction opposite to
+ * gravity (its length gravity's strength against the training poses'); a crowd starts with the
+ * model's up (`Model::up`). Outputs
  * are tightly packed `f32` xyz (12-byte stride), character after character; previous positions
  * likewise (undefined until a crowd recorded two frames); bounds are two std430 `vec4` per
  * character (min xyz, max xyz; `vk::BOUNDS_STRIDE` = 32 bytes); tangents are 4 `f32` per
@@ -233,6 +238,11 @@ typedef struct rrskin_model_info {
   uint32_t proxy_corrective_kernels;
   // Nonzero: the proxy correctives have the 9 linear features per driver.
   uint32_t proxy_corrective_linear;
+  // Nonzero: they have the 3 gravity features per driver too, and crowds read each
+  // character's up vector (`rrskin_crowd_set_ups`; the model's `up` by default).
+  uint32_t proxy_corrective_gravity;
+  // The model's up (unit, in its bones' frame) where `proxy_corrective_gravity`, else zeros.
+  float up[3];
   // Entries of the 1-ring fans the recomputed-normals pass reads (about 3 x triangles +
   // 2 x vertices for a closed mesh): what `rrskin_model_get_info` reports, needed for
   // `rrskin_query_memory`'s model bytes.
@@ -538,6 +548,29 @@ rrskin_status rrskin_crowd_set_character_bones(struct rrskin_crowd crowd,
                                                const float *transforms,
                                                size_t float_count);
 
+// Sets every character's up vector of frame slot `frame`: `float_count` = characters x 3, each
+// in the character's bones' frame, the direction opposite to gravity (its length gravity's
+// strength against the training poses'), for characters tilted by their object transform
+// rather than their root bone. A crowd starts with the model's up
+// (`rrskin_model_info.up`); a model without `proxy_corrective_gravity` reads none.
+//
+// # Safety
+// `ups` is NULL or points to `float_count` readable floats that no other thread writes during
+// the call.
+rrskin_status rrskin_crowd_set_ups(struct rrskin_crowd crowd,
+                                   uint32_t frame,
+                                   const float *ups,
+                                   size_t float_count);
+
+// Sets one character's up vector of frame slot `frame` (as `rrskin_crowd_set_ups`).
+//
+// # Safety
+// `up` is NULL or points to 3 readable floats.
+rrskin_status rrskin_crowd_set_character_up(struct rrskin_crowd crowd,
+                                            uint32_t frame,
+                                            uint32_t character,
+                                            const float *up);
+
 // The output buffers of frame slot `frame` as last recorded (which positions buffer it
 // writes alternates with previous positions: ask after recording the frame), to draw from.
 //
@@ -652,6 +685,13 @@ rrskin_status rrskin_palette_model_get_skin(struct rrskin_palette_model model,
 rrskin_status rrskin_palette_model_get_corrective_count(struct rrskin_palette_model model,
                                                         uint32_t *out);
 
+// The model's up (3 floats, unit, in its bones' frame) where its proxy correctives see gravity,
+// so that `rrskin_palette_compute_with_ups` reads up vectors; zeros where they do not.
+//
+// # Safety
+// `out` is NULL or points to 3 writable floats.
+rrskin_status rrskin_palette_model_get_up(struct rrskin_palette_model model, float *out);
+
 // The pose-space corrective weights of `characters` characters on the calling thread: `bones`
 // as `rrskin_palette_compute`'s (`bone_floats` = characters * J * 12), `out` characters x N
 // floats (`out_floats`; N from `rrskin_palette_model_get_corrective_count`), each character's
@@ -695,6 +735,24 @@ rrskin_status rrskin_palette_compute(struct rrskin_palette_model model,
 rrskin_status rrskin_palette_compute_parallel(struct rrskin_palette_model model,
                                               const float *bones,
                                               size_t bone_floats,
+                                              float *out,
+                                              size_t out_floats,
+                                              uint32_t threads);
+
+// `rrskin_palette_compute_parallel` with each character's up vector in its bones' frame:
+// `ups` characters x 3 floats (`up_floats`), the direction opposite to gravity, its length
+// gravity's strength against the training poses' (for a character tilted by its object
+// transform rather than its root bone). NULL with `up_floats` = 0: the model's up
+// (`rrskin_palette_model_get_up`). Only a model whose proxy correctives see gravity reads them;
+// `threads` = 1 runs on the calling thread.
+//
+// # Safety
+// As `rrskin_palette_compute`; `ups` is NULL or points to `up_floats` readable floats.
+rrskin_status rrskin_palette_compute_with_ups(struct rrskin_palette_model model,
+                                              const float *bones,
+                                              size_t bone_floats,
+                                              const float *ups,
+                                              size_t up_floats,
                                               float *out,
                                               size_t out_floats,
                                               uint32_t threads);

@@ -11,7 +11,8 @@
 //! (paper §8), step (3) skins `ŷ_a + Σ_n w_n targets[n V + a]`, `w` =
 //! [`crate::predict::corrective_weights`] of the character's bones. With proxy correctives
 //! (docs/method.md §21), between (2) and (3) each corrected proxy becomes `T_e (I + E_e)`
-//! ([`crate::predict::apply_proxy_correctives`]).
+//! ([`crate::predict::apply_proxy_correctives`]), from each character's up vector where they see
+//! gravity ([`CpuEvaluator::set_ups`]; the model's up by default).
 
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -36,6 +37,8 @@ pub struct CpuEvaluator<'m> {
     gradients: Vec<DMat3>,
     /// The corrective weights of one character (N).
     weights: Vec<f64>,
+    /// Each character's up vector ([`CpuEvaluator::set_ups`]), or empty: the model's.
+    ups: Vec<[f32; 3]>,
     positions: Vec<DVec3>,
 }
 
@@ -64,8 +67,18 @@ impl<'m> CpuEvaluator<'m> {
             palette: vec![[0.0; 12]; p + j],
             gradients: vec![DMat3::ZERO; p],
             weights: vec![0.0; model.corrective_count()],
+            ups: Vec::new(),
             positions: vec![DVec3::ZERO; model.vertex_count()],
         }
+    }
+
+    /// Each character's up vector in its bones' frame for the evaluations that follow (C of
+    /// them, checked when evaluating), or none: the model's up ([`Model::up`]). Only models whose
+    /// proxy correctives see gravity read it.
+    pub fn set_ups(&mut self, ups: &[[f32; 3]]) -> Result<()> {
+        crate::predict::check_ups(ups)?;
+        self.ups = ups.to_vec();
+        Ok(())
     }
 
     /// `bones`: C x J transforms. `positions`, `normals`: C x V, written.
@@ -113,6 +126,13 @@ impl<'m> CpuEvaluator<'m> {
                 });
             }
         }
+        if !self.ups.is_empty() && self.ups.len() != c {
+            return Err(Error::WrongLength {
+                what: "character up vectors",
+                expected: c,
+                actual: self.ups.len(),
+            });
+        }
         if let Some(t) = tangents.as_deref() {
             if t.len() != c * v {
                 return Err(Error::WrongLength {
@@ -124,7 +144,7 @@ impl<'m> CpuEvaluator<'m> {
         }
         for ch in 0..c {
             let q = &bones[ch * j..(ch + 1) * j];
-            self.corrected_palette_of(q)?;
+            self.corrected_palette_of(q, self.ups.get(ch).copied())?;
             corrective_weights(self.model, q, &mut self.weights)?;
             self.skin();
             let normals = &mut normals[ch * v..(ch + 1) * v];
@@ -144,7 +164,8 @@ impl<'m> CpuEvaluator<'m> {
 
     /// One character's intermediates as the GPU passes hold them (`q`: its J bone
     /// transforms): the key gradients `D_ℓ(q)` of pass 1 (P), and the palette
-    /// `[T' (P); q (J)]` (3x4 row-major) after the product and the proxy correctives.
+    /// `[T' (P); q (J)]` (3x4 row-major) after the product and the proxy correctives (with the
+    /// first up vector set, if any).
     pub fn intermediates(&mut self, q: &[Affine]) -> Result<(&[DMat3], &[[f64; 12]])> {
         let j = self.model.bone_count();
         if characters(q, j)? != 1 {
@@ -154,15 +175,15 @@ impl<'m> CpuEvaluator<'m> {
                 actual: q.len(),
             });
         }
-        self.corrected_palette_of(q)?;
+        self.corrected_palette_of(q, self.ups.first().copied())?;
         Ok((&self.gradients, &self.palette))
     }
 
     /// The palette of one character with its proxies corrected (`T_e (I + E_e)`).
-    fn corrected_palette_of(&mut self, q: &[Affine]) -> Result<()> {
+    fn corrected_palette_of(&mut self, q: &[Affine], up: Option<[f32; 3]>) -> Result<()> {
         self.palette_of(q);
         let p = self.model.proxy_count();
-        apply_proxy_correctives(self.model, q, &mut self.palette[..p])
+        apply_proxy_correctives(self.model, q, up, &mut self.palette[..p])
     }
 
     /// The P + J palette of one character: proxies by Eq. 5, then the bones themselves.

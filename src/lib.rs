@@ -16,7 +16,9 @@
 //! 3. for a model with proxy correctives (docs/method.md §21, [`ProxyCorrectives`]), each
 //!    corrected proxy `T_e ← T_e (I + E_e)`, `E_e = Σ_f x_f G_ef` from its drivers' rotations,
 //!    in the palette (on a GPU a fused product applies them itself, and this pass does not
-//!    run: [`vk::GpuModel::applies_correctives_in_product`]);
+//!    run: [`vk::GpuModel::applies_correctives_in_product`]); where they see gravity
+//!    ([`Model::up`]), also from each character's up vector ([`vk::Crowd::set_ups`],
+//!    [`cpu::CpuEvaluator::set_ups`], [`palette::Palette::compute_batch_with_ups`]);
 //! 4. matrix-palette skinning over the palette `[t (P); q (J)]` with K = 4 or 8 influences
 //!    (of the rest position plus the N weighted corrective targets, where the model has them);
 //! 5. normals, gathered from incident triangles;
@@ -72,11 +74,13 @@
 //! write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
 //! vertex attribute reads. In between, per crowd and frame slot f (pass n of the list above; the
 //! bounds are written with the normals, a fused product reads the bones, and the proxy
-//! correctives read the bones and update the palette's proxies in place):
+//! correctives read the bones (and, where they see gravity, the characters' up vectors) and
+//! update the palette's proxies in place):
 //!
 //! | buffer | access | memory |
 //! |---|---|---|
 //! | bone transforms, slot f | compute read (passes 1, 2, 3, 4, 6) | host-visible, written by setting the bones of slot f |
+//! | up vectors, slot f | compute read (pass 3) | host-visible, written by setting the up vectors of slot f (models whose proxy correctives see gravity) |
 //! | model buffers | compute read | device-local, written once at upload |
 //! | B = [d; q] | compute write (pass 1), then read (pass 2) | device-local, internal |
 //! | palette [t; q] | compute write (passes 1, 2, 3), then read (passes 3, 4, 6) | device-local, internal |
@@ -124,7 +128,10 @@
 //! still be dropped.
 //!
 //! **Units and layouts.** Bone transforms are 3x4 row-major `f32` ([`predict::Affine`]), world
-//! space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Outputs
+//! space, relative to the rest pose (`x ↦ Q x + d` takes a rest point to the posed one). Up
+//! vectors are 3 `f32` per character in the frame of its bones, the direction opposite to
+//! gravity (its length gravity's strength against the training poses'); a crowd starts with the
+//! model's up ([`Model::up`]). Outputs
 //! are tightly packed `f32` xyz (12-byte stride), character after character; previous positions
 //! likewise (undefined until a crowd recorded two frames); bounds are two std430 `vec4` per
 //! character (min xyz, max xyz; [`vk::BOUNDS_STRIDE`] = 32 bytes); tangents are 4 `f32` per

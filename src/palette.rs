@@ -25,7 +25,9 @@
 //! `E_e = Σ_f x_f G_ef` from the drivers' rotations (see [`crate::ProxyCorrectives`]), so the
 //! palette keeps its P + J entries and an engine's skinning does not change. It evaluates them
 //! in `f32` as `glsl/proxy_correctives.comp` does: each driver's features once per character,
-//! whichever proxies it drives.
+//! whichever proxies it drives. Where they see gravity ([`Model::up`]), each character's up
+//! vector in its bones' frame is an input too ([`Palette::compute_batch_with_ups`]; the model's
+//! up where none is given).
 //!
 //! A [`Palette`] is immutable after [`Palette::new`]: any number of threads may call
 //! [`Palette::compute`] on one at once. Each thread keeps its own scratch (grown on its first
@@ -60,7 +62,7 @@ pub struct Palette {
 
 /// A model's proxy correctives (docs/method.md §21, [`crate::ProxyCorrectives`]) compiled for
 /// `f32` evaluation, as `glsl/proxy_correctives.comp`: D distinct drivers over the E corrected
-/// proxies, F = 9·L + C features each (φ_b if L, then C kernels), computed once per character
+/// proxies, F = 9·L + 3·G + C features each (φ_b if L, γ_b if G, then C kernels), computed once per character
 /// into scratch `x: (D x F)`, then per proxy `E_e = Σ_f x_f G_ef` over its `D_i F` rows.
 #[derive(Debug, Clone, Default)]
 struct ProxyTerms {
@@ -70,6 +72,8 @@ struct ProxyTerms {
     /// F, the features of one driver.
     features: usize,
     linear: bool,
+    /// The model's up where the features see gravity (G).
+    up: Option<Vec3>,
     /// `(D x C)` kernel centres, slot s's kernel c at `s * C + c`.
     centres: Vec<[f32; 9]>,
     /// `(D)` kernel widths `w_b` (empty without kernels).
@@ -270,49 +274,73 @@ impl Palette {
 
     /// The palette of one character: `bones` J transforms (3x4 row-major, relative to the rest
     /// pose), `out` P + J: the proxies (corrected where the model has proxy correctives), then
-    /// the bones.
+    /// the bones. An upright character: its up is the model's.
     pub fn compute(&self, bones: &[Affine], out: &mut [Affine]) -> Result<()> {
-        self.compute_batch(bones, out)
+        self.compute_batch_with_ups(bones, &[], out)
     }
 
     /// [`Palette::compute`] for C characters on this thread: `bones` C x J, `out` C x (P + J).
     pub fn compute_batch(&self, bones: &[Affine], out: &mut [Affine]) -> Result<()> {
-        self.characters(bones, out)?;
+        self.compute_batch_with_ups(bones, &[], out)
+    }
+
+    /// [`Palette::compute_batch`] with each character's up vector in its bones' frame, `ups` C
+    /// (or empty: the model's up), for characters tilted by their object transform rather than
+    /// their root bone ([`crate::predict::check_ups`]). Only a model whose proxy correctives see
+    /// gravity ([`Model::up`]) reads them.
+    pub fn compute_batch_with_ups(
+        &self,
+        bones: &[Affine],
+        ups: &[[f32; 3]],
+        out: &mut [Affine],
+    ) -> Result<()> {
+        let c = self.characters(bones, out)?;
+        check_ups(c, ups)?;
         SCRATCH.with(|scratch| {
             let scratch = &mut *scratch.borrow_mut();
             let j = self.model.bone_count();
-            for (q, out) in bones.chunks_exact(j).zip(out.chunks_exact_mut(self.len())) {
-                self.character(q, out, scratch);
+            for (ch, (q, out)) in (bones.chunks_exact(j))
+                .zip(out.chunks_exact_mut(self.len()))
+                .enumerate()
+            {
+                self.character(q, ups.get(ch).map(|&u| Vec3::from(u)), out, scratch);
             }
         });
         Ok(())
     }
 
-    /// [`Palette::compute_batch`] split over `threads` scoped threads (0: one per core), for
-    /// an engine without a job system of its own; one that has one calls
-    /// [`Palette::compute_batch`] from its workers on disjoint ranges instead (this spawns
-    /// threads, which allocates).
+    /// [`Palette::compute_batch_with_ups`] split over `threads` scoped threads (0: one per
+    /// core), for an engine without a job system of its own; one that has one calls
+    /// [`Palette::compute_batch_with_ups`] from its workers on disjoint ranges instead (this
+    /// spawns threads, which allocates).
     pub fn compute_batch_parallel(
         &self,
         bones: &[Affine],
+        ups: &[[f32; 3]],
         out: &mut [Affine],
         threads: usize,
     ) -> Result<()> {
         let c = self.characters(bones, out)?;
+        check_ups(c, ups)?;
         let threads = match threads {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
         }
         .min(c.max(1));
         if threads <= 1 {
-            return self.compute_batch(bones, out);
+            return self.compute_batch_with_ups(bones, ups, out);
         }
         let per = c.div_ceil(threads);
         let j = self.model.bone_count();
         std::thread::scope(|s| {
             let work = bones.chunks(per * j).zip(out.chunks_mut(per * self.len()));
-            let handles: Vec<_> = work
-                .map(|(q, o)| s.spawn(move || self.compute_batch(q, o)))
+            let handles: Vec<_> = (work.enumerate())
+                .map(|(k, (q, o))| {
+                    let ups = ups
+                        .get(k * per..ups.len().min((k + 1) * per))
+                        .unwrap_or(&[]);
+                    s.spawn(move || self.compute_batch_with_ups(q, ups, o))
+                })
                 .collect();
             handles.into_iter().try_for_each(|h| {
                 h.join()
@@ -373,7 +401,8 @@ impl Palette {
         Ok(c)
     }
 
-    fn character(&self, q: &[Affine], out: &mut [Affine], scratch: &mut Scratch) {
+    /// One character's palette `out` from its bones `q` and its up (None: the model's).
+    fn character(&self, q: &[Affine], up: Option<Vec3>, out: &mut [Affine], scratch: &mut Scratch) {
         let (p, j) = (self.model.proxy_count(), self.model.bone_count());
         scratch.theta.resize(j, Vec3::ZERO);
         scratch.rhs.resize(3 * p + 4 * j, Vec3::ZERO);
@@ -407,7 +436,7 @@ impl Palette {
             }
             *t = bytemuck::cast(acc);
         }
-        self.proxy.features(q, &mut scratch.features);
+        self.proxy.features(q, up, &mut scratch.features);
         self.proxy.correct(&scratch.features, &mut out[..p]);
         out[p..].copy_from_slice(q);
     }
@@ -456,6 +485,7 @@ impl ProxyTerms {
             drivers,
             features: f,
             linear: c.linear,
+            up: c.up.map(Vec3::from),
             centres,
             widths,
             at_rest,
@@ -468,15 +498,24 @@ impl ProxyTerms {
         }
     }
 
-    /// The features of one character's J bones `q` into `x: (D x F)`: per driver slot, φ_b
-    /// (if linear), then `exp(−|φ_b − z_c|² / w_b) − exp(−|z_c|² / w_b)` for its C kernels.
-    fn features(&self, q: &[Affine], x: &mut Vec<f32>) {
-        let (f, kernels) = (self.features, self.features - 9 * usize::from(self.linear));
+    /// The features of one character's J bones `q` and its `up` (None: the model's) into `x:
+    /// (D x F)`: per driver slot, φ_b (if linear), `γ_b = rot(Q_b)ᵀ u_c − u` (if the model has
+    /// an up u), then `exp(−|φ_b − z_c|² / w_b) − exp(−|z_c|² / w_b)` for its C kernels.
+    fn features(&self, q: &[Affine], up: Option<Vec3>, x: &mut Vec<f32>) {
+        let (linear, gravity) = (
+            9 * usize::from(self.linear),
+            3 * usize::from(self.up.is_some()),
+        );
+        let (f, kernels) = (self.features, self.features - linear - gravity);
         x.resize(self.drivers.len() * f, 0.0);
         for (s, &(b, p)) in self.drivers.iter().enumerate() {
             let phi = phi_f32(&q[p], &q[b]);
-            let (linear, x) = x[s * f..(s + 1) * f].split_at_mut(f - kernels);
-            linear.copy_from_slice(&phi[..linear.len()]);
+            let (head, x) = x[s * f..(s + 1) * f].split_at_mut(f - kernels);
+            head[..linear].copy_from_slice(&phi[..linear]);
+            if let Some(u) = self.up {
+                let gamma = rotation_of(&q[b]).transpose() * up.unwrap_or(u) - u;
+                head[linear..].copy_from_slice(&gamma.to_array());
+            }
             for (c, x) in x.iter_mut().enumerate() {
                 let k = s * kernels + c;
                 *x = kernel(&phi, &self.centres[k], self.widths[s]) - self.at_rest[k];
@@ -505,6 +544,18 @@ impl ProxyTerms {
             *t = corrected(t, &even);
         }
     }
+}
+
+/// `ups` C up vectors or none, finite ([`crate::predict::check_ups`]).
+fn check_ups(characters: usize, ups: &[[f32; 3]]) -> Result<()> {
+    if !ups.is_empty() && ups.len() != characters {
+        return Err(Error::WrongLength {
+            what: "character up vectors (characters, or none)",
+            expected: characters,
+            actual: ups.len(),
+        });
+    }
+    crate::predict::check_ups(ups)
 }
 
 /// `g += x row` for 3x4 row-major `g` and `row`.

@@ -181,11 +181,43 @@ pub fn kernel_feature<Z: Copy + Into<f64>>(phi: &[f64; 9], z: &[Z; 9], w: f64) -
     (-d2 / w).exp() - (-r2 / w).exp()
 }
 
+/// The gravity features of a bone (docs/method.md §21): `γ = rot(Q)ᵀ u_c − u`, the character's
+/// up `u_c` seen from the bone relative to rest, less the model's up `u`. Zero at the rest pose
+/// of an upright character (u_c = u); blind to the heading (a turn about u leaves it).
+pub fn gravity_features(bone: &Affine, model_up: [f32; 3], up: [f32; 3]) -> [f64; 3] {
+    let (u, uc) = (
+        DVec3::from(model_up.map(f64::from)),
+        DVec3::from(up.map(f64::from)),
+    );
+    (rotation_of(bone).transpose() * uc - u).to_array()
+}
+
+/// Up vectors a caller gives, each the direction opposite to gravity in the character's bones'
+/// frame: finite (`NonFinite` naming the first float that is not). Its length is gravity's
+/// strength against the training poses' (γ is linear in it: 0, as in free fall, takes gravity
+/// away).
+pub fn check_ups(ups: &[[f32; 3]]) -> Result<()> {
+    match ups.as_flattened().iter().position(|x| !x.is_finite()) {
+        Some(index) => Err(Error::NonFinite {
+            what: "character up vectors",
+            index,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// The correction `E_e = [A | b] = Σ_f x_f G_ef` (3x4 row-major) of corrected proxy i of the
-/// model's proxy correctives for one character's J `bones`: the features x of its drivers in
-/// order, per driver its 9 linear φ_b (if `linear`) then its C kernels (see
-/// [`crate::ProxyCorrectives`]). Zero without proxy correctives or at the rest pose.
-pub fn proxy_correction(model: &Model, bones: &[Affine], i: usize) -> [f64; 12] {
+/// model's proxy correctives for one character's J `bones` and its `up` (None: the model's):
+/// the features x of its drivers in order, per driver its 9 linear φ_b (if `linear`), its 3
+/// gravity features γ_b (if the model has an up), then its C kernels (see
+/// [`crate::ProxyCorrectives`]). Zero without proxy correctives or at the rest pose of an
+/// upright character.
+pub fn proxy_correction(
+    model: &Model,
+    bones: &[Affine],
+    up: Option<[f32; 3]>,
+    i: usize,
+) -> [f64; 12] {
     let mut e = [0.0f64; 12];
     let Some(c) = model.proxy_correctives() else {
         return e;
@@ -206,6 +238,11 @@ pub fn proxy_correction(model: &Model, bones: &[Affine], i: usize) -> [f64; 12] 
                 add(x, rows.next().unwrap_or_default());
             }
         }
+        if let Some(u) = c.up {
+            for x in gravity_features(&bones[b], u, up.unwrap_or(u)) {
+                add(x, rows.next().unwrap_or_default());
+            }
+        }
         for k in 0..kernels {
             let x = kernel_feature(&phi, &c.centres[k * j + b], f64::from(c.widths[b]));
             add(x, rows.next().unwrap_or_default());
@@ -215,13 +252,15 @@ pub fn proxy_correction(model: &Model, bones: &[Affine], i: usize) -> [f64; 12] 
 }
 
 /// Applies the model's proxy correctives (docs/method.md §21) to one character's proxies: `bones`
-/// its J transforms, `proxies` its P proxy transforms `T_e = [M | t]` (3x4 row-major) as
+/// its J transforms, `up` its up vector in their frame (None: the model's, [`Model::up`]),
+/// `proxies` its P proxy transforms `T_e = [M | t]` (3x4 row-major) as
 /// computed from C1/C2; each corrected proxy e becomes `T'_e = T_e (I + E_e)` =
 /// `[M (I + A) | t + M b]` with `E_e = [A | b]` = [`proxy_correction`]. Nothing changes
 /// without proxy correctives. `WrongLength` unless `bones` is J and `proxies` P.
 pub fn apply_proxy_correctives(
     model: &Model,
     bones: &[Affine],
+    up: Option<[f32; 3]>,
     proxies: &mut [[f64; 12]],
 ) -> Result<()> {
     for (what, expected, actual) in [
@@ -240,7 +279,7 @@ pub fn apply_proxy_correctives(
         return Ok(());
     };
     for (i, &e) in c.proxies.iter().enumerate() {
-        let correction = proxy_correction(model, bones, i);
+        let correction = proxy_correction(model, bones, up, i);
         let t = &mut proxies[e as usize];
         *t = corrected(t, &correction);
     }

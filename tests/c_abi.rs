@@ -7,7 +7,7 @@ mod common;
 
 use common::{
     joint_blend_pattern, random_model, random_poses, with_correctives, with_mush_keys,
-    with_proxy_correctives, Spec,
+    with_proxy_correctives_seeing, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
 use std::path::{Path, PathBuf};
@@ -282,8 +282,9 @@ fn the_c_palette_example_skins_without_vulkan() {
 #[test]
 fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
     use rrskin::ffi::*;
-    // With pose-space and proxy correctives (rrskin_model_info reports their sizes; proxies
-    // 0, 2 and 3 corrected, by 1, 3 and 0 drivers), and keys 2 and 3 delta-mush keys.
+    // With pose-space and proxy correctives that see gravity (rrskin_model_info reports their
+    // sizes; proxies 0, 2 and 3 corrected, by 1, 3 and 0 drivers), and keys 2 and 3
+    // delta-mush keys; the characters tilted by their up vectors.
     let keys = random_model(
         Spec {
             grid: 8,
@@ -293,9 +294,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         },
         9,
     );
-    let model = with_proxy_correctives(
+    let model = with_proxy_correctives_seeing(
         &with_correctives(&with_mush_keys(&keys, 2, 9).expect("delta-mush keys"), 4, 2),
         true,
+        Some([0.0, 1.0, 0.0]),
         2,
         3,
     );
@@ -308,8 +310,12 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         vec![[0.0; 3]; characters as usize * v],
         vec![[0.0; 4]; characters as usize * v],
     );
-    CpuEvaluator::new(&model)
-        .evaluate_with_tangents(&poses, &mut p, &mut n, &mut t)
+    let ups: Vec<[f32; 3]> = (0..characters)
+        .map(|k| [(0.4 * k as f32).sin(), (0.4 * k as f32).cos(), 0.0])
+        .collect();
+    let mut cpu = CpuEvaluator::new(&model);
+    cpu.set_ups(&ups).expect("finite ups");
+    cpu.evaluate_with_tangents(&poses, &mut p, &mut n, &mut t)
         .expect("CPU evaluator");
 
     let ok = RrskinStatus::Ok;
@@ -329,12 +335,20 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         ok
     );
     let floats = poses.as_flattened();
+    let up_floats = ups.as_flattened();
     // SAFETY: valid pointers and lengths.
     unsafe {
         assert_eq!(
             rrskin_crowd_set_bones(crowd, 0, floats.as_ptr(), floats.len()),
             ok
         );
+        assert_eq!(
+            rrskin_crowd_set_ups(crowd, 0, up_floats.as_ptr(), up_floats.len()),
+            ok
+        );
+        let nan = [0.0, f32::NAN, 1.0];
+        let refused = rrskin_crowd_set_character_up(crowd, 0, 1, nan.as_ptr());
+        assert_eq!(refused, RrskinStatus::ErrorNonFinite);
         assert_eq!(rrskin_crowds_run(ctx, 0, &crowd, 1), ok);
     }
     let mut positions = vec![0.0f32; characters as usize * v * 3];
@@ -407,6 +421,10 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
             rrskin_crowd_set_bones(bounded, 1, floats.as_ptr(), floats.len()),
             ok
         );
+        assert_eq!(
+            rrskin_crowd_set_ups(bounded, 1, up_floats.as_ptr(), up_floats.len()),
+            ok
+        );
         assert_eq!(rrskin_crowds_run(ctx, 1, &bounded, 1), ok);
         assert_eq!(
             rrskin_crowd_read_bounds(bounded, 1, boxes.as_mut_ptr(), boxes.len()),
@@ -471,6 +489,8 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         proxy_corrective_drivers: 4,
         proxy_corrective_kernels: 2,
         proxy_corrective_linear: 1,
+        proxy_corrective_gravity: 1,
+        up: [0.0, 1.0, 0.0],
         normal_fan_entries: model.normal_fans().entries.len() as u32,
         mush_terms: rrskin::vk::ModelSizes::of(&model).mush_terms as u32,
     };
@@ -494,9 +514,11 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
             reported.proxy_correctives,
             reported.proxy_corrective_drivers,
             reported.proxy_corrective_kernels,
-            reported.proxy_corrective_linear
+            reported.proxy_corrective_linear,
+            reported.proxy_corrective_gravity,
+            reported.up
         ),
-        (3, 4, 2, 1)
+        (3, 4, 2, 1, 1, [0.0, 1.0, 0.0])
     );
     let (mut model_bytes, mut crowd_bytes) = (0u64, 0u64);
     // SAFETY: live values.

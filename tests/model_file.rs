@@ -641,24 +641,39 @@ fn inconsistent_correctives_are_refused_by_validation() {
 /// A model of the tests' shape (J = 4, P = 5) with proxy correctives: proxies 0, 2, 3 with 1,
 /// 3 and 0 drivers (4 in all), `linear` features or not and `kernels` kernels.
 fn proxy_corrected(linear: bool, kernels: usize, influences: u32) -> Model {
-    let m = common::with_proxy_correctives(&model(5, influences), linear, kernels, 3);
+    seeing(linear, None, kernels, influences)
+}
+
+/// [`proxy_corrected`] whose features see gravity where `up` is given.
+fn seeing(linear: bool, up: Option<[f32; 3]>, kernels: usize, influences: u32) -> Model {
+    let base = model(5, influences);
+    let m = common::with_proxy_correctives_seeing(&base, linear, up, kernels, 3);
     let c = m.proxy_correctives().expect("proxy correctives");
     assert_eq!((c.proxies.len(), c.drivers.len()), (3, 4));
     m
 }
 
-/// The PCOR section's words: E, C, linear, D, then E + (E + 1) + D u32, C J 9 + J (with
-/// kernels) f32, 12 D (9 linear + C) f32.
-fn pcor_words(linear: bool, kernels: u64) -> u64 {
+/// The PCOR section's words: E, C, the flags, D, then E + (E + 1) + D u32, C J 9 + J (with
+/// kernels) f32, 3 f32 (the up, with gravity), 12 D (9 linear + 3 gravity + C) f32.
+fn pcor_words(linear: bool, gravity: bool, kernels: u64) -> u64 {
     let (e, d, j) = (3, 4, 4);
     let widths = if kernels > 0 { j } else { 0 };
-    4 + e + e + 1 + d + kernels * j * 9 + widths + 12 * d * (9 * u64::from(linear) + kernels)
+    let (linear, gravity) = (9 * u64::from(linear), 3 * u64::from(gravity));
+    4 + e + e + 1 + d + kernels * j * 9 + widths + gravity + 12 * d * (linear + gravity + kernels)
 }
 
 #[test]
 fn proxy_correctives_round_trip_and_version_2_files_still_load() {
-    for (linear, kernels, k) in [(true, 0, 4), (false, 3, 8), (true, 2, 4)] {
-        let m = proxy_corrected(linear, kernels, k);
+    let up = Some([0.0, 0.6, 0.8]);
+    let kinds = [
+        (true, None, 0, 4),
+        (false, None, 3, 8),
+        (true, None, 2, 4),
+        (true, up, 0, 4),
+        (false, up, 2, 8),
+    ];
+    for (linear, up, kernels, k) in kinds {
+        let m = seeing(linear, up, kernels, k);
         assert_eq!(m.proxy_corrective_count(), 3);
         let bytes = m.to_bytes();
         assert_eq!(
@@ -669,7 +684,7 @@ fn proxy_correctives_round_trip_and_version_2_files_still_load() {
         assert_eq!(back, m);
         assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
         let (_, length) = table_entry(&bytes, b"PCOR");
-        assert_eq!(length, 4 * pcor_words(linear, kernels as u64));
+        assert_eq!(length, 4 * pcor_words(linear, up.is_some(), kernels as u64));
     }
     // Beside pose-space correctives.
     let both = common::with_correctives(&proxy_corrected(true, 2, 4), 3, 1);
@@ -708,6 +723,7 @@ fn malformed_proxy_corrective_sections_are_refused() {
         (1, 3),
         (1, 0),
         (2, 0),
+        (2, 3),
         (3, 5),
         (0, u32::MAX),
         (1, u32::MAX),
@@ -719,13 +735,13 @@ fn malformed_proxy_corrective_sections_are_refused() {
             "word {word} = {value}: {p:?}"
         );
     }
-    let p = edit(&|b| put_u32(b, at + 8, 2));
+    let p = edit(&|b| put_u32(b, at + 8, 4));
     assert_eq!(
         p,
         ModelProblem::Dimension {
-            what: "the PCOR section's linear flag",
-            value: 2,
-            reason: "must be 0 or 1"
+            what: "the PCOR section's feature flags",
+            value: 4,
+            reason: "must be 0 to 3 (bit 0 linear, bit 1 gravity)"
         }
     );
     // Shorter than its four counts, and cut inside its arrays.
@@ -753,7 +769,7 @@ fn malformed_proxy_corrective_sections_are_refused() {
     let (proxies, offsets, drivers, centres, widths, maps) =
         (at + 16, at + 28, at + 44, at + 60, at + 348, at + 364);
     assert_eq!(
-        at + 4 * pcor_words(true, 2) as usize,
+        at + 4 * pcor_words(true, false, 2) as usize,
         maps + 4 * 12 * 4 * 11
     );
     assert_eq!(
@@ -932,8 +948,33 @@ fn inconsistent_proxy_correctives_are_refused_by_validation() {
     });
     assert_eq!(
         dimension(nothing),
-        ("proxy corrective features per driver (9 linear + C)", 0)
+        (
+            "proxy corrective features per driver (9 linear + 3 gravity + C)",
+            0
+        )
     );
+    // The up, where the features see gravity: of unit length (gravity alone is a basis), finite.
+    let gravity_only = |up: [f32; 3]| {
+        with(&|c| {
+            c.linear = false;
+            c.up = Some(up);
+            c.centres.clear();
+            c.widths.clear();
+            c.maps = vec![0.0; 12 * 4 * 3];
+        })
+    };
+    assert!(matches!(
+        gravity_only([0.0, 2.0, 0.0]),
+        ModelProblem::BadProxyCorrective { what: "up", .. }
+    ));
+    assert!(matches!(
+        gravity_only([0.0, f32::NAN, 1.0]),
+        ModelProblem::NonFinite { index: 1, .. }
+    ));
+    let mut alone = parts.clone();
+    let c = alone.proxy_correctives.as_mut().expect("proxy correctives");
+    (c.linear, c.up, c.maps) = (false, Some([1.0, 0.0, 0.0]), vec![0.0; 12 * 4 * (3 + 2)]);
+    Model::new(alone).expect("gravity and kernels without the linear features");
     assert!(length(with(&|c| {
         c.maps.pop();
     }))

@@ -87,7 +87,7 @@ fn serial_batched_and_threaded_palettes_agree_exactly() {
     for threads in [1, 3, 0, 64] {
         let mut batch = vec![[0.0; 12]; characters * n];
         palette
-            .compute_batch_parallel(&bones, &mut batch, threads)
+            .compute_batch_parallel(&bones, &[], &mut batch, threads)
             .expect("batch");
         assert!(batch == one_by_one, "{threads} threads");
     }
@@ -503,7 +503,7 @@ fn proxy_correctives_through_the_palette_match_the_reference() {
             }
             let mut threaded = vec![[0.0; 12]; 16 * n];
             palette
-                .compute_batch_parallel(&bones, &mut threaded, 3)
+                .compute_batch_parallel(&bones, &[], &mut threaded, 3)
                 .expect("palette");
             assert_eq!(threaded, a, "{what}");
         }

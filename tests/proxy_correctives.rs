@@ -1,14 +1,16 @@
 //! Proxy correctives (docs/method.md §21) in the CPU reference evaluator: a hand-computed case
 //! (one vertex on one proxy, one driver, a linear and a kernel feature) matches the formula in
 //! the reference and the palette, the reference's correction is an independent reading of the
-//! form (features gathered into a vector, `T (I + E)` as 4x4 matrices), a zero map changes
-//! nothing while the non-zero one does, and the correction is exact at the rest pose.
+//! form (features gathered into a vector, `T (I + E)` as 4x4 matrices), for characters of any
+//! up where the features see gravity, a zero map changes nothing while the non-zero one does,
+//! the correction is exact at the rest pose of an upright character and not of a tilted one, and
+//! the palette agrees with the reference for tilted characters.
 
 mod common;
 
 use common::{
     affine, assert_a_zero_map_changes_nothing, cpu_reference, joint_blend_pattern, random_model,
-    random_poses, with_proxy_correctives, Spec,
+    random_poses, with_proxy_correctives_seeing, Spec,
 };
 use glam::{DMat4, DVec4};
 use rrskin::palette::{Palette, REST};
@@ -30,18 +32,38 @@ fn without(model: &Model) -> Model {
     .expect("valid")
 }
 
-/// The three feature kinds on a dense and a joint-blend (fused) model.
+/// The model's up of the models that see gravity: not an axis, so that every component counts.
+const UP: [f32; 3] = [0.48, 0.8, 0.36];
+
+/// The three feature kinds, with and without gravity, on a dense and a joint-blend (fused) model.
 fn models() -> Vec<(String, Model)> {
     let dense = random_model(SPEC, 3);
     let fused = joint_blend_pattern(&random_model(Spec { proxies: 9, ..SPEC }, 4), 1);
     let mut out = Vec::new();
     for (what, base) in [("dense", &dense), ("joint-blend", &fused)] {
-        for (linear, kernels) in [(true, 0), (false, 3), (true, 2)] {
-            let model = with_proxy_correctives(base, linear, kernels, 7 + kernels as u64);
-            out.push((format!("{what}, linear {linear}, C = {kernels}"), model));
+        let kinds = [
+            (true, None, 0),
+            (false, None, 3),
+            (true, None, 2),
+            (true, Some(UP), 0),
+            (false, Some(UP), 2),
+        ];
+        for (linear, up, kernels) in kinds {
+            let seed = 7 + kernels as u64;
+            let model = with_proxy_correctives_seeing(base, linear, up, kernels, seed);
+            out.push((
+                format!("{what}, linear {linear}, up {up:?}, C = {kernels}"),
+                model,
+            ));
         }
     }
     out
+}
+
+/// A tilted character's up: the model's up turned by 0.7 rad about x, and 0.9 g.
+fn tilted(up: [f32; 3]) -> [f32; 3] {
+    let (c, s) = (0.7f32.cos(), 0.7f32.sin());
+    [up[0], c * up[1] - s * up[2], s * up[1] + c * up[2]].map(|x| 0.9 * x)
 }
 
 /// One vertex on proxy 0, which follows the root (C2 copies bone 0); bone 1 (a child of the
@@ -83,6 +105,7 @@ fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
         correctives: None,
         proxy_correctives: Some(ProxyCorrectives {
             linear: true,
+            up: None,
             centres: vec![[0.0; 9], z],
             widths: vec![1.0, 0.5],
             proxies: vec![0],
@@ -129,21 +152,24 @@ fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
 }
 
 /// The reference's correction against the form read independently: the feature vector x of
-/// each corrected proxy gathered in order (per driver 9 φ if linear, then C kernels), E =
-/// Σ_f x_f G_f as a 4x4 with a zero bottom row, T' = T (I + E) as 4x4 products.
+/// each corrected proxy gathered in order (per driver 9 φ if linear, 3 γ = Q_bᵀ u_c − u if the
+/// model has an up, then C kernels), E = Σ_f x_f G_f as a 4x4 with a zero bottom row, T' = T (I
+/// + E) as 4x4 products; the characters upright and tilted.
 #[test]
 fn the_reference_correction_is_the_stated_form() {
     for (what, model) in models() {
         let c = model.proxy_correctives().expect("proxy correctives");
         let (p, j) = (model.proxy_count(), model.bone_count());
         let kernels = c.centres.len() / j;
-        for bones in random_poses(&model, 4, 5).chunks_exact(j) {
+        let poses = random_poses(&model, 4, 5);
+        for (k, bones) in poses.chunks_exact(j).enumerate() {
+            let up = c.up.map(|u| if k % 2 == 1 { tilted(u) } else { u });
             // Any proxies will do: the rows of random 3x4 matrices.
             let t: Vec<[f64; 12]> = (0..p)
                 .map(|e| std::array::from_fn(|i| ((e * 12 + i) as f64 * 0.37).sin()))
                 .collect();
             let mut corrected = t.clone();
-            apply_proxy_correctives(&model, bones, &mut corrected).expect("correct");
+            apply_proxy_correctives(&model, bones, up, &mut corrected).expect("correct");
             for e in 0..p {
                 let Some(i) = c.proxies.iter().position(|&x| x as usize == e) else {
                     assert_eq!(corrected[e], t[e], "{what}: proxy {e} is not corrected");
@@ -157,6 +183,16 @@ fn the_reference_correction_is_the_stated_form() {
                     if c.linear {
                         x.extend(phi);
                     }
+                    if let (Some(u), Some(uc)) = (c.up, up) {
+                        // (Q_bᵀ u_c)_i = Σ_r Q_b[r][i] u_c[r], Q_b row-major in the transform.
+                        let q = &bones[b];
+                        x.extend((0..3).map(|i| {
+                            let turned: f64 = (0..3)
+                                .map(|r| f64::from(q[4 * r + i]) * f64::from(uc[r]))
+                                .sum();
+                            turned - f64::from(u[i])
+                        }));
+                    }
                     for k in 0..kernels {
                         let z = c.centres[k * j + b].map(f64::from);
                         let w = c.widths[b] as f64;
@@ -167,7 +203,7 @@ fn the_reference_correction_is_the_stated_form() {
                         assert!((lib - x[x.len() - 1]).abs() < 1e-12, "{what}");
                     }
                 }
-                let per_driver = 12 * (9 * usize::from(c.linear) + kernels);
+                let per_driver = 12 * c.features_per_driver(j);
                 let map = &c.maps[per_driver * c.driver_offsets[i] as usize..][..12 * x.len()];
                 let mut e4 = DMat4::ZERO;
                 for (f, &xf) in x.iter().enumerate() {
@@ -220,9 +256,10 @@ fn a_zero_map_changes_nothing_and_the_map_does() {
     }
 }
 
-/// At the rest pose every feature is zero (φ = 0, and both terms of a kernel are equal), so the
-/// corrected proxies are the uncorrected ones exactly, in the reference (f64) and the palette
-/// (f32) alike.
+/// At the rest pose of an upright character every feature is zero (φ = 0, γ = 0, and both terms
+/// of a kernel are equal), so the corrected proxies are the uncorrected ones exactly, in the
+/// reference (f64) and the palette (f32) alike; a tilted character at rest is corrected where
+/// the model sees gravity.
 #[test]
 fn the_correction_is_exact_at_the_rest_pose() {
     for (what, corrected) in models() {
@@ -245,6 +282,13 @@ fn the_correction_is_exact_at_the_rest_pose() {
             .expect("palette");
         assert_eq!(a, b, "{what}");
         let c = corrected.proxy_correctives().expect("proxy correctives");
+        if let Some(u) = c.up {
+            let palette = Palette::new(corrected.clone()).expect("palette");
+            palette
+                .compute_batch_with_ups(&rest, &[tilted(u)], &mut a)
+                .expect("palette");
+            assert_ne!(a, b, "{what}: a tilted character at rest");
+        }
         let j = corrected.bone_count();
         for b in 0..j {
             let phi = rotation_features(&rest, b, corrected.parent(b).unwrap_or(b));
@@ -261,20 +305,79 @@ fn wrong_lengths_are_errors() {
     let (_, model) = models().swap_remove(0);
     let bones = random_poses(&model, 1, 1);
     let mut proxies = vec![[0.0f64; 12]; model.proxy_count()];
-    apply_proxy_correctives(&model, &bones, &mut proxies).expect("the right lengths");
+    apply_proxy_correctives(&model, &bones, None, &mut proxies).expect("the right lengths");
     let mut short = vec![[0.0f64; 12]; model.proxy_count() - 1];
     assert!(matches!(
-        apply_proxy_correctives(&model, &bones, &mut short),
+        apply_proxy_correctives(&model, &bones, None, &mut short),
         Err(Error::WrongLength {
             what: "proxy transforms",
             ..
         })
     ));
     assert!(matches!(
-        apply_proxy_correctives(&model, &bones[1..], &mut proxies),
+        apply_proxy_correctives(&model, &bones[1..], None, &mut proxies),
         Err(Error::WrongLength {
             what: "bone transforms",
             ..
         })
     ));
+}
+
+/// Tilted characters: the palette (f32, `compute_batch_with_ups`, and threaded) skins as the
+/// reference (f64, `CpuEvaluator::set_ups`) does, the ups change the mesh of a model that sees
+/// gravity and nothing of one that does not; ups of the wrong count or not finite are errors.
+#[test]
+fn the_palette_and_the_reference_agree_on_tilted_characters() {
+    for (what, model) in models() {
+        let (j, v, n) = (
+            model.bone_count(),
+            model.vertex_count(),
+            model.proxy_count(),
+        );
+        let bones = random_poses(&model, 3, 11);
+        let up = model.up().unwrap_or([0.0, 1.0, 0.0]);
+        let ups = [up, tilted(up), [0.0; 3]];
+        let mut cpu = rrskin::cpu::CpuEvaluator::new(&model);
+        cpu.set_ups(&ups).expect("finite");
+        let (mut want, mut normals) = (vec![[0.0f32; 3]; 3 * v], vec![[0.0f32; 3]; 3 * v]);
+        cpu.evaluate(&bones, &mut want, &mut normals)
+            .expect("reference");
+        let palette = Palette::new(model.clone()).expect("palette");
+        let mut entries = vec![[0.0f32; 12]; 3 * (n + j)];
+        let mut threaded = entries.clone();
+        palette
+            .compute_batch_with_ups(&bones, &ups, &mut entries)
+            .expect("palette");
+        palette
+            .compute_batch_parallel(&bones, &ups, &mut threaded, 3)
+            .expect("palette");
+        assert_eq!(entries, threaded, "{what}");
+        let mut got = vec![[0.0f32; 3]; v];
+        for (ch, palette_entries) in entries.chunks_exact(n + j).enumerate() {
+            palette
+                .skin_positions(palette_entries, &[], &mut got)
+                .expect("skin");
+            for (a, b) in got.iter().zip(&want[ch * v..(ch + 1) * v]) {
+                let d = (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max);
+                assert!(d < 1e-4, "{what}, character {ch}: {a:?} vs {b:?}");
+            }
+        }
+        let (upright, _) = cpu_reference(&model, &bones);
+        let moved = (upright.iter().zip(&want))
+            .skip(v)
+            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs()).fold(0.0, f32::max))
+            .fold(0.0, f32::max);
+        match model.up() {
+            Some(_) => assert!(moved > 1e-3, "{what}: tilting moved {moved}"),
+            None => assert_eq!(moved, 0.0, "{what}"),
+        }
+        assert!(matches!(
+            palette.compute_batch_with_ups(&bones, &ups[..2], &mut entries),
+            Err(Error::WrongLength { .. })
+        ));
+        assert!(matches!(
+            cpu.set_ups(&[[0.0, f32::NAN, 1.0]]),
+            Err(Error::NonFinite { index: 1, .. })
+        ));
+    }
 }

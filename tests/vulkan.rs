@@ -1355,6 +1355,97 @@ fn proxy_correctives_after_each_product(in_product: bool) {
     assert_no_validation_messages(&ctx);
 }
 
+/// Proxy correctives that see gravity (their own pass's GRAVITY build, even where a fused
+/// product was asked to apply the correction) on characters each with its own up vector: the
+/// GPU matches the CPU reference given the same ups, in two frame slots with different ups, and
+/// after one character's up is set alone; the ups move the mesh; a new crowd starts upright (the
+/// model's up: at the rest pose it renders the uncorrected model).
+#[test]
+fn proxy_correctives_seeing_gravity_match_cpu_for_tilted_characters() {
+    let ctx = validated_context();
+    let up = Some([0.0, 0.6, 0.8]);
+    let sparse = joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 71), 1);
+    let mushed = with_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 72), 12, 72)
+        .expect("delta-mush keys");
+    let models = [
+        with_proxy_correctives_seeing(&random_model(RR, 70), true, up, 0, 1),
+        with_proxy_correctives_seeing(&sparse, false, up, 2, 2),
+        with_proxy_correctives_seeing(&joint_blend_pattern(&mushed, 1), true, up, 2, 3),
+    ];
+    let settings = GpuModelDebugSettings {
+        correctives_in_product: Some(true),
+    };
+    let counts = [300, 9, 5];
+    let mut batch = Batch::new(&ctx).expect("batch");
+    for (i, (model, c)) in models.iter().zip(counts).enumerate() {
+        let gpu = GpuModel::with_debug_settings(&ctx, model, settings).expect("upload");
+        assert!(!gpu.applies_correctives_in_product(), "model {i}");
+        assert_eq!(gpu.up(), up);
+        let options = CrowdOptions {
+            frames_in_flight: 2,
+            debug_settings: CrowdDebugSettings {
+                fill_nan: true,
+                ..Default::default()
+            },
+            ..CrowdOptions::default()
+        };
+        let mut crowd = Crowd::with_options(&gpu, c, options).expect("crowd");
+        let mut cpu = CpuEvaluator::new(model);
+        let v = model.vertex_count();
+        let (mut p, mut n) = (vec![[0.0; 3]; c * v], vec![[0.0; 3]; c * v]);
+        // Upright at rest: the uncorrected model.
+        let rest = vec![rrskin::palette::REST; c * model.bone_count()];
+        crowd.set_bones(0, &rest).expect("bones");
+        batch.run(0, &[&crowd]).expect("run");
+        let plain = Model::new(rrskin::ModelParts {
+            proxy_correctives: None,
+            ..model.parts().clone()
+        })
+        .expect("valid");
+        CpuEvaluator::new(&plain)
+            .evaluate(&rest, &mut p, &mut n)
+            .expect("cpu");
+        let out = crowd.read_back().expect("read back");
+        compare(model, (&p, &n), (&out.positions, &out.normals));
+        for frame in 0..2 {
+            let (poses, _, _) = checkable_poses(model, c, frame + 1).swap_remove(frame);
+            let mut ups: Vec<[f32; 3]> = (0..c)
+                .map(|k| {
+                    let a = 0.05 * (k + 7 * frame) as f32;
+                    [a.sin(), 0.6 * a.cos(), 0.8 * a.cos()]
+                })
+                .collect();
+            crowd.set_bones(frame, &poses).expect("bones");
+            crowd.set_ups(frame, &ups).expect("ups");
+            if frame == 1 {
+                ups[c - 1] = [0.0, -0.6, -0.8];
+                crowd
+                    .set_character_up(frame, c - 1, ups[c - 1])
+                    .expect("up");
+            }
+            cpu.set_ups(&ups).expect("finite");
+            cpu.evaluate(&poses, &mut p, &mut n).expect("cpu");
+            batch.run(frame, &[&crowd]).expect("run");
+            let out = crowd.read_back().expect("read back");
+            compare(model, (&p, &n), (&out.positions, &out.normals));
+            let (upright, _) = cpu_reference(model, &poses);
+            let moved = (out.positions.iter().zip(&upright))
+                .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max))
+                .fold(0.0, f32::max);
+            assert!(moved > 1e-3, "model {i}: the ups moved {moved}");
+        }
+        assert!(matches!(
+            crowd.set_ups(0, &[[0.0, 1.0, 0.0]]),
+            Err(Error::WrongLength { .. })
+        ));
+        assert!(matches!(
+            crowd.set_character_up(0, 0, [f32::INFINITY, 0.0, 0.0]),
+            Err(Error::NonFinite { .. })
+        ));
+    }
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn proxy_correctives_in_their_own_pass_after_each_product_match_cpu() {
     proxy_correctives_after_each_product(false);

@@ -2,7 +2,7 @@
 //! read-backs, bounds), destroyed; and a context's batch, which records or runs one frame of
 //! several crowds and times its passes (`rrskin_context_get_timings`).
 
-use super::guard::{guard, put, slice, Failure};
+use super::guard::{guard, put, slice, vectors3, Failure};
 use super::handles::{context_entry, crowd_entry, model_entry, registry, CrowdEntry};
 use super::types::{
     RrskinContext, RrskinCrowd, RrskinCrowdOptions, RrskinModel, RrskinStatus,
@@ -213,6 +213,50 @@ pub unsafe extern "C" fn rrskin_crowd_set_character_bones(
             character as usize,
             bones,
         )?)
+    })
+}
+
+/// Sets every character's up vector of frame slot `frame`: `float_count` = characters x 3, each
+/// in the character's bones' frame, the direction opposite to gravity (its length gravity's
+/// strength against the training poses'), for characters tilted by their object transform
+/// rather than their root bone. A crowd starts with the model's up
+/// (`rrskin_model_info.up`); a model without `proxy_corrective_gravity` reads none.
+///
+/// # Safety
+/// `ups` is NULL or points to `float_count` readable floats that no other thread writes during
+/// the call.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_set_ups(
+    crowd: RrskinCrowd,
+    frame: u32,
+    ups: *const f32,
+    float_count: usize,
+) -> RrskinStatus {
+    guard(|| {
+        // SAFETY: `ups` as the function's contract requires.
+        let ups = unsafe { vectors3(ups, float_count)? };
+        Ok(crowd_entry(crowd)?.write().set_ups(frame as usize, ups)?)
+    })
+}
+
+/// Sets one character's up vector of frame slot `frame` (as `rrskin_crowd_set_ups`).
+///
+/// # Safety
+/// `up` is NULL or points to 3 readable floats.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_crowd_set_character_up(
+    crowd: RrskinCrowd,
+    frame: u32,
+    character: u32,
+    up: *const f32,
+) -> RrskinStatus {
+    guard(|| {
+        // SAFETY: `up` as the function's contract requires.
+        let up = unsafe { slice(up.cast::<[f32; 3]>(), 1, "up")? }[0];
+        let (frame, character) = (frame as usize, character as usize);
+        Ok(crowd_entry(crowd)?
+            .write()
+            .set_character_up(frame, character, up)?)
     })
 }
 

@@ -151,3 +151,24 @@ pub(super) unsafe fn slice<'a, T>(
     // SAFETY: non-null, and `count` readable elements by the function's contract.
     Ok(unsafe { std::slice::from_raw_parts(data, count) })
 }
+
+/// `floats` floats at `data` as 3-vectors (an up vector each): NULL with 0 is none.
+///
+/// # Safety
+/// `data` is NULL or points to `floats` readable floats.
+pub(super) unsafe fn vectors3<'a>(
+    data: *const f32,
+    floats: usize,
+) -> Result<&'a [[f32; 3]], Failure> {
+    if floats % 3 != 0 {
+        return Err(crate::Error::WrongLength {
+            what: "up vector floats (3 a vector)",
+            expected: floats.div_ceil(3) * 3,
+            actual: floats,
+        }
+        .into());
+    }
+    // SAFETY: `data` points to `floats` floats, 3 to a vector (`[f32; 3]` has the alignment of
+    // `f32`), as the caller guarantees.
+    unsafe { slice(data.cast::<[f32; 3]>(), floats / 3, "ups") }
+}

@@ -93,6 +93,8 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             proxy_corrective_drivers: sizes.proxy_corrective_drivers as u32,
             proxy_corrective_kernels: sizes.proxy_corrective_kernels as u32,
             proxy_corrective_linear: u32::from(sizes.proxy_corrective_linear),
+            proxy_corrective_gravity: u32::from(sizes.proxy_corrective_gravity),
+            up: m.up().unwrap_or_default(),
             normal_fan_entries: sizes.normal_fans as u32,
             mush_terms: sizes.mush_terms as u32,
         };

@@ -4,7 +4,7 @@
 //! reader-writer lock held only to find the model, so threads run palettes of one model (or
 //! many) in parallel, and a model destroyed while a call runs lives until that call returns.
 
-use super::guard::{guard, put, slice, utf8_path, Failure};
+use super::guard::{guard, put, slice, utf8_path, vectors3, Failure};
 use super::handles::Slots;
 use super::types::RrskinStatus;
 use crate::model::Model;
@@ -178,6 +178,24 @@ pub unsafe extern "C" fn rrskin_palette_model_get_corrective_count(
     })
 }
 
+/// The model's up (3 floats, unit, in its bones' frame) where its proxy correctives see gravity,
+/// so that `rrskin_palette_compute_with_ups` reads up vectors; zeros where they do not.
+///
+/// # Safety
+/// `out` is NULL or points to 3 writable floats.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_model_get_up(
+    model: RrskinPaletteModel,
+    out: *mut f32,
+) -> RrskinStatus {
+    guard(|| {
+        let up = palette_of(model)?.model().up().unwrap_or_default();
+        // SAFETY: `out` as the function's contract requires (`[f32; 3]` has the alignment of
+        // `f32`).
+        unsafe { put(out.cast::<[f32; 3]>(), up, "out") }
+    })
+}
+
 /// The pose-space corrective weights of `characters` characters on the calling thread: `bones`
 /// as `rrskin_palette_compute`'s (`bone_floats` = characters * J * 12), `out` characters x N
 /// floats (`out_floats`; N from `rrskin_palette_model_get_corrective_count`), each character's
@@ -233,8 +251,9 @@ pub unsafe extern "C" fn rrskin_palette_compute(
     out: *mut f32,
     out_floats: usize,
 ) -> RrskinStatus {
+    let upright = (std::ptr::null(), 0);
     // SAFETY: the pointers as the function's contract requires.
-    guard(|| unsafe { compute(model, bones, bone_floats, out, out_floats, 1) })
+    guard(|| unsafe { compute(model, (bones, bone_floats), upright, (out, out_floats), 1) })
 }
 
 /// `rrskin_palette_compute` split over `threads` threads it starts and joins (0: one per
@@ -251,21 +270,56 @@ pub unsafe extern "C" fn rrskin_palette_compute_parallel(
     out_floats: usize,
     threads: u32,
 ) -> RrskinStatus {
+    let (upright, threads) = ((std::ptr::null(), 0), threads as usize);
     // SAFETY: the pointers as the function's contract requires.
-    guard(|| unsafe { compute(model, bones, bone_floats, out, out_floats, threads as usize) })
+    guard(|| unsafe {
+        compute(
+            model,
+            (bones, bone_floats),
+            upright,
+            (out, out_floats),
+            threads,
+        )
+    })
 }
 
+/// `rrskin_palette_compute_parallel` with each character's up vector in its bones' frame:
+/// `ups` characters x 3 floats (`up_floats`), the direction opposite to gravity, its length
+/// gravity's strength against the training poses' (for a character tilted by its object
+/// transform rather than its root bone). NULL with `up_floats` = 0: the model's up
+/// (`rrskin_palette_model_get_up`). Only a model whose proxy correctives see gravity reads them;
+/// `threads` = 1 runs on the calling thread.
+///
 /// # Safety
-/// As `rrskin_palette_compute`.
-unsafe fn compute(
+/// As `rrskin_palette_compute`; `ups` is NULL or points to `up_floats` readable floats.
+#[no_mangle]
+pub unsafe extern "C" fn rrskin_palette_compute_with_ups(
     model: RrskinPaletteModel,
     bones: *const f32,
     bone_floats: usize,
+    ups: *const f32,
+    up_floats: usize,
     out: *mut f32,
     out_floats: usize,
+    threads: u32,
+) -> RrskinStatus {
+    let (bones, ups, out) = ((bones, bone_floats), (ups, up_floats), (out, out_floats));
+    // SAFETY: the pointers as the function's contract requires.
+    guard(|| unsafe { compute(model, bones, ups, out, threads as usize) })
+}
+
+/// # Safety
+/// As `rrskin_palette_compute_with_ups`: each pointer NULL or to its count of floats.
+unsafe fn compute(
+    model: RrskinPaletteModel,
+    (bones, bone_floats): (*const f32, usize),
+    (ups, up_floats): (*const f32, usize),
+    (out, out_floats): (*mut f32, usize),
     threads: usize,
 ) -> Result<(), Failure> {
     let palette = palette_of(model)?;
+    // SAFETY: `ups` as the caller guarantees.
+    let ups = unsafe { vectors3(ups, up_floats) }?;
     let (count, entries) = (
         transforms(bone_floats, "bone floats")?,
         transforms(out_floats, "palette floats")?,
@@ -279,7 +333,7 @@ unsafe fn compute(
     // SAFETY: non-null, `out_floats` writable floats not overlapping `bones`, as the caller
     // guarantees.
     let out = unsafe { std::slice::from_raw_parts_mut(out.cast::<Affine>(), entries) };
-    Ok(palette.compute_batch_parallel(bones, out, threads)?)
+    Ok(palette.compute_batch_parallel(bones, ups, out, threads)?)
 }
 
 /// Transforms in `floats` floats: whole 3x4 matrices only.

@@ -108,6 +108,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             proxy_corrective_drivers: i.proxy_corrective_drivers as usize,
             proxy_corrective_kernels: i.proxy_corrective_kernels as usize,
             proxy_corrective_linear: i.proxy_corrective_linear != 0,
+            proxy_corrective_gravity: i.proxy_corrective_gravity != 0,
             normal_fans: i.normal_fan_entries as usize,
             mush_terms: i.mush_terms as usize,
         };

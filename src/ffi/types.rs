@@ -86,6 +86,11 @@ pub struct RrskinModelInfo {
     pub proxy_corrective_kernels: u32,
     /// Nonzero: the proxy correctives have the 9 linear features per driver.
     pub proxy_corrective_linear: u32,
+    /// Nonzero: they have the 3 gravity features per driver too, and crowds read each
+    /// character's up vector (`rrskin_crowd_set_ups`; the model's `up` by default).
+    pub proxy_corrective_gravity: u32,
+    /// The model's up (unit, in its bones' frame) where `proxy_corrective_gravity`, else zeros.
+    pub up: [f32; 3],
     /// Entries of the 1-ring fans the recomputed-normals pass reads (about 3 x triangles +
     /// 2 x vertices for a closed mesh): what `rrskin_model_get_info` reports, needed for
     /// `rrskin_query_memory`'s model bytes.

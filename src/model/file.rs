@@ -3,8 +3,9 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION (4; versions 1, without CORR,
-//!                    PCOR and MUSH, 2, without PCOR and MUSH, and 3, without MUSH, read too)
+//! 8       4          format version (u32) = FORMAT_VERSION (5; versions 1, without CORR,
+//!                    PCOR and MUSH, 2, without PCOR and MUSH, 3, without MUSH, and 4,
+//!                    without PCOR's gravity, read too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -31,7 +32,7 @@
 //! | ANIM | optional: frames x J x 12 f32 bone transforms        |
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
-//! | PCOR | optional (version 3): proxy correctives: E u32, C u32, linear u32 (0 or 1), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), maps 12 D (9 linear + C) f32 |
+//! | PCOR | optional (version 3): proxy correctives: E u32, C u32, features u32 (bit 0 linear; bit 1 gravity, version 5), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), up 3 f32 (with gravity only), maps 12 D (9 linear + 3 gravity + C) f32 |
 //! | MUSH | optional (version 4): delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
@@ -42,7 +43,7 @@ use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 /// The version this build writes; it reads every version from 1 to this one.
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
@@ -169,8 +170,8 @@ fn correctives_bytes(c: &Correctives, v: usize) -> Vec<u8> {
     corr
 }
 
-/// The PCOR payload: E, C, the linear flag, D, then the proxies, driver offsets, drivers,
-/// centres, widths and maps.
+/// The PCOR payload: E, C, the feature flags, D, then the proxies, driver offsets, drivers,
+/// centres, widths, up and maps.
 fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
     let mut pcor = Vec::new();
     let kernels = c.kernel_count(j);
@@ -179,7 +180,7 @@ fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
         &[
             c.proxies.len() as u32,
             kernels as u32,
-            u32::from(c.linear),
+            u32::from(c.linear) | u32::from(c.up.is_some()) << 1,
             c.drivers.len() as u32,
         ],
     );
@@ -188,6 +189,7 @@ fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
     push_u32s(&mut pcor, &c.drivers);
     push_f32s(&mut pcor, c.centres.as_flattened());
     push_f32s(&mut pcor, &c.widths);
+    push_f32s(&mut pcor, c.up.as_slice().as_flattened());
     push_f32s(&mut pcor, &c.maps);
     pcor
 }
@@ -415,7 +417,7 @@ fn predictor(record: &[u8]) -> KeyPredictor {
     }
 }
 
-/// The PCOR section: E, C, the linear flag and D, then the lengths they give (checked before
+/// The PCOR section: E, C, the feature flags and D, then the lengths they give (checked before
 /// anything else is read).
 fn proxy_correctives(
     table: &SectionTable,
@@ -432,21 +434,31 @@ fn proxy_correctives(
         });
     }
     let head = table.section(body, PCOR, length)?;
-    let [e, c, linear, d] = [0, 1, 2, 3].map(|i| le_u32(head, 4 * i) as u64);
-    if linear > 1 {
+    let [e, c, flags, d] = [0, 1, 2, 3].map(|i| le_u32(head, 4 * i) as u64);
+    if flags > 3 {
         return Err(ModelProblem::Dimension {
-            what: "the PCOR section's linear flag",
-            value: linear,
-            reason: "must be 0 or 1",
+            what: "the PCOR section's feature flags",
+            value: flags,
+            reason: "must be 0 to 3 (bit 0 linear, bit 1 gravity)",
         });
     }
+    let (linear, gravity) = (flags & 1, flags >> 1);
     let product = |factors: &[u64]| factors.iter().fold(1u64, |acc, &f| acc.saturating_mul(f));
     let widths = if c > 0 { j } else { 0 };
     let centres = product(&[c, j, 9]);
-    let maps = product(&[12, d, 9 * linear + c]);
-    let words = [4, e, e.saturating_add(1), d, centres, widths, maps]
-        .into_iter()
-        .fold(0u64, u64::saturating_add);
+    let maps = product(&[12, d, 9 * linear + 3 * gravity + c]);
+    let words = [
+        4,
+        e,
+        e.saturating_add(1),
+        d,
+        centres,
+        widths,
+        3 * gravity,
+        maps,
+    ]
+    .into_iter()
+    .fold(0u64, u64::saturating_add);
     let pcor = table.section(body, PCOR, words.saturating_mul(4))?;
     let (e, d, centres, widths) = (e as usize, d as usize, centres as usize, widths as usize);
     let mut at = 16;
@@ -460,9 +472,11 @@ fn proxy_correctives(
     let drivers = u32s(take(d));
     let centres = f32s(take(centres)).chunks_exact(9).map(array).collect();
     let widths = f32s(take(widths));
+    let up = (gravity == 1).then(|| array(&f32s(take(3))));
     let maps = f32s(take(maps as usize));
     Ok(ProxyCorrectives {
         linear: linear == 1,
+        up,
         centres,
         widths,
         proxies,

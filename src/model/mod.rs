@@ -27,7 +27,8 @@
 //! | `  .proxies`       | E                | the corrected proxies, ascending, distinct, < P        |
 //! | `  .driver_offsets`| E + 1            | CSR offsets into `drivers`                             |
 //! | `  .drivers`       | Σ D_i            | driver joints of each corrected proxy                  |
-//! | `  .maps`          | Σ F_i x 12       | G_ef per feature f (F_i = D_i (9·linear + C))          |
+//! | `  .up`            | 3 or none        | the model's up u, where the features see gravity       |
+//! | `  .maps`          | Σ F_i x 12       | G_ef per feature f (F_i = D_i (9·linear + 3·gravity + C)) |
 //! | `mush_keys`        | optional         | delta-mush keys (docs/method.md §23): keys R..P, R = predictors |
 //! | `  .offsets`       | S + 1            | CSR offsets into `bones`/`terms`                       |
 //! | `  .bones`         | Σ n_s            | the bones of each key's rigid fit                      |
@@ -52,7 +53,8 @@
 //! character are computed, each corrected proxy e is replaced by `T'_e = T_e (I + E_e)` =
 //! `[M (I + A) | t + M b]`, `E_e = [A | b] = Σ_f x_f G_ef`, with the features x of its drivers
 //! (see [`ProxyCorrectives`]); the palette keeps its P + J entries and skinning is unchanged.
-//! They vanish at the rest pose (every bone the identity), where T' = T exactly.
+//! They vanish at the rest pose (every bone the identity) of a character upright in the model's
+//! frame, where T' = T exactly.
 
 mod block_sparse;
 mod file;
@@ -131,20 +133,29 @@ pub const MAX_PROXY_DRIVERS: usize = 32;
 /// - if `linear`, the 9 values `φ_b = vec(R_b − I)` row-major, `φ[3r + c] = R_b[r][c] − δ_rc`,
 ///   `R_b = rot(Q_p)ᵀ rot(Q_b)` with p = parent(b) and rot the 3x3 of the bone transform (the
 ///   φ of the pose-space correctives, [`crate::predict::rotation_features`]);
+/// - if `up` is the model's up u, the 3 values `γ_b = rot(Q_b)ᵀ u_c − u`: gravity seen from the
+///   bone relative to rest, u_c the character's up in its bones' frame (u unless the caller
+///   gives another: a character tilted by its object transform rather than its root bone;
+///   [`crate::predict::gravity_features`]);
 /// - then, for each kernel centre c in 0..C, `k = exp(−|φ_b − z_cb|² / w_b) − exp(−|z_cb|² / w_b)`,
 ///   with `z_cb = centres[c * J + b]` (9 floats, laid out as φ) and `w_b = widths[b]`;
 ///   |·|² is the sum of the squares of the 9 components.
 ///
-/// So proxy i has `F_i = D_i (9·linear + C)` features, and its map is F_i rows of 12 floats, row
-/// f being `G_ef = [A00 A01 A02 b0 A10 A11 A12 b1 A20 A21 A22 b2]`. Every feature is zero at the
-/// rest pose (φ = 0 there), so the corrections vanish exactly at rest.
+/// So proxy i has `F_i = D_i (9·linear + 3·gravity + C)` features, and its map is F_i rows of 12
+/// floats, row f being `G_ef = [A00 A01 A02 b0 A10 A11 A12 b1 A20 A21 A22 b2]`. Every feature is
+/// zero at the rest pose of an upright character (φ = γ = 0 there), so the corrections vanish
+/// exactly at rest.
 ///
 /// Limits: 1 ≤ E ≤ P corrected proxies; D_i ≤ [`MAX_PROXY_DRIVERS`] drivers each (bones with a
-/// parent, distinct within the proxy; none leaves the proxy as it is); C ≤ [`MAX_PROXY_KERNELS`]; `linear` or C > 0.
+/// parent, distinct within the proxy; none leaves the proxy as it is); C ≤ [`MAX_PROXY_KERNELS`];
+/// at least one kind of feature; `up` of unit length.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProxyCorrectives {
     /// Whether each driver contributes its 9 linear features φ_b.
     pub linear: bool,
+    /// The model's up u (unit, in the bones' frame), where each driver contributes its 3
+    /// gravity features γ_b after φ_b; None: the features do not see gravity.
+    pub up: Option<[f32; 3]>,
     /// C x J kernel centres (z_cb = centres[c * J + b]); empty: no kernels (C = 0).
     pub centres: Vec<[f32; 9]>,
     /// J kernel widths w_b (2σ²); empty when C = 0.
@@ -155,8 +166,8 @@ pub struct ProxyCorrectives {
     pub driver_offsets: Vec<u32>,
     /// Driver joints (each with a parent, < J, distinct within a proxy).
     pub drivers: Vec<u32>,
-    /// Per corrected proxy i, F_i x 12 floats (F_i = D_i (9·linear + C)), concatenated in proxy
-    /// order.
+    /// Per corrected proxy i, F_i x 12 floats (F_i = D_i (9·linear + 3·gravity + C)),
+    /// concatenated in proxy order.
     pub maps: Vec<f32>,
 }
 
@@ -166,9 +177,9 @@ impl ProxyCorrectives {
         self.centres.len() / bones.max(1)
     }
 
-    /// 9·linear + C: the features of one driver.
+    /// 9·linear + 3·gravity + C: the features of one driver.
     pub fn features_per_driver(&self, bones: usize) -> usize {
-        9 * usize::from(self.linear) + self.kernel_count(bones)
+        9 * usize::from(self.linear) + 3 * usize::from(self.up.is_some()) + self.kernel_count(bones)
     }
 
     /// The drivers of corrected proxy i (`proxies[i]`).
@@ -480,6 +491,12 @@ impl Model {
     /// The model's proxy correctives, if it has any.
     pub fn proxy_correctives(&self) -> Option<&ProxyCorrectives> {
         self.parts.proxy_correctives.as_ref()
+    }
+
+    /// The model's up where its proxy correctives see gravity (None: a character's up changes
+    /// nothing): the default of a character's up vector.
+    pub fn up(&self) -> Option<[f32; 3]> {
+        self.proxy_correctives().and_then(|c| c.up)
     }
 
     /// The model's animation: frames of J bone transforms (empty if it carries none).

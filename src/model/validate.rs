@@ -183,14 +183,31 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
     corrected_proxies(&c.proxies, p)?;
     driver_offsets(c)?;
     proxy_drivers(c, parents)?;
-    let kernels = proxy_kernels(c, parents.len())?;
-    let features = 9 * usize::from(c.linear) + kernels;
+    proxy_kernels(c, parents.len())?;
+    proxy_up(c.up)?;
+    let features = c.features_per_driver(parents.len());
     length(
         "proxy corrective maps (12 x features, summed over the proxies)",
         12 * features * c.drivers.len(),
         c.maps.len(),
     )?;
     finite("proxy corrective maps", c.maps.iter())?;
+    Ok(())
+}
+
+/// The model's up, where the features see gravity: finite and of unit length (to 1e-4, what
+/// f32 keeps of a normalised vector), since γ_b = 0 at rest needs u_c = u exactly.
+fn proxy_up(up: Option<[f32; 3]>) -> Check {
+    let Some(u) = up else { return Ok(()) };
+    finite("proxy corrective up", u.iter())?;
+    let length = u.iter().map(|x| x * x).sum::<f32>().sqrt();
+    if (length - 1.0).abs() > 1e-4 {
+        return Err(ModelProblem::BadProxyCorrective {
+            what: "up",
+            index: 0,
+            reason: "is not of unit length",
+        });
+    }
     Ok(())
 }
 
@@ -309,11 +326,11 @@ fn proxy_kernels(c: &ProxyCorrectives, j: usize) -> Result<usize, ModelProblem> 
             reason: "must be at most 256 (MAX_PROXY_KERNELS)",
         });
     }
-    if !c.linear && kernels == 0 {
+    if !c.linear && c.up.is_none() && kernels == 0 {
         return Err(ModelProblem::Dimension {
-            what: "proxy corrective features per driver (9 linear + C)",
+            what: "proxy corrective features per driver (9 linear + 3 gravity + C)",
             value: 0,
-            reason: "needs the linear features, kernels or both",
+            reason: "needs the linear features, gravity, kernels or some of them",
         });
     }
     length(

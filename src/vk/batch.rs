@@ -41,7 +41,7 @@ pub(super) const SCHEDULE: [&[Pass]; 6] = [
         Pass::FusedMushProduct,
         Pass::FusedCorrectedMushProduct,
     ],
-    &[Pass::ProxyCorrectives],
+    &[Pass::ProxyCorrectives, Pass::ProxyCorrectivesGravity],
     &[
         Pass::SkinK4,
         Pass::SkinK8,

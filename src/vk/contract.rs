@@ -28,6 +28,7 @@ fn row_name(b: CrowdBuffer) -> &'static str {
         CrowdBuffer::Bounds => "bounds, slot f",
         CrowdBuffer::Tangents => "tangents",
         CrowdBuffer::CorrectiveWeights => "corrective weights",
+        CrowdBuffer::Ups => "up vectors, slot f",
     }
 }
 

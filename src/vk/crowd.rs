@@ -220,6 +220,11 @@ impl Crowd {
         for slot in &mut crowd.buffers[CrowdBuffer::Bones as usize] {
             write_rest_pose(slot.mapped()?);
         }
+        if let Some(up) = m.up {
+            for slot in &mut crowd.buffers[CrowdBuffer::Ups as usize] {
+                write_ups(slot.mapped()?, up);
+            }
+        }
         crowd.make_chunks(&shared, m, &per_character, c, chunk_characters)?;
         Ok(crowd)
     }
@@ -301,7 +306,7 @@ impl Crowd {
     fn buffer_of(&self, b: CrowdBuffer, frame: usize, written: usize) -> Option<&Buffer> {
         let copies = self.copies(b);
         match b {
-            CrowdBuffer::Bones | CrowdBuffer::Bounds => copies.get(frame),
+            CrowdBuffer::Bones | CrowdBuffer::Ups | CrowdBuffer::Bounds => copies.get(frame),
             CrowdBuffer::Positions => copies.get(written),
             CrowdBuffer::Rhs
             | CrowdBuffer::Palette
@@ -418,6 +423,49 @@ impl Crowd {
         check_finite(bones)?;
         let at = character * j * 48;
         self.bones_mut(frame)?[at..at + j * 48].copy_from_slice(bytemuck::cast_slice(bones));
+        Ok(())
+    }
+
+    /// Sets frame slot `frame`'s up vector of every character (C, in its bones' frame): the
+    /// direction opposite to gravity, its length gravity's strength against the training
+    /// poses' ([`crate::predict::check_ups`]), for characters tilted by their object transform
+    /// rather than their root bone. A crowd starts with the model's up
+    /// ([`GpuModel::up`]) in every slot; a model whose proxy correctives do not see gravity
+    /// reads none (they are checked, and dropped).
+    pub fn set_ups(&mut self, frame: usize, ups: &[[f32; 3]]) -> Result<()> {
+        self.check_frame(frame)?;
+        if ups.len() != self.characters as usize {
+            return Err(Error::WrongLength {
+                what: "crowd up vectors",
+                expected: self.characters as usize,
+                actual: ups.len(),
+            });
+        }
+        crate::predict::check_ups(ups)?;
+        if self.dims.gravity {
+            let slot = self.buffers[CrowdBuffer::Ups as usize][frame].mapped()?;
+            for (out, up) in slot.chunks_exact_mut(16).zip(ups) {
+                write_ups(out, *up);
+            }
+        }
+        Ok(())
+    }
+
+    /// Sets one character's up vector in frame slot `frame` (as [`Crowd::set_ups`]).
+    pub fn set_character_up(&mut self, frame: usize, character: usize, up: [f32; 3]) -> Result<()> {
+        self.check_frame(frame)?;
+        if character >= self.characters as usize {
+            return Err(Error::OutOfRange {
+                what: "character",
+                index: character,
+                count: self.characters as usize,
+            });
+        }
+        crate::predict::check_ups(&[up])?;
+        if self.dims.gravity {
+            let slot = self.buffers[CrowdBuffer::Ups as usize][frame].mapped()?;
+            write_ups(&mut slot[16 * character..16 * (character + 1)], up);
+        }
         Ok(())
     }
 
@@ -764,6 +812,14 @@ fn write_rest_pose(bytes: &mut [u8]) {
     }
 }
 
+/// `up` (xyz, w 0) in every vec4 of `bytes`.
+fn write_ups(bytes: &mut [u8], up: [f32; 3]) {
+    let [x, y, z] = up;
+    for slot in bytes.chunks_exact_mut(16) {
+        slot.copy_from_slice(bytemuck::cast_slice(&[x, y, z, 0.0]));
+    }
+}
+
 /// Every buffer of a crowd of `characters` made with `options` (`per_character`: bytes a
 /// character of each kind), NaN-filled where the options' debug settings ask.
 fn create_buffers(
@@ -793,14 +849,15 @@ fn xyz(floats: &[f32]) -> Vec<[f32; 3]> {
         .collect()
 }
 
-/// NaN in every crowd buffer but the bones (`CrowdDebugSettings::fill_nan`): the host-visible
+/// NaN in every crowd buffer but the inputs, the bones and the up vectors, whose defaults a crowd
+/// starts with (`CrowdDebugSettings::fill_nan`): the host-visible
 /// ones through their mapping, the device-local ones by `vkCmdFillBuffer`, made visible to
 /// every later pass.
 fn fill_nan(shared: &Arc<Shared>, buffers: &mut [Vec<Buffer>; CrowdBuffer::COUNT]) -> Result<()> {
     const NAN: u32 = 0x7FC0_0000;
     for b in CrowdBuffer::ALL
         .into_iter()
-        .filter(|&b| b != CrowdBuffer::Bones)
+        .filter(|&b| !matches!(b, CrowdBuffer::Bones | CrowdBuffer::Ups))
     {
         if kind(b).2 == MemoryLocation::GpuOnly {
             continue;
@@ -846,6 +903,7 @@ pub(super) fn kind(b: CrowdBuffer) -> (&'static str, vk::BufferUsageFlags, Memor
         CrowdBuffer::Bounds => ("crowd bounds", storage, host),
         CrowdBuffer::Tangents => ("crowd tangents", output, gpu),
         CrowdBuffer::CorrectiveWeights => ("crowd corrective weights", storage | copies, gpu),
+        CrowdBuffer::Ups => ("crowd up vectors", storage, host),
     }
 }
 

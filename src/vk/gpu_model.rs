@@ -23,6 +23,8 @@ pub(crate) struct Inner {
     pub dims: Dims,
     /// What `memory.rs` sized the buffers by.
     pub sizes: ModelSizes,
+    /// The model's up where its proxy correctives see gravity ([`Model::up`]).
+    pub up: Option<[f32; 3]>,
     /// Indexed by [`ModelBuffer`].
     buffers: [Buffer; ModelBuffer::COUNT],
 }
@@ -169,7 +171,10 @@ impl GpuModel {
             fans: model.normal_fans(),
             proxy_topology: proxy_topology(model),
             proxy_kernels: (model.proxy_correctives())
-                .map(|c| c.centres.as_flattened().iter().chain(&c.widths))
+                .map(|c| {
+                    let centres = c.centres.as_flattened().iter();
+                    centres.chain(&c.widths).chain(c.up.iter().flatten())
+                })
                 .into_iter()
                 .flatten()
                 .copied()
@@ -211,6 +216,7 @@ impl GpuModel {
                 context: context.clone(),
                 dims,
                 sizes,
+                up: model.up(),
                 buffers,
             }),
         })
@@ -250,8 +256,13 @@ impl GpuModel {
     /// not run (models whose product is fused and that have them; see
     /// [`GpuModelDebugSettings`]).
     pub fn applies_correctives_in_product(&self) -> bool {
-        let d = &self.inner.dims;
-        d.fused && d.corrected_proxies > 0 && d.correctives_in_product
+        super::passes::fused_corrects(&self.inner.dims)
+    }
+
+    /// The model's up where its proxy correctives see gravity ([`Model::up`]): what a crowd's
+    /// characters' up vectors start as ([`super::Crowd::set_ups`]). None: they are not read.
+    pub fn up(&self) -> Option<[f32; 3]> {
+        self.inner.up
     }
 
     /// N, the model's pose-space corrective targets (0 without correctives).
@@ -319,6 +330,7 @@ fn model_dims(model: &Model, sparse: Option<&BlockSparse>, in_product: bool) -> 
         kernels: (model.proxy_correctives())
             .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
         linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
+        gravity: model.up().is_some(),
         mush: model.mush_keys().is_some(),
     }
 }

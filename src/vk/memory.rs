@@ -48,6 +48,9 @@ pub struct ModelSizes {
     pub proxy_corrective_kernels: usize,
     /// Whether the proxy correctives have the 9 linear features per driver.
     pub proxy_corrective_linear: bool,
+    /// Whether they have the 3 gravity features per driver ([`Model::up`]; crowds then keep
+    /// each character's up vector).
+    pub proxy_corrective_gravity: bool,
     /// The delta-mush keys' terms, all keys together (0 without them).
     pub mush_terms: usize,
 }
@@ -77,6 +80,7 @@ impl ModelSizes {
             proxy_corrective_kernels: (model.proxy_correctives())
                 .map_or(0, |c| c.kernel_count(model.bone_count())),
             proxy_corrective_linear: model.proxy_correctives().is_some_and(|c| c.linear),
+            proxy_corrective_gravity: model.up().is_some(),
             mush_terms: model.mush_keys().map_or(0, |k| k.bones.len()),
         }
     }
@@ -107,6 +111,7 @@ impl ModelSizes {
             corrected_proxies: word("corrected proxies", self.proxy_correctives)?,
             kernels: word("proxy corrective kernels", self.proxy_corrective_kernels)?,
             linear_features: self.proxy_corrective_linear,
+            gravity: self.proxy_corrective_gravity,
             mush: self.mush_terms > 0,
         })
     }
@@ -128,7 +133,8 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         s.proxy_corrective_drivers as u64,
         s.proxy_corrective_kernels as u64,
     );
-    let features = 9 * u64::from(s.proxy_corrective_linear) + kernels;
+    let gravity = 3 * u64::from(s.proxy_corrective_gravity);
+    let features = 9 * u64::from(s.proxy_corrective_linear) + gravity + kernels;
     let sparse = n > 0;
     4 * match b {
         // The rest positions, the N corrective targets, then the rest normals.
@@ -155,9 +161,10 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         // among the corrected (~0 where uncorrected: the fused product's lookup).
         ModelBuffer::ProxyTopology if corrected > 0 => 2 * corrected + 1 + proxy_drivers + p,
         ModelBuffer::ProxyTopology => 0,
-        // The centres, then the widths (only with kernels).
-        ModelBuffer::ProxyKernels if kernels > 0 => kernels * j * 9 + j,
-        ModelBuffer::ProxyKernels => 0,
+        // The centres, then the widths (only with kernels), then the model's up (only with
+        // gravity).
+        ModelBuffer::ProxyKernels if kernels > 0 => kernels * j * 9 + j + gravity,
+        ModelBuffer::ProxyKernels => gravity,
         ModelBuffer::ProxyMaps => 12 * proxy_drivers * features,
     }
 }
@@ -189,13 +196,16 @@ pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
         // w, N floats per character rounded up to whole vec4s (so that chunk offsets align as
         // easily as the other buffers'), only with correctives.
         CrowdBuffer::CorrectiveWeights => 16 * (d.correctives as u64).div_ceil(4),
+        // An up vector (xyz, w unused), only where the proxy correctives see gravity.
+        CrowdBuffer::Ups if d.gravity => 16,
+        CrowdBuffer::Ups => 0,
     }
 }
 
 /// How many buffers of kind `b` a crowd made with `options` has.
 pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usize {
     match b {
-        CrowdBuffer::Bones => options.frames_in_flight,
+        CrowdBuffer::Bones | CrowdBuffer::Ups => options.frames_in_flight,
         CrowdBuffer::Positions => 1 + usize::from(options.previous_positions),
         CrowdBuffer::Bounds if options.bounds => options.frames_in_flight,
         CrowdBuffer::Bounds => 0,

@@ -49,6 +49,9 @@ pub struct Dims {
     pub kernels: u32,
     /// Whether the proxy correctives' features include the 9 linear φ_b per driver.
     pub linear_features: bool,
+    /// Whether they include the 3 gravity features γ_b per driver, from each character's up
+    /// (their own pass applies them then, never a fused product, which has no binding left).
+    pub gravity: bool,
     /// Whether some key is a delta-mush key (its predictors are built with them; a model
     /// without pays nothing for them).
     pub mush: bool,
@@ -132,6 +135,9 @@ indexed_enum! {
         /// N f32 rounded up to a multiple of 4 (the stride): the pose-space corrective weights
         /// w = map · φ(q) (only with N > 0)
         CorrectiveWeights,
+        /// One vec4 per character (xyz its up in its bones' frame), one copy per frame slot
+        /// (host-visible; only where the proxy correctives see gravity)
+        Ups,
     }
 }
 
@@ -428,6 +434,7 @@ mod tests {
         corrected_proxies: 0,
         kernels: 0,
         linear_features: false,
+        gravity: false,
         mush: false,
     };
 

@@ -47,6 +47,7 @@ indexed_enum! {
         TangentsK8,
         CorrectiveWeights,
         ProxyCorrectives,
+        ProxyCorrectivesGravity,
     }
 }
 
@@ -73,6 +74,7 @@ impl Pass {
             Pass::TangentsK8 => &TANGENTS_K8,
             Pass::CorrectiveWeights => &CORRECTIVE_WEIGHTS,
             Pass::ProxyCorrectives => &PROXY_CORRECTIVES,
+            Pass::ProxyCorrectivesGravity => &PROXY_CORRECTIVES_GRAVITY,
         }
     }
 
@@ -96,8 +98,8 @@ impl Pass {
 /// One crowd of each kind the table tells apart: plain LBS (P = 0) or reduced with a dense or
 /// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
 /// with and without bounds, with and without tangents, with and without correctives, and (of
-/// reduced models) with and without proxy correctives, applied in a fused product or not, and
-/// with and without delta-mush keys.
+/// reduced models) with and without proxy correctives (seeing gravity or not), applied in a
+/// fused product or not, and with and without delta-mush keys.
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
     corrected_model_kinds().flat_map(|d| {
@@ -124,13 +126,16 @@ fn corrected_model_kinds() -> impl Iterator<Item = Dims> {
         (proxies.into_iter())
             .filter(move |&(e, _, _)| e <= d.proxies)
             .flat_map(move |(corrected_proxies, kernels, linear_features)| {
-                [false, true].map(|correctives_in_product| Dims {
-                    corrected_proxies,
-                    kernels,
-                    linear_features,
-                    correctives_in_product,
-                    ..d
-                })
+                [(false, false), (true, false), (false, true), (true, true)].map(
+                    move |(correctives_in_product, gravity)| Dims {
+                        corrected_proxies,
+                        kernels,
+                        linear_features,
+                        correctives_in_product,
+                        gravity: gravity && corrected_proxies > 0,
+                        ..d
+                    },
+                )
             })
     })
 }
@@ -169,6 +174,7 @@ fn plain_model_kinds() -> impl Iterator<Item = Dims> {
                     corrected_proxies: 0,
                     kernels: 0,
                     linear_features: false,
+                    gravity: false,
                     mush: false,
                 })
         })
@@ -244,9 +250,10 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
     runs: |d| d.proxies > 0 && d.fused && !d.mush && !fused_corrects(d),
 };
 
-/// Whether a fused product applies the proxy correctives itself.
-fn fused_corrects(d: &Dims) -> bool {
-    d.corrected_proxies > 0 && d.correctives_in_product
+/// Whether a fused product applies the proxy correctives itself (never those that see gravity:
+/// the product binds no up vectors).
+pub(super) fn fused_corrects(d: &Dims) -> bool {
+    d.fused && d.corrected_proxies > 0 && d.correctives_in_product && !d.gravity
 }
 
 /// The fused product of a model with proxy correctives: each corrected proxy's invocation
@@ -298,16 +305,29 @@ const CORRECTIVE_WEIGHTS: PassDesc = PassDesc {
 /// skinning. Models with proxy correctives only.
 const PROXY_CORRECTIVES: PassDesc = PassDesc {
     shader: shaders::PROXY_CORRECTIVES,
-    bindings: &extended::<2, 6>(
-        [Reads(Crowd::Bones), Model(M::Parents)],
-        &extended::<3, 4>(PROXY_CORRECTIVE_DATA, &[Updates(Crowd::Palette)]),
-    ),
+    bindings: &PROXY_CORRECTIVES_BINDINGS,
     push: &PROXY_CORRECTIVE_PUSH,
     // local_size_x = 64, four characters an invocation (256 a workgroup), one row of
     // groups per corrected proxy.
     groups: [over(Characters, 256), over(CorrectedProxies, 1), ONE],
-    runs: |d| d.corrected_proxies > 0 && !(d.fused && d.correctives_in_product),
+    runs: |d| d.corrected_proxies > 0 && !fused_corrects(d) && !d.gravity,
 };
+
+/// The same for proxy correctives that see gravity (`Dims::gravity`): the shader's `GRAVITY`
+/// build, which also reads each character's up vector.
+const PROXY_CORRECTIVES_GRAVITY: PassDesc = PassDesc {
+    shader: shaders::PROXY_CORRECTIVES_GRAVITY,
+    bindings: &extended::<6, 7>(PROXY_CORRECTIVES_BINDINGS, &[Reads(Crowd::Ups)]),
+    runs: |d| d.corrected_proxies > 0 && d.gravity,
+    ..PROXY_CORRECTIVES
+};
+
+/// The proxy-correctives pass's: the bones, their parents and the correctives' data in, the
+/// palette updated.
+const PROXY_CORRECTIVES_BINDINGS: [Binding; 6] = extended::<2, 6>(
+    [Reads(Crowd::Bones), Model(M::Parents)],
+    &extended::<3, 4>(PROXY_CORRECTIVE_DATA, &[Updates(Crowd::Palette)]),
+);
 
 /// Matrix-palette skinning over the palette [proxies (P); bones (J)]: of a reduced model all
 /// of it in the Palette buffer, of a plain LBS model the bones in place; one pipeline per K.
@@ -549,6 +569,7 @@ mod tests {
                 CrowdBuffer::Bounds => "Bounds",
                 CrowdBuffer::Tangents => "Tangents",
                 CrowdBuffer::CorrectiveWeights => "CorrectiveWeights",
+                CrowdBuffer::Ups => "Ups",
             },
         }
     }
@@ -670,13 +691,13 @@ mod tests {
             for p in Pass::of_model(&d) {
                 for b in CrowdBuffer::ALL {
                     let input = b == CrowdBuffer::Bones
+                        || b == CrowdBuffer::Ups
                         || (d.proxies == 0 && b == CrowdBuffer::Palette)
                         || (d.correctives == 0 && b == CrowdBuffer::CorrectiveWeights);
                     if p.desc().crowd_accesses().0 & b.bit() != 0 && !input {
                         let expected = match b {
                             CrowdBuffer::Palette => {
-                                let separate = d.corrected_proxies > 0
-                                    && !(d.fused && d.correctives_in_product);
+                                let separate = d.corrected_proxies > 0 && !fused_corrects(&d);
                                 1 + usize::from(!d.fused) + usize::from(separate)
                             }
                             _ => 1,
@@ -706,6 +727,7 @@ mod tests {
             corrected_proxies: 0,
             kernels: 0,
             linear_features: false,
+            gravity: false,
             mush: false,
         };
         // skin (7 buffers) and normals (4)

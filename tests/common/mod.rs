@@ -338,6 +338,18 @@ pub fn with_correctives(model: &Model, n: usize, seed: u64) -> Model {
 /// 0.02 of the linear features and ≤ 0.1 of the kernels (a few percent of the proxies' scale
 /// over the tests' random poses), seeded.
 pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed: u64) -> Model {
+    with_proxy_correctives_seeing(model, linear, None, kernels, seed)
+}
+
+/// [`with_proxy_correctives`] whose features also see gravity where `up` (the model's up) is
+/// given: 3 more features γ_b per driver after the linear ones.
+pub fn with_proxy_correctives_seeing(
+    model: &Model,
+    linear: bool,
+    up: Option<[f32; 3]>,
+    kernels: usize,
+    seed: u64,
+) -> Model {
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut next = move || {
         state ^= state << 13;
@@ -369,15 +381,13 @@ pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed:
     } else {
         Vec::new()
     };
-    let features = 9 * usize::from(linear) + kernels;
-    // Kernel features are smaller than the linear ones (differences of two exponentials).
+    let head = 9 * usize::from(linear) + 3 * usize::from(up.is_some());
+    let features = head + kernels;
+    // Kernel features are smaller than the linear and gravity ones (differences of two
+    // exponentials).
     let maps = (0..features * drivers.len())
         .flat_map(|row| {
-            let scale = if row % features < 9 * usize::from(linear) {
-                0.04
-            } else {
-                0.2
-            };
+            let scale = if row % features < head { 0.04 } else { 0.2 };
             (0..12)
                 .map(|_| (scale * (next() - 0.5)) as f32)
                 .collect::<Vec<_>>()
@@ -386,6 +396,7 @@ pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed:
     let parts = rrskin::ModelParts {
         proxy_correctives: Some(rrskin::ProxyCorrectives {
             linear,
+            up,
             centres,
             widths,
             proxies,

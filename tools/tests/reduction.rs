@@ -662,7 +662,8 @@ fn the_proxy_corrective_fit_recovers_a_known_correction() {
                 let f = &trained.feats[i];
                 let mut palette = reduced.predict_proxies(&set, f, &set.poses[i].bones);
                 if corrected {
-                    fitted.correct(&mut palette, &corrective::features(&set, f));
+                    let (phi, bones) = (corrective::features(&set, f), &set.poses[i].bones);
+                    fitted.correct(&mut palette, &phi, bones);
                 }
                 let y = reduced.skin_with(&set, &palette, &set.poses[i].bones);
                 (y.iter().zip(&set.poses[i].vertices))

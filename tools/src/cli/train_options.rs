@@ -41,6 +41,13 @@ pub struct TrainArgs {
     /// without on the rigs measured and worse on some (docs/experiments.md).
     #[arg(long)]
     pub proxy_kernels: bool,
+    /// The rig's up in the examples' frame, as x,y,z (normalised): the proxy correctives are
+    /// offered each driver's orientation to gravity (the cross-validation decides).
+    #[arg(long, value_name = "X,Y,Z", default_value = "0,1,0", value_parser = parse_up, allow_hyphen_values = true)]
+    pub up: [f64; 3],
+    /// Do not offer the proxy correctives gravity.
+    #[arg(long)]
+    pub no_gravity: bool,
     /// No delta-mush proxies (offered against the joint-blend model and kept where the
     /// cross-validation over the training poses prefers them: smoothing rigs, such as Delta
     /// Mush or Corrective Smooth; they cost training a mesh merging and a cross-validation).
@@ -73,6 +80,7 @@ impl TrainArgs {
             correctives: self.correctives,
             proxy_correctives: !self.no_proxy_correctives,
             proxy_kernels: self.proxy_kernels,
+            up: (!self.no_gravity).then_some(self.up),
             delta_mush: !self.no_delta_mush,
             method: match self.reduction {
                 Reduction::Auto => Method::Auto,
@@ -188,6 +196,25 @@ pub fn load_for_training(
         }
     }
     Ok((examples, imported))
+}
+
+/// "X,Y,Z" as a unit up vector.
+fn parse_up(text: &str) -> Result<[f64; 3], String> {
+    let parts: Vec<&str> = text.split(',').collect();
+    let [x, y, z] = parts[..] else {
+        return Err(format!("'{text}': expected X,Y,Z"));
+    };
+    let mut up = [0.0; 3];
+    for (out, part) in up.iter_mut().zip([x, y, z]) {
+        *out = (part.trim().parse::<f64>().ok())
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{text}': '{part}' is not a number"))?;
+    }
+    let length = up.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if length < 1e-9 {
+        return Err(format!("'{text}': the up vector is zero"));
+    }
+    Ok(up.map(|v| v / length))
 }
 
 /// "A..B" (inclusive) as a frame range.

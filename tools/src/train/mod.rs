@@ -102,6 +102,10 @@ pub struct TrainOptions {
     /// Also offer the proxy correctives a kernel per training pose and driver (docs/method.md
     /// §21): more accurate on some rigs, but they cost the runtime's proxy pass per kernel.
     pub proxy_kernels: bool,
+    /// Offer the proxy correctives each driver's gravity features (docs/method.md §21) with
+    /// this as the rig's up (unit, in the examples' frame: +Y for glTF, the default), taken
+    /// where cross-validation finds they pay; None: not offered.
+    pub up: Option<[f64; 3]>,
     /// Offer delta-mush proxies ([`delta_mush`], docs/method.md §23) against the joint-blend
     /// model, kept where cross-validation prefers them (smoothing rigs: Delta Mush, Corrective
     /// Smooth). Off: the joint-blend model always.
@@ -123,6 +127,7 @@ impl Default for TrainOptions {
             correctives: 0,
             proxy_correctives: true,
             proxy_kernels: false,
+            up: Some([0.0, 1.0, 0.0]),
             delta_mush: true,
             quiet: false,
         }

@@ -15,15 +15,19 @@
 //!    (as [`corrective::features`]), and with kernels, per training pose c,
 //!    `exp(−|φ_b − φ_b(q_c)|² / w_b) − exp(−|φ_b(q_c)|² / w_b)` (pose-space RBFs as in Lewis et
 //!    al.'s PSD, per joint, w_b twice the mean |φ_b|² over the training poses): a corrective driven by a
-//!    clamped ramp of an angle is not linear in the rotation. The drivers of proxy e are the
+//!    clamped ramp of an angle is not linear in the rotation. Offered gravity (an up u,
+//!    `TrainOptions::up`), also `γ_b = rot(Q_b)ᵀ u − u` ([`rrskin::predict::gravity_features`]):
+//!    a joint rotation is relative to its parent and cannot tell sagging from not sagging,
+//!    which depends on the whole chain above the bone. The drivers of proxy e are the
 //!    bones carrying at least [`SHARE`] of its vertices' SSD weight, and their children (a muscle
 //!    bulges with the joint below it).
 //! 3. **Ridge regression per proxy**, 12 outputs from F_e features, λ times the proxy's mean
-//!    Gram diagonal. The anchor μ ([`ANCHORS`]), the basis (linear, or linear and kernels) and
-//!    λ are chosen together by k-fold cross-validation on the training poses, scored by the
-//!    pose-relative vertex error of §18 and its one-standard-error rule
-//!    ([`crate::train::cross_validate`]), in the order unanchored first, the simpler basis and
-//!    the stronger ridge first.
+//!    Gram diagonal. The anchor μ ([`ANCHORS`]), the basis (linear, or linear and kernels),
+//!    gravity and λ are chosen together by k-fold cross-validation on the training poses,
+//!    scored by the pose-relative vertex error of §18 and its one-standard-error rule
+//!    ([`crate::train::cross_validate`]), in the order without gravity first (so that it is
+//!    taken only where it wins clearly), unanchored first, the simpler basis and the stronger
+//!    ridge first.
 
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet};
@@ -61,6 +65,8 @@ pub enum Basis {
 /// The fitted corrections, in f64, ready for [`rrskin::model::ProxyCorrectives`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProxyCorrectives {
+    /// The model's up u where each driver's features include γ_b.
+    pub up: Option<DVec3>,
     /// C x J kernel centres φ_b(q_c) (empty for [`Basis::Linear`]).
     pub centres: Vec<Vec<[f64; 9]>>,
     /// J kernel widths w_b (empty for [`Basis::Linear`]).
@@ -84,6 +90,8 @@ pub struct Candidate {
     /// μ of the targets' anchor to the predicted proxies ([`ANCHORS`]; 0: unanchored).
     pub anchor: f64,
     pub basis: Basis,
+    /// Whether each driver's features include its gravity features γ_b.
+    pub gravity: bool,
     /// λ ([`RIDGES`]).
     pub ridge: f64,
 }
@@ -100,20 +108,26 @@ pub struct Fit {
 }
 
 impl ProxyCorrectives {
-    /// The basis over the poses `centres` (indices into `phi`).
-    fn basis(basis: Basis, phi: &[Vec<[f64; 9]>], centres: &[usize]) -> ProxyCorrectives {
+    /// The basis over the poses `centres` (indices into `poses`), with γ_b where `up` is given.
+    fn basis(
+        basis: Basis,
+        up: Option<DVec3>,
+        poses: &[JointFeatures],
+        centres: &[usize],
+    ) -> ProxyCorrectives {
+        let phi = |i: usize| &poses[i].phi;
         let (centres, widths) = match basis {
             Basis::Linear => (Vec::new(), Vec::new()),
             Basis::Kernels => {
                 // One centre per pose, at most MAX_PROXY_KERNELS of them evenly spaced.
                 let count = centres.len().min(rrskin::model::MAX_PROXY_KERNELS);
                 let c: Vec<Vec<[f64; 9]>> = (0..count)
-                    .map(|k| phi[centres[k * centres.len() / count]].clone())
+                    .map(|k| phi(centres[k * centres.len() / count]).clone())
                     .collect();
-                let joints = phi.first().map_or(0, Vec::len);
+                let joints = poses.first().map_or(0, |x| x.phi.len());
                 let widths = (0..joints)
                     .map(|b| {
-                        let m = centres.iter().map(|&i| squared(&phi[i][b])).sum::<f64>()
+                        let m = centres.iter().map(|&i| squared(&phi(i)[b])).sum::<f64>()
                             / centres.len() as f64;
                         2.0 * m.max(1e-12)
                     })
@@ -122,17 +136,27 @@ impl ProxyCorrectives {
             }
         };
         ProxyCorrectives {
+            up,
             centres,
             widths,
             proxies: Vec::new(),
         }
     }
 
-    /// The features of `drivers` in the pose with features `phi`.
-    fn features(&self, drivers: &[usize], phi: &[[f64; 9]], out: &mut Vec<f64>) {
+    /// The features of one driver: 9 φ_b, 3 γ_b where the model has an up, C kernels.
+    fn features_per_driver(&self) -> usize {
+        9 + 3 * usize::from(self.up.is_some()) + self.centres.len()
+    }
+
+    /// The features of `drivers` in the pose `x` (its φ_b and γ_b).
+    fn features(&self, drivers: &[usize], x: &JointFeatures, out: &mut Vec<f64>) {
+        let phi = &x.phi;
         out.clear();
         for &b in drivers {
             out.extend(phi[b]);
+            if self.up.is_some() {
+                out.extend(x.gamma[b]);
+            }
             for z in &self.centres {
                 out.push(rrskin::predict::kernel_feature(
                     &phi[b],
@@ -143,12 +167,23 @@ impl ProxyCorrectives {
         }
     }
 
-    /// Applies the corrections to `palette` (the P predicted proxies of a pose with features
-    /// `phi`).
-    pub fn correct(&self, palette: &mut [Affine], phi: &[[f64; 9]]) {
-        let mut x = Vec::new();
+    /// Applies the corrections to `palette`, the P predicted proxies of the pose `bones` whose
+    /// joints' φ_b are `phi` ([`corrective::features`]).
+    pub fn correct(&self, palette: &mut [Affine], phi: &[[f64; 9]], bones: &[Affine]) {
+        let gamma = self.up.map_or_else(Vec::new, |up| gravity(bones, up));
+        let x = JointFeatures {
+            phi: phi.to_vec(),
+            gamma,
+        };
+        self.correct_with(palette, &x);
+    }
+
+    /// [`ProxyCorrectives::correct`] of a pose with features `x`.
+    fn correct_with(&self, palette: &mut [Affine], x: &JointFeatures) {
+        let mut f = Vec::new();
         for c in &self.proxies {
-            self.features(&c.drivers, phi, &mut x);
+            self.features(&c.drivers, x, &mut f);
+            let x = &f;
             let mut e = [0.0; 12];
             for (x, g) in x.iter().zip(c.map.chunks_exact(12)) {
                 for (e, g) in e.iter_mut().zip(g) {
@@ -168,6 +203,7 @@ impl ProxyCorrectives {
         }
         rrskin::model::ProxyCorrectives {
             linear: true,
+            up: self.up.map(|u| u.as_vec3().to_array()),
             centres: self.centres.iter().flatten().map(f32s).collect(),
             widths: self.widths.iter().map(|&w| w as f32).collect(),
             proxies: self.proxies.iter().map(|c| c.proxy as u32).collect(),
@@ -236,34 +272,50 @@ pub fn drivers(set: &ExampleSet, ssd: &Skinning, reduced: &Reduced) -> Vec<Vec<u
         .collect()
 }
 
+/// One pose's features per joint.
+struct JointFeatures {
+    phi: Vec<[f64; 9]>,
+    /// γ_b (zero where gravity is not offered).
+    gamma: Vec<[f64; 3]>,
+}
+
 /// The training poses as the fit sees them (in `train` order).
 struct Poses {
     predicted: Vec<Vec<Affine>>,
     /// Per anchor ([`ANCHORS`]), pose and proxy: E*.
     targets: Vec<Vec<Vec<Option<[f64; 12]>>>>,
-    phi: Vec<Vec<[f64; 9]>>,
+    features: Vec<JointFeatures>,
+}
+
+/// γ_b = rot(Q_b)ᵀ u − u of every joint of `bones` (the rig upright in its frame).
+fn gravity(bones: &[Affine], up: DVec3) -> Vec<[f64; 3]> {
+    (bones.iter())
+        .map(|t| (t.q.transpose() * up - up).to_array())
+        .collect()
 }
 
 /// Ridge regression of E* (the targets of `targets`, an index into [`ANCHORS`]) per proxy over
 /// the poses `fit` (indices into `poses`).
 fn regress(
     targets: usize,
-    basis: Basis,
+    candidate: &Candidate,
+    up: DVec3,
     drivers: &[Vec<usize>],
     poses: &Poses,
     fit: &[usize],
-    ridge: f64,
 ) -> ProxyCorrectives {
-    let mut out = ProxyCorrectives::basis(basis, &poses.phi, fit);
+    let up = candidate.gravity.then_some(up);
+    let mut out = ProxyCorrectives::basis(candidate.basis, up, &poses.features, fit);
+    let ridge = candidate.ridge;
     let mut x = Vec::new();
     for (e, d) in drivers.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
-        let f = d.len() * (9 + out.centres.len());
+        let f = d.len() * out.features_per_driver();
         let (mut gram, mut rhs) = (vec![0.0; f * f], vec![0.0; f * 12]);
         for &i in fit {
             let Some(target) = poses.targets[targets][i][e] else {
                 continue;
             };
-            out.features(d, &poses.phi[i], &mut x);
+            out.features(d, &poses.features[i], &mut x);
             for p in 0..f {
                 for q in 0..f {
                     gram[p * f + q] += x[p] * x[q];
@@ -296,7 +348,8 @@ fn regress(
 }
 
 /// Fits the proxy correctives of `reduced` on the training poses `train`, anchor, basis (the
-/// kernels only with `options.proxy_kernels`) and ridge chosen by `options.folds`-fold
+/// kernels only with `options.proxy_kernels`), gravity (only with `options.up`) and ridge
+/// chosen by `options.folds`-fold
 /// cross-validation; `rigid` normalises each held-out pose's error. None is chosen where no
 /// candidate beats the uncorrected proxies.
 pub fn fit(
@@ -330,22 +383,26 @@ pub fn fit(
                 .collect()
         })
         .collect();
+    let up = options.up.map_or(DVec3::ZERO, DVec3::from);
     let poses = Poses {
         targets,
-        phi: train
-            .iter()
-            .map(|&i| corrective::features(set, &feats[i]))
+        features: (train.iter())
+            .map(|&i| {
+                let phi = corrective::features(set, &feats[i]);
+                let gamma = gravity(&set.poses[i].bones, up);
+                JointFeatures { phi, gamma }
+            })
             .collect(),
         predicted,
     };
     let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
-    let grid = grid(options.proxy_kernels);
+    let grid = grid(options.proxy_kernels, options.up.is_some());
     let validated = cross_validate(&folds, &normaliser, 1 + grid.len(), 0.0, |fold| {
         let uncorrected = (fold.held.iter())
             .map(|&k| held_error(set, train, reduced, &poses, k, None))
             .collect();
         let corrected = grid.iter().map(|&(a, c)| {
-            let fitted = regress(a, c.basis, &drivers, &poses, &fold.inner, c.ridge);
+            let fitted = regress(a, &c, up, &drivers, &poses, &fold.inner);
             (fold.held.iter())
                 .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
                 .collect()
@@ -361,32 +418,39 @@ pub fn fit(
             .collect(),
         chosen: chosen.map(|(_, c)| c),
         correctives: chosen
-            .map(|(a, c)| regress(a, c.basis, &drivers, &poses, &all, c.ridge))
+            .map(|(a, c)| regress(a, &c, up, &drivers, &poses, &all))
             .filter(|c| !c.proxies.is_empty()),
     }
 }
 
-/// The candidates after the uncorrected proxies, in the order considered: per anchor (an index
-/// into [`ANCHORS`], unanchored first), per basis (the kernels only with `kernels`), per ridge.
-fn grid(kernels: bool) -> Vec<(usize, Candidate)> {
+/// The candidates after the uncorrected proxies, in the order considered: without gravity, then
+/// with it (only with `gravity`), each per anchor (an index into [`ANCHORS`], unanchored first),
+/// per basis (the kernels only with `kernels`), per ridge.
+fn grid(kernels: bool, gravity: bool) -> Vec<(usize, Candidate)> {
     let bases: &[Basis] = match kernels {
         true => &[Basis::Linear, Basis::Kernels],
         false => &[Basis::Linear],
     };
-    (ANCHORS.iter().enumerate())
-        .flat_map(|(a, &anchor)| {
+    let gravities: &[bool] = match gravity {
+        true => &[false, true],
+        false => &[false],
+    };
+    let per_anchor = |gravity: bool| {
+        (ANCHORS.iter().enumerate()).flat_map(move |(a, &anchor)| {
             (bases.iter()).flat_map(move |&basis| {
                 RIDGES.map(|ridge| {
                     let c = Candidate {
                         anchor,
                         basis,
+                        gravity,
                         ridge,
                     };
                     (a, c)
                 })
             })
         })
-        .collect()
+    };
+    gravities.iter().flat_map(|&g| per_anchor(g)).collect()
 }
 
 /// Training pose k's (a position in `train`) squared vertex error with the proxies predicted
@@ -402,7 +466,7 @@ fn held_error(
     let pose = &set.poses[train[k]];
     let mut palette = poses.predicted[k].clone();
     if let Some(c) = c {
-        c.correct(&mut palette, &poses.phi[k]);
+        c.correct_with(&mut palette, &poses.features[k]);
     }
     let y = reduced.skin_with(set, &palette, &pose.bones);
     (y.iter().zip(&pose.vertices))
