@@ -941,9 +941,16 @@ fn memory_queries_are_the_bytes_created() {
     let sparse = joint_blend_pattern(&models[1], 1);
     // With correctives: the targets in the rest buffer, the map, the drivers and the weights.
     let corrected = with_correctives(&models[1], 5, 1);
-    // With proxy correctives: their proxies and drivers, kernels and maps.
-    let proxy_corrected = [(true, 0), (false, 3), (true, 2)]
-        .map(|(linear, kernels)| with_proxy_correctives(&models[1], linear, kernels, 2));
+    // With proxy correctives: their proxies and drivers, kernels and maps (and, where they see
+    // gravity, the model's up and the characters' up vectors).
+    let up = Some([1.0, 0.0, 0.0]);
+    let proxy_corrected = [
+        (true, None, 0),
+        (false, None, 3),
+        (true, None, 2),
+        (false, up, 2),
+    ]
+    .map(|(linear, up, kernels)| with_proxy_correctives_seeing(&models[1], linear, up, kernels, 2));
     for model in (models.iter().chain([&sparse, &corrected])).chain(&proxy_corrected) {
         let sizes = ModelSizes::of(model);
         let gpu = GpuModel::new(&ctx, model).expect("upload");

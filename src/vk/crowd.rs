@@ -204,7 +204,7 @@ impl Crowd {
         let c = characters as u64;
         let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&dims, b));
         let chunk_characters = chunk_size(&shared, &dims, &per_character, c, options)?;
-        let buffers = create_buffers(&shared, &per_character, c, &options)?;
+        let buffers = create_buffers(&shared, &dims, c, &options)?;
         let mut crowd = Crowd {
             model: model.clone(),
             dims,
@@ -820,19 +820,19 @@ fn write_ups(bytes: &mut [u8], up: [f32; 3]) {
     }
 }
 
-/// Every buffer of a crowd of `characters` made with `options` (`per_character`: bytes a
-/// character of each kind), NaN-filled where the options' debug settings ask.
+/// Every buffer of a crowd of `characters` of a model of sizes `dims` made with `options`,
+/// NaN-filled where the options' debug settings ask.
 fn create_buffers(
     shared: &Arc<Shared>,
-    per_character: &[u64; CrowdBuffer::COUNT],
+    dims: &Dims,
     characters: u64,
     options: &CrowdOptions,
 ) -> Result<[Vec<Buffer>; CrowdBuffer::COUNT]> {
     let mut buffers: [Vec<Buffer>; CrowdBuffer::COUNT] = Default::default();
     for b in CrowdBuffer::ALL {
         let (name, usage, location) = kind(b);
-        let size = characters * per_character[b as usize];
-        buffers[b as usize] = (0..crowd_buffer_copies(b, options))
+        let size = characters * bytes_per_character(dims, b);
+        buffers[b as usize] = (0..crowd_buffer_copies(b, dims, options))
             .map(|_| Buffer::new(shared, name, size, usage, location))
             .collect::<Result<_>>()?;
     }

@@ -202,10 +202,13 @@ pub(crate) fn bytes_per_character(d: &Dims, b: CrowdBuffer) -> u64 {
     }
 }
 
-/// How many buffers of kind `b` a crowd made with `options` has.
-pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, options: &CrowdOptions) -> usize {
+/// How many buffers of kind `b` a crowd of a model of sizes `d` made with `options` has.
+pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, d: &Dims, options: &CrowdOptions) -> usize {
     match b {
-        CrowdBuffer::Bones | CrowdBuffer::Ups => options.frames_in_flight,
+        CrowdBuffer::Bones => options.frames_in_flight,
+        // Only where a pass reads them: the proxy correctives that see gravity.
+        CrowdBuffer::Ups if d.gravity => options.frames_in_flight,
+        CrowdBuffer::Ups => 0,
         CrowdBuffer::Positions => 1 + usize::from(options.previous_positions),
         CrowdBuffer::Bounds if options.bounds => options.frames_in_flight,
         CrowdBuffer::Bounds => 0,
@@ -223,7 +226,7 @@ pub fn crowd_largest_buffer_bytes(s: &ModelSizes, options: &CrowdOptions) -> Res
     let dims = s.dims(options)?;
     Ok(CrowdBuffer::ALL
         .iter()
-        .filter(|&&b| crowd_buffer_copies(b, options) > 0)
+        .filter(|&&b| crowd_buffer_copies(b, &dims, options) > 0)
         .map(|&b| bytes_per_character(&dims, b))
         .max()
         .unwrap_or(0))
@@ -245,7 +248,7 @@ pub fn crowd_bytes(s: &ModelSizes, characters: usize, options: &CrowdOptions) ->
             .ok_or_else(too_large)?
             .max(MIN_BUFFER_BYTES);
         let all = one
-            .checked_mul(crowd_buffer_copies(b, options) as u64)
+            .checked_mul(crowd_buffer_copies(b, &dims, options) as u64)
             .ok_or_else(too_large)?;
         sum.checked_add(all).ok_or_else(too_large)
     })

@@ -9,7 +9,7 @@
 
 use glam::DVec3;
 use rrskin_tools::cylinder_chain::Chain;
-use rrskin_tools::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
+use rrskin_tools::set::{ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::ddm::{Ddm, Params};
 use rrskin_tools::skinning::error::enveloping_error;
 use rrskin_tools::skinning::lbs::Skinning;
@@ -76,20 +76,7 @@ fn smoothed_from(from: f64) -> ExampleSet {
 
 /// The runtime model's meshes of `poses`, by the runtime's CPU reference.
 fn runtime_meshes(set: &ExampleSet, model: &rrskin::Model, poses: &[usize]) -> Vec<Vec<DVec3>> {
-    let mut cpu = rrskin::cpu::CpuEvaluator::new(model);
-    let v = set.vertex_count();
-    let (mut positions, mut normals) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
-    (poses.iter())
-        .map(|&i| {
-            let bones: Vec<_> = set.poses[i].bones.iter().map(Affine::to_runtime).collect();
-            cpu.evaluate(&bones, &mut positions, &mut normals)
-                .expect("evaluation");
-            positions
-                .iter()
-                .map(|p| DVec3::from(p.map(f64::from)))
-                .collect()
-        })
-        .collect()
+    rrskin_tools::eval::runtime_meshes(set, model, poses).expect("evaluation")
 }
 
 /// The held-out EE of the joint-blend model alone (`--no-delta-mush`) on `test`.

@@ -21,12 +21,12 @@ pub fn run(args: &InfoArgs) -> Outcome {
             "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
             "tangents": m.has_tangents(), "correctives": m.corrective_count(),
             "proxy_correctives": m.proxy_corrective_count(),
-            "mush_keys": m.mush_keys().map_or(0, |k| k.count()),
+            "mush_keys": m.mush_keys().map_or(0, |k| k.count()), "up": m.up(),
         });
         out!("{dims}");
     } else {
         out!(
-            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies ({} delta-mush keys), K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies",
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies ({} delta-mush keys), K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies{}",
             model.display(),
             m.vertex_count(),
             m.triangle_count(),
@@ -38,6 +38,10 @@ pub fn run(args: &InfoArgs) -> Outcome {
             if m.has_tangents() { "rest tangents" } else { "no rest tangents" },
             m.corrective_count(),
             m.proxy_corrective_count(),
+            match m.up() {
+                Some([x, y, z]) => format!(", seeing gravity (the model's up {x}, {y}, {z})"),
+                None => String::new(),
+            },
         );
     }
     Ok(())

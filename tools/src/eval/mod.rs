@@ -162,11 +162,12 @@ impl Report {
             "proxy_correctives": self.proxy_correctives.as_ref().map(|f| serde_json::json!({
                 "anchor": f.chosen.map(|c| c.anchor),
                 "basis": f.chosen.map(|c| basis_name(c.basis)),
+                "gravity": f.chosen.map(|c| c.gravity),
                 "ridge": f.chosen.map(|c| c.ridge),
                 "proxies": f.correctives.as_ref().map_or(0, |c| c.proxies.len()),
                 "uncorrected": {"score": f.uncorrected.0, "standard_error": f.uncorrected.1},
                 "candidates": f.candidates.iter()
-                    .map(|(c, (score, se))| serde_json::json!({"anchor": c.anchor, "basis": basis_name(c.basis), "ridge": c.ridge, "score": score, "standard_error": se}))
+                    .map(|(c, (score, se))| serde_json::json!({"anchor": c.anchor, "basis": basis_name(c.basis), "gravity": c.gravity, "ridge": c.ridge, "score": score, "standard_error": se}))
                     .collect::<Vec<_>>(),
             })),
             "normal_error": normals::to_json(&self.normal_error),
@@ -314,10 +315,11 @@ impl Report {
         if let Some(f) = &self.proxy_correctives {
             s += &match (f.chosen, &f.correctives) {
                 (Some(k), Some(c)) => format!(
-                    "proxy correctives: {} of {} proxies corrected, {} basis, ridge {:e}, targets anchored {} ({chosen})\n",
+                    "proxy correctives: {} of {} proxies corrected, {} basis{}, ridge {:e}, targets anchored {} ({chosen})\n",
                     c.proxies.len(),
                     self.reduced_proxies.unwrap_or(0),
                     basis_name(k.basis),
+                    if k.gravity { " and gravity" } else { "" },
                     k.ridge,
                     match k.anchor {
                         0.0 => "none".to_string(),
@@ -787,8 +789,9 @@ fn leave_one_out(
     })
 }
 
-/// A runtime model's meshes of `poses`, by the runtime's CPU evaluator.
-fn runtime_meshes(
+/// A runtime model's meshes of `poses`, by the runtime's CPU evaluator (its characters upright:
+/// the model's up).
+pub fn runtime_meshes(
     set: &ExampleSet,
     model: &rrskin::Model,
     poses: &[usize],
