@@ -509,10 +509,18 @@ fn a_trained_model_file_evaluates_as_trained() {
     assert!(corrected["proxies"].as_u64() > Some(0), "{trained}");
     assert_eq!(info["proxy_correctives"], corrected["proxies"], "{info}");
     assert!(corrected["anchor"].is_number(), "{trained}");
-    assert!(
-        (corrected["candidates"].as_array()).is_some_and(|c| c.len() == 3 * 8),
-        "one candidate per anchor and ridge: {trained}"
+    // Without gravity, then with it (offered by default, taken only where it wins clearly).
+    let candidates = corrected["candidates"].as_array().expect("candidates");
+    assert_eq!(
+        candidates.len(),
+        2 * 3 * 8,
+        "one candidate per gravity, anchor and ridge: {trained}"
     );
+    let gravity: Vec<bool> = (candidates.iter())
+        .map(|c| c["gravity"].as_bool().expect("a bool"))
+        .collect();
+    assert!(gravity[..24].iter().all(|g| !g) && gravity[24..].iter().all(|&g| g));
+    assert_eq!(corrected["gravity"].is_boolean(), true, "{trained}");
     // The CPU palette of the trained file agrees with the reference playing its animation
     // (tests/palette.rs's tolerance).
     let trained_model = rrskin::Model::load(&model).expect("valid");

@@ -44,7 +44,6 @@ pub mod structure;
 use crate::progress::Progress;
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
-use delta_mush::Kept;
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use rotreg::PoseFeatures;
@@ -435,11 +434,8 @@ impl Stages<'_> {
         };
         let reduced = shipped.unwrap_or(reduced);
         let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
-        // Nothing corrects delta-mush proxies alone: their fit is the rig's smoothing.
-        let (model, proxy_correctives) = match delta_mush.as_ref().map(|m| m.kept) {
-            Some(Kept::DeltaMush) => (model, None),
-            _ => self.add_proxy_correctives(&reduced, model, clock)?,
-        };
+        // Whatever kind ships: the correctives' own cross-validation decides.
+        let (model, proxy_correctives) = self.add_proxy_correctives(&reduced, model, clock)?;
         let (model, correctives) = self.add_correctives(model, clock)?;
         Ok(Runtime {
             reduced: Some(reduced),
