@@ -8,7 +8,7 @@
 
 use glam::DVec3;
 use rrskin_tools::cylinder_chain::Chain;
-use rrskin_tools::set::{ExampleSet, Pose, SetFiles, SetParts};
+use rrskin_tools::set::ExampleSet;
 use rrskin_tools::skinning::error::enveloping_error;
 use rrskin_tools::train::{self, TrainOptions};
 
@@ -26,34 +26,19 @@ const SAG: f64 = 0.1;
 /// along its bone (0 at a joint, so the sag is continuous), a the bone's axis in the pose and g
 /// = −Y, less the rest pose's sag (in the rest mesh, carried by the bone as it turns).
 fn sagging_chain() -> ExampleSet {
-    let set = CHAIN.build().expect("a valid chain");
+    let mut set = CHAIN.build().expect("a valid chain");
     let g = DVec3::NEG_Y;
-    let poses = (set.poses.iter())
-        .map(|pose| Pose {
-            bones: pose.bones.clone(),
-            vertices: (set.rest.iter().zip(&pose.vertices))
-                .map(|(rest, moved)| {
-                    let b = (rest.x.max(0.0) as usize).min(CHAIN.bones - 1);
-                    let f = (rest.x - b as f64).clamp(0.0, 1.0);
-                    let q = pose.bones[b].q;
-                    let sag = |a: DVec3| g - g.dot(a) * a;
-                    let here = sag(q * DVec3::X) - q * sag(DVec3::X);
-                    *moved + SAG * (std::f64::consts::PI * f).sin() * here
-                })
-                .collect(),
-        })
-        .collect();
-    let test = set.test();
-    let parts = SetParts {
-        rest: set.rest.clone(),
-        faces: set.faces.clone(),
-        parents: set.parents.clone(),
-        poses,
-        is_test: (0..set.poses.len()).map(|i| test.contains(&i)).collect(),
-        bone_names: None,
-        rig_weights: None,
-    };
-    ExampleSet::new(parts, &SetFiles::one("<sagging chain>")).expect("a valid set")
+    let sag = |a: DVec3| g - g.dot(a) * a;
+    for pose in &mut set.poses {
+        for (rest, moved) in set.rest.iter().zip(&mut pose.vertices) {
+            let b = (rest.x.max(0.0) as usize).min(CHAIN.bones - 1);
+            let f = (rest.x - b as f64).clamp(0.0, 1.0);
+            let q = pose.bones[b].q;
+            let here = sag(q * DVec3::X) - q * sag(DVec3::X);
+            *moved += SAG * (std::f64::consts::PI * f).sin() * here;
+        }
+    }
+    set
 }
 
 fn options(up: Option<[f64; 3]>) -> TrainOptions {
