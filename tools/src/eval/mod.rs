@@ -428,7 +428,7 @@ fn mush_line(m: &mush::Mush) -> String {
             format!(", both in one palette {} (to win by {margin:.0} %)", ee(b))
         });
         s += &format!(
-            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the joint-blend model (cross-validation on the training poses, held-out pose EE %): joint-blend {}, delta-mush {}{both}: {} kept\n",
+            "delta-mush proxies (K = {}, {:.1} bones per proxy) against the joint-blend model (cross-validation on the training poses, each kind with its proxy correctives, held-out pose EE %): joint-blend {}, delta-mush {}{both}: {} kept\n",
             m.influences,
             m.mean_bones,
             ee(joint_blend),

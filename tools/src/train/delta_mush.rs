@@ -10,18 +10,23 @@
 //! ([`ddm::choose`]); the proxies' groups are merged once, on all training poses, and fixed
 //! inside the folds, as the joint-blend model's ridges are there (the merging is most of the
 //! cost); SSD, Ω and the weights are fitted per fold. The joint-blend side of each fold is its
-//! structure as chosen, without proxy correctives: every side is compared as fitted to the
-//! poses, before anything corrects them.
+//! structure as chosen. Where the runtime model takes proxy correctives, every side is compared
+//! as it ships: each kind's correctives are chosen on all training poses
+//! ([`proxy_corrective::fit`], which may keep none), and that choice is fitted again on each
+//! fold's own poses ([`proxy_corrective::fit_candidate`]), as the merging is fixed: a kind that
+//! fits the poses better uncorrected may leave less to correct.
 
 use crate::set::ExampleSet;
 use crate::skinning::ddm::{self, Ddm};
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::{rigid_errors, Skinning};
 use crate::train::cross_validate::{try_cross_validate, Folds, Validated};
+use crate::train::proxy_corrective::Candidate;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::mush::{join, Groups, MushProxies};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
+use crate::train::{corrective, proxy_corrective};
 use crate::train::{pose_scale, ssd, Method, TrainError, TrainOptions};
 use glam::DVec3;
 
@@ -45,7 +50,7 @@ pub struct Fit {
     pub proxies: MushProxies,
     pub influences: usize,
     /// (score, standard error) of the joint-blend structure, the delta-mush proxies, then
-    /// both; empty with fewer training poses than folds (then the joint-blend model stays) or
+    /// both, each with its proxy correctives (where the runtime model takes them); empty with fewer training poses than folds (then the joint-blend model stays) or
     /// with [`Method::DeltaMush`] or [`Method::Both`] (then kept unasked).
     pub scores: Vec<(f64, f64)>,
     /// What the runtime model is.
@@ -143,6 +148,9 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         scores: Vec::new(),
         kept: Kept::JointBlend,
     };
+    let both = || join(inputs.reduced, &out.proxies, set, train, inputs.feats, k);
+    // The union on all training poses, where the cross-validation made it (it ships as made).
+    let mut union = None;
     out.kept = match (options.method, Folds::new(train.len(), options.folds)) {
         (Method::DeltaMush, _) => Kept::DeltaMush,
         (Method::Both, _) => Kept::Both,
@@ -151,9 +159,20 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
             // Both kinds add P proxies to the joint-blend model's: where P is asked for
             // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
             let offers_both = options.method == Method::Auto;
-            let validated =
-                cross_validate(inputs, options, &split, &groups, &proxy_params, offers_both)
-                    .map_err(smoothing)?;
+            let mut kinds = vec![
+                inputs.reduced.clone(),
+                out.proxies.reduced(bones, ssd_weights),
+            ];
+            if offers_both {
+                kinds.push(union.insert(both()).clone());
+            }
+            let correctives = corrective_choices(inputs, options, &kinds);
+            let sides = Sides {
+                groups: &groups,
+                params: &proxy_params,
+                correctives: &correctives,
+            };
+            let validated = cross_validate(inputs, options, &split, &sides).map_err(smoothing)?;
             out.scores = validated.scores.clone();
             [Kept::JointBlend, Kept::DeltaMush, Kept::Both][kept(&validated)]
         }
@@ -161,33 +180,60 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let shipped = match out.kept {
         Kept::JointBlend => None,
         Kept::DeltaMush => Some(out.proxies.reduced(bones, ssd_weights)),
-        Kept::Both => Some(join(
-            inputs.reduced,
-            &out.proxies,
-            set,
-            train,
-            inputs.feats,
-            k,
-        )),
+        Kept::Both => Some(union.unwrap_or_else(both)),
     };
     Ok((out, shipped))
 }
 
+/// What each fold fits its sides with: the delta-mush proxies' groups and smoothing, and per
+/// kind (joint-blend, delta-mush, both where offered) the proxy correctives' candidate chosen on
+/// all training poses (None: uncorrected).
+struct Sides<'a> {
+    groups: &'a Groups,
+    params: &'a ddm::Params,
+    correctives: &'a [Option<Candidate>],
+}
+
+/// Per kind of `kinds` (fitted to all training poses), the proxy correctives' candidate their
+/// cross-validation keeps (None: none, or the runtime model takes none).
+fn corrective_choices(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    kinds: &[Reduced],
+) -> Vec<Option<Candidate>> {
+    let (set, train, feats) = (inputs.set, inputs.train, inputs.feats);
+    (kinds.iter())
+        .map(|model| match options.proxy_correctives {
+            true => {
+                let fit = proxy_corrective::fit(
+                    set,
+                    feats,
+                    inputs.ssd,
+                    inputs.rigid,
+                    model,
+                    train,
+                    options,
+                );
+                fit.chosen
+            }
+            false => None,
+        })
+        .collect()
+}
+
 /// The candidates' scores over the folds of `split`: the chosen joint-blend structure, the
-/// delta-mush proxies of `groups` with Ω of smoothing `params`, and, if `offers_both`, both in
-/// one palette.
+/// delta-mush proxies of `sides.groups` with Ω of smoothing `sides.params`, and, where offered
+/// (a third corrective choice), both in one palette; each corrected as `sides.correctives` say.
 fn cross_validate(
     inputs: &Inputs,
     options: &TrainOptions,
     split: &Folds,
-    groups: &Groups,
-    params: &ddm::Params,
-    offers_both: bool,
+    sides: &Sides,
 ) -> crate::Result<Validated> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let (structure, ridges) = (inputs.chosen.structure, inputs.joint_blend.ridges());
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
-    let candidates = 2 + usize::from(offers_both);
+    let candidates = sides.correctives.len();
     try_cross_validate(split, &normaliser, candidates, TOLERANCE, |fold| {
         let (_, held) = fold.poses(train);
         let inner_set = set.holding_out(&held);
@@ -204,22 +250,37 @@ fn cross_validate(
             Some(ridges),
         );
         let bones = set.bone_count();
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, params)?;
+        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, sides.params)?;
+        let groups = sides.groups;
         let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, groups, k);
-        let held_error = |predict: &dyn Fn(usize) -> Vec<DVec3>| -> Vec<f64> {
+        // Each kind's held-out errors, as it ships: corrected as its candidate says.
+        let held_error = |model: &Reduced, candidate: &Option<Candidate>| -> Vec<f64> {
+            let correctives = candidate.and_then(|c| {
+                let feats = inputs.feats;
+                proxy_corrective::fit_candidate(
+                    &inner_set, feats, &ssd, model, &inner, &c, options.up,
+                )
+            });
             (held.iter())
-                .map(|&i| squared_error(set, &[i], &[predict(i)]))
+                .map(|&i| {
+                    let (f, pose_bones) = (&inputs.feats[i], &set.poses[i].bones);
+                    let mut palette = model.predict_proxies(set, f, pose_bones);
+                    if let Some(c) = &correctives {
+                        c.correct(&mut palette, &corrective::features(set, f), pose_bones);
+                    }
+                    let mesh = model.skin_with(set, &palette, pose_bones);
+                    squared_error(set, &[i], &[mesh])
+                })
                 .collect()
         };
+        let c = sides.correctives;
         let mut rows = vec![
-            held_error(&|i| reduced.predict(set, &inputs.feats[i], &set.poses[i].bones)),
-            held_error(&|i| mush.deform(&set.rest, &set.poses[i].bones)),
+            held_error(&reduced, &c[0]),
+            held_error(&mush.reduced(bones, &ssd.influences), &c[1]),
         ];
-        if offers_both {
-            let both = join(&reduced, &mush, &inner_set, &inner, inputs.feats, k);
-            rows.push(held_error(&|i| {
-                both.predict(set, &inputs.feats[i], &set.poses[i].bones)
-            }));
+        if let Some(both) = c.get(2) {
+            let union = join(&reduced, &mush, &inner_set, &inner, inputs.feats, k);
+            rows.push(held_error(&union, both));
         }
         Ok(rows)
     })

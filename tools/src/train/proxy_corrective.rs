@@ -287,6 +287,44 @@ struct Poses {
     features: Vec<JointFeatures>,
 }
 
+impl Poses {
+    /// The poses `train` as the fit of `reduced`'s correctives sees them: the predicted
+    /// proxies, the targets per anchor of `anchors`, the features with γ_b about `up`.
+    fn of(
+        set: &ExampleSet,
+        feats: &[PoseFeatures],
+        reduced: &Reduced,
+        train: &[usize],
+        anchors: &[f64],
+        up: DVec3,
+    ) -> Poses {
+        let predicted: Vec<Vec<Affine>> = (train.iter())
+            .map(|&i| reduced.predict_proxies(set, &feats[i], &set.poses[i].bones))
+            .collect();
+        let targets = (anchors.iter())
+            .map(|&mu| {
+                let anchor = (mu > 0.0).then_some((predicted.as_slice(), mu));
+                let best = reduced.best_transforms(set, train, anchor);
+                (predicted.iter().zip(&best))
+                    .map(|(p, best)| p.iter().zip(best).map(|(t, b)| target(t, b)).collect())
+                    .collect()
+            })
+            .collect();
+        let features = (train.iter())
+            .map(|&i| {
+                let phi = corrective::features(set, &feats[i]);
+                let gamma = gravity(&set.poses[i].bones, up);
+                JointFeatures { phi, gamma }
+            })
+            .collect();
+        Poses {
+            predicted,
+            targets,
+            features,
+        }
+    }
+}
+
 /// γ_b = rot(Q_b)ᵀ u − u of every joint of `bones` (the rig upright in its frame).
 fn gravity(bones: &[Affine], up: DVec3) -> Vec<[f64; 3]> {
     (bones.iter())
@@ -370,31 +408,8 @@ pub fn fit(
         };
     };
     let drivers = drivers(set, ssd, reduced);
-    let predicted: Vec<Vec<Affine>> = (train.iter())
-        .map(|&i| reduced.predict_proxies(set, &feats[i], &set.poses[i].bones))
-        .collect();
-    let targets = ANCHORS
-        .iter()
-        .map(|&mu| {
-            let anchor = (mu > 0.0).then_some((predicted.as_slice(), mu));
-            let best = reduced.best_transforms(set, train, anchor);
-            (predicted.iter().zip(&best))
-                .map(|(p, best)| p.iter().zip(best).map(|(t, b)| target(t, b)).collect())
-                .collect()
-        })
-        .collect();
     let up = options.up.map_or(DVec3::ZERO, DVec3::from);
-    let poses = Poses {
-        targets,
-        features: (train.iter())
-            .map(|&i| {
-                let phi = corrective::features(set, &feats[i]);
-                let gamma = gravity(&set.poses[i].bones, up);
-                JointFeatures { phi, gamma }
-            })
-            .collect(),
-        predicted,
-    };
+    let poses = Poses::of(set, feats, reduced, train, &ANCHORS, up);
     let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
     let grid = grid(options.proxy_kernels, options.up.is_some());
     let validated = cross_validate(&folds, &normaliser, 1 + grid.len(), 0.0, |fold| {
@@ -421,6 +436,28 @@ pub fn fit(
             .map(|(a, c)| regress(a, &c, up, &drivers, &poses, &all))
             .filter(|c| !c.proxies.is_empty()),
     }
+}
+
+/// The proxy correctives of `reduced` fitted on the poses `fit` with `candidate` (its features
+/// seeing gravity about `up`), without a search: how a cross-validation of the kinds of model
+/// corrects each fold's model with the candidate [`fit`] chose for that kind on all training
+/// poses, so that it compares them as they ship (docs/method.md §23). None where no proxy has
+/// drivers.
+pub fn fit_candidate(
+    set: &ExampleSet,
+    feats: &[PoseFeatures],
+    ssd: &Skinning,
+    reduced: &Reduced,
+    fit: &[usize],
+    candidate: &Candidate,
+    up: Option<[f64; 3]>,
+) -> Option<ProxyCorrectives> {
+    let drivers = drivers(set, ssd, reduced);
+    let up = up.map_or(DVec3::ZERO, DVec3::from);
+    let poses = Poses::of(set, feats, reduced, fit, &[candidate.anchor], up);
+    let all: Vec<usize> = (0..fit.len()).collect();
+    let fitted = regress(0, candidate, up, &drivers, &poses, &all);
+    (!fitted.proxies.is_empty()).then_some(fitted)
 }
 
 /// The candidates after the uncorrected proxies, in the order considered: without gravity, then
