@@ -62,8 +62,9 @@ pub struct Palette {
 
 /// A model's proxy correctives (docs/method.md §21, [`crate::ProxyCorrectives`]) compiled for
 /// `f32` evaluation, as `glsl/proxy_correctives.comp`: D distinct drivers over the E corrected
-/// proxies, F = 9·L + 3·G + C features each (φ_b if L, γ_b if G, then C kernels), computed once per character
-/// into scratch `x: (D x F)`, then per proxy `E_e = Σ_f x_f G_ef` over its `D_i F` rows.
+/// proxies, F = 9·L + 3·G + C features each (φ_b if L, γ_b if G, then C kernels), computed
+/// once per character into scratch `x: (D x F)`, then per proxy `E_e = Σ_f x_f G_ef` over its
+/// `D_i F` rows.
 #[derive(Debug, Clone, Default)]
 struct ProxyTerms {
     /// `(D)` the distinct drivers (bone, parent), ascending: slot s's features are

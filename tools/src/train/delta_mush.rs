@@ -50,8 +50,9 @@ pub struct Fit {
     pub proxies: MushProxies,
     pub influences: usize,
     /// (score, standard error) of the joint-blend structure, the delta-mush proxies, then
-    /// both, each with its proxy correctives (where the runtime model takes them); empty with fewer training poses than folds (then the joint-blend model stays) or
-    /// with [`Method::DeltaMush`] or [`Method::Both`] (then kept unasked).
+    /// both, each with its proxy correctives (where the runtime model takes them); empty with
+    /// fewer training poses than folds (then the joint-blend model stays) or with
+    /// [`Method::DeltaMush`] or [`Method::Both`] (then kept unasked).
     pub scores: Vec<(f64, f64)>,
     /// What the runtime model is.
     pub kept: Kept,
