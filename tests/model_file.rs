@@ -286,6 +286,39 @@ fn file_errors_name_the_file() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The model's up, where the proxy correctives see gravity: of unit length and finite; gravity
+/// alone, or with kernels, is a basis.
+#[test]
+fn a_proxy_corrective_up_is_unit_and_finite() {
+    let parts = proxy_corrected(true, 2, 4).into_parts();
+    let with = |f: &dyn Fn(&mut rrskin::ProxyCorrectives)| {
+        let mut p = parts.clone();
+        f(p.proxy_correctives.as_mut().expect("proxy correctives"));
+        problem(Model::new(p))
+    };
+    let gravity_only = |up: [f32; 3]| {
+        with(&|c| {
+            c.linear = false;
+            c.up = Some(up);
+            c.centres.clear();
+            c.widths.clear();
+            c.maps = vec![0.0; 12 * 4 * 3];
+        })
+    };
+    assert!(matches!(
+        gravity_only([0.0, 2.0, 0.0]),
+        ModelProblem::BadProxyCorrective { what: "up", .. }
+    ));
+    assert!(matches!(
+        gravity_only([0.0, f32::NAN, 1.0]),
+        ModelProblem::NonFinite { index: 1, .. }
+    ));
+    let mut alone = parts.clone();
+    let c = alone.proxy_correctives.as_mut().expect("proxy correctives");
+    (c.linear, c.up, c.maps) = (false, Some([1.0, 0.0, 0.0]), vec![0.0; 12 * 4 * (3 + 2)]);
+    Model::new(alone).expect("gravity and kernels without the linear features");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
 
@@ -953,28 +986,6 @@ fn inconsistent_proxy_correctives_are_refused_by_validation() {
             0
         )
     );
-    // The up, where the features see gravity: of unit length (gravity alone is a basis), finite.
-    let gravity_only = |up: [f32; 3]| {
-        with(&|c| {
-            c.linear = false;
-            c.up = Some(up);
-            c.centres.clear();
-            c.widths.clear();
-            c.maps = vec![0.0; 12 * 4 * 3];
-        })
-    };
-    assert!(matches!(
-        gravity_only([0.0, 2.0, 0.0]),
-        ModelProblem::BadProxyCorrective { what: "up", .. }
-    ));
-    assert!(matches!(
-        gravity_only([0.0, f32::NAN, 1.0]),
-        ModelProblem::NonFinite { index: 1, .. }
-    ));
-    let mut alone = parts.clone();
-    let c = alone.proxy_correctives.as_mut().expect("proxy correctives");
-    (c.linear, c.up, c.maps) = (false, Some([1.0, 0.0, 0.0]), vec![0.0; 12 * 4 * (3 + 2)]);
-    Model::new(alone).expect("gravity and kernels without the linear features");
     assert!(length(with(&|c| {
         c.maps.pop();
     }))
