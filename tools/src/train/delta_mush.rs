@@ -56,6 +56,9 @@ pub struct Fit {
     pub scores: Vec<(f64, f64)>,
     /// What the runtime model is.
     pub kept: Kept,
+    /// The proxy correctives' search on the kept kind, where the cross-validation made it (the
+    /// runtime model's correctives, not searched again).
+    pub correctives: Option<proxy_corrective::Fit>,
 }
 
 /// The runtime model the stage keeps (asked for, or by the cross-validation).
@@ -148,6 +151,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         influences: k,
         scores: Vec::new(),
         kept: Kept::JointBlend,
+        correctives: None,
     };
     let both = || join(inputs.reduced, &out.proxies, set, train, inputs.feats, k);
     // The union on all training poses, where the cross-validation made it (it ships as made).
@@ -167,15 +171,20 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
             if offers_both {
                 kinds.push(union.insert(both()).clone());
             }
-            let correctives = corrective_choices(inputs, options, &kinds);
+            let mut searched = corrective_searches(inputs, options, &kinds);
+            let choices: Vec<Option<Candidate>> = (searched.iter())
+                .map(|fit| fit.as_ref().and_then(|f| f.chosen))
+                .collect();
             let sides = Sides {
                 groups: &groups,
                 params: &proxy_params,
-                correctives: &correctives,
+                correctives: &choices,
             };
             let validated = cross_validate(inputs, options, &split, &sides).map_err(smoothing)?;
             out.scores = validated.scores.clone();
-            [Kept::JointBlend, Kept::DeltaMush, Kept::Both][kept(&validated)]
+            let index = kept(&validated);
+            out.correctives = searched.swap_remove(index);
+            [Kept::JointBlend, Kept::DeltaMush, Kept::Both][index]
         }
     };
     let shipped = match out.kept {
@@ -195,29 +204,19 @@ struct Sides<'a> {
     correctives: &'a [Option<Candidate>],
 }
 
-/// Per kind of `kinds` (fitted to all training poses), the proxy correctives' candidate their
-/// cross-validation keeps (None: none, or the runtime model takes none).
-fn corrective_choices(
+/// Per kind of `kinds` (fitted to all training poses), the search of its proxy correctives
+/// (None where the runtime model takes none).
+fn corrective_searches(
     inputs: &Inputs,
     options: &TrainOptions,
     kinds: &[Reduced],
-) -> Vec<Option<Candidate>> {
+) -> Vec<Option<proxy_corrective::Fit>> {
     let (set, train, feats) = (inputs.set, inputs.train, inputs.feats);
+    let (ssd, rigid) = (inputs.ssd, inputs.rigid);
     (kinds.iter())
-        .map(|model| match options.proxy_correctives {
-            true => {
-                let fit = proxy_corrective::fit(
-                    set,
-                    feats,
-                    inputs.ssd,
-                    inputs.rigid,
-                    model,
-                    train,
-                    options,
-                );
-                fit.chosen
-            }
-            false => None,
+        .map(|model| {
+            (options.proxy_correctives)
+                .then(|| proxy_corrective::fit(set, feats, ssd, rigid, model, train, options))
         })
         .collect()
 }

@@ -428,14 +428,17 @@ impl Stages<'_> {
         clock: &mut Clock,
     ) -> Result<Runtime, TrainError> {
         let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock);
-        let (delta_mush, shipped) = match &joint_blend {
+        let (mut delta_mush, shipped) = match &joint_blend {
             Some(fit) => self.fit_delta_mush(&chosen, fit, &reduced, clock)?,
             None => (None, None),
         };
         let reduced = shipped.unwrap_or(reduced);
         let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
-        // Whatever kind ships: the correctives' own cross-validation decides.
-        let (model, proxy_correctives) = self.add_proxy_correctives(&reduced, model, clock)?;
+        // Whatever kind ships: the correctives' own cross-validation decides (in the delta-mush
+        // stage already, where it compared the kinds so).
+        let searched = delta_mush.as_mut().and_then(|m| m.correctives.take());
+        let (model, proxy_correctives) =
+            self.add_proxy_correctives(&reduced, model, searched, clock)?;
         let (model, correctives) = self.add_correctives(model, clock)?;
         Ok(Runtime {
             reduced: Some(reduced),
@@ -527,27 +530,32 @@ impl Stages<'_> {
         (reduced, fitted, chosen)
     }
 
-    /// With `--proxy-correctives`, their stage: fitted to `reduced`'s proxies and added to
-    /// `model` where their cross-validation kept any.
+    /// With `--proxy-correctives`, their stage: fitted to `reduced`'s proxies (or `searched`,
+    /// their fit already made on them) and added to `model` where their cross-validation kept
+    /// any.
     fn add_proxy_correctives(
         &self,
         reduced: &Reduced,
         mut model: rrskin::Model,
+        searched: Option<proxy_corrective::Fit>,
         clock: &mut Clock,
     ) -> Result<(rrskin::Model, Option<proxy_corrective::Fit>), TrainError> {
         if !self.options.proxy_correctives {
             return Ok((model, None));
         }
         self.progress.stage("proxy correctives");
-        let fit = proxy_corrective::fit(
-            self.set,
-            self.feats,
-            self.ssd,
-            self.rigid,
-            reduced,
-            self.train,
-            self.options,
-        );
+        let (set, feats, train) = (self.set, self.feats, self.train);
+        let fit = searched.unwrap_or_else(|| {
+            proxy_corrective::fit(
+                set,
+                feats,
+                self.ssd,
+                self.rigid,
+                reduced,
+                train,
+                self.options,
+            )
+        });
         if let Some(c) = &fit.correctives {
             model = rrskin::Model::new(rrskin::ModelParts {
                 proxy_correctives: Some(c.to_runtime()),
