@@ -126,13 +126,7 @@ impl<'m> CpuEvaluator<'m> {
                 });
             }
         }
-        if !self.ups.is_empty() && self.ups.len() != c {
-            return Err(Error::WrongLength {
-                what: "character up vectors",
-                expected: c,
-                actual: self.ups.len(),
-            });
-        }
+        crate::predict::check_character_ups(c, &self.ups)?;
         if let Some(t) = tangents.as_deref() {
             if t.len() != c * v {
                 return Err(Error::WrongLength {

@@ -36,8 +36,8 @@
 use crate::cpu::characters;
 use crate::error::{Error, Result};
 use crate::model::{BlockSparse, Model, ProxyCorrectives};
+use crate::predict::{check_character_ups, mush_gradient_f32 as mush_gradient, Affine};
 use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation};
-use crate::predict::{mush_gradient_f32 as mush_gradient, Affine};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
 
@@ -296,7 +296,7 @@ impl Palette {
         out: &mut [Affine],
     ) -> Result<()> {
         let c = self.characters(bones, out)?;
-        check_ups(c, ups)?;
+        check_character_ups(c, ups)?;
         SCRATCH.with(|scratch| {
             let scratch = &mut *scratch.borrow_mut();
             let j = self.model.bone_count();
@@ -322,7 +322,7 @@ impl Palette {
         threads: usize,
     ) -> Result<()> {
         let c = self.characters(bones, out)?;
-        check_ups(c, ups)?;
+        check_character_ups(c, ups)?;
         let threads = match threads {
             0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
             n => n,
@@ -545,18 +545,6 @@ impl ProxyTerms {
             *t = corrected(t, &even);
         }
     }
-}
-
-/// `ups` C up vectors or none, finite ([`crate::predict::check_ups`]).
-fn check_ups(characters: usize, ups: &[[f32; 3]]) -> Result<()> {
-    if !ups.is_empty() && ups.len() != characters {
-        return Err(Error::WrongLength {
-            what: "character up vectors (characters, or none)",
-            expected: characters,
-            actual: ups.len(),
-        });
-    }
-    crate::predict::check_ups(ups)
 }
 
 /// `g += x row` for 3x4 row-major `g` and `row`.

@@ -206,6 +206,19 @@ pub fn check_ups(ups: &[[f32; 3]]) -> Result<()> {
     }
 }
 
+/// `ups` for `characters` characters: one each or none (the model's up), finite
+/// ([`check_ups`]).
+pub(crate) fn check_character_ups(characters: usize, ups: &[[f32; 3]]) -> Result<()> {
+    if !ups.is_empty() && ups.len() != characters {
+        return Err(Error::WrongLength {
+            what: "character up vectors (characters, or none)",
+            expected: characters,
+            actual: ups.len(),
+        });
+    }
+    check_ups(ups)
+}
+
 /// The correction `E_e = [A | b] = Σ_f x_f G_ef` (3x4 row-major) of corrected proxy i of the
 /// model's proxy correctives for one character's J `bones` and its `up` (None: the model's):
 /// the features x of its drivers in order, per driver its 9 linear φ_b (if `linear`), its 3

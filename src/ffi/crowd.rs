@@ -252,7 +252,7 @@ pub unsafe extern "C" fn rrskin_crowd_set_character_up(
 ) -> RrskinStatus {
     guard(|| {
         // SAFETY: `up` as the function's contract requires.
-        let up = unsafe { slice(up.cast::<[f32; 3]>(), 1, "up")? }[0];
+        let up = unsafe { vectors3(up, 3)? }[0];
         let (frame, character) = (frame as usize, character as usize);
         Ok(crowd_entry(crowd)?
             .write()

@@ -443,8 +443,7 @@ impl Crowd {
         }
         crate::predict::check_ups(ups)?;
         if self.dims.gravity {
-            let slot = self.buffers[CrowdBuffer::Ups as usize][frame].mapped()?;
-            for (out, up) in slot.chunks_exact_mut(16).zip(ups) {
+            for (out, up) in self.ups_mut(frame)?.chunks_exact_mut(16).zip(ups) {
                 write_ups(out, *up);
             }
         }
@@ -463,8 +462,10 @@ impl Crowd {
         }
         crate::predict::check_ups(&[up])?;
         if self.dims.gravity {
-            let slot = self.buffers[CrowdBuffer::Ups as usize][frame].mapped()?;
-            write_ups(&mut slot[16 * character..16 * (character + 1)], up);
+            write_ups(
+                &mut self.ups_mut(frame)?[16 * character..16 * (character + 1)],
+                up,
+            );
         }
         Ok(())
     }
@@ -472,6 +473,12 @@ impl Crowd {
     /// The host-visible bytes of frame slot `frame`'s bone transforms (checked slot).
     fn bones_mut(&mut self, frame: usize) -> Result<&mut [u8]> {
         self.buffers[CrowdBuffer::Bones as usize][frame].mapped()
+    }
+
+    /// The host-visible bytes of frame slot `frame`'s up vectors (checked slot; a crowd of a
+    /// model that sees gravity).
+    fn ups_mut(&mut self, frame: usize) -> Result<&mut [u8]> {
+        self.buffers[CrowdBuffer::Ups as usize][frame].mapped()
     }
 
     /// The buffers frame slot `frame` was last recorded with (the positions it writes, the

@@ -153,9 +153,11 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         kept: Kept::JointBlend,
         correctives: None,
     };
+    let alone = || out.proxies.reduced(bones, ssd_weights);
     let both = || join(inputs.reduced, &out.proxies, set, train, inputs.feats, k);
-    // The union on all training poses, where the cross-validation made it (it ships as made).
-    let mut union = None;
+    // The delta-mush proxies alone and the union on all training poses, where the
+    // cross-validation made them (the kept one ships as made).
+    let (mut made_alone, mut made_union) = (None, None);
     out.kept = match (options.method, Folds::new(train.len(), options.folds)) {
         (Method::DeltaMush, _) => Kept::DeltaMush,
         (Method::Both, _) => Kept::Both,
@@ -164,13 +166,12 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
             // Both kinds add P proxies to the joint-blend model's: where P is asked for
             // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
             let offers_both = options.method == Method::Auto;
-            let mut kinds = vec![
-                inputs.reduced.clone(),
-                out.proxies.reduced(bones, ssd_weights),
-            ];
-            if offers_both {
-                kinds.push(union.insert(both()).clone());
-            }
+            let made_alone = &*made_alone.insert(alone());
+            let made_union = offers_both.then(|| &*made_union.insert(both()));
+            let kinds: Vec<&Reduced> = [inputs.reduced, made_alone]
+                .into_iter()
+                .chain(made_union)
+                .collect();
             let mut searched = corrective_searches(inputs, options, &kinds);
             let choices: Vec<Option<Candidate>> = (searched.iter())
                 .map(|fit| fit.as_ref().and_then(|f| f.chosen))
@@ -189,8 +190,8 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     };
     let shipped = match out.kept {
         Kept::JointBlend => None,
-        Kept::DeltaMush => Some(out.proxies.reduced(bones, ssd_weights)),
-        Kept::Both => Some(union.unwrap_or_else(both)),
+        Kept::DeltaMush => Some(made_alone.unwrap_or_else(alone)),
+        Kept::Both => Some(made_union.unwrap_or_else(both)),
     };
     Ok((out, shipped))
 }
@@ -209,7 +210,7 @@ struct Sides<'a> {
 fn corrective_searches(
     inputs: &Inputs,
     options: &TrainOptions,
-    kinds: &[Reduced],
+    kinds: &[&Reduced],
 ) -> Vec<Option<proxy_corrective::Fit>> {
     let (set, train, feats) = (inputs.set, inputs.train, inputs.feats);
     let (ssd, rigid) = (inputs.ssd, inputs.rigid);
@@ -254,6 +255,9 @@ fn cross_validate(
         let groups = sides.groups;
         let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, groups, k);
         // Each kind's held-out errors, as it ships: corrected as its candidate says.
+        let phi: Vec<_> = (held.iter())
+            .map(|&i| corrective::features(set, &inputs.feats[i]))
+            .collect();
         let held_error = |model: &Reduced, candidate: &Option<Candidate>| -> Vec<f64> {
             let correctives = candidate.and_then(|c| {
                 let feats = inputs.feats;
@@ -261,12 +265,12 @@ fn cross_validate(
                     &inner_set, feats, &ssd, model, &inner, &c, options.up,
                 )
             });
-            (held.iter())
-                .map(|&i| {
+            (held.iter().zip(&phi))
+                .map(|(&i, phi)| {
                     let (f, pose_bones) = (&inputs.feats[i], &set.poses[i].bones);
                     let mut palette = model.predict_proxies(set, f, pose_bones);
                     if let Some(c) = &correctives {
-                        c.correct(&mut palette, &corrective::features(set, f), pose_bones);
+                        c.correct(&mut palette, phi, pose_bones);
                     }
                     let mesh = model.skin_with(set, &palette, pose_bones);
                     squared_error(set, &[i], &[mesh])
