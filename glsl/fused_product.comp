@@ -24,7 +24,7 @@ layout(std430, set = 0, binding = 5) readonly buffer Predictors { Predictor pred
 layout(std430, set = 0, binding = 6) buffer Palette { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 #ifdef CORRECTIVES
 layout(std430, set = 0, binding = 7) readonly buffer ProxyTopology { uint topology[]; };    // E, E + 1, sum D_i, P
-layout(std430, set = 0, binding = 8) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J
+layout(std430, set = 0, binding = 8) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J, up, J x 24
 layout(std430, set = 0, binding = 9) readonly buffer ProxyMaps { vec4 maps[]; };            // sum F_i x 3 (x 4)
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C; uint L; } pc;

@@ -12,9 +12,23 @@ float distance2(mat3 phi, uint z) {
     return dot(d0, d0) + dot(d1, d1) + dot(d2, d2);
 }
 
+// phi_b clamped into bone b's feature range (docs/method.md §21), entry by entry: the range's 12
+// lower bounds at kernels[at + 24 b], its 12 upper bounds after them (phi_b's 9, then gamma_b's).
+mat3 clamped(mat3 f, uint at, uint b) {
+    uint lo = at + 24u * b;
+    uint hi = lo + 12u;
+    return mat3(clamp(f[0], vec3(kernels[lo], kernels[lo + 1u], kernels[lo + 2u]),
+                      vec3(kernels[hi], kernels[hi + 1u], kernels[hi + 2u])),
+                clamp(f[1], vec3(kernels[lo + 3u], kernels[lo + 4u], kernels[lo + 5u]),
+                      vec3(kernels[hi + 3u], kernels[hi + 4u], kernels[hi + 5u])),
+                clamp(f[2], vec3(kernels[lo + 6u], kernels[lo + 7u], kernels[lo + 8u]),
+                      vec3(kernels[hi + 6u], kernels[hi + 7u], kernels[hi + 8u])));
+}
+
 // E = sum_f x_f G_f of corrected proxy i for character ch: its rows e0, e1, e2 (the bottom row
 // is zero). The features driver after driver: the 9 linear phi_b entries 3r + c where L, then
-// the C kernels exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b); each one map row (3 vec4).
+// the C kernels exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b), phi_b clamped into its
+// range; each one map row (3 vec4). The model has no gravity (a fused product never sees it).
 void correction(uint ch, uint i, out vec4 e0, out vec4 e1, out vec4 e2) {
     e0 = vec4(0.0);
     e1 = vec4(0.0);
@@ -23,9 +37,10 @@ void correction(uint ch, uint i, out vec4 e0, out vec4 e1, out vec4 e2) {
     uint last = topology[pc.E + i + 1u];
     uint m = 3u * first * (9u * pc.L + pc.C);
     uint widths = 9u * pc.C * pc.J;
+    uint ranges = widths + (pc.C > 0u ? pc.J : 0u);
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
-        mat3 f = joint_features(ch, b);
+        mat3 f = clamped(joint_features(ch, b), ranges, b);
         if (pc.L != 0u) {
             for (uint r = 0u; r < 3u; r++) {
                 for (uint c = 0u; c < 3u; c++) {

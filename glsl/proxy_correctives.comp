@@ -7,7 +7,8 @@
 // with GRAVITY gamma_b = rot(Q_b)^T u_c - u (u_c the character's up, u the model's, stored after
 // the kernels' data), then for each kernel centre c < C, exp(-|phi_b - z_cb|^2 / w_b) - exp(-|z_cb|^2 / w_b) with
 // z_cb the 9 floats of centre c * J + b and w_b = widths[b] (both terms computed alike: exactly
-// zero at the rest pose).
+// zero at the rest pose). phi_b and gamma_b are first clamped into the joint's feature range
+// (stored after the up; unbounded for a model without ranges).
 //
 // One invocation per (FOUR characters, corrected proxy i = y): each map row G_f is loaded once
 // for four characters (CPU drivers pay every buffer load per lane, and the loads, not the
@@ -24,7 +25,7 @@ struct Affine { vec4 r0; vec4 r1; vec4 r2; };   // 3x4 row-major
 layout(std430, set = 0, binding = 0) readonly buffer Bones { Affine bones[]; };             // chars x J
 layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };            // J
 layout(std430, set = 0, binding = 2) readonly buffer ProxyTopology { uint topology[]; };    // E, E + 1, sum D_i
-layout(std430, set = 0, binding = 3) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J
+layout(std430, set = 0, binding = 3) readonly buffer ProxyKernels { float kernels[]; };     // C x J x 9, J, up, J x 24
 layout(std430, set = 0, binding = 4) readonly buffer ProxyMaps { vec4 maps[]; };            // sum F_i x 3 (x 4)
 layout(std430, set = 0, binding = 5) buffer Palette { Affine proxies[]; };                  // chars x (P + J)
 #ifdef GRAVITY
@@ -44,11 +45,12 @@ void add(inout mat4 e0, inout mat4 e1, inout mat4 e2, uint m, vec4 x) {
 }
 
 #ifdef GRAVITY
-// gamma_b = rot(Q_b)^T u_c - u of character ch: (Q^T u_c)_j = sum_k Q[k][j] u_c[k].
-vec3 gravity(uint ch, uint b, vec3 u) {
+// gamma_b = rot(Q_b)^T u_c - u of character ch: (Q^T u_c)_j = sum_k Q[k][j] u_c[k], clamped into
+// [lo, hi].
+vec3 gravity(uint ch, uint b, vec3 u, vec3 lo, vec3 hi) {
     Affine q = bones[ch * pc.J + b];
     vec3 uc = ups[ch].xyz;
-    return uc.x * q.r0.xyz + uc.y * q.r1.xyz + uc.z * q.r2.xyz - u;
+    return clamp(uc.x * q.r0.xyz + uc.y * q.r1.xyz + uc.z * q.r2.xyz - u, lo, hi);
 }
 #endif
 
@@ -82,18 +84,19 @@ void main() {
     uint last = topology[pc.E + i + 1u];
     uint g = 0u;
     uint widths = 9u * pc.C * pc.J;
+    uint ranges = widths + (pc.C > 0u ? pc.J : 0u);
 #ifdef GRAVITY
     g = 3u;
-    uint up_at = widths + (pc.C > 0u ? pc.J : 0u);
-    vec3 u = vec3(kernels[up_at], kernels[up_at + 1u], kernels[up_at + 2u]);
+    vec3 u = vec3(kernels[ranges], kernels[ranges + 1u], kernels[ranges + 2u]);
+    ranges += 3u;
 #endif
     uint m = 3u * first * (9u * pc.L + g + pc.C);
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
-        mat3 f0 = joint_features(ch.x, b);
-        mat3 f1 = joint_features(ch.y, b);
-        mat3 f2 = joint_features(ch.z, b);
-        mat3 f3 = joint_features(ch.w, b);
+        mat3 f0 = clamped(joint_features(ch.x, b), ranges, b);
+        mat3 f1 = clamped(joint_features(ch.y, b), ranges, b);
+        mat3 f2 = clamped(joint_features(ch.z, b), ranges, b);
+        mat3 f3 = clamped(joint_features(ch.w, b), ranges, b);
         if (pc.L != 0u) {
             // phi_b's entries 3r + c, one map row each (written out: local matrices indexed
             // in a loop cost CPU drivers a round trip through memory per lane).
@@ -109,10 +112,13 @@ void main() {
             m += 27u;
         }
 #ifdef GRAVITY
-        vec3 g0 = gravity(ch.x, b, u);
-        vec3 g1 = gravity(ch.y, b, u);
-        vec3 g2 = gravity(ch.z, b, u);
-        vec3 g3 = gravity(ch.w, b, u);
+        uint lo = ranges + 24u * b + 9u;
+        vec3 glo = vec3(kernels[lo], kernels[lo + 1u], kernels[lo + 2u]);
+        vec3 ghi = vec3(kernels[lo + 12u], kernels[lo + 13u], kernels[lo + 14u]);
+        vec3 g0 = gravity(ch.x, b, u, glo, ghi);
+        vec3 g1 = gravity(ch.y, b, u, glo, ghi);
+        vec3 g2 = gravity(ch.z, b, u, glo, ghi);
+        vec3 g3 = gravity(ch.w, b, u, glo, ghi);
         add(e0, e1, e2, m, vec4(g0.x, g1.x, g2.x, g3.x));
         add(e0, e1, e2, m + 3u, vec4(g0.y, g1.y, g2.y, g3.y));
         add(e0, e1, e2, m + 6u, vec4(g0.z, g1.z, g2.z, g3.z));

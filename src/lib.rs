@@ -150,6 +150,7 @@ pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};
 pub use model::{
-    Correctives, KeyPredictor, Model, ModelParts, MushKeys, ProxyCorrectives, SecondBone,
+    Correctives, FeatureRange, KeyPredictor, Model, ModelParts, MushKeys, ProxyCorrectives,
+    SecondBone,
 };
 pub use normals::NormalMode;

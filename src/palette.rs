@@ -35,7 +35,7 @@
 
 use crate::cpu::characters;
 use crate::error::{Error, Result};
-use crate::model::{BlockSparse, Model, ProxyCorrectives};
+use crate::model::{BlockSparse, FeatureRange, Model, ProxyCorrectives};
 use crate::predict::{check_character_ups, mush_gradient_f32 as mush_gradient, Affine};
 use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation};
 use glam::{Mat3, Vec3};
@@ -79,6 +79,8 @@ struct ProxyTerms {
     centres: Vec<[f32; 9]>,
     /// `(D)` kernel widths `w_b` (empty without kernels).
     widths: Vec<f32>,
+    /// `(D)` the ranges φ_b and γ_b are clamped into (empty: not clamped).
+    ranges: Vec<FeatureRange>,
     /// `(D x C)` each kernel's `exp(−|z|² / w)` at rest, computed as per character (so a
     /// kernel feature is exactly zero at the rest pose).
     at_rest: Vec<f32>,
@@ -482,7 +484,12 @@ impl ProxyTerms {
         let at_rest = (centres.iter().enumerate())
             .map(|(k, z)| kernel(&[0.0; 9], z, widths[k / kernels]))
             .collect();
+        let ranges = match c.ranges.is_empty() {
+            true => Vec::new(),
+            false => drivers.iter().map(|&(b, _)| c.ranges[b]).collect(),
+        };
         ProxyTerms {
+            ranges,
             drivers,
             features: f,
             linear: c.linear,
@@ -501,7 +508,8 @@ impl ProxyTerms {
 
     /// The features of one character's J bones `q` and its `up` (None: the model's) into `x:
     /// (D x F)`: per driver slot, φ_b (if linear), `γ_b = rot(Q_b)ᵀ u_c − u` (if the model has
-    /// an up u), then `exp(−|φ_b − z_c|² / w_b) − exp(−|z_c|² / w_b)` for its C kernels.
+    /// an up u), then `exp(−|φ_b − z_c|² / w_b) − exp(−|z_c|² / w_b)` for its C kernels; φ_b and
+    /// γ_b clamped into the slot's range where the model has ranges.
     fn features(&self, q: &[Affine], up: Option<Vec3>, x: &mut Vec<f32>) {
         let (linear, gravity) = (
             9 * usize::from(self.linear),
@@ -510,12 +518,19 @@ impl ProxyTerms {
         let (f, kernels) = (self.features, self.features - linear - gravity);
         x.resize(self.drivers.len() * f, 0.0);
         for (s, &(b, p)) in self.drivers.iter().enumerate() {
-            let phi = phi_f32(&q[p], &q[b]);
+            let range = self.ranges.get(s);
+            let mut phi = phi_f32(&q[p], &q[b]);
+            if let Some(r) = range {
+                r.clamp(&mut phi, 0);
+            }
             let (head, x) = x[s * f..(s + 1) * f].split_at_mut(f - kernels);
             head[..linear].copy_from_slice(&phi[..linear]);
             if let Some(u) = self.up {
-                let gamma = rotation_of(&q[b]).transpose() * up.unwrap_or(u) - u;
-                head[linear..].copy_from_slice(&gamma.to_array());
+                let mut gamma = (rotation_of(&q[b]).transpose() * up.unwrap_or(u) - u).to_array();
+                if let Some(r) = range {
+                    r.clamp(&mut gamma, 9);
+                }
+                head[linear..].copy_from_slice(&gamma);
             }
             for (c, x) in x.iter_mut().enumerate() {
                 let k = s * kernels + c;

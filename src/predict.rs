@@ -222,7 +222,8 @@ pub(crate) fn check_character_ups(characters: usize, ups: &[[f32; 3]]) -> Result
 /// The correction `E_e = [A | b] = Σ_f x_f G_ef` (3x4 row-major) of corrected proxy i of the
 /// model's proxy correctives for one character's J `bones` and its `up` (None: the model's):
 /// the features x of its drivers in order, per driver its 9 linear φ_b (if `linear`), its 3
-/// gravity features γ_b (if the model has an up), then its C kernels (see
+/// gravity features γ_b (if the model has an up), then its C kernels, φ_b and γ_b clamped into
+/// the driver's range where the model has ranges (see
 /// [`crate::ProxyCorrectives`]). Zero without proxy correctives or at the rest pose of an
 /// upright character.
 pub fn proxy_correction(
@@ -245,14 +246,22 @@ pub fn proxy_correction(
     };
     for &b in c.drivers_of(i) {
         let b = b as usize;
-        let phi = rotation_features(bones, b, model.parent(b).unwrap_or(b)); // validated: parents
+        let range = c.ranges.get(b);
+        let mut phi = rotation_features(bones, b, model.parent(b).unwrap_or(b)); // validated: parents
+        if let Some(r) = range {
+            r.clamp(&mut phi, 0);
+        }
         if c.linear {
             for &x in &phi {
                 add(x, rows.next().unwrap_or_default());
             }
         }
         if let Some(u) = c.up {
-            for x in gravity_features(&bones[b], u, up.unwrap_or(u)) {
+            let mut gamma = gravity_features(&bones[b], u, up.unwrap_or(u));
+            if let Some(r) = range {
+                r.clamp(&mut gamma, 9);
+            }
+            for x in gamma {
                 add(x, rows.next().unwrap_or_default());
             }
         }

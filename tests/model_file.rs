@@ -319,6 +319,59 @@ fn a_proxy_corrective_up_is_unit_and_finite() {
     Model::new(alone).expect("gravity and kernels without the linear features");
 }
 
+/// Feature ranges: one per joint or none, finite, and containing 0 (the rest pose's features).
+#[test]
+fn proxy_corrective_ranges_contain_the_rest_pose_and_are_finite() {
+    let parts = proxy_corrected(true, 2, 4).into_parts();
+    let with = |f: &dyn Fn(&mut rrskin::ProxyCorrectives)| {
+        let mut p = parts.clone();
+        f(p.proxy_correctives.as_mut().expect("proxy correctives"));
+        problem(Model::new(p))
+    };
+    assert!(matches!(
+        with(&|c| c.ranges[2].lower[4] = 0.1),
+        ModelProblem::BadProxyCorrective {
+            what: "ranges",
+            index: 2,
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| c.ranges[1].upper[10] = -0.1),
+        ModelProblem::BadProxyCorrective {
+            what: "ranges",
+            index: 1,
+            ..
+        }
+    ));
+    assert!(matches!(
+        with(&|c| c.ranges[0].upper[3] = f32::INFINITY),
+        ModelProblem::NonFinite {
+            what: "proxy corrective feature ranges",
+            index: 15
+        }
+    ));
+    assert!(matches!(
+        with(&|c| {
+            c.ranges.pop();
+        }),
+        ModelProblem::Length {
+            expected: 4,
+            actual: 3,
+            ..
+        }
+    ));
+    let mut zero = parts.clone();
+    let c = zero.proxy_correctives.as_mut().expect("proxy correctives");
+    c.ranges.iter_mut().for_each(|r| {
+        *r = rrskin::FeatureRange {
+            lower: [0.0; 12],
+            upper: [0.0; 12],
+        }
+    });
+    Model::new(zero).expect("ranges of 0: joints that never moved");
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
 
@@ -687,12 +740,27 @@ fn seeing(linear: bool, up: Option<[f32; 3]>, kernels: usize, influences: u32) -
 }
 
 /// The PCOR section's words: E, C, the flags, D, then E + (E + 1) + D u32, C J 9 + J (with
-/// kernels) f32, 3 f32 (the up, with gravity), 12 D (9 linear + 3 gravity + C) f32.
-fn pcor_words(linear: bool, gravity: bool, kernels: u64) -> u64 {
+/// kernels) f32, 3 f32 (the up, with gravity), 24 J f32 (the ranges, with ranges), 12 D (9
+/// linear + 3 gravity + C) f32.
+fn pcor_words(linear: bool, gravity: bool, ranges: bool, kernels: u64) -> u64 {
     let (e, d, j) = (3, 4, 4);
     let widths = if kernels > 0 { j } else { 0 };
     let (linear, gravity) = (9 * u64::from(linear), 3 * u64::from(gravity));
-    4 + e + e + 1 + d + kernels * j * 9 + widths + gravity + 12 * d * (linear + gravity + kernels)
+    let ranges = 24 * j * u64::from(ranges);
+    let maps = 12 * d * (linear + gravity + kernels);
+    4 + e + e + 1 + d + kernels * j * 9 + widths + gravity + ranges + maps
+}
+
+/// `m` without feature ranges, as a file before version 6 holds it.
+fn without_ranges(m: &Model) -> Model {
+    let mut parts = m.parts().clone();
+    parts
+        .proxy_correctives
+        .as_mut()
+        .expect("proxy correctives")
+        .ranges
+        .clear();
+    Model::new(parts).expect("valid")
 }
 
 #[test]
@@ -706,18 +774,21 @@ fn proxy_correctives_round_trip_and_version_2_files_still_load() {
         (false, up, 2, 8),
     ];
     for (linear, up, kernels, k) in kinds {
-        let m = seeing(linear, up, kernels, k);
-        assert_eq!(m.proxy_corrective_count(), 3);
-        let bytes = m.to_bytes();
-        assert_eq!(
-            u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
-            FORMAT_VERSION
-        );
-        let back = Model::from_bytes(&bytes).expect("round trip");
-        assert_eq!(back, m);
-        assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
-        let (_, length) = table_entry(&bytes, b"PCOR");
-        assert_eq!(length, 4 * pcor_words(linear, up.is_some(), kernels as u64));
+        let ranged = seeing(linear, up, kernels, k);
+        for (ranges, m) in [(true, ranged.clone()), (false, without_ranges(&ranged))] {
+            assert_eq!(m.proxy_corrective_count(), 3);
+            let bytes = m.to_bytes();
+            assert_eq!(
+                u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
+                FORMAT_VERSION
+            );
+            let back = Model::from_bytes(&bytes).expect("round trip");
+            assert_eq!(back, m);
+            assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
+            let (_, length) = table_entry(&bytes, b"PCOR");
+            let words = pcor_words(linear, up.is_some(), ranges, kernels as u64);
+            assert_eq!(length, 4 * words);
+        }
     }
     // Beside pose-space correctives.
     let both = common::with_correctives(&proxy_corrected(true, 2, 4), 3, 1);
@@ -756,7 +827,8 @@ fn malformed_proxy_corrective_sections_are_refused() {
         (1, 3),
         (1, 0),
         (2, 0),
-        (2, 3),
+        (2, 1),
+        (2, 7),
         (3, 5),
         (0, u32::MAX),
         (1, u32::MAX),
@@ -768,13 +840,13 @@ fn malformed_proxy_corrective_sections_are_refused() {
             "word {word} = {value}: {p:?}"
         );
     }
-    let p = edit(&|b| put_u32(b, at + 8, 4));
+    let p = edit(&|b| put_u32(b, at + 8, 8));
     assert_eq!(
         p,
         ModelProblem::Dimension {
             what: "the PCOR section's feature flags",
-            value: 4,
-            reason: "must be 0 to 3 (bit 0 linear, bit 1 gravity)"
+            value: 8,
+            reason: "must be 0 to 7 (bit 0 linear, bit 1 gravity, bit 2 ranges)"
         }
     );
     // Shorter than its four counts, and cut inside its arrays.
@@ -798,13 +870,29 @@ fn malformed_proxy_corrective_sections_are_refused() {
         }
     );
     // The arrays' contents: proxies 0, 2, 3 at 16; offsets 0, 1, 4, 4 at 28; drivers at 44;
-    // centres at 60 (2 x 4 x 9); widths at 348; maps at 364.
-    let (proxies, offsets, drivers, centres, widths, maps) =
-        (at + 16, at + 28, at + 44, at + 60, at + 348, at + 364);
+    // centres at 60 (2 x 4 x 9); widths at 348; ranges at 364 (4 x 24); maps at 748.
+    let (proxies, offsets, drivers, centres, widths, ranges, maps) = (
+        at + 16,
+        at + 28,
+        at + 44,
+        at + 60,
+        at + 348,
+        at + 364,
+        at + 748,
+    );
     assert_eq!(
-        at + 4 * pcor_words(true, false, 2) as usize,
+        at + 4 * pcor_words(true, false, true, 2) as usize,
         maps + 4 * 12 * 4 * 11
     );
+    // Joint 1's upper bound of φ entry 0 (its range's word 12) below 0.
+    assert!(matches!(
+        edit(&|b| b[ranges + 4 * (24 + 12)..][..4].copy_from_slice(&(-0.5f32).to_le_bytes())),
+        ModelProblem::BadProxyCorrective {
+            what: "ranges",
+            index: 1,
+            ..
+        }
+    ));
     assert_eq!(
         edit(&|b| put_u32(b, proxies + 8, 5)),
         ModelProblem::IndexOutOfRange {

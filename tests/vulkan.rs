@@ -1253,6 +1253,11 @@ fn proxy_correctives_after_each_product(in_product: bool) {
         // Delta-mush keys after predictors: the fused product's MUSH builds, with and without
         // the correction.
         with_proxy_correctives(&joint_blend_pattern(&mushed, 1), true, 2, 3),
+        // Without feature ranges (files before version 6): the shaders clamp to ±f32::MAX.
+        with_ranges(
+            &with_proxy_correctives(&random_model(k8, 68), true, 2, 4),
+            None,
+        ),
     ];
     let settings = GpuModelDebugSettings {
         correctives_in_product: Some(in_product),
@@ -1282,7 +1287,8 @@ fn proxy_correctives_after_each_product(in_product: bool) {
             (true, true, 13),
             (false, false, 0),
             (false, false, 0),
-            (true, true, 13)
+            (true, true, 13),
+            (false, false, 5)
         ]
     );
     // 300 characters: the pass corrects four characters 64 apart an invocation, 256 a

@@ -3,9 +3,9 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION (5; versions 1, without CORR,
-//!                    PCOR and MUSH, 2, without PCOR and MUSH, 3, without MUSH, and 4,
-//!                    without PCOR's gravity, read too)
+//! 8       4          format version (u32) = FORMAT_VERSION (6; versions 1, without CORR,
+//!                    PCOR and MUSH, 2, without PCOR and MUSH, 3, without MUSH, 4,
+//!                    without PCOR's gravity, and 5, without PCOR's ranges, read too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -32,18 +32,20 @@
 //! | ANIM | optional: frames x J x 12 f32 bone transforms        |
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
-//! | PCOR | optional (version 3): proxy correctives: E u32, C u32, features u32 (bit 0 linear; bit 1 gravity, version 5), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), up 3 f32 (with gravity only), maps 12 D (9 linear + 3 gravity + C) f32 |
+//! | PCOR | optional (version 3): proxy correctives: E u32, C u32, features u32 (bit 0 linear; bit 1 gravity, version 5; bit 2 ranges, version 6), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), up 3 f32 (with gravity only), ranges J x (12 lower, 12 upper) f32 (with ranges only), maps 12 D (9 linear + 3 gravity + C) f32 |
 //! | MUSH | optional (version 4): delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
 
-use super::{Correctives, KeyPredictor, ModelParts, MushKeys, ProxyCorrectives, SecondBone};
+use super::{
+    Correctives, FeatureRange, KeyPredictor, ModelParts, MushKeys, ProxyCorrectives, SecondBone,
+};
 use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 /// The version this build writes; it reads every version from 1 to this one.
-pub const FORMAT_VERSION: u32 = 5;
+pub const FORMAT_VERSION: u32 = 6;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
@@ -171,7 +173,7 @@ fn correctives_bytes(c: &Correctives, v: usize) -> Vec<u8> {
 }
 
 /// The PCOR payload: E, C, the feature flags, D, then the proxies, driver offsets, drivers,
-/// centres, widths, up and maps.
+/// centres, widths, up, ranges and maps.
 fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
     let mut pcor = Vec::new();
     let kernels = c.kernel_count(j);
@@ -180,7 +182,9 @@ fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
         &[
             c.proxies.len() as u32,
             kernels as u32,
-            u32::from(c.linear) | u32::from(c.up.is_some()) << 1,
+            u32::from(c.linear)
+                | u32::from(c.up.is_some()) << 1
+                | u32::from(!c.ranges.is_empty()) << 2,
             c.drivers.len() as u32,
         ],
     );
@@ -190,6 +194,10 @@ fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
     push_f32s(&mut pcor, c.centres.as_flattened());
     push_f32s(&mut pcor, &c.widths);
     push_f32s(&mut pcor, c.up.as_slice().as_flattened());
+    for r in &c.ranges {
+        push_f32s(&mut pcor, &r.lower);
+        push_f32s(&mut pcor, &r.upper);
+    }
     push_f32s(&mut pcor, &c.maps);
     pcor
 }
@@ -435,14 +443,14 @@ fn proxy_correctives(
     }
     let head = table.section(body, PCOR, length)?;
     let [e, c, flags, d] = [0, 1, 2, 3].map(|i| le_u32(head, 4 * i) as u64);
-    if flags > 3 {
+    if flags > 7 {
         return Err(ModelProblem::Dimension {
             what: "the PCOR section's feature flags",
             value: flags,
-            reason: "must be 0 to 3 (bit 0 linear, bit 1 gravity)",
+            reason: "must be 0 to 7 (bit 0 linear, bit 1 gravity, bit 2 ranges)",
         });
     }
-    let (linear, gravity) = (flags & 1, flags >> 1);
+    let (linear, gravity, ranges) = (flags & 1, flags >> 1 & 1, flags >> 2);
     let product = |factors: &[u64]| factors.iter().fold(1u64, |acc, &f| acc.saturating_mul(f));
     let widths = if c > 0 { j } else { 0 };
     let centres = product(&[c, j, 9]);
@@ -455,6 +463,7 @@ fn proxy_correctives(
         centres,
         widths,
         3 * gravity,
+        product(&[ranges, j, 24]),
         maps,
     ]
     .into_iter()
@@ -473,12 +482,20 @@ fn proxy_correctives(
     let centres = f32s(take(centres)).chunks_exact(9).map(array).collect();
     let widths = f32s(take(widths));
     let up = (gravity == 1).then(|| array(&f32s(take(3))));
+    let ranges = f32s(take(24 * ranges as usize * j as usize))
+        .chunks_exact(24)
+        .map(|r| FeatureRange {
+            lower: array(&r[..12]),
+            upper: array(&r[12..]),
+        })
+        .collect();
     let maps = f32s(take(maps as usize));
     Ok(ProxyCorrectives {
         linear: linear == 1,
         up,
         centres,
         widths,
+        ranges,
         proxies,
         driver_offsets,
         drivers,

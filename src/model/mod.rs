@@ -141,6 +141,11 @@ pub const MAX_PROXY_DRIVERS: usize = 32;
 ///   with `z_cb = centres[c * J + b]` (9 floats, laid out as φ) and `w_b = widths[b]`;
 ///   |·|² is the sum of the squares of the 9 components.
 ///
+/// Before any feature is computed, a driver's φ_b and γ_b are clamped, entry by entry, into
+/// `ranges[b]` where the model has ranges: the box of the training poses' values, so that a pose
+/// past what the correctives were fitted on is corrected as the nearest pose within it (a
+/// rigger's driver ramps clamp alike), never extrapolated.
+///
 /// So proxy i has `F_i = D_i (9·linear + 3·gravity + C)` features, and its map is F_i rows of 12
 /// floats, row f being `G_ef = [A00 A01 A02 b0 A10 A11 A12 b1 A20 A21 A22 b2]`. Every feature is
 /// zero at the rest pose of an upright character (φ = γ = 0 there), so the corrections vanish
@@ -148,7 +153,7 @@ pub const MAX_PROXY_DRIVERS: usize = 32;
 ///
 /// Limits: 1 ≤ E ≤ P corrected proxies; D_i ≤ [`MAX_PROXY_DRIVERS`] drivers each (bones with a
 /// parent, distinct within the proxy; none leaves the proxy as it is); C ≤ [`MAX_PROXY_KERNELS`];
-/// at least one kind of feature; `up` of unit length.
+/// at least one kind of feature; `up` of unit length; J ranges or none, each containing 0.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProxyCorrectives {
     /// Whether each driver contributes its 9 linear features φ_b.
@@ -160,6 +165,9 @@ pub struct ProxyCorrectives {
     pub centres: Vec<[f32; 9]>,
     /// J kernel widths w_b (2σ²); empty when C = 0.
     pub widths: Vec<f32>,
+    /// J per-joint ranges the features are clamped into (ranges[b] for driver b); empty: not
+    /// clamped (files before version 6).
+    pub ranges: Vec<FeatureRange>,
     /// The corrected proxies, ascending, distinct, < P.
     pub proxies: Vec<u32>,
     /// proxies.len() + 1 offsets into `drivers` (CSR), starting at 0, non-decreasing.
@@ -169,6 +177,37 @@ pub struct ProxyCorrectives {
     /// Per corrected proxy i, F_i x 12 floats (F_i = D_i (9·linear + 3·gravity + C)),
     /// concatenated in proxy order.
     pub maps: Vec<f32>,
+}
+
+/// The range of one joint's proxy-corrective features (docs/method.md §21): entries 0..9 bound
+/// φ_b (laid out as φ), 9..12 bound γ_b (0 where the features do not see gravity). `lower ≤ 0 ≤
+/// upper` entry by entry, so the rest pose stays exact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeatureRange {
+    pub lower: [f32; 12],
+    pub upper: [f32; 12],
+}
+
+impl FeatureRange {
+    /// Clamps φ_b (`x` of 9) or γ_b (`x` of 3, `first` = 9) into the range, entry by entry (in
+    /// f64 for the CPU reference, f32 for the palette).
+    pub fn clamp<T: Copy + PartialOrd + From<f32>, const N: usize>(
+        &self,
+        x: &mut [T; N],
+        first: usize,
+    ) {
+        for (k, x) in x.iter_mut().enumerate() {
+            let (lo, hi) = (
+                T::from(self.lower[first + k]),
+                T::from(self.upper[first + k]),
+            );
+            if *x < lo {
+                *x = lo;
+            } else if *x > hi {
+                *x = hi;
+            }
+        }
+    }
 }
 
 impl ProxyCorrectives {

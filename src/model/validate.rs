@@ -2,8 +2,8 @@
 //! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
 
 use super::{
-    Correctives, KeyPredictor, Mat3Rows, ModelParts, MushKeys, ProxyCorrectives, MAX_CORRECTIVES,
-    MAX_MUSH_BONES, MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS, SUPPORTED_INFLUENCES,
+    Correctives, FeatureRange, KeyPredictor, Mat3Rows, ModelParts, MushKeys, ProxyCorrectives,
+    MAX_CORRECTIVES, MAX_MUSH_BONES, MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS, SUPPORTED_INFLUENCES,
 };
 use crate::error::ModelProblem;
 
@@ -185,6 +185,7 @@ fn proxy_correctives(c: &ProxyCorrectives, parents: &[i32], p: usize) -> Check {
     proxy_drivers(c, parents)?;
     proxy_kernels(c, parents.len())?;
     proxy_up(c.up)?;
+    proxy_ranges(&c.ranges, parents.len())?;
     let features = c.features_per_driver(parents.len());
     length(
         "proxy corrective maps (12 x features, summed over the proxies)",
@@ -209,6 +210,31 @@ fn proxy_up(up: Option<[f32; 3]>) -> Check {
         });
     }
     Ok(())
+}
+
+/// J feature ranges or none, finite, each entry's lower bound ≤ 0 ≤ its upper bound (the rest
+/// pose's features, 0, are within them).
+fn proxy_ranges(ranges: &[FeatureRange], j: usize) -> Check {
+    if !ranges.is_empty() {
+        length(
+            "proxy corrective feature ranges (J or none)",
+            j,
+            ranges.len(),
+        )?;
+    }
+    let bounds = ranges.iter().flat_map(|r| r.lower.iter().chain(&r.upper));
+    finite("proxy corrective feature ranges", bounds)?;
+    let index = ranges
+        .iter()
+        .position(|r| (r.lower.iter().zip(&r.upper)).any(|(&lo, &hi)| lo > 0.0 || hi < 0.0));
+    match index {
+        Some(index) => Err(ModelProblem::BadProxyCorrective {
+            what: "ranges",
+            index,
+            reason: "do not contain 0 (the rest pose's features)",
+        }),
+        None => Ok(()),
+    }
 }
 
 /// E in 1..=P proxies, ascending and distinct.

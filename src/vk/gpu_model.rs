@@ -7,7 +7,7 @@ use super::memory::{model_buffer_bytes, ModelSizes};
 use super::pass::{Dims, ModelBuffer};
 use super::passes::Pass;
 use crate::error::Result;
-use crate::model::{predictor_words, BlockSparse, Model, PREDICTOR_WORDS};
+use crate::model::{predictor_words, BlockSparse, FeatureRange, Model, PREDICTOR_WORDS};
 use crate::normals::{Fans, NormalMode, FAN_PIVOT};
 use ash::vk;
 use std::sync::Arc;
@@ -45,7 +45,8 @@ struct UploadData<'m> {
     /// The proxy correctives' corrected proxies, driver offsets and drivers, one after the
     /// other, then each proxy's index among the corrected (`u32::MAX` where uncorrected).
     proxy_topology: Vec<u32>,
-    /// The proxy correctives' kernel centres (C x J x 9), then their widths (J).
+    /// The proxy correctives' kernel centres (C x J x 9), their widths (J), the model's up, the
+    /// feature ranges ([`proxy_kernels`]).
     proxy_kernels: Vec<f32>,
     blocks: BlockSparse,
 }
@@ -170,15 +171,7 @@ impl GpuModel {
             rest,
             fans: model.normal_fans(),
             proxy_topology: proxy_topology(model),
-            proxy_kernels: (model.proxy_correctives())
-                .map(|c| {
-                    let centres = c.centres.as_flattened().iter();
-                    centres.chain(&c.widths).chain(c.up.iter().flatten())
-                })
-                .into_iter()
-                .flatten()
-                .copied()
-                .collect(),
+            proxy_kernels: proxy_kernels(model),
             blocks: sparse.unwrap_or_default(),
         };
         let sizes =
@@ -333,6 +326,24 @@ fn model_dims(model: &Model, sparse: Option<&BlockSparse>, in_product: bool) -> 
         gravity: model.up().is_some(),
         mush: model.mush_keys().is_some(),
     }
+}
+
+/// [`UploadData::proxy_kernels`] (empty without proxy correctives): the kernel centres, the
+/// widths, the model's up, then per joint 12 lower and 12 upper feature bounds, which are
+/// ±`f32::MAX` for a model without ranges so that the shaders clamp every model alike.
+fn proxy_kernels(model: &Model) -> Vec<f32> {
+    let Some(c) = model.proxy_correctives() else {
+        return Vec::new();
+    };
+    let unbounded = FeatureRange {
+        lower: [-f32::MAX; 12],
+        upper: [f32::MAX; 12],
+    };
+    let ranges = (0..model.bone_count()).map(|b| c.ranges.get(b).unwrap_or(&unbounded));
+    let data = c.centres.as_flattened().iter().chain(&c.widths);
+    (data.chain(c.up.iter().flatten()).copied())
+        .chain(ranges.flat_map(|r| r.lower.into_iter().chain(r.upper)))
+        .collect()
 }
 
 /// [`UploadData::proxy_topology`] (empty without proxy correctives).

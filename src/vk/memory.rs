@@ -162,9 +162,11 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         ModelBuffer::ProxyTopology if corrected > 0 => 2 * corrected + 1 + proxy_drivers + p,
         ModelBuffer::ProxyTopology => 0,
         // The centres, then the widths (only with kernels), then the model's up (only with
-        // gravity).
-        ModelBuffer::ProxyKernels if kernels > 0 => kernels * j * 9 + j + gravity,
-        ModelBuffer::ProxyKernels => gravity,
+        // gravity), then the J feature ranges (24 floats each).
+        ModelBuffer::ProxyKernels if corrected > 0 => {
+            kernels * j * 9 + if kernels > 0 { j } else { 0 } + gravity + 24 * j
+        }
+        ModelBuffer::ProxyKernels => 0,
         ModelBuffer::ProxyMaps => 12 * proxy_drivers * features,
     }
 }

@@ -110,8 +110,9 @@ indexed_enum! {
         /// E + 1 driver offsets, then the Σ D_i drivers (empty without proxy correctives; one
         /// buffer, so that the pass binds no more storage buffers than the widest one)
         ProxyTopology,
-        /// f32, the proxy correctives' kernels: C x J x 9 centres, then J widths (empty
-        /// without kernels)
+        /// f32, the proxy correctives' model data: C x J x 9 kernel centres, then J widths
+        /// (neither without kernels), the model's up (3, with gravity only), then J feature
+        /// ranges of 12 lower and 12 upper bounds (unbounded for a model without ranges)
         ProxyKernels,
         /// f32 (read as vec4s), the proxy correctives' maps: Σ_i F_i x 12 (empty without proxy correctives)
         ProxyMaps,

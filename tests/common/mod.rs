@@ -336,7 +336,7 @@ pub fn with_correctives(model: &Model, n: usize, seed: u64) -> Model {
 /// from the e-th on; `linear` features or not, and `kernels` kernel centres per joint at the φ
 /// of random poses (width w_b = 8 for every joint: |φ|² reaches about 6); map entries |g| ≤
 /// 0.02 of the linear features and ≤ 0.1 of the kernels (a few percent of the proxies' scale
-/// over the tests' random poses), seeded.
+/// over the tests' random poses); every joint's feature range within ±0.15 to ±0.9, seeded.
 pub fn with_proxy_correctives(model: &Model, linear: bool, kernels: usize, seed: u64) -> Model {
     with_proxy_correctives_seeing(model, linear, None, kernels, seed)
 }
@@ -393,12 +393,21 @@ pub fn with_proxy_correctives_seeing(
                 .collect::<Vec<_>>()
         })
         .collect();
+    // Feature ranges narrower than the random poses' features (|entries| up to about 2), so
+    // that most poses are clamped on some entry.
+    let ranges = (0..j)
+        .map(|_| rrskin::FeatureRange {
+            lower: std::array::from_fn(|_| -(0.15 + 0.75 * next()) as f32),
+            upper: std::array::from_fn(|_| (0.15 + 0.75 * next()) as f32),
+        })
+        .collect();
     let parts = rrskin::ModelParts {
         proxy_correctives: Some(rrskin::ProxyCorrectives {
             linear,
             up,
             centres,
             widths,
+            ranges,
             proxies,
             driver_offsets,
             drivers,
@@ -407,6 +416,15 @@ pub fn with_proxy_correctives_seeing(
         ..model.parts().clone()
     };
     Model::new(parts).expect("a model with valid proxy correctives")
+}
+
+/// `model` (with proxy correctives) with every joint's feature range replaced by `range` (None:
+/// no ranges, as files before version 6 hold them).
+pub fn with_ranges(model: &Model, range: Option<rrskin::FeatureRange>) -> Model {
+    let mut parts = model.parts().clone();
+    let c = parts.proxy_correctives.as_mut().expect("proxy correctives");
+    c.ranges = range.map_or_else(Vec::new, |r| vec![r; model.bone_count()]);
+    Model::new(parts).expect("valid")
 }
 
 /// The first pass of a frame whose GPU buffer disagrees with the CPU reference's intermediates,

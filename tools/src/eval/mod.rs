@@ -164,10 +164,11 @@ impl Report {
                 "basis": f.chosen.map(|c| basis_name(c.basis)),
                 "gravity": f.chosen.map(|c| c.gravity),
                 "ridge": f.chosen.map(|c| c.ridge),
+                "clamped": f.chosen.map(|c| c.clamped),
                 "proxies": f.correctives.as_ref().map_or(0, |c| c.proxies.len()),
                 "uncorrected": {"score": f.uncorrected.0, "standard_error": f.uncorrected.1},
                 "candidates": f.candidates.iter()
-                    .map(|(c, (score, se))| serde_json::json!({"anchor": c.anchor, "basis": basis_name(c.basis), "gravity": c.gravity, "ridge": c.ridge, "score": score, "standard_error": se}))
+                    .map(|(c, (score, se))| serde_json::json!({"anchor": c.anchor, "basis": basis_name(c.basis), "gravity": c.gravity, "clamped": c.clamped, "ridge": c.ridge, "score": score, "standard_error": se}))
                     .collect::<Vec<_>>(),
             })),
             "normal_error": normals::to_json(&self.normal_error),
@@ -315,11 +316,12 @@ impl Report {
         if let Some(f) = &self.proxy_correctives {
             s += &match (f.chosen, &f.correctives) {
                 (Some(k), Some(c)) => format!(
-                    "proxy correctives: {} of {} proxies corrected, {} basis{}, ridge {:e}, targets anchored {} ({chosen})\n",
+                    "proxy correctives: {} of {} proxies corrected, {} basis{}{}, ridge {:e}, targets anchored {} ({chosen})\n",
                     c.proxies.len(),
                     self.reduced_proxies.unwrap_or(0),
                     basis_name(k.basis),
                     if k.gravity { " and gravity" } else { "" },
+                    if k.clamped { ", features clamped to the training range" } else { "" },
                     k.ridge,
                     match k.anchor {
                         0.0 => "none".to_string(),

@@ -28,6 +28,13 @@
 //!    ([`crate::train::cross_validate`]), in the order without gravity first (so that it is
 //!    taken only where it wins clearly), unanchored first, the simpler basis and the stronger
 //!    ridge first.
+//! 4. **Ranges.** Past the poses it was fitted on, a linear map extrapolates: right for a
+//!    deformer that keeps deforming (a smoothing), wrong for one that saturates (a corrective
+//!    shape driven by a clamped ramp of an angle, which rigs are full of), and an animation
+//!    reaches past the range-of-motion poses in a few joints at a time. The fit may clamp each
+//!    driver's φ_b and γ_b into their box over the fitted poses (and 0) before its features are
+//!    computed: a second cross-validation, of the chosen fit against it clamped, decides, in
+//!    that order, on the held-out poses that fall past a fold's ranges.
 
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet};
@@ -39,6 +46,7 @@ use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::TrainOptions;
 use glam::{DMat3, DVec3};
+use rrskin::FeatureRange;
 
 /// The ridges tried per basis, most regularised first.
 pub const RIDGES: [f64; 8] = [1000.0, 100.0, 10.0, 1.0, 0.1, 0.01, 1e-3, 1e-4];
@@ -71,6 +79,9 @@ pub struct ProxyCorrectives {
     pub centres: Vec<Vec<[f64; 9]>>,
     /// J kernel widths w_b (empty for [`Basis::Linear`]).
     pub widths: Vec<f64>,
+    /// J feature ranges: the box of the fitted poses' φ_b and γ_b (and 0), which a pose's are
+    /// clamped into; empty: not clamped.
+    pub ranges: Vec<FeatureRange>,
     pub proxies: Vec<Corrected>,
 }
 
@@ -94,11 +105,13 @@ pub struct Candidate {
     pub gravity: bool,
     /// λ ([`RIDGES`]).
     pub ridge: f64,
+    /// Whether each driver's φ_b and γ_b are clamped into their range over the poses fitted.
+    pub clamped: bool,
 }
 
 /// What [`fit`] chose: the score (mean, standard error) of the uncorrected proxies, every
-/// candidate's score in the order considered, and the one kept (None where nothing beats no
-/// correction).
+/// candidate's score in the order considered (the grid's, then the chosen one clamped, scored
+/// against it), and the one kept (None where nothing beats no correction).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Fit {
     pub uncorrected: Score,
@@ -108,13 +121,19 @@ pub struct Fit {
 }
 
 impl ProxyCorrectives {
-    /// The basis over the poses `centres` (indices into `poses`), with γ_b where `up` is given.
+    /// The basis over the poses `centres` (indices into `poses`), with γ_b where `up` is given,
+    /// clamped into the poses' ranges if `clamped`.
     fn basis(
         basis: Basis,
         up: Option<DVec3>,
+        clamped: bool,
         poses: &[JointFeatures],
         centres: &[usize],
     ) -> ProxyCorrectives {
+        let fitted_ranges = match clamped {
+            true => ranges(poses, centres, up.is_some()),
+            false => Vec::new(),
+        };
         let phi = |i: usize| &poses[i].phi;
         let (centres, widths) = match basis {
             Basis::Linear => (Vec::new(), Vec::new()),
@@ -136,6 +155,7 @@ impl ProxyCorrectives {
             }
         };
         ProxyCorrectives {
+            ranges: fitted_ranges,
             up,
             centres,
             widths,
@@ -148,21 +168,22 @@ impl ProxyCorrectives {
         9 + 3 * usize::from(self.up.is_some()) + self.centres.len()
     }
 
-    /// The features of `drivers` in the pose `x` (its φ_b and γ_b).
+    /// The features of `drivers` in the pose `x` (its φ_b and γ_b, clamped into their ranges
+    /// where there are ranges).
     fn features(&self, drivers: &[usize], x: &JointFeatures, out: &mut Vec<f64>) {
-        let phi = &x.phi;
         out.clear();
         for &b in drivers {
-            out.extend(phi[b]);
+            let (mut phi, mut gamma) = (x.phi[b], x.gamma.get(b).copied().unwrap_or_default());
+            if let Some(r) = self.ranges.get(b) {
+                r.clamp(&mut phi, 0);
+                r.clamp(&mut gamma, 9);
+            }
+            out.extend(phi);
             if self.up.is_some() {
-                out.extend(x.gamma[b]);
+                out.extend(gamma);
             }
             for z in &self.centres {
-                out.push(rrskin::predict::kernel_feature(
-                    &phi[b],
-                    &z[b],
-                    self.widths[b],
-                ));
+                out.push(rrskin::predict::kernel_feature(&phi, &z[b], self.widths[b]));
             }
         }
     }
@@ -206,6 +227,7 @@ impl ProxyCorrectives {
             up: self.up.map(|u| u.as_vec3().to_array()),
             centres: self.centres.iter().flatten().map(f32s).collect(),
             widths: self.widths.iter().map(|&w| w as f32).collect(),
+            ranges: self.ranges.clone(),
             proxies: self.proxies.iter().map(|c| c.proxy as u32).collect(),
             driver_offsets: offsets,
             drivers: (self.proxies.iter())
@@ -216,6 +238,42 @@ impl ProxyCorrectives {
                 .collect(),
         }
     }
+}
+
+/// The range of each joint's φ_b and γ_b (zero without `gravity`) over the poses `fitted`, and
+/// 0 (the rest pose), widened to f32 so that every fitted pose lies within it as stored.
+fn ranges(poses: &[JointFeatures], fitted: &[usize], gravity: bool) -> Vec<FeatureRange> {
+    let joints = poses.first().map_or(0, |x| x.phi.len());
+    (0..joints)
+        .map(|b| {
+            let mut r = FeatureRange {
+                lower: [0.0; 12],
+                upper: [0.0; 12],
+            };
+            for &i in fitted {
+                let gamma = if gravity { poses[i].gamma[b] } else { [0.0; 3] };
+                for (k, &x) in poses[i].phi[b].iter().chain(&gamma).enumerate() {
+                    r.lower[k] = r.lower[k].min(f32_below(x));
+                    r.upper[k] = r.upper[k].max(f32_above(x));
+                }
+            }
+            r
+        })
+        .collect()
+}
+
+/// An f32 at most x (x rounded, less an ulp where rounding went up).
+fn f32_below(x: f64) -> f32 {
+    let y = x as f32;
+    match f64::from(y) > x {
+        true => y - (y.abs() * f32::EPSILON).max(f32::MIN_POSITIVE),
+        false => y,
+    }
+}
+
+/// An f32 at least x.
+fn f32_above(x: f64) -> f32 {
+    -f32_below(-x)
 }
 
 fn squared(x: &[f64; 9]) -> f64 {
@@ -343,7 +401,8 @@ fn regress(
     fit: &[usize],
 ) -> ProxyCorrectives {
     let up = candidate.gravity.then_some(up);
-    let mut out = ProxyCorrectives::basis(candidate.basis, up, &poses.features, fit);
+    let mut out =
+        ProxyCorrectives::basis(candidate.basis, up, candidate.clamped, &poses.features, fit);
     let ridge = candidate.ridge;
     let mut x = Vec::new();
     for (e, d) in drivers.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
@@ -387,9 +446,10 @@ fn regress(
 
 /// Fits the proxy correctives of `reduced` on the training poses `train`, anchor, basis (the
 /// kernels only with `options.proxy_kernels`), gravity (only with `options.up`) and ridge
-/// chosen by `options.folds`-fold
-/// cross-validation; `rigid` normalises each held-out pose's error. None is chosen where no
-/// candidate beats the uncorrected proxies.
+/// chosen by `options.folds`-fold cross-validation, then whether the features are clamped into
+/// their ranges by a second one between the chosen fit as it is and clamped (the fit is the
+/// same; only held-out poses past a fold's ranges differ); `rigid` normalises each held-out
+/// pose's error. None is chosen where no candidate beats the uncorrected proxies.
 pub fn fit(
     set: &ExampleSet,
     feats: &[PoseFeatures],
@@ -412,25 +472,41 @@ pub fn fit(
     let poses = Poses::of(set, feats, reduced, train, &ANCHORS, up);
     let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
     let grid = grid(options.proxy_kernels, options.up.is_some());
-    let validated = cross_validate(&folds, &normaliser, 1 + grid.len(), 0.0, |fold| {
-        let uncorrected = (fold.held.iter())
-            .map(|&k| held_error(set, train, reduced, &poses, k, None))
-            .collect();
-        let corrected = grid.iter().map(|&(a, c)| {
-            let fitted = regress(a, &c, up, &drivers, &poses, &fold.inner);
-            (fold.held.iter())
-                .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
-                .collect()
-        });
-        std::iter::once(uncorrected).chain(corrected).collect()
-    });
-    let chosen = validated.chosen.checked_sub(1).map(|c| grid[c]);
+    let scored = |candidates: &[(usize, Candidate)]| {
+        cross_validate(&folds, &normaliser, 1 + candidates.len(), 0.0, |fold| {
+            let uncorrected = (fold.held.iter())
+                .map(|&k| held_error(set, train, reduced, &poses, k, None))
+                .collect();
+            let corrected = candidates.iter().map(|&(a, c)| {
+                let fitted = regress(a, &c, up, &drivers, &poses, &fold.inner);
+                (fold.held.iter())
+                    .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
+                    .collect()
+            });
+            std::iter::once(uncorrected).chain(corrected).collect()
+        })
+    };
+    let validated = scored(&grid);
+    let mut candidates: Vec<(Candidate, Score)> = grid
+        .iter()
+        .zip(&validated.scores[1..])
+        .map(|(&(_, c), &s)| (c, s))
+        .collect();
+    let mut chosen = validated.chosen.checked_sub(1).map(|c| grid[c]);
+    // How the chosen fit extrapolates: clamped into the fitted poses' ranges only where the
+    // held-out poses past a fold's ranges say so clearly.
+    if let Some((a, c)) = chosen {
+        let clamped = Candidate { clamped: true, ..c };
+        let extrapolation = scored(&[(a, c), (a, clamped)]);
+        candidates.push((clamped, extrapolation.scores[2]));
+        if extrapolation.chosen == 2 {
+            chosen = Some((a, clamped));
+        }
+    }
     let all: Vec<usize> = (0..train.len()).collect();
     Fit {
         uncorrected: validated.scores[0],
-        candidates: (grid.iter().zip(&validated.scores[1..]))
-            .map(|(&(_, c), &s)| (c, s))
-            .collect(),
+        candidates,
         chosen: chosen.map(|(_, c)| c),
         correctives: chosen
             .map(|(a, c)| regress(a, &c, up, &drivers, &poses, &all))
@@ -481,6 +557,7 @@ fn grid(kernels: bool, gravity: bool) -> Vec<(usize, Candidate)> {
                         basis,
                         gravity,
                         ridge,
+                        clamped: false,
                     };
                     (a, c)
                 })
