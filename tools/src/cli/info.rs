@@ -15,6 +15,7 @@ pub struct InfoArgs {
 pub fn run(args: &InfoArgs) -> Outcome {
     let (model, json) = (&args.model, args.json);
     let m = Model::load(model)?;
+    let clamped = m.proxy_correctives().is_some_and(|c| !c.ranges.is_empty());
     if json {
         let dims = serde_json::json!({
             "vertices": m.vertex_count(), "triangles": m.triangle_count(),
@@ -22,11 +23,12 @@ pub fn run(args: &InfoArgs) -> Outcome {
             "tangents": m.has_tangents(), "correctives": m.corrective_count(),
             "proxy_correctives": m.proxy_corrective_count(),
             "mush_keys": m.mush_keys().map_or(0, |k| k.count()), "up": m.up(),
+            "clamped": clamped,
         });
         out!("{dims}");
     } else {
         out!(
-            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies ({} delta-mush keys), K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies{}",
+            "{}: V = {} vertices, T = {} triangles, J = {} bones, P = {} proxies ({} delta-mush keys), K = {} influences{}; {}; {} pose-space correctives; {} corrected proxies{}{}",
             model.display(),
             m.vertex_count(),
             m.triangle_count(),
@@ -42,6 +44,7 @@ pub fn run(args: &InfoArgs) -> Outcome {
                 Some([x, y, z]) => format!(", seeing gravity (the model's up {x}, {y}, {z})"),
                 None => String::new(),
             },
+            if clamped { ", features clamped to the training range" } else { "" },
         );
     }
     Ok(())
