@@ -286,16 +286,20 @@ fn file_errors_name_the_file() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// The problem [`Model::new`] finds in a model of the tests' shape with proxy correctives
+/// ([`proxy_corrected`]) after `edit`.
+fn edited_proxy_correctives(edit: &dyn Fn(&mut rrskin::ProxyCorrectives)) -> ModelProblem {
+    let mut parts = proxy_corrected(true, 2, 4).into_parts();
+    edit(parts.proxy_correctives.as_mut().expect("proxy correctives"));
+    problem(Model::new(parts))
+}
+
 /// The model's up, where the proxy correctives see gravity: of unit length and finite; gravity
 /// alone, or with kernels, is a basis.
 #[test]
 fn a_proxy_corrective_up_is_unit_and_finite() {
     let parts = proxy_corrected(true, 2, 4).into_parts();
-    let with = |f: &dyn Fn(&mut rrskin::ProxyCorrectives)| {
-        let mut p = parts.clone();
-        f(p.proxy_correctives.as_mut().expect("proxy correctives"));
-        problem(Model::new(p))
-    };
+    let with = edited_proxy_correctives;
     let gravity_only = |up: [f32; 3]| {
         with(&|c| {
             c.linear = false;
@@ -323,11 +327,7 @@ fn a_proxy_corrective_up_is_unit_and_finite() {
 #[test]
 fn proxy_corrective_ranges_contain_the_rest_pose_and_are_finite() {
     let parts = proxy_corrected(true, 2, 4).into_parts();
-    let with = |f: &dyn Fn(&mut rrskin::ProxyCorrectives)| {
-        let mut p = parts.clone();
-        f(p.proxy_correctives.as_mut().expect("proxy correctives"));
-        problem(Model::new(p))
-    };
+    let with = edited_proxy_correctives;
     assert!(matches!(
         with(&|c| c.ranges[2].lower[4] = 0.1),
         ModelProblem::BadProxyCorrective {
