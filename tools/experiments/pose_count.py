@@ -67,11 +67,13 @@ def play(pool, data, args, work):
         write_subset(pool, data, chosen, subset)
         report = rrskin(args.rrskin, ["train", subset, "-o", os.path.join(work, "m.rrs")])
         r = {"poses": count + 1, "rr_test": report["rr_reduced"]["test"],
-             "ssd_test": report["ssd"]["test"]}
+             "ssd_test": report["ssd"]["test"],
+             "clamped": (report.get("proxy_correctives") or {}).get("clamped")}
         rows.append(r)
         if not args.json:
             print(f"{r['poses']:>4} poses: runtime {r['rr_test']:.2f} %, SSD {r['ssd_test']:.2f} %, "
-                  f"ratio {r['rr_test'] / r['ssd_test']:.3f}", flush=True)
+                  f"ratio {r['rr_test'] / r['ssd_test']:.3f}, proxy correctives clamped: "
+                  f"{r['clamped']}", flush=True)
     return rows
 
 
