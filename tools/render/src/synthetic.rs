@@ -290,8 +290,8 @@ pub fn random_poses(model: &Model, characters: usize, seed: u64) -> Vec<Affine> 
 }
 
 /// `model` with its bones renumbered: bone b becomes bone `new_index[b]` (parents, skinning and
-/// baseline indices, predictor bones, C2's columns, the animation and both correctives' drivers
-/// follow), so that it
+/// baseline indices, predictor bones, C2's columns, the animation, both correctives' drivers and
+/// the proxy correctives' per-bone data follow), so that it
 /// deforms exactly as before for poses renumbered the same way. With `new_index` = J−1, …, 0 on
 /// a generated model every parent comes after its children. Errors if `new_index` is not a
 /// permutation of 0..J.
@@ -367,7 +367,7 @@ pub fn renumber_bones(model: &Model, new_index: &[usize]) -> Result<Model> {
         model.parts().proxy_correctives.as_ref(),
     ) {
         c.drivers.iter_mut().for_each(|d| *d = bone(*d));
-        // Kernel centres C x J and widths J are per bone.
+        // Kernel centres C x J, widths J and feature ranges J are per bone.
         for (row, old) in c
             .centres
             .chunks_exact_mut(j)
@@ -379,6 +379,9 @@ pub fn renumber_bones(model: &Model, new_index: &[usize]) -> Result<Model> {
         }
         for (b, w) in old.widths.iter().enumerate() {
             c.widths[new_index[b]] = *w;
+        }
+        for (b, r) in old.ranges.iter().enumerate() {
+            c.ranges[new_index[b]] = *r;
         }
     }
     Model::new(parts)
