@@ -509,18 +509,21 @@ fn a_trained_model_file_evaluates_as_trained() {
     assert!(corrected["proxies"].as_u64() > Some(0), "{trained}");
     assert_eq!(info["proxy_correctives"], corrected["proxies"], "{info}");
     assert!(corrected["anchor"].is_number(), "{trained}");
-    // Without gravity, then with it (offered by default, taken only where it wins clearly).
+    // Without gravity, then with it (offered by default, taken only where it wins clearly),
+    // then the chosen one clamped into the training range.
     let candidates = corrected["candidates"].as_array().expect("candidates");
     assert_eq!(
         candidates.len(),
-        2 * 3 * 8,
-        "one candidate per gravity, anchor and ridge: {trained}"
+        2 * 3 * 8 + 1,
+        "one candidate per gravity, anchor and ridge, and the clamp: {trained}"
     );
-    let gravity: Vec<bool> = (candidates.iter())
-        .map(|c| c["gravity"].as_bool().expect("a bool"))
-        .collect();
-    assert!(gravity[..24].iter().all(|g| !g) && gravity[24..].iter().all(|&g| g));
+    let flag = |c: &serde_json::Value, what: &str| c[what].as_bool().expect("a bool");
+    let gravity: Vec<bool> = candidates.iter().map(|c| flag(c, "gravity")).collect();
+    assert!(gravity[..24].iter().all(|g| !g) && gravity[24..48].iter().all(|&g| g));
+    let clamped: Vec<bool> = candidates.iter().map(|c| flag(c, "clamped")).collect();
+    assert!(clamped[..48].iter().all(|c| !c) && clamped[48]);
     assert!(corrected["gravity"].is_boolean(), "{trained}");
+    assert_eq!(info["clamped"], corrected["clamped"], "{info}");
     // The CPU palette of the trained file agrees with the reference playing its animation
     // (tests/palette.rs's tolerance).
     let trained_model = rrskin::Model::load(&model).expect("valid");
