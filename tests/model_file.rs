@@ -526,19 +526,26 @@ fn table_entry(bytes: &[u8], tag: &[u8; 4]) -> (usize, u64) {
     (e, length)
 }
 
+/// `m`'s bytes, after checking that they carry this build's version and load back as `m`,
+/// which encodes to the same bytes (the encoding is deterministic).
+fn round_trip(m: &Model) -> Vec<u8> {
+    let bytes = m.to_bytes();
+    assert_eq!(
+        u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
+        FORMAT_VERSION
+    );
+    let back = Model::from_bytes(&bytes).expect("round trip");
+    assert_eq!(&back, m);
+    assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
+    bytes
+}
+
 #[test]
 fn correctives_round_trip_and_version_1_files_still_load() {
     for (p, k) in [(0, 4), (3, 8)] {
         let m = common::with_correctives(&model(p, k), 6, 5);
         assert_eq!((m.corrective_count(), m.corrective_driver_count()), (6, 3));
-        let bytes = m.to_bytes();
-        assert_eq!(
-            u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
-            FORMAT_VERSION
-        );
-        let back = Model::from_bytes(&bytes).expect("round trip");
-        assert_eq!(back, m);
-        assert_eq!(back.to_bytes(), bytes);
+        let bytes = round_trip(&m);
         // CORR: N, D, drivers, map, targets.
         let (_, length) = table_entry(&bytes, b"CORR");
         let v = m.vertex_count() as u64;
@@ -777,14 +784,7 @@ fn proxy_correctives_round_trip_and_version_2_files_still_load() {
         let ranged = seeing(linear, up, kernels, k);
         for (ranges, m) in [(true, ranged.clone()), (false, without_ranges(&ranged))] {
             assert_eq!(m.proxy_corrective_count(), 3);
-            let bytes = m.to_bytes();
-            assert_eq!(
-                u32::from_le_bytes(bytes[8..12].try_into().expect("4")),
-                FORMAT_VERSION
-            );
-            let back = Model::from_bytes(&bytes).expect("round trip");
-            assert_eq!(back, m);
-            assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
+            let bytes = round_trip(&m);
             let (_, length) = table_entry(&bytes, b"PCOR");
             let words = pcor_words(linear, up.is_some(), ranges, kernels as u64);
             assert_eq!(length, 4 * words);
