@@ -142,8 +142,8 @@ pub const MAX_PROXY_DRIVERS: usize = 32;
 ///   |·|² is the sum of the squares of the 9 components.
 ///
 /// Before any feature is computed, a driver's φ_b and γ_b are clamped, entry by entry, into
-/// `ranges[b]` where the model has ranges: the box of the training poses' values, so that a pose
-/// past what the correctives were fitted on is corrected as the nearest pose within it (a
+/// `ranges[b]` where the model has ranges: the box of the training poses' values, so that past
+/// what the correctives were fitted on a driver acts as at the nearest point of its box (a
 /// rigger's driver ramps clamp alike), never extrapolated.
 ///
 /// So proxy i has `F_i = D_i (9·linear + 3·gravity + C)` features, and its map is F_i rows of 12
