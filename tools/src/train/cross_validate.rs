@@ -88,10 +88,9 @@ pub struct Validated {
 }
 
 impl Validated {
-    /// The rule again over the first `n` candidates alone, with `tolerance`: the choice had the
-    /// later ones not been offered (a costlier candidate that did not win by its margin).
-    pub fn among_first(&self, n: usize, tolerance: f64) -> Validated {
-        let relative = self.relative[..n].to_vec();
+    /// The rule with `tolerance` over `relative` (candidates x training poses, most robust
+    /// first): the scores and the candidate kept.
+    pub fn of(relative: Vec<Vec<f64>>, tolerance: f64) -> Validated {
         let scores = scores(&relative);
         let chosen = first_within(&scores, tolerance);
         Validated {
@@ -99,6 +98,12 @@ impl Validated {
             chosen,
             relative,
         }
+    }
+
+    /// The rule again over the first `n` candidates alone, with `tolerance`: the choice had the
+    /// later ones not been offered (a costlier candidate that did not win by its margin).
+    pub fn among_first(&self, n: usize, tolerance: f64) -> Validated {
+        Validated::of(self.relative[..n].to_vec(), tolerance)
     }
 }
 
@@ -161,13 +166,7 @@ where
             }
         }
     }
-    let scores = scores(&relative);
-    let chosen = first_within(&scores, tolerance);
-    Ok(Validated {
-        scores,
-        chosen,
-        relative,
-    })
+    Ok(Validated::of(relative, tolerance))
 }
 
 /// Per candidate (rows of `relative`: its per-pose relative errors, every row over the same

@@ -40,7 +40,7 @@ use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
 use crate::train::corrective;
-use crate::train::cross_validate::{cross_validate, Folds, Score};
+use crate::train::cross_validate::{cross_validate, Fold, Folds, Score, Validated};
 use crate::train::pose_scale;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::rotreg::PoseFeatures;
@@ -472,21 +472,20 @@ pub fn fit(
     let poses = Poses::of(set, feats, reduced, train, &ANCHORS, up);
     let normaliser = pose_scale::rigid_pose_errors(set, train, rigid);
     let grid = grid(options.proxy_kernels, options.up.is_some());
-    let scored = |candidates: &[(usize, Candidate)]| {
-        cross_validate(&folds, &normaliser, 1 + candidates.len(), 0.0, |fold| {
-            let uncorrected = (fold.held.iter())
-                .map(|&k| held_error(set, train, reduced, &poses, k, None))
-                .collect();
-            let corrected = candidates.iter().map(|&(a, c)| {
-                let fitted = regress(a, &c, up, &drivers, &poses, &fold.inner);
-                (fold.held.iter())
-                    .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
-                    .collect()
-            });
-            std::iter::once(uncorrected).chain(corrected).collect()
-        })
+    // Held-out errors of candidate `c` with targets `a`, fitted on the fold's other poses.
+    let corrected = |&(a, c): &(usize, Candidate), fold: &Fold| -> Vec<f64> {
+        let fitted = regress(a, &c, up, &drivers, &poses, &fold.inner);
+        (fold.held.iter())
+            .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
+            .collect()
     };
-    let validated = scored(&grid);
+    let validated = cross_validate(&folds, &normaliser, 1 + grid.len(), 0.0, |fold| {
+        let uncorrected = (fold.held.iter())
+            .map(|&k| held_error(set, train, reduced, &poses, k, None))
+            .collect();
+        let corrected = grid.iter().map(|c| corrected(c, fold));
+        std::iter::once(uncorrected).chain(corrected).collect()
+    });
     let mut candidates: Vec<(Candidate, Score)> = grid
         .iter()
         .zip(&validated.scores[1..])
@@ -494,13 +493,23 @@ pub fn fit(
         .collect();
     let mut chosen = validated.chosen.checked_sub(1).map(|c| grid[c]);
     // How the chosen fit extrapolates: clamped into the fitted poses' ranges only where the
-    // held-out poses past a fold's ranges say so clearly.
+    // held-out poses past a fold's ranges say so clearly. Only the clamped fit's errors are
+    // new; the uncorrected proxies' and the chosen fit's are the search's.
     if let Some((a, c)) = chosen {
-        let clamped = Candidate { clamped: true, ..c };
-        let extrapolation = scored(&[(a, c), (a, clamped)]);
-        candidates.push((clamped, extrapolation.scores[2]));
+        let clamped = (a, Candidate { clamped: true, ..c });
+        let mut held = cross_validate(&folds, &normaliser, 1, 0.0, |fold| {
+            vec![corrected(&clamped, fold)]
+        });
+        let relative = &validated.relative;
+        let rows = vec![
+            relative[0].clone(),
+            relative[validated.chosen].clone(),
+            held.relative.swap_remove(0),
+        ];
+        let extrapolation = Validated::of(rows, 0.0);
+        candidates.push((clamped.1, extrapolation.scores[2]));
         if extrapolation.chosen == 2 {
-            chosen = Some((a, clamped));
+            chosen = Some(clamped);
         }
     }
     let all: Vec<usize> = (0..train.len()).collect();
