@@ -4,25 +4,30 @@
 // `kernels`, `maps` (ProxyTopology, ProxyKernels, ProxyMaps), `bones`, `parents` and the push
 // words J, E, C, L; needs joint_features.glsl before it.
 
+// The 3 floats of `kernels` from `at`.
+vec3 vec3_at(uint at) {
+    return vec3(kernels[at], kernels[at + 1u], kernels[at + 2u]);
+}
+
 // |phi - z|^2 of one character, z the 9 floats of a kernel centre from z.
 float distance2(mat3 phi, uint z) {
-    vec3 d0 = phi[0] - vec3(kernels[z], kernels[z + 1u], kernels[z + 2u]);
-    vec3 d1 = phi[1] - vec3(kernels[z + 3u], kernels[z + 4u], kernels[z + 5u]);
-    vec3 d2 = phi[2] - vec3(kernels[z + 6u], kernels[z + 7u], kernels[z + 8u]);
+    vec3 d0 = phi[0] - vec3_at(z);
+    vec3 d1 = phi[1] - vec3_at(z + 3u);
+    vec3 d2 = phi[2] - vec3_at(z + 6u);
     return dot(d0, d0) + dot(d1, d1) + dot(d2, d2);
 }
 
-// phi_b clamped into bone b's feature range (docs/method.md §21), entry by entry: the range's 12
-// lower bounds at kernels[at + 24 b], its 12 upper bounds after them (phi_b's 9, then gamma_b's).
-mat3 clamped(mat3 f, uint at, uint b) {
-    uint lo = at + 24u * b;
-    uint hi = lo + 12u;
-    return mat3(clamp(f[0], vec3(kernels[lo], kernels[lo + 1u], kernels[lo + 2u]),
-                      vec3(kernels[hi], kernels[hi + 1u], kernels[hi + 2u])),
-                clamp(f[1], vec3(kernels[lo + 3u], kernels[lo + 4u], kernels[lo + 5u]),
-                      vec3(kernels[hi + 3u], kernels[hi + 4u], kernels[hi + 5u])),
-                clamp(f[2], vec3(kernels[lo + 6u], kernels[lo + 7u], kernels[lo + 8u]),
-                      vec3(kernels[hi + 6u], kernels[hi + 7u], kernels[hi + 8u])));
+// Bone b's feature range (docs/method.md §21) from `at`: 24 floats a bone, its 12 lower bounds
+// then its 12 upper (phi_b's 9, then gamma_b's 3). One bound of phi_b, laid out as
+// joint_features gives phi_b, from `side` (0: lower, 12: upper).
+mat3 phi_bound(uint at, uint b, uint side) {
+    uint o = at + 24u * b + side;
+    return mat3(vec3_at(o), vec3_at(o + 3u), vec3_at(o + 6u));
+}
+
+// f clamped into [lo, hi], entry by entry.
+mat3 clamped(mat3 f, mat3 lo, mat3 hi) {
+    return mat3(clamp(f[0], lo[0], hi[0]), clamp(f[1], lo[1], hi[1]), clamp(f[2], lo[2], hi[2]));
 }
 
 // E = sum_f x_f G_f of corrected proxy i for character ch: its rows e0, e1, e2 (the bottom row
@@ -40,7 +45,9 @@ void correction(uint ch, uint i, out vec4 e0, out vec4 e1, out vec4 e2) {
     uint ranges = widths + (pc.C > 0u ? pc.J : 0u);
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
-        mat3 f = clamped(joint_features(ch, b), ranges, b);
+        mat3 lo = phi_bound(ranges, b, 0u);
+        mat3 hi = phi_bound(ranges, b, 12u);
+        mat3 f = clamped(joint_features(ch, b), lo, hi);
         if (pc.L != 0u) {
             for (uint r = 0u; r < 3u; r++) {
                 for (uint c = 0u; c < 3u; c++) {

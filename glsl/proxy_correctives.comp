@@ -87,16 +87,19 @@ void main() {
     uint ranges = widths + (pc.C > 0u ? pc.J : 0u);
 #ifdef GRAVITY
     g = 3u;
-    vec3 u = vec3(kernels[ranges], kernels[ranges + 1u], kernels[ranges + 2u]);
+    vec3 u = vec3_at(ranges);
     ranges += 3u;
 #endif
     uint m = 3u * first * (9u * pc.L + g + pc.C);
     for (uint k = first; k < last; k++) {
         uint b = topology[2u * pc.E + 1u + k];
-        mat3 f0 = clamped(joint_features(ch.x, b), ranges, b);
-        mat3 f1 = clamped(joint_features(ch.y, b), ranges, b);
-        mat3 f2 = clamped(joint_features(ch.z, b), ranges, b);
-        mat3 f3 = clamped(joint_features(ch.w, b), ranges, b);
+        // The bounds loaded once for the four characters.
+        mat3 lo = phi_bound(ranges, b, 0u);
+        mat3 hi = phi_bound(ranges, b, 12u);
+        mat3 f0 = clamped(joint_features(ch.x, b), lo, hi);
+        mat3 f1 = clamped(joint_features(ch.y, b), lo, hi);
+        mat3 f2 = clamped(joint_features(ch.z, b), lo, hi);
+        mat3 f3 = clamped(joint_features(ch.w, b), lo, hi);
         if (pc.L != 0u) {
             // phi_b's entries 3r + c, one map row each (written out: local matrices indexed
             // in a loop cost CPU drivers a round trip through memory per lane).
@@ -112,9 +115,8 @@ void main() {
             m += 27u;
         }
 #ifdef GRAVITY
-        uint lo = ranges + 24u * b + 9u;
-        vec3 glo = vec3(kernels[lo], kernels[lo + 1u], kernels[lo + 2u]);
-        vec3 ghi = vec3(kernels[lo + 12u], kernels[lo + 13u], kernels[lo + 14u]);
+        vec3 glo = vec3_at(ranges + 24u * b + 9u);
+        vec3 ghi = vec3_at(ranges + 24u * b + 21u);
         vec3 g0 = gravity(ch.x, b, u, glo, ghi);
         vec3 g1 = gravity(ch.y, b, u, glo, ghi);
         vec3 g2 = gravity(ch.z, b, u, glo, ghi);
