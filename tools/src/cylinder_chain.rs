@@ -30,7 +30,7 @@ impl Chain {
         }
         let rest = rest_cylinder(rings, segments, bones as f64);
         let faces = cylinder_faces(rings, segments);
-        let mut uniform = xorshift();
+        let mut uniform = xorshift(SEED);
         let mut examples = Vec::with_capacity(poses);
         for i in 0..poses {
             let pose_bones = chain_pose(bones, i == 0, &mut uniform);
@@ -85,9 +85,12 @@ fn cylinder_faces(rings: usize, segments: usize) -> Vec<[usize; 3]> {
     faces
 }
 
-/// A fixed-seed xorshift generator of uniform numbers in [-1, 1): the same set every build.
-fn xorshift() -> impl FnMut() -> f64 {
-    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+/// The chain's poses' seed.
+const SEED: u64 = 0x9E37_79B9_7F4A_7C15;
+
+/// A xorshift generator of uniform numbers in [-1, 1) from `seed` (not 0): the same sequence
+/// every build, for synthetic poses.
+pub fn xorshift(mut seed: u64) -> impl FnMut() -> f64 {
     move || {
         seed ^= seed << 13;
         seed ^= seed >> 7;

@@ -7,7 +7,7 @@
 //! than the same model unclamped, and less than without correctives.
 
 use glam::{DMat3, DVec3};
-use rrskin_tools::cylinder_chain::Chain;
+use rrskin_tools::cylinder_chain::{xorshift, Chain};
 use rrskin_tools::set::{Affine, ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::error::enveloping_error;
 use rrskin_tools::train::{self, TrainOptions};
@@ -65,13 +65,7 @@ fn bulging_chain() -> ExampleSet {
         poses: 2,
     };
     let shape = chain.build().expect("a valid chain");
-    let mut seed = 0x2545_F491_4F6C_DD1Du64;
-    let mut uniform = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
+    let mut uniform = xorshift(0x2545_F491_4F6C_DD1D);
     let (train, test) = (60, 20);
     let poses: Vec<Pose> = (0..train + test)
         .map(|i| {
