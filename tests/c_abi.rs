@@ -85,10 +85,9 @@ fn write_floats(path: &Path, floats: &[f32]) {
     std::fs::write(path, bytes).expect("write floats");
 }
 
-/// This build's librrskin.a. `cargo test` builds the library only as an rlib, so build the
-/// static library too (quick: the dependencies are already built).
+/// This build's librrskin.a, as `cargo test --workspace` built it.
 fn static_library() -> PathBuf {
-    let lib = common::cargo_build(&["--lib"]).join("librrskin.a");
+    let lib = common::suite_artifacts().join("librrskin.a");
     assert!(lib.exists(), "{} was not built", lib.display());
     lib
 }

@@ -156,7 +156,7 @@ fn run_in_window(x: &Xvfb, sample: &Path, args: &[&str]) -> (String, Vec<Vec<[u8
 
 #[test]
 fn the_crowd_sample_presents_moving_characters_in_a_window_and_headless() {
-    let sample = common::cargo_build(&["--example", "crowd"]).join("examples/crowd");
+    let sample = common::suite_artifacts().join("examples/crowd");
     let dir = std::env::temp_dir().join(format!("rrskin-crowd-window-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     let model = model_file(&dir);

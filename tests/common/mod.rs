@@ -230,11 +230,13 @@ fn norm(a: &[f32; 3]) -> f32 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// Builds `what` of the root package (e.g. `--lib`, `--example crowd`) into this test's target
-/// directory and profile, which `cargo test` alone may not have built (the static library, or
-/// examples when only one test runs), and returns `target/<profile>`. Quick: the dependencies
-/// are built already.
-pub fn cargo_build(what: &[&str]) -> PathBuf {
+/// Builds the workspace's libraries, binaries and examples (the static library `librrskin.a`,
+/// the crowd sample) as `cargo test --workspace` builds them, and returns `target/<profile>`.
+/// `cargo test` alone may not have built them (when one test runs), and a narrower build (`-p
+/// rrskin --lib`) resolves features and shares build-script dependencies differently, so in a
+/// fresh clone it rebuilt naga and rrskin for minutes. Under `cargo test --workspace` this one
+/// is a no-op.
+pub fn suite_artifacts() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
     let profile_dir = exe
         .parent()
@@ -242,19 +244,18 @@ pub fn cargo_build(what: &[&str]) -> PathBuf {
         .expect("target/<profile>/deps")
         .to_path_buf();
     let target_dir = profile_dir.parent().expect("target/<profile>");
+    let release = profile_dir.file_name().is_some_and(|n| n == "release");
     let mut cargo = Command::new(env!("CARGO"));
     cargo
-        .args(["build", "-p", "rrskin", "--target-dir"])
+        .args(["build", "--workspace", "--lib", "--bins", "--examples"])
+        .args(["--profile", if release { "release" } else { "test" }])
+        .arg("--target-dir")
         .arg(target_dir)
-        .args(what)
         .current_dir(env!("CARGO_MANIFEST_DIR"));
-    if profile_dir.file_name().is_some_and(|n| n == "release") {
-        cargo.arg("--release");
-    }
     let out = cargo.output().expect("run cargo");
     assert!(
         out.status.success(),
-        "cargo build {what:?} failed:\n{}",
+        "cargo build of the suite's artifacts failed:\n{}",
         String::from_utf8_lossy(&out.stderr)
     );
     profile_dir
