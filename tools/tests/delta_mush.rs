@@ -13,7 +13,7 @@ use rrskin_tools::set::{ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::ddm::{Ddm, Params};
 use rrskin_tools::skinning::error::enveloping_error;
 use rrskin_tools::skinning::lbs::Skinning;
-use rrskin_tools::train::delta_mush::Kept;
+use rrskin_tools::train::delta_mush::{Kept, MORE_KEYS_MARGIN};
 use rrskin_tools::train::{self, Method, TrainOptions};
 
 const CHAIN: Chain = Chain {
@@ -262,4 +262,54 @@ fn a_rig_that_smooths_in_part_gets_both_kinds_in_one_palette() {
     );
     eprintln!("held out EE: both {shipped:.2}, delta-mush {mush:.2}, joint-blend {blend:.2}");
     assert!(shipped < mush.min(blend), "{shipped} {mush} {blend}");
+}
+
+/// Too few delta-mush proxies for the smoothing: the counts offered are P, 2P and 4P in the
+/// kind kept, each scored on the training folds with its proxy correctives (P's score the kinds'
+/// own, the same folds); a larger count ships only where it wins there by the margin a doubling
+/// must, and it beats the P asked for held out.
+#[test]
+fn delta_mush_proxies_are_doubled_where_the_folds_say_it_pays() {
+    let set = smoothed_chain();
+    let few = TrainOptions {
+        proxies: 3,
+        ..options()
+    };
+    let trained = train::run(&set, &few).expect("training");
+    let fit = (trained.delta_mush.as_ref()).expect("the delta-mush stage ran");
+    eprintln!("kinds: {:?}, counts: {:?}", fit.scores, fit.counts);
+    assert_ne!(fit.kept, Kept::JointBlend, "scores: {:?}", fit.scores);
+    let offered: Vec<usize> = fit.counts.iter().map(|c| c.0).collect();
+    assert_eq!(offered, [3, 6, 12]);
+    assert_eq!(fit.counts[0].1, fit.scores[fit.kept as usize].0);
+    let kept = (fit.counts.iter())
+        .position(|c| c.0 == fit.proxies())
+        .expect("the count kept was offered");
+    assert!(kept > 0, "counts: {:?}", fit.counts);
+    let margin = (1.0 + MORE_KEYS_MARGIN).powi(2);
+    assert!(fit.counts[kept].1 * margin <= fit.counts[0].1);
+    let model = trained.model.as_ref().expect("a runtime model");
+    let keys = model.mush_keys().expect("delta-mush keys");
+    assert_eq!(keys.count(), fit.proxies());
+    let test = set.test();
+    let asked = TrainOptions {
+        method: match fit.kept {
+            Kept::Both => Method::Both,
+            _ => Method::DeltaMush,
+        },
+        ..few
+    };
+    let at_p = train::run(&set, &asked).expect("training");
+    let at_p = at_p.model.as_ref().expect("a runtime model");
+    assert_eq!(at_p.mush_keys().map(|k| k.count()), Some(3));
+    let ee = |model| {
+        let meshes = runtime_meshes(&set, model, &test);
+        enveloping_error(&set, &test, &meshes, &trained.rigid)
+    };
+    let (shipped, asked) = (ee(model), ee(at_p));
+    eprintln!(
+        "held out EE: {} proxies {shipped:.2}, 3 proxies {asked:.2}",
+        fit.proxies()
+    );
+    assert!(shipped < asked, "{shipped} {asked}");
 }

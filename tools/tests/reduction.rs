@@ -371,6 +371,50 @@ fn a_smaller_epsilon_stops_merging_earlier() {
     assert_eq!(capped, counts[0].max(40), "P and ε: whichever stops first");
 }
 
+/// One merging read off at several counts gives each count's own merging, and every group of
+/// a finer one lies in one group of each coarser one; past ε, the coarser counts get the
+/// grouping where the merging stopped.
+#[test]
+fn one_merging_read_off_at_several_counts_is_each_counts_merging() {
+    let set = cesiumman();
+    let train = set.train();
+    let counts = [60, 240, 120];
+    let ladder = vertex::merge_groups_at(&set, &train, &counts, None);
+    for (&p, (groups, adjacency)) in counts.iter().zip(&ladder) {
+        let stop = Stop {
+            proxies: p,
+            epsilon: None,
+        };
+        let (alone, _) = vertex::merge_groups(&set, &train, stop);
+        assert_eq!(adjacency.len(), p);
+        assert_eq!(groups, &alone, "P = {p}");
+    }
+    for (fine, coarse) in [(1, 2), (2, 0), (1, 0)] {
+        let mut of_fine = vec![None; counts[fine]];
+        for (&f, &c) in ladder[fine].0.iter().zip(&ladder[coarse].0) {
+            assert_eq!(
+                *of_fine[f].get_or_insert(c),
+                c,
+                "group {f} of {}",
+                counts[fine]
+            );
+        }
+    }
+    let epsilon = Some(0.01);
+    let stop = Stop {
+        proxies: 1,
+        epsilon,
+    };
+    let (at_epsilon, adjacency) = vertex::merge_groups(&set, &train, stop);
+    let reached = adjacency.len();
+    let stopped = vertex::merge_groups_at(&set, &train, &[reached / 2, 2 * reached], epsilon);
+    assert_eq!(stopped[1].1.len(), 2 * reached);
+    assert_eq!(
+        stopped[0].0, at_epsilon,
+        "ε stops the merging at {reached} groups"
+    );
+}
+
 /// Vertex error Σ|Δ|² of `reduced` over `poses`.
 fn squared_error(set: &ExampleSet, reduced: &Reduced, poses: &[usize]) -> f64 {
     let feats = PoseFeatures::all(set);

@@ -150,6 +150,7 @@ impl Report {
                 "smoothing": {"iterations": m.smoothing.iterations, "alpha": m.smoothing.alpha},
                 "errors": errors(&m.errors), "chosen": m.chosen,
                 "candidates": m.scores.iter().map(|(score, se)| serde_json::json!({"score": score, "standard_error": se})).collect::<Vec<_>>(),
+                "counts": m.counts.iter().map(|(p, score, se)| serde_json::json!({"proxies": p, "score": score, "standard_error": se})).collect::<Vec<_>>(),
             })),
             "structure": self.structure.as_ref().map(structure_json),
             "correctives": self.correctives.as_ref().map(|c| serde_json::json!({
@@ -424,9 +425,20 @@ fn mush_line(m: &mush::Mush) -> String {
             m.influences, m.mean_bones,
         );
     }
+    if !m.counts.is_empty() {
+        let margin = 100.0 * crate::train::delta_mush::MORE_KEYS_MARGIN;
+        let counts: Vec<String> = (m.counts.iter())
+            .map(|&(p, score, se)| format!("{p} {}", ee((score, se))))
+            .collect();
+        s += &format!(
+            "delta-mush proxy counts (cross-validation on the training poses, each with its proxy correctives, held-out pose EE %; each doubling to win by {margin:.0} %): {}: {} kept\n",
+            counts.join(", "),
+            m.proxies,
+        );
+    }
     if let [joint_blend, proxies, ref both @ ..] = m.scores[..] {
         let both = both.first().map_or(String::new(), |&b| {
-            let margin = 100.0 * crate::train::delta_mush::BOTH_MARGIN;
+            let margin = 100.0 * crate::train::delta_mush::MORE_KEYS_MARGIN;
             format!(", both in one palette {} (to win by {margin:.0} %)", ee(b))
         });
         s += &format!(

@@ -7,7 +7,7 @@ use crate::train::delta_mush::Fit;
 /// The delta-mush proxies as evaluated.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mush {
-    /// P and K of the delta-mush proxies.
+    /// P (the count kept) and K of the delta-mush proxies.
     pub proxies: usize,
     pub influences: usize,
     /// Bones per proxy's rigid fit, mean over the proxies (the run-time cost of the fits).
@@ -19,6 +19,9 @@ pub struct Mush {
     /// proxies alone, then both in one palette; empty with too few poses, or with
     /// `--reduction delta-mush`.
     pub scores: Vec<(f64, f64)>,
+    /// (proxies, score, standard error) of each count offered, as it ships; empty where the
+    /// counts were not compared ([`Fit::counts`]).
+    pub counts: Vec<(usize, f64, f64)>,
     /// What the runtime model is ([`crate::train::delta_mush::Kept::name`]).
     pub chosen: &'static str,
 }
@@ -33,6 +36,7 @@ impl Mush {
             smoothing: fit.proxy_params,
             errors,
             scores: fit.scores.clone(),
+            counts: fit.counts.clone(),
             chosen: fit.kept.name(),
         }
     }

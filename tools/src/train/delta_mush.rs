@@ -30,12 +30,18 @@ use crate::train::{corrective, proxy_corrective};
 use crate::train::{pose_scale, ssd, Method, TrainError, TrainOptions};
 use glam::DVec3;
 
-/// By how much of the better EE alone both kinds in one palette must win on the training
-/// folds: they add P delta-mush keys to the joint-blend model's, each a rigid fit per character
-/// (cesium_cage on lavapipe, 256 characters: paired RR / SSD 1.12 → 1.44; unmeasured on a
-/// GPU). The margin is a run-time cost policy, not a fit: the joint-blend ladder asks 3 %
-/// ([`TOLERANCE`]) for 1.5 times the proxies.
-pub const BOTH_MARGIN: f64 = 0.10;
+/// By how much EE a candidate with P more delta-mush keys must win on the training folds: both
+/// kinds in one palette over the better kind alone, and each doubling of the delta-mush
+/// proxies ([`COUNT_FACTORS`]) over the count kept. A delta-mush key is a rigid fit per
+/// character, several joint-blend keys' cost (cesium_cage on lavapipe, 256 characters: paired
+/// RR / SSD 1.12 → 1.44 for both kinds; the CPU palette, about 1.2 µs a key). The margin is a
+/// run-time cost policy, not a fit: the joint-blend ladder asks 3 % ([`TOLERANCE`]) for 1.5
+/// times the proxies.
+pub const MORE_KEYS_MARGIN: f64 = 0.10;
+
+/// The delta-mush proxy counts offered, as multiples of P (`--reduction auto`): smaller groups
+/// fit a rig whose response is local (an elastic skin) better, at a rigid fit per proxy.
+pub const COUNT_FACTORS: [usize; 3] = [1, 2, 4];
 
 /// What the stage fitted and chose.
 pub struct Fit {
@@ -46,8 +52,14 @@ pub struct Fit {
     /// The proxies' smoothing: `params`, or none (p = 0) where that fits the training poses
     /// better.
     pub proxy_params: ddm::Params,
-    /// The delta-mush proxies fitted to all training poses (P and K of the runtime model).
+    /// The delta-mush proxies fitted to all training poses (K of the runtime model, and the
+    /// count kept).
     pub proxies: MushProxies,
+    /// (proxies, score, standard error) of each count of [`COUNT_FACTORS`] over the training
+    /// folds, in the kind kept (alone or after the joint-blend proxies), each with its proxy
+    /// correctives; empty where the counts were not compared (no delta-mush proxies kept, P or
+    /// the kind asked for, too few triangles or poses).
+    pub counts: Vec<(usize, f64, f64)>,
     pub influences: usize,
     /// (score, standard error) of the joint-blend structure, the delta-mush proxies, then
     /// both, each with its proxy correctives (where the runtime model takes them); empty with
@@ -61,15 +73,16 @@ pub struct Fit {
     pub correctives: Option<proxy_corrective::Fit>,
 }
 
-/// The runtime model the stage keeps (asked for, or by the cross-validation).
+/// The runtime model the stage keeps (asked for, or by the cross-validation); as a number, its
+/// place among the cross-validation's candidates ([`Fit::scores`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kept {
     /// The joint-blend model (the structure stage's).
-    JointBlend,
+    JointBlend = 0,
     /// The delta-mush proxies alone ([`Fit::proxies`]).
-    DeltaMush,
+    DeltaMush = 1,
     /// Both kinds in one palette ([`join`]).
-    Both,
+    Both = 2,
 }
 
 impl Kept {
@@ -108,21 +121,171 @@ pub struct Inputs<'a> {
     pub reduced: &'a Reduced,
 }
 
-/// Fits delta-mush proxies of P = `options.proxies` and K = `options.influences` to the
-/// training poses and cross-validates them, alone and after the joint-blend model's, against the
-/// chosen joint-blend structure (kept without asking with [`Method::DeltaMush`], alone, and
-/// [`Method::Both`], after the joint-blend proxies). With the fit, the reduced model that ships
-/// in place of the joint-blend one (None where that stays), fitted to all training poses.
+/// Fits delta-mush proxies of K = `options.influences` to the training poses and
+/// cross-validates them, alone and after the joint-blend model's, against the chosen
+/// joint-blend structure (kept without asking with [`Method::DeltaMush`], alone, and
+/// [`Method::Both`], after the joint-blend proxies); where they ship, as many as [`counts`]
+/// offers and the cross-validation keeps ([`MORE_KEYS_MARGIN`] a doubling). With the
+/// fit, the reduced model that ships in place of the joint-blend one (None where that stays),
+/// fitted to all training poses.
 pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduced>), TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
-    let smoothing = |e: crate::Error| TrainError::Smoothing {
-        problem: e.to_string(),
+    let (params, vertex_ddm) =
+        ddm::choose(set, train, &inputs.ssd.influences).map_err(smoothing)?;
+    let offered = counts(options, set.faces.len());
+    let ladder = Groups::merge_at(set, train, &offered);
+    let (proxy_params, plain, fitted) =
+        proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0])?;
+    let proxy_ddm = plain.as_ref().unwrap_or(&vertex_ddm);
+    let split = Folds::new(train.len(), options.folds);
+    let first = Side {
+        groups: &ladder[0],
+        params: &proxy_params,
+        proxies: fitted,
     };
-    let ssd_weights = &inputs.ssd.influences;
-    let (params, vertex_ddm) = ddm::choose(set, train, ssd_weights).map_err(smoothing)?;
-    let groups = Groups::merge(set, train, options.proxies);
-    // The proxies' smoothing: DDM's, or none (each group's rigid fit of its LBS motion),
-    // whichever fits the training poses better; the same models, so no cross-validation.
+    let mut kinds = choose_kind(inputs, options, split.as_ref(), &first)?;
+    let (mut proxies, mut counts) = (first.proxies, Vec::new());
+    if let (Some(split), Some(validated)) = (&split, &kinds.validated) {
+        if kinds.kept != Kept::JointBlend && offered.len() > 1 {
+            let first = &validated.relative[kinds.kept as usize];
+            let larger = Ladder {
+                kind: kinds.kept,
+                offered: &offered,
+                groups: &ladder,
+                ddm: proxy_ddm,
+                params: &proxy_params,
+            };
+            let count = choose_count(inputs, options, split, &larger, first).map_err(smoothing)?;
+            counts = count.scores;
+            if let Some(more) = count.kept {
+                (proxies, kinds.correctives, kinds.shipped) = more;
+            }
+        }
+    }
+    let out = Fit {
+        ddm: vertex_ddm,
+        params,
+        proxy_params,
+        proxies,
+        counts,
+        influences: k,
+        scores: kinds.validated.map_or(Vec::new(), |v| v.scores),
+        kept: kinds.kept,
+        correctives: kinds.correctives,
+    };
+    let shipped = match (out.kept, kinds.shipped) {
+        (Kept::JointBlend, _) => None,
+        (_, Some(made)) => Some(made),
+        (Kept::DeltaMush, None) => Some(
+            out.proxies
+                .reduced(set.bone_count(), &inputs.ssd.influences),
+        ),
+        (Kept::Both, None) => Some(join(
+            inputs.reduced,
+            &out.proxies,
+            set,
+            train,
+            inputs.feats,
+            k,
+        )),
+    };
+    Ok((out, shipped))
+}
+
+/// The delta-mush proxies of the kinds' comparison: their groups, smoothing and fit to all
+/// training poses.
+struct Side<'a> {
+    groups: &'a Groups,
+    params: &'a ddm::Params,
+    proxies: MushProxies,
+}
+
+/// What [`choose_kind`] found.
+struct Kinds {
+    kept: Kept,
+    /// The cross-validation of the kinds, where it ran (the joint-blend model, the delta-mush
+    /// proxies alone, then both where offered).
+    validated: Option<Validated>,
+    /// The kept kind's proxy correctives' search, where the cross-validation made it.
+    correctives: Option<proxy_corrective::Fit>,
+    /// The kept kind fitted to all training poses, where the cross-validation made it.
+    shipped: Option<Reduced>,
+}
+
+/// The kind kept: asked for, or the cross-validation's over the folds of `split` (the
+/// joint-blend model where there are too few poses for folds).
+fn choose_kind(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    split: Option<&Folds>,
+    side: &Side,
+) -> Result<Kinds, TrainError> {
+    let (set, train, k) = (inputs.set, inputs.train, options.influences);
+    let asked = |kept| Kinds {
+        kept,
+        validated: None,
+        correctives: None,
+        shipped: None,
+    };
+    let split = match (options.method, split) {
+        (Method::DeltaMush, _) => return Ok(asked(Kept::DeltaMush)),
+        (Method::Both, _) => return Ok(asked(Kept::Both)),
+        (_, None) => return Ok(asked(Kept::JointBlend)),
+        (_, Some(split)) => split,
+    };
+    // Both kinds add P proxies to the joint-blend model's: where P is asked for
+    // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
+    let alone = side
+        .proxies
+        .reduced(set.bone_count(), &inputs.ssd.influences);
+    let union = (options.method == Method::Auto)
+        .then(|| join(inputs.reduced, &side.proxies, set, train, inputs.feats, k));
+    let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
+    let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
+    let mut searched = corrective_searches(inputs, options, &kinds);
+    let choices: Vec<Option<Candidate>> = (searched.iter())
+        .map(|fit| fit.as_ref().and_then(|f| f.chosen))
+        .collect();
+    let validated = cross_validate(inputs, options, split, side, &choices).map_err(smoothing)?;
+    let index = kept(&validated);
+    Ok(Kinds {
+        kept: [Kept::JointBlend, Kept::DeltaMush, Kept::Both][index],
+        validated: Some(validated),
+        correctives: searched.swap_remove(index),
+        shipped: (index > 0).then(|| made.swap_remove(index - 1)),
+    })
+}
+
+fn smoothing(e: crate::Error) -> TrainError {
+    TrainError::Smoothing {
+        problem: e.to_string(),
+    }
+}
+
+/// The delta-mush proxy counts offered: P, and with `--reduction auto` the larger multiples of
+/// [`COUNT_FACTORS`] (at most one group a triangle).
+fn counts(options: &TrainOptions, triangles: usize) -> Vec<usize> {
+    let p = options.proxies.min(triangles);
+    let mut counts = vec![p];
+    if options.method == Method::Auto {
+        let larger = COUNT_FACTORS[1..].iter().map(|f| (f * p).min(triangles));
+        larger.for_each(|c| counts.extend((c > counts[counts.len() - 1]).then_some(c)));
+    }
+    counts
+}
+
+/// The proxies' smoothing on `groups`: DDM's `params` (Ω `vertex_ddm`), or none (p = 0: each
+/// group's rigid fit of its LBS motion), whichever fits the training poses better (the same
+/// models, so no cross-validation). The smoothing kept, its Ω where it is none (else
+/// `vertex_ddm`'s), and the proxies fitted with it.
+fn proxy_smoothing(
+    inputs: &Inputs,
+    k: usize,
+    params: ddm::Params,
+    vertex_ddm: &Ddm,
+    groups: &Groups,
+) -> Result<(ddm::Params, Option<Ddm>, MushProxies), TrainError> {
+    let (set, train, ssd_weights) = (inputs.set, inputs.train, &inputs.ssd.influences);
     let unsmoothed = ddm::Params {
         iterations: 0,
         ..params
@@ -131,78 +294,167 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let plain =
         Ddm::new(&set.rest, &set.faces, ssd_weights, bones, &unsmoothed).map_err(smoothing)?;
     let fit_with = |d: &Ddm| {
-        let m = MushProxies::fit(set, train, d, ssd_weights, &groups, k);
+        let m = MushProxies::fit(set, train, d, ssd_weights, groups, k);
         let meshes: Vec<Vec<DVec3>> = (train.iter())
             .map(|&i| m.deform(&set.rest, &set.poses[i].bones))
             .collect();
         (squared_error(set, train, &meshes), m)
     };
     let ((smoothed_error, smoothed), (plain_error, unsmoothed_fit)) =
-        (fit_with(&vertex_ddm), fit_with(&plain));
-    let (proxy_params, fitted) = match plain_error < smoothed_error {
-        true => (unsmoothed, unsmoothed_fit),
-        false => (params, smoothed),
-    };
-    let mut out = Fit {
-        ddm: vertex_ddm,
-        params,
-        proxy_params,
-        proxies: fitted,
-        influences: k,
-        scores: Vec::new(),
-        kept: Kept::JointBlend,
-        correctives: None,
-    };
-    let alone = || out.proxies.reduced(bones, ssd_weights);
-    let both = || join(inputs.reduced, &out.proxies, set, train, inputs.feats, k);
-    // The delta-mush proxies alone and the union on all training poses, where the
-    // cross-validation made them (the kept one ships as made).
-    let (mut made_alone, mut made_union) = (None, None);
-    out.kept = match (options.method, Folds::new(train.len(), options.folds)) {
-        (Method::DeltaMush, _) => Kept::DeltaMush,
-        (Method::Both, _) => Kept::Both,
-        (_, None) => Kept::JointBlend,
-        (_, Some(split)) => {
-            // Both kinds add P proxies to the joint-blend model's: where P is asked for
-            // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
-            let offers_both = options.method == Method::Auto;
-            let made_alone = &*made_alone.insert(alone());
-            let made_union = offers_both.then(|| &*made_union.insert(both()));
-            let kinds: Vec<&Reduced> = [inputs.reduced, made_alone]
-                .into_iter()
-                .chain(made_union)
-                .collect();
-            let mut searched = corrective_searches(inputs, options, &kinds);
-            let choices: Vec<Option<Candidate>> = (searched.iter())
-                .map(|fit| fit.as_ref().and_then(|f| f.chosen))
-                .collect();
-            let sides = Sides {
-                groups: &groups,
-                params: &proxy_params,
-                correctives: &choices,
-            };
-            let validated = cross_validate(inputs, options, &split, &sides).map_err(smoothing)?;
-            out.scores = validated.scores.clone();
-            let index = kept(&validated);
-            out.correctives = searched.swap_remove(index);
-            [Kept::JointBlend, Kept::DeltaMush, Kept::Both][index]
-        }
-    };
-    let shipped = match out.kept {
-        Kept::JointBlend => None,
-        Kept::DeltaMush => Some(made_alone.unwrap_or_else(alone)),
-        Kept::Both => Some(made_union.unwrap_or_else(both)),
-    };
-    Ok((out, shipped))
+        (fit_with(vertex_ddm), fit_with(&plain));
+    Ok(match plain_error < smoothed_error {
+        true => (unsmoothed, Some(plain), unsmoothed_fit),
+        false => (params, None, smoothed),
+    })
 }
 
-/// What each fold fits its sides with: the delta-mush proxies' groups and smoothing, and per
-/// kind (joint-blend, delta-mush, both where offered) the proxy correctives' candidate chosen on
-/// all training poses (None: uncorrected).
-struct Sides<'a> {
-    groups: &'a Groups,
+/// The delta-mush proxy counts offered (P first), their groupings, and the proxies' Ω and
+/// smoothing, for the kind kept (the proxies alone, or after the joint-blend model's).
+struct Ladder<'a> {
+    kind: Kept,
+    offered: &'a [usize],
+    groups: &'a [Groups],
+    ddm: &'a Ddm,
     params: &'a ddm::Params,
-    correctives: &'a [Option<Candidate>],
+}
+
+impl Ladder<'_> {
+    /// The kind's model of `proxies`, fitted to `poses` of a set with SSD `ssd`: the proxies
+    /// alone, or after `joint_blend`'s where both kinds ship.
+    fn model(
+        &self,
+        proxies: &MushProxies,
+        (set, poses): (&ExampleSet, &[usize]),
+        ssd: &Skinning,
+        joint_blend: Option<&Reduced>,
+        feats: &[PoseFeatures],
+        k: usize,
+    ) -> Reduced {
+        match (self.kind, joint_blend) {
+            (Kept::Both, Some(jb)) => join(jb, proxies, set, poses, feats, k),
+            _ => proxies.reduced(set.bone_count(), &ssd.influences),
+        }
+    }
+}
+
+/// What [`choose_count`] found.
+struct Count {
+    /// (proxies, score, standard error) of each count offered.
+    scores: Vec<(usize, f64, f64)>,
+    /// A larger count kept: its proxies, their correctives' search and the reduced model.
+    kept: Option<(MushProxies, Option<proxy_corrective::Fit>, Option<Reduced>)>,
+}
+
+/// Cross-validates the delta-mush proxies of each larger count of `ladder` as they ship, each
+/// with the proxy correctives its own search keeps on all training poses (refitted per fold),
+/// against P's, whose held-out relative errors over the same folds are `first` (the kinds'
+/// cross-validation's), and keeps a larger count where [`kept_count`] says.
+fn choose_count(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    split: &Folds,
+    ladder: &Ladder,
+    first: &[f64],
+) -> crate::Result<Count> {
+    let (set, train, k) = (inputs.set, inputs.train, options.influences);
+    let (ssd_weights, bones) = (&inputs.ssd.influences, set.bone_count());
+    let larger = &ladder.groups[1..];
+    let mut fitted: Vec<(MushProxies, Reduced)> = (larger.iter())
+        .map(|groups| {
+            let proxies = MushProxies::fit(set, train, ladder.ddm, ssd_weights, groups, k);
+            let reduced = ladder.model(
+                &proxies,
+                (set, train),
+                inputs.ssd,
+                Some(inputs.reduced),
+                inputs.feats,
+                k,
+            );
+            (proxies, reduced)
+        })
+        .collect();
+    let models: Vec<&Reduced> = fitted.iter().map(|(_, reduced)| reduced).collect();
+    let mut searched = corrective_searches(inputs, options, &models);
+    let choices: Vec<Option<Candidate>> = (searched.iter())
+        .map(|fit| fit.as_ref().and_then(|f| f.chosen))
+        .collect();
+    let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
+    let held_out = try_cross_validate(split, &normaliser, larger.len(), TOLERANCE, |fold| {
+        let (_, held) = fold.poses(train);
+        let inner_set = set.holding_out(&held);
+        let inner = inner_set.train();
+        let ssd = ssd::fit(&inner_set, &inner, &rigid_errors(&inner_set, &inner), k);
+        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, ladder.params)?;
+        let joint_blend = (ladder.kind == Kept::Both)
+            .then(|| fold_joint_blend(inputs, options, &inner_set, &ssd));
+        Ok::<_, crate::Error>(
+            (larger.iter().zip(&choices))
+                .map(|(groups, choice)| {
+                    let mush =
+                        MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, groups, k);
+                    let model = ladder.model(
+                        &mush,
+                        (&inner_set, &inner),
+                        &ssd,
+                        joint_blend.as_ref(),
+                        inputs.feats,
+                        k,
+                    );
+                    held_errors(inputs, options, (&inner_set, &ssd), &held, &model, choice)
+                })
+                .collect(),
+        )
+    })?;
+    let rows = std::iter::once(first.to_vec()).chain(held_out.relative);
+    let scores = Validated::of(rows.collect(), TOLERANCE).scores;
+    let index = kept_count(&scores);
+    Ok(Count {
+        scores: (ladder.offered.iter().zip(&scores))
+            .map(|(&p, &(score, se))| (p, score, se))
+            .collect(),
+        kept: (index > 0).then(|| {
+            let (proxies, reduced) = fitted.swap_remove(index - 1);
+            (proxies, searched.swap_remove(index - 1), Some(reduced))
+        }),
+    })
+}
+
+/// The count kept of `scores` (the offered counts' (score, standard error), smallest first):
+/// each larger count where it beats the count kept so far by [`MORE_KEYS_MARGIN`].
+fn kept_count(scores: &[(f64, f64)]) -> usize {
+    let clear = |more: f64, kept: f64| more * (1.0 + MORE_KEYS_MARGIN).powi(2) <= kept;
+    (1..scores.len()).fold(0, |kept, i| match clear(scores[i].0, scores[kept].0) {
+        true => i,
+        false => kept,
+    })
+}
+
+/// The squared errors of the held-out poses `held` of `model`, fitted on a fold's inner set
+/// and SSD (`inner`), corrected as `candidate` says (refitted on the inner poses).
+fn held_errors(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    (inner_set, ssd): (&ExampleSet, &Skinning),
+    held: &[usize],
+    model: &Reduced,
+    candidate: &Option<Candidate>,
+) -> Vec<f64> {
+    let (set, feats) = (inputs.set, inputs.feats);
+    let inner = inner_set.train();
+    let correctives = candidate.and_then(|c| {
+        proxy_corrective::fit_candidate(inner_set, feats, ssd, model, &inner, &c, options.up)
+    });
+    (held.iter())
+        .map(|&i| {
+            let (f, pose_bones) = (&feats[i], &set.poses[i].bones);
+            let mut palette = model.predict_proxies(set, f, pose_bones);
+            if let Some(c) = &correctives {
+                c.correct(&mut palette, &corrective::features(set, f), pose_bones);
+            }
+            let mesh = model.skin_with(set, &palette, pose_bones);
+            squared_error(set, &[i], &[mesh])
+        })
+        .collect()
 }
 
 /// Per kind of `kinds` (fitted to all training poses), the search of its proxy correctives
@@ -223,61 +475,39 @@ fn corrective_searches(
 }
 
 /// The candidates' scores over the folds of `split`: the chosen joint-blend structure, the
-/// delta-mush proxies of `sides.groups` with Ω of smoothing `sides.params`, and, where offered
-/// (a third corrective choice), both in one palette; each corrected as `sides.correctives` say.
+/// delta-mush proxies of `side`'s groups and smoothing, and, where offered (a third corrective
+/// choice), both in one palette; each corrected as `correctives` say.
 fn cross_validate(
     inputs: &Inputs,
     options: &TrainOptions,
     split: &Folds,
-    sides: &Sides,
+    side: &Side,
+    correctives: &[Option<Candidate>],
 ) -> crate::Result<Validated> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
-    let (structure, ridges) = (inputs.chosen.structure, inputs.joint_blend.ridges());
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
-    let candidates = sides.correctives.len();
-    try_cross_validate(split, &normaliser, candidates, TOLERANCE, |fold| {
+    try_cross_validate(split, &normaliser, correctives.len(), TOLERANCE, |fold| {
         let (_, held) = fold.poses(train);
         let inner_set = set.holding_out(&held);
         let inner = inner_set.train();
         let errors = rigid_errors(&inner_set, &inner);
         let ssd = ssd::fit(&inner_set, &inner, &errors, k);
-        let (reduced, _) = structure::build(
-            &inner_set,
-            inputs.feats,
-            &ssd,
-            None,
-            &structure,
-            options,
-            Some(ridges),
-        );
+        let reduced = fold_joint_blend(inputs, options, &inner_set, &ssd);
         let bones = set.bone_count();
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, sides.params)?;
-        let groups = sides.groups;
-        let mush = MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, groups, k);
+        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, side.params)?;
+        let mush = MushProxies::fit(
+            &inner_set,
+            &inner,
+            &fold_ddm,
+            &ssd.influences,
+            side.groups,
+            k,
+        );
         // Each kind's held-out errors, as it ships: corrected as its candidate says.
-        let phi: Vec<_> = (held.iter())
-            .map(|&i| corrective::features(set, &inputs.feats[i]))
-            .collect();
-        let held_error = |model: &Reduced, candidate: &Option<Candidate>| -> Vec<f64> {
-            let correctives = candidate.and_then(|c| {
-                let feats = inputs.feats;
-                proxy_corrective::fit_candidate(
-                    &inner_set, feats, &ssd, model, &inner, &c, options.up,
-                )
-            });
-            (held.iter().zip(&phi))
-                .map(|(&i, phi)| {
-                    let (f, pose_bones) = (&inputs.feats[i], &set.poses[i].bones);
-                    let mut palette = model.predict_proxies(set, f, pose_bones);
-                    if let Some(c) = &correctives {
-                        c.correct(&mut palette, phi, pose_bones);
-                    }
-                    let mesh = model.skin_with(set, &palette, pose_bones);
-                    squared_error(set, &[i], &[mesh])
-                })
-                .collect()
+        let held_error = |model: &Reduced, candidate: &Option<Candidate>| {
+            held_errors(inputs, options, (&inner_set, &ssd), &held, model, candidate)
         };
-        let c = sides.correctives;
+        let c = correctives;
         let mut rows = vec![
             held_error(&reduced, &c[0]),
             held_error(&mush.reduced(bones, &ssd.influences), &c[1]),
@@ -290,12 +520,34 @@ fn cross_validate(
     })
 }
 
+/// The chosen joint-blend structure fitted to a fold's inner poses (`inner_set`, SSD `ssd`),
+/// with the ridges chosen on all training poses.
+fn fold_joint_blend(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    inner_set: &ExampleSet,
+    ssd: &Skinning,
+) -> Reduced {
+    let (structure, ridges) = (&inputs.chosen.structure, inputs.joint_blend.ridges());
+    let feats = inputs.feats;
+    structure::build(
+        inner_set,
+        feats,
+        ssd,
+        None,
+        structure,
+        options,
+        Some(ridges),
+    )
+    .0
+}
+
 /// The candidate kept: the rule's, but both kinds only where they beat the better kind alone
-/// by [`BOTH_MARGIN`] (else the rule again over the two alone).
+/// by [`MORE_KEYS_MARGIN`] (else the rule again over the two alone).
 fn kept(validated: &Validated) -> usize {
     let alone = &validated.scores[..2];
     let best_alone = alone.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
-    let clear = |both: f64| both * (1.0 + BOTH_MARGIN).powi(2) <= best_alone;
+    let clear = |both: f64| both * (1.0 + MORE_KEYS_MARGIN).powi(2) <= best_alone;
     match validated.chosen {
         2 if !clear(validated.scores[2].0) => validated.among_first(2, TOLERANCE).chosen,
         chosen => chosen,

@@ -11,7 +11,7 @@
 //! them. Here each proxy is itself the rigid fit over every bone its group's Ω holds:
 //!
 //! - groups: the vertex reduction's greedy merging of contiguous triangles (paper §5.1,
-//!   [`merge_groups`]) on the training poses, P groups;
+//!   [`merge_groups_at`]) on the training poses, P groups;
 //! - Ω_g = Σ_a s_ag Ω_a, s_ag the share of vertex a's incident triangles in group g, bones
 //!   below [`FLOOR`] of the group's mass left out (and past the runtime's 256 heaviest);
 //! - per pose, T_g = [`Ddm::motions`]: `Q_g = Σ_j M_j Ω_gj`, the rotation nearest to its
@@ -29,7 +29,7 @@
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::ddm::Ddm;
 use crate::train::reduce::c1c2::Reduced;
-use crate::train::reduce::vertex::{merge_groups, Stop};
+use crate::train::reduce::vertex::merge_groups_at;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::fit_weights_best_subset;
 use glam::DVec3;
@@ -57,18 +57,15 @@ pub struct Groups {
 }
 
 impl Groups {
-    /// The vertex reduction's greedy merging ([`merge_groups`]) to `proxies` groups on the
-    /// poses `train` of `set`.
-    pub fn merge(set: &ExampleSet, train: &[usize], proxies: usize) -> Groups {
-        let stop = Stop {
-            proxies,
-            epsilon: None,
-        };
-        let (triangle_group, adjacency) = merge_groups(set, train, stop);
-        Groups {
-            shares: vertex_shares(set, &triangle_group),
-            adjacency,
-        }
+    /// The vertex reduction's greedy merging ([`merge_groups_at`]) on the poses `train` of
+    /// `set`, read off at each of `counts` groups (a grouping per count, in that order).
+    pub fn merge_at(set: &ExampleSet, train: &[usize], counts: &[usize]) -> Vec<Groups> {
+        (merge_groups_at(set, train, counts, None).into_iter())
+            .map(|(triangle_group, adjacency)| Groups {
+                shares: vertex_shares(set, &triangle_group),
+                adjacency,
+            })
+            .collect()
     }
 }
 
@@ -303,7 +300,7 @@ mod tests {
         };
         let ddm = Ddm::new(&set.rest, &set.faces, &skin.influences, bones, &params)
             .expect("precomputation");
-        let groups = Groups::merge(&set, &train, groups);
+        let groups = Groups::merge_at(&set, &train, &[groups]).swap_remove(0);
         let mush = MushProxies::fit(&set, &train, &ddm, &skin.influences, &groups, 4);
         (set, skin, mush)
     }

@@ -176,51 +176,54 @@ pub struct Stop {
 
 /// Greedy merging of contiguous triangle groups until `stop`. Returns each triangle's group
 /// (0..P) and the group adjacency.
-pub fn merge_groups(
+pub fn merge_groups(set: &ExampleSet, train: &[usize], stop: Stop) -> Grouping {
+    let mut groupings = merge_groups_at(set, train, &[stop.proxies], stop.epsilon);
+    groupings.swap_remove(0)
+}
+
+/// Each triangle's group (0..P) and the groups' adjacency (P lists of group indices).
+pub type Grouping = (Vec<usize>, Vec<Vec<usize>>);
+
+/// One greedy merging, read off at each of `counts` groups (any order; a grouping per count,
+/// in that order): a coarser grouping is the finer one merged further, as one merging to the
+/// coarsest would make it, for the cost of that one merging. `epsilon` as [`Stop`]'s: past it
+/// the merging stops, and the coarser counts get the grouping reached.
+pub fn merge_groups_at(
     set: &ExampleSet,
     train: &[usize],
-    stop: Stop,
-) -> (Vec<usize>, Vec<Vec<usize>>) {
+    counts: &[usize],
+    epsilon: Option<f64>,
+) -> Vec<Grouping> {
     let t = set.faces.len();
     let mut merging = Merging::new(set, train);
     let mut owner: Vec<usize> = (0..t).collect(); // union-find parent
     let mut groups = t;
     // ε bounds the RMS over 4 samples per triangle and pose: a budget on the summed join costs.
-    let budget = stop
-        .epsilon
-        .map_or(f64::INFINITY, |e| e * e * (4 * t * train.len()) as f64);
+    let budget = epsilon.map_or(f64::INFINITY, |e| e * e * (4 * t * train.len()) as f64);
     let mut spent = 0.0;
-    while groups > stop.proxies.max(1) {
-        let Some(join) = merging.heap.pop() else {
-            break;
-        };
-        if !merging.is_current(&join) {
-            continue; // stale
+    let mut order: Vec<usize> = (0..counts.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(counts[i]));
+    let mut out = vec![(Vec::new(), Vec::new()); counts.len()];
+    for i in order {
+        while groups > counts[i].max(1) {
+            let Some(join) = merging.heap.pop() else {
+                break;
+            };
+            if !merging.is_current(&join) {
+                continue; // stale
+            }
+            if spent + join.cost > budget {
+                merging.heap.push(join); // the coarser counts stop here too
+                break;
+            }
+            spent += join.cost;
+            merging.join(join.from, join.into);
+            owner[join.from] = join.into;
+            groups -= 1;
         }
-        if spent + join.cost > budget {
-            break;
-        }
-        spent += join.cost;
-        merging.join(join.from, join.into);
-        owner[join.from] = join.into;
-        groups -= 1;
+        out[i] = merging.grouping(&owner);
     }
-    // Renumber surviving groups 0..P and map every triangle to its group.
-    let roots: Vec<usize> = (0..t).filter(|&g| merging.moments[g].is_some()).collect();
-    let mut index = vec![usize::MAX; t];
-    roots.iter().enumerate().for_each(|(n, &g)| index[g] = n);
-    let find = |mut x: usize| {
-        while owner[x] != x {
-            x = owner[x];
-        }
-        x
-    };
-    let triangle_group: Vec<usize> = (0..t).map(|k| index[find(k)]).collect();
-    let adjacency = roots
-        .iter()
-        .map(|&g| merging.costs[g].keys().map(|&x| index[x]).collect())
-        .collect();
-    (triangle_group, adjacency)
+    out
 }
 
 /// The greedy merging's state. Per live group g: its moments and per-pose fits, and the cost
@@ -269,6 +272,27 @@ impl Merging {
             .collect();
         (0..t).for_each(|g| merging.refresh(g));
         merging
+    }
+
+    /// The live groups numbered 0..P in order: each triangle's group (`owner`: the union-find
+    /// parents of the joins so far) and the groups' adjacency.
+    fn grouping(&self, owner: &[usize]) -> Grouping {
+        let t = owner.len();
+        let roots: Vec<usize> = (0..t).filter(|&g| self.moments[g].is_some()).collect();
+        let mut index = vec![usize::MAX; t];
+        roots.iter().enumerate().for_each(|(n, &g)| index[g] = n);
+        let find = |mut x: usize| {
+            while owner[x] != x {
+                x = owner[x];
+            }
+            x
+        };
+        let triangle_group: Vec<usize> = (0..t).map(|k| index[find(k)]).collect();
+        let adjacency = roots
+            .iter()
+            .map(|&g| self.costs[g].keys().map(|&x| index[x]).collect())
+            .collect();
+        (triangle_group, adjacency)
     }
 
     /// The cost of joining group `a` into group `b`.
