@@ -28,9 +28,6 @@ pub const SWEEPS: usize = 4;
 /// is the identity: the cross product's direction is then too uncertain to make a rotation of.
 const GUESS_SINE: f64 = 1e-4;
 
-/// The off-diagonal pairs of a 4x4, in sweep order.
-const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
-
 /// The nearest rotation in one body for `f64` (the CPU reference, training) and `f32` (the CPU
 /// palette), with the order of operations of `glsl/polar.glsl`.
 macro_rules! nearest_rotation {
@@ -38,6 +35,45 @@ macro_rules! nearest_rotation {
         /// The rotation nearest to `a` (row-major 3x3), row-major: the proper rotation R
         /// maximising tr(Rᵀ a); the identity for a = 0.
         pub fn $name(a: [[$f; 3]; 3]) -> [[$f; 3]; 3] {
+            /// The Jacobi rotation in the (P, Q) plane that zeroes n[P][Q] (Numerical Recipes
+            /// §11.1), applied to N on both sides and accumulated into V.
+            #[inline(always)]
+            fn rotate<const P: usize, const Q: usize>(n: &mut [[$f; 4]; 4], v: &mut [[$f; 4]; 4]) {
+                let apq = n[P][Q];
+                if apq == 0.0 {
+                    return;
+                }
+                // t = tan of the rotation's angle, the smaller root.
+                let theta = (n[Q][Q] - n[P][P]) / (2.0 * apq);
+                let t = if theta.abs() > 1e15 {
+                    0.5 / theta
+                } else {
+                    let t = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
+                    if theta < 0.0 {
+                        -t
+                    } else {
+                        t
+                    }
+                };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..4 {
+                    let (kp, kq) = (n[k][P], n[k][Q]);
+                    n[k][P] = c * kp - s * kq;
+                    n[k][Q] = s * kp + c * kq;
+                }
+                for k in 0..4 {
+                    let (pk, qk) = (n[P][k], n[Q][k]);
+                    n[P][k] = c * pk - s * qk;
+                    n[Q][k] = s * pk + c * qk;
+                }
+                for k in 0..4 {
+                    let (kp, kq) = (v[k][P], v[k][Q]);
+                    v[k][P] = c * kp - s * kq;
+                    v[k][Q] = s * kp + c * kq;
+                }
+            }
+
             let g = guess!(a, $f);
             // A' = Gᵀ A.
             let a: [[$f; 3]; 3] = std::array::from_fn(|r| {
@@ -67,42 +103,15 @@ macro_rules! nearest_rotation {
             let mut v = [[0.0 as $f; 4]; 4];
             (0..4).for_each(|i| v[i][i] = 1.0);
             for _ in 0..SWEEPS {
-                for (p, q) in PAIRS {
-                    let apq = n[p][q];
-                    if apq == 0.0 {
-                        continue;
-                    }
-                    // The rotation in the (p, q) plane that zeroes n[p][q] (Numerical Recipes
-                    // §11.1), t = tan of its angle, the smaller root.
-                    let theta = (n[q][q] - n[p][p]) / (2.0 * apq);
-                    let t = if theta.abs() > 1e15 {
-                        0.5 / theta
-                    } else {
-                        let t = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
-                        if theta < 0.0 {
-                            -t
-                        } else {
-                            t
-                        }
-                    };
-                    let c = 1.0 / (t * t + 1.0).sqrt();
-                    let s = t * c;
-                    for k in 0..4 {
-                        let (kp, kq) = (n[k][p], n[k][q]);
-                        n[k][p] = c * kp - s * kq;
-                        n[k][q] = s * kp + c * kq;
-                    }
-                    for k in 0..4 {
-                        let (pk, qk) = (n[p][k], n[q][k]);
-                        n[p][k] = c * pk - s * qk;
-                        n[q][k] = s * pk + c * qk;
-                    }
-                    for k in 0..4 {
-                        let (kp, kq) = (v[k][p], v[k][q]);
-                        v[k][p] = c * kp - s * kq;
-                        v[k][q] = s * kp + c * kq;
-                    }
-                }
+                // The pairs by literal indices, as glsl/polar.glsl names them: every index a
+                // constant, so n and v stay in registers (a loop over the pairs kept them in
+                // memory, and cost the CPU palette about twice as much).
+                rotate::<0, 1>(&mut n, &mut v);
+                rotate::<0, 2>(&mut n, &mut v);
+                rotate::<0, 3>(&mut n, &mut v);
+                rotate::<1, 2>(&mut n, &mut v);
+                rotate::<1, 3>(&mut n, &mut v);
+                rotate::<2, 3>(&mut n, &mut v);
             }
             // The largest eigenvalue's column; ties go to the first (the identity for a = 0).
             let mut best = 0;
