@@ -32,7 +32,7 @@ use glam::DVec3;
 
 /// By how much EE a candidate with P more delta-mush keys must win on the training folds: both
 /// kinds in one palette over the better kind alone, and each doubling of the delta-mush
-/// proxies ([`COUNT_FACTORS`]) over the count kept. A delta-mush key is a rigid fit per
+/// proxies ([`COUNT_FACTORS`]) over the count kept, compounded. A delta-mush key is a rigid fit per
 /// character, several joint-blend keys' cost (cesium_cage on lavapipe, 256 characters: paired
 /// RR / SSD 1.12 → 1.44 for both kinds; the CPU palette, about 1.2 µs a key). The margin is a
 /// run-time cost policy, not a fit: the joint-blend ladder asks 3 % ([`TOLERANCE`]) for 1.5
@@ -406,12 +406,13 @@ fn choose_count(
         )
     })?;
     let rows = std::iter::once(first.to_vec()).chain(held_out.relative);
-    let scores = Validated::of(rows.collect(), TOLERANCE).scores;
+    let scores: Vec<(usize, f64, f64)> = (ladder.offered.iter())
+        .zip(Validated::of(rows.collect(), TOLERANCE).scores)
+        .map(|(&p, (score, se))| (p, score, se))
+        .collect();
     let index = kept_count(&scores);
     Ok(Count {
-        scores: (ladder.offered.iter().zip(&scores))
-            .map(|(&p, &(score, se))| (p, score, se))
-            .collect(),
+        scores,
         kept: (index > 0).then(|| {
             let (proxies, reduced) = fitted.swap_remove(index - 1);
             (proxies, searched.swap_remove(index - 1), Some(reduced))
@@ -419,13 +420,19 @@ fn choose_count(
     })
 }
 
-/// The count kept of `scores` (the offered counts' (score, standard error), smallest first):
-/// each larger count where it beats the count kept so far by [`MORE_KEYS_MARGIN`].
-fn kept_count(scores: &[(f64, f64)]) -> usize {
-    let clear = |more: f64, kept: f64| more * (1.0 + MORE_KEYS_MARGIN).powi(2) <= kept;
-    (1..scores.len()).fold(0, |kept, i| match clear(scores[i].0, scores[kept].0) {
-        true => i,
-        false => kept,
+/// The count kept of `counts` ((proxies, score, standard error), smallest first): each larger
+/// count where it beats the count kept so far by [`MORE_KEYS_MARGIN`] a doubling (4P against P
+/// by 21 % EE: the keys' cost grows with their count).
+fn kept_count(counts: &[(usize, f64, f64)]) -> usize {
+    let clear = |(more, score): (usize, f64), (kept, kept_score): (usize, f64)| {
+        let doublings = (more as f64 / kept as f64).log2();
+        score * (1.0 + MORE_KEYS_MARGIN).powf(2.0 * doublings) <= kept_score
+    };
+    (1..counts.len()).fold(0, |kept, i| {
+        match clear((counts[i].0, counts[i].1), (counts[kept].0, counts[kept].1)) {
+            true => i,
+            false => kept,
+        }
     })
 }
 
@@ -551,5 +558,44 @@ fn kept(validated: &Validated) -> usize {
     match validated.chosen {
         2 if !clear(validated.scores[2].0) => validated.among_first(2, TOLERANCE).chosen,
         chosen => chosen,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (proxies, score) as EE % (the score is EE² / 100²).
+    fn counts(ee: &[(usize, f64)]) -> Vec<(usize, f64, f64)> {
+        ee.iter()
+            .map(|&(p, e)| (p, (e / 100.0).powi(2), 0.0))
+            .collect()
+    }
+
+    #[test]
+    fn each_doubling_of_the_count_must_win_by_the_margin() {
+        // 2P by 12 %, then 4P by 12 % over 2P.
+        assert_eq!(
+            kept_count(&counts(&[(60, 12.4), (120, 11.0), (240, 9.8)])),
+            2
+        );
+        // 2P by 12 %, 4P by 3 % over it.
+        assert_eq!(
+            kept_count(&counts(&[(60, 18.9), (120, 16.7), (240, 16.2)])),
+            1
+        );
+        // 2P by 8 %, 4P by 14 % over P: short of two doublings' 21 %.
+        assert_eq!(
+            kept_count(&counts(&[(60, 12.6), (120, 11.7), (240, 11.1)])),
+            0
+        );
+        // 2P by 9 %, 4P by 29 % over P.
+        assert_eq!(
+            kept_count(&counts(&[(60, 10.0), (120, 9.1), (240, 7.75)])),
+            2
+        );
+        // Capped at one group a triangle: 3 to 5 is less than a doubling, and asks less.
+        assert_eq!(kept_count(&counts(&[(3, 10.0), (5, 9.2)])), 1);
+        assert_eq!(kept_count(&counts(&[(3, 10.0), (6, 9.2)])), 0);
     }
 }
