@@ -67,7 +67,7 @@ fn exports_the_bundled_rig_with_its_walk_as_test_poses() {
     assert!(worst < 1e-5, "rest mesh off data/cesiumman's by {worst}");
 
     let path = out.to_str().expect("utf-8");
-    let e = eval_json(&["eval", path, "--json"]);
+    let e = eval_json(&["eval", path, "--json", "--no-learning-curve"]);
     assert_eq!(count(&e, "vertices"), 3273);
     assert_eq!(count(&e, "triangles"), 4672);
     assert_eq!(count(&e, "bones"), 19);
@@ -173,7 +173,7 @@ fn exports_a_black_box_blend_that_trains() {
         stdout.contains("21 deform bones posed, the 19 that the mesh's skin weights written"),
         "{stdout}"
     );
-    let e = eval_json(&["eval", out, "--json"]);
+    let e = eval_json(&["eval", out, "--json", "--no-learning-curve"]);
     assert_eq!(count(&e, "vertices"), 2338, "the welded mesh");
     assert_eq!(count(&e, "triangles"), 4672);
     assert_eq!(count(&e, "bones"), 19);

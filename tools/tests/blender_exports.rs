@@ -84,7 +84,9 @@ fn path(file: &str) -> String {
         .to_string()
 }
 
-/// `rrskin eval RIG --clip CLIP --cache CACHE --fps F --test-frames A..B --json` args.
+/// `rrskin eval RIG --clip CLIP --cache CACHE --fps F --test-frames A..B --json
+/// --no-learning-curve` args (nothing here reads the curve, most of a reference's time;
+/// tools/tests/cli.rs and blender.rs test it).
 fn eval_args(cache: &str) -> Vec<String> {
     let (c, rig) = entry(cache);
     let clip = scenarios().manifest["clip"]
@@ -103,6 +105,7 @@ fn eval_args(cache: &str) -> Vec<String> {
         "--test-frames".into(),
         rig["test_frames"].as_str().expect("test_frames").into(),
         "--json".into(),
+        "--no-learning-curve".into(),
     ]
     .to_vec()
 }
