@@ -20,7 +20,7 @@ use crate::set::ExampleSet;
 use crate::skinning::ddm::{self, Ddm};
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::{rigid_errors, Skinning};
-use crate::train::cross_validate::{try_cross_validate, Folds, Validated};
+use crate::train::cross_validate::{try_cross_validate, Fold, Folds, Validated};
 use crate::train::proxy_corrective::Candidate;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::mush::{join, Groups, MushProxies};
@@ -147,7 +147,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let (mut proxies, mut counts) = (first.proxies, Vec::new());
     if let (Some(split), Some(validated)) = (&split, &kinds.validated) {
         if kinds.kept != Kept::JointBlend && offered.len() > 1 {
-            let first = &validated.relative[kinds.kept as usize];
+            let first_row = &validated.relative[kinds.kept as usize];
             let larger = Ladder {
                 kind: kinds.kept,
                 offered: &offered,
@@ -155,7 +155,8 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
                 ddm: proxy_ddm,
                 params: &proxy_params,
             };
-            let count = choose_count(inputs, options, split, &larger, first).map_err(smoothing)?;
+            let count =
+                choose_count(inputs, options, split, &larger, first_row).map_err(smoothing)?;
             counts = count.scores;
             if let Some(more) = count.kept {
                 (proxies, kinds.correctives, kinds.shipped) = more;
@@ -268,8 +269,12 @@ fn counts(options: &TrainOptions, triangles: usize) -> Vec<usize> {
     let p = options.proxies.min(triangles);
     let mut counts = vec![p];
     if options.method == Method::Auto {
-        let larger = COUNT_FACTORS[1..].iter().map(|f| (f * p).min(triangles));
-        larger.for_each(|c| counts.extend((c > counts[counts.len() - 1]).then_some(c)));
+        for f in &COUNT_FACTORS[1..] {
+            let c = (f * p).min(triangles);
+            if c > counts[counts.len() - 1] {
+                counts.push(c);
+            }
+        }
     }
     counts
 }
@@ -380,27 +385,30 @@ fn choose_count(
         .collect();
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
     let held_out = try_cross_validate(split, &normaliser, larger.len(), TOLERANCE, |fold| {
-        let (_, held) = fold.poses(train);
-        let inner_set = set.holding_out(&held);
-        let inner = inner_set.train();
-        let ssd = ssd::fit(&inner_set, &inner, &rigid_errors(&inner_set, &inner), k);
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, ladder.params)?;
-        let joint_blend = (ladder.kind == Kept::Both)
-            .then(|| fold_joint_blend(inputs, options, &inner_set, &ssd));
+        let f = FoldFit::new(inputs, k, fold);
+        let fold_ddm = Ddm::new(
+            &set.rest,
+            &set.faces,
+            &f.ssd.influences,
+            bones,
+            ladder.params,
+        )?;
+        let joint_blend =
+            (ladder.kind == Kept::Both).then(|| fold_joint_blend(inputs, options, &f));
         Ok::<_, crate::Error>(
             (larger.iter().zip(&choices))
                 .map(|(groups, choice)| {
-                    let mush =
-                        MushProxies::fit(&inner_set, &inner, &fold_ddm, &ssd.influences, groups, k);
+                    let influences = &f.ssd.influences;
+                    let mush = MushProxies::fit(&f.set, &f.inner, &fold_ddm, influences, groups, k);
                     let model = ladder.model(
                         &mush,
-                        (&inner_set, &inner),
-                        &ssd,
+                        (&f.set, &f.inner),
+                        &f.ssd,
                         joint_blend.as_ref(),
                         inputs.feats,
                         k,
                     );
-                    held_errors(inputs, options, (&inner_set, &ssd), &held, &model, choice)
+                    f.held_errors(inputs, options, &model, choice)
                 })
                 .collect(),
         )
@@ -424,44 +432,73 @@ fn choose_count(
 /// count where it beats the count kept so far by [`MORE_KEYS_MARGIN`] a doubling (4P against P
 /// by 21 % EE: the keys' cost grows with their count).
 fn kept_count(counts: &[(usize, f64, f64)]) -> usize {
-    let clear = |(more, score): (usize, f64), (kept, kept_score): (usize, f64)| {
+    let clear = |&(more, score, _): &(usize, f64, f64),
+                 &(kept, kept_score, _): &(usize, f64, f64)| {
         let doublings = (more as f64 / kept as f64).log2();
         score * (1.0 + MORE_KEYS_MARGIN).powf(2.0 * doublings) <= kept_score
     };
-    (1..counts.len()).fold(0, |kept, i| {
-        match clear((counts[i].0, counts[i].1), (counts[kept].0, counts[kept].1)) {
-            true => i,
-            false => kept,
-        }
+    (1..counts.len()).fold(0, |kept, i| match clear(&counts[i], &counts[kept]) {
+        true => i,
+        false => kept,
     })
 }
 
-/// The squared errors of the held-out poses `held` of `model`, fitted on a fold's inner set
-/// and SSD (`inner`), corrected as `candidate` says (refitted on the inner poses).
-fn held_errors(
-    inputs: &Inputs,
-    options: &TrainOptions,
-    (inner_set, ssd): (&ExampleSet, &Skinning),
-    held: &[usize],
-    model: &Reduced,
-    candidate: &Option<Candidate>,
-) -> Vec<f64> {
-    let (set, feats) = (inputs.set, inputs.feats);
-    let inner = inner_set.train();
-    let correctives = candidate.and_then(|c| {
-        proxy_corrective::fit_candidate(inner_set, feats, ssd, model, &inner, &c, options.up)
-    });
-    (held.iter())
-        .map(|&i| {
-            let (f, pose_bones) = (&feats[i], &set.poses[i].bones);
-            let mut palette = model.predict_proxies(set, f, pose_bones);
-            if let Some(c) = &correctives {
-                c.correct(&mut palette, &corrective::features(set, f), pose_bones);
-            }
-            let mesh = model.skin_with(set, &palette, pose_bones);
-            squared_error(set, &[i], &[mesh])
-        })
-        .collect()
+/// A fold's side of a cross-validation: its inner poses' set and SSD, and its held-out poses
+/// with their correctives' features (once, for every model the fold scores).
+struct FoldFit {
+    set: ExampleSet,
+    inner: Vec<usize>,
+    ssd: Skinning,
+    held: Vec<usize>,
+    phi: Vec<Vec<[f64; 9]>>,
+}
+
+impl FoldFit {
+    fn new(inputs: &Inputs, k: usize, fold: &Fold) -> FoldFit {
+        let (_, held) = fold.poses(inputs.train);
+        let set = inputs.set.holding_out(&held);
+        let inner = set.train();
+        let ssd = ssd::fit(&set, &inner, &rigid_errors(&set, &inner), k);
+        let phi = (held.iter())
+            .map(|&i| corrective::features(inputs.set, &inputs.feats[i]))
+            .collect();
+        FoldFit {
+            set,
+            inner,
+            ssd,
+            held,
+            phi,
+        }
+    }
+
+    /// The squared errors of the held-out poses of `model` (fitted on the inner poses),
+    /// corrected as `candidate` says (refitted on the inner poses).
+    fn held_errors(
+        &self,
+        inputs: &Inputs,
+        options: &TrainOptions,
+        model: &Reduced,
+        candidate: &Option<Candidate>,
+    ) -> Vec<f64> {
+        let (set, feats) = (inputs.set, inputs.feats);
+        let correctives = candidate.and_then(|c| {
+            let (inner_set, inner) = (&self.set, &self.inner);
+            proxy_corrective::fit_candidate(
+                inner_set, feats, &self.ssd, model, inner, &c, options.up,
+            )
+        });
+        (self.held.iter().zip(&self.phi))
+            .map(|(&i, phi)| {
+                let (f, pose_bones) = (&feats[i], &set.poses[i].bones);
+                let mut palette = model.predict_proxies(set, f, pose_bones);
+                if let Some(c) = &correctives {
+                    c.correct(&mut palette, phi, pose_bones);
+                }
+                let mesh = model.skin_with(set, &palette, pose_bones);
+                squared_error(set, &[i], &[mesh])
+            })
+            .collect()
+    }
 }
 
 /// Per kind of `kinds` (fitted to all training poses), the search of its proxy correctives
@@ -494,59 +531,34 @@ fn cross_validate(
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
     try_cross_validate(split, &normaliser, correctives.len(), TOLERANCE, |fold| {
-        let (_, held) = fold.poses(train);
-        let inner_set = set.holding_out(&held);
-        let inner = inner_set.train();
-        let errors = rigid_errors(&inner_set, &inner);
-        let ssd = ssd::fit(&inner_set, &inner, &errors, k);
-        let reduced = fold_joint_blend(inputs, options, &inner_set, &ssd);
+        let f = FoldFit::new(inputs, k, fold);
+        let reduced = fold_joint_blend(inputs, options, &f);
         let bones = set.bone_count();
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, &ssd.influences, bones, side.params)?;
-        let mush = MushProxies::fit(
-            &inner_set,
-            &inner,
-            &fold_ddm,
-            &ssd.influences,
-            side.groups,
-            k,
-        );
+        let influences = &f.ssd.influences;
+        let fold_ddm = Ddm::new(&set.rest, &set.faces, influences, bones, side.params)?;
+        let mush = MushProxies::fit(&f.set, &f.inner, &fold_ddm, influences, side.groups, k);
         // Each kind's held-out errors, as it ships: corrected as its candidate says.
-        let held_error = |model: &Reduced, candidate: &Option<Candidate>| {
-            held_errors(inputs, options, (&inner_set, &ssd), &held, model, candidate)
-        };
+        let held_error =
+            |model: &Reduced, candidate| f.held_errors(inputs, options, model, candidate);
         let c = correctives;
         let mut rows = vec![
             held_error(&reduced, &c[0]),
-            held_error(&mush.reduced(bones, &ssd.influences), &c[1]),
+            held_error(&mush.reduced(bones, influences), &c[1]),
         ];
         if let Some(both) = c.get(2) {
-            let union = join(&reduced, &mush, &inner_set, &inner, inputs.feats, k);
+            let union = join(&reduced, &mush, &f.set, &f.inner, inputs.feats, k);
             rows.push(held_error(&union, both));
         }
         Ok(rows)
     })
 }
 
-/// The chosen joint-blend structure fitted to a fold's inner poses (`inner_set`, SSD `ssd`),
-/// with the ridges chosen on all training poses.
-fn fold_joint_blend(
-    inputs: &Inputs,
-    options: &TrainOptions,
-    inner_set: &ExampleSet,
-    ssd: &Skinning,
-) -> Reduced {
+/// The chosen joint-blend structure fitted to a fold's inner poses, with the ridges chosen on
+/// all training poses.
+fn fold_joint_blend(inputs: &Inputs, options: &TrainOptions, f: &FoldFit) -> Reduced {
     let (structure, ridges) = (&inputs.chosen.structure, inputs.joint_blend.ridges());
-    let feats = inputs.feats;
-    structure::build(
-        inner_set,
-        feats,
-        ssd,
-        None,
-        structure,
-        options,
-        Some(ridges),
-    )
-    .0
+    let (feats, ridges) = (inputs.feats, Some(ridges));
+    structure::build(&f.set, feats, &f.ssd, None, structure, options, ridges).0
 }
 
 /// The candidate kept: the rule's, but both kinds only where they beat the better kind alone
