@@ -35,8 +35,10 @@
 
 use crate::cpu::characters;
 use crate::error::{Error, Result};
+use crate::model::MushKeys;
 use crate::model::{BlockSparse, FeatureRange, Model, ProxyCorrectives};
-use crate::predict::{check_character_ups, mush_gradient_f32 as mush_gradient, Affine};
+use crate::polar::nearest_rotations_f32;
+use crate::predict::{check_character_ups, mush_covariance_f32, Affine};
 use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
@@ -417,11 +419,13 @@ impl Palette {
                 None => log_rotation(rotation(b)),
             };
         }
-        let mushed = (self.model.mush_keys().into_iter())
-            .flat_map(|keys| (0..keys.count()).map(move |s| mush_gradient(keys, s, q)));
         let predicted = (self.keys.iter()).map(|key| key.gradient(&scratch.theta, rotation));
-        for (l, d) in predicted.chain(mushed).enumerate() {
+        for (l, d) in predicted.enumerate() {
             scratch.rhs[3 * l..3 * l + 3].copy_from_slice(&[d.x_axis, d.y_axis, d.z_axis]);
+        }
+        if let Some(keys) = self.model.mush_keys() {
+            let first = 3 * self.keys.len();
+            mush_gradients(keys, q, &mut scratch.rhs[first..first + 3 * keys.count()]);
         }
         for (b, t) in q.iter().enumerate() {
             for k in 0..4 {
@@ -444,6 +448,34 @@ impl Palette {
         out[p..].copy_from_slice(q);
     }
 }
+
+/// Every delta-mush key's gradient `D_s = polar(A_s)` for one character's bones `q`, as three
+/// columns each into `out` (3 S), [`MUSH_LANES`] keys at a time: one key's rotation fit is
+/// the latency of 24 dependent Jacobi rotations, which lanes pay once for all of them
+/// ([`nearest_rotations_f32`]).
+fn mush_gradients(keys: &MushKeys, q: &[Affine], out: &mut [Vec3]) {
+    for (chunk, out) in out.chunks_mut(3 * MUSH_LANES).enumerate() {
+        let first = chunk * MUSH_LANES;
+        // The last chunk's unused lanes fit A = 0 (the identity), and are dropped.
+        let a: [[[f32; 3]; 3]; MUSH_LANES] =
+            std::array::from_fn(|i| match first + i < keys.count() {
+                true => mush_covariance_f32(keys, first + i, q),
+                false => [[0.0; 3]; 3],
+            });
+        for (r, d) in nearest_rotations_f32(&a)
+            .iter()
+            .zip(out.chunks_exact_mut(3))
+        {
+            for (c, column) in d.iter_mut().enumerate() {
+                *column = Vec3::new(r[0][c], r[1][c], r[2][c]);
+            }
+        }
+    }
+}
+
+/// How many delta-mush keys the CPU palette fits side by side: 8 `f32` lanes fill two SSE
+/// registers or one AVX register per value.
+const MUSH_LANES: usize = 8;
 
 /// The features `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major, of both correctives in
 /// `f32` ([`crate::predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]`

@@ -28,121 +28,164 @@ pub const SWEEPS: usize = 4;
 /// is the identity: the cross product's direction is then too uncertain to make a rotation of.
 const GUESS_SINE: f64 = 1e-4;
 
-/// The nearest rotation in one body for `f64` (the CPU reference, training) and `f32` (the CPU
-/// palette), with the order of operations of `glsl/polar.glsl`.
-macro_rules! nearest_rotation {
-    ($name:ident, $f:ty) => {
-        /// The rotation nearest to `a` (row-major 3x3), row-major: the proper rotation R
-        /// maximising tr(Rᵀ a); the identity for a = 0.
-        pub fn $name(a: [[$f; 3]; 3]) -> [[$f; 3]; 3] {
-            /// The Jacobi rotation in the (P, Q) plane that zeroes n[P][Q] (Numerical Recipes
-            /// §11.1), applied to N on both sides and accumulated into V.
-            #[inline(always)]
-            fn rotate<const P: usize, const Q: usize>(n: &mut [[$f; 4]; 4], v: &mut [[$f; 4]; 4]) {
-                let apq = n[P][Q];
-                if apq == 0.0 {
-                    return;
-                }
-                // t = tan of the rotation's angle, the smaller root.
-                let theta = (n[Q][Q] - n[P][P]) / (2.0 * apq);
-                let t = if theta.abs() > 1e15 {
-                    0.5 / theta
-                } else {
-                    let t = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
-                    if theta < 0.0 {
-                        -t
+/// The nearest rotations of L matrices at once, in one body for `f64` (the CPU reference,
+/// training) and `f32` (the CPU palette), lane by lane with the order of operations of
+/// `glsl/polar.glsl`.
+///
+/// A matrix alone costs the latency of 24 dependent Jacobi rotations. L of them side by side
+/// (every value an array over the lanes, `[[[f; L]; 4]; 4]`) pay it once: each step is one
+/// operation over the lanes, which the compiler makes vector instructions. Branches on values
+/// are selects, so a lane's result is what it would be alone. The scalar forms are one lane.
+macro_rules! nearest_rotations {
+    ($lanes:ident, $one:ident, $f:ty) => {
+        /// The rotation nearest to each of `a`'s L matrices (row-major 3x3), row-major: the
+        /// proper rotation R maximising tr(Rᵀ a); the identity for a = 0.
+        pub fn $lanes<const L: usize>(a: &[[[$f; 3]; 3]; L]) -> [[[$f; 3]; 3]; L] {
+            /// Per lane, the cosine and sine of the Jacobi rotation that zeroes apq, from
+            /// t = tan of its angle, the smaller root; t = 0 (c = 1, s = 0) where apq = 0.
+            /// Selects of t alone, in a function of its own: inlined into the sweep, or with
+            /// selects of c or s, the compiler split the lanes into scalars.
+            #[inline(never)]
+            fn cos_sin<const L: usize>(
+                app: &[$f; L],
+                aqq: &[$f; L],
+                apq: &[$f; L],
+            ) -> ([$f; L], [$f; L]) {
+                let (mut c, mut s) = ([0.0 as $f; L], [0.0 as $f; L]);
+                for i in 0..L {
+                    let theta = (aqq[i] - app[i]) / (2.0 * apq[i]);
+                    let root = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
+                    let root = if theta < 0.0 { -root } else { root };
+                    let t = if theta.abs() > 1e15 {
+                        0.5 / theta
                     } else {
-                        t
+                        root
+                    };
+                    let t = if apq[i] == 0.0 { 0.0 } else { t };
+                    c[i] = 1.0 / (t * t + 1.0).sqrt();
+                    s[i] = t * c[i];
+                }
+                (c, s)
+            }
+
+            /// The Jacobi rotation in the (P, Q) plane that zeroes n[P][Q] (Numerical Recipes
+            /// §11.1), applied to N on both sides and accumulated into V, on every lane.
+            #[inline(always)]
+            fn rotate<const P: usize, const Q: usize, const L: usize>(
+                n: &mut [[[$f; L]; 4]; 4],
+                v: &mut [[[$f; L]; 4]; 4],
+            ) {
+                let (c, s) = cos_sin(&n[P][P], &n[Q][Q], &n[P][Q]);
+                for k in 0..4 {
+                    for i in 0..L {
+                        let (kp, kq) = (n[k][P][i], n[k][Q][i]);
+                        n[k][P][i] = c[i] * kp - s[i] * kq;
+                        n[k][Q][i] = s[i] * kp + c[i] * kq;
                     }
-                };
-                let c = 1.0 / (t * t + 1.0).sqrt();
-                let s = t * c;
-                for k in 0..4 {
-                    let (kp, kq) = (n[k][P], n[k][Q]);
-                    n[k][P] = c * kp - s * kq;
-                    n[k][Q] = s * kp + c * kq;
                 }
                 for k in 0..4 {
-                    let (pk, qk) = (n[P][k], n[Q][k]);
-                    n[P][k] = c * pk - s * qk;
-                    n[Q][k] = s * pk + c * qk;
+                    for i in 0..L {
+                        let (pk, qk) = (n[P][k][i], n[Q][k][i]);
+                        n[P][k][i] = c[i] * pk - s[i] * qk;
+                        n[Q][k][i] = s[i] * pk + c[i] * qk;
+                    }
                 }
                 for k in 0..4 {
-                    let (kp, kq) = (v[k][P], v[k][Q]);
-                    v[k][P] = c * kp - s * kq;
-                    v[k][Q] = s * kp + c * kq;
+                    for i in 0..L {
+                        let (kp, kq) = (v[k][P][i], v[k][Q][i]);
+                        v[k][P][i] = c[i] * kp - s[i] * kq;
+                        v[k][Q][i] = s[i] * kp + c[i] * kq;
+                    }
                 }
             }
 
-            let g = guess!(a, $f);
-            // A' = Gᵀ A.
-            let a: [[$f; 3]; 3] = std::array::from_fn(|r| {
-                std::array::from_fn(|c| g[0][r] * a[0][c] + g[1][r] * a[1][c] + g[2][r] * a[2][c])
-            });
-            let mut n = [
-                [
-                    a[0][0] + a[1][1] + a[2][2],
-                    a[2][1] - a[1][2],
-                    a[0][2] - a[2][0],
-                    a[1][0] - a[0][1],
-                ],
-                [
-                    0.0,
-                    a[0][0] - a[1][1] - a[2][2],
-                    a[1][0] + a[0][1],
-                    a[0][2] + a[2][0],
-                ],
-                [0.0, 0.0, a[1][1] - a[0][0] - a[2][2], a[2][1] + a[1][2]],
-                [0.0, 0.0, 0.0, a[2][2] - a[0][0] - a[1][1]],
-            ];
-            for r in 1..4 {
-                for c in 0..r {
-                    n[r][c] = n[c][r];
+            let g: [[[$f; 3]; 3]; L] = std::array::from_fn(|i| guess!(a[i], $f));
+            let mut n = [[[0.0 as $f; L]; 4]; 4];
+            for i in 0..L {
+                // A' = Gᵀ A.
+                let (g, a) = (&g[i], &a[i]);
+                let a: [[$f; 3]; 3] = std::array::from_fn(|r| {
+                    std::array::from_fn(|c| {
+                        g[0][r] * a[0][c] + g[1][r] * a[1][c] + g[2][r] * a[2][c]
+                    })
+                });
+                let upper = [
+                    [
+                        a[0][0] + a[1][1] + a[2][2],
+                        a[2][1] - a[1][2],
+                        a[0][2] - a[2][0],
+                        a[1][0] - a[0][1],
+                    ],
+                    [
+                        0.0,
+                        a[0][0] - a[1][1] - a[2][2],
+                        a[1][0] + a[0][1],
+                        a[0][2] + a[2][0],
+                    ],
+                    [0.0, 0.0, a[1][1] - a[0][0] - a[2][2], a[2][1] + a[1][2]],
+                    [0.0, 0.0, 0.0, a[2][2] - a[0][0] - a[1][1]],
+                ];
+                for r in 0..4 {
+                    for c in r..4 {
+                        (n[r][c][i], n[c][r][i]) = (upper[r][c], upper[r][c]);
+                    }
                 }
             }
-            let mut v = [[0.0 as $f; 4]; 4];
-            (0..4).for_each(|i| v[i][i] = 1.0);
+            let mut v = [[[0.0 as $f; L]; 4]; 4];
+            (0..4).for_each(|k| v[k][k] = [1.0; L]);
             for _ in 0..SWEEPS {
                 // The pairs by literal indices, as glsl/polar.glsl names them: every index a
                 // constant, so n and v stay in registers (a loop over the pairs kept them in
                 // memory, and cost the CPU palette about twice as much).
-                rotate::<0, 1>(&mut n, &mut v);
-                rotate::<0, 2>(&mut n, &mut v);
-                rotate::<0, 3>(&mut n, &mut v);
-                rotate::<1, 2>(&mut n, &mut v);
-                rotate::<1, 3>(&mut n, &mut v);
-                rotate::<2, 3>(&mut n, &mut v);
+                rotate::<0, 1, L>(&mut n, &mut v);
+                rotate::<0, 2, L>(&mut n, &mut v);
+                rotate::<0, 3, L>(&mut n, &mut v);
+                rotate::<1, 2, L>(&mut n, &mut v);
+                rotate::<1, 3, L>(&mut n, &mut v);
+                rotate::<2, 3, L>(&mut n, &mut v);
             }
-            // The largest eigenvalue's column; ties go to the first (the identity for a = 0).
-            let mut best = 0;
-            for k in 1..4 {
-                if n[k][k] > n[best][best] {
-                    best = k;
-                }
-            }
-            let (w, x, y, z) = (v[0][best], v[1][best], v[2][best], v[3][best]);
-            let s = 2.0 / (w * w + x * x + y * y + z * z);
-            let r = [
-                [
-                    1.0 - s * (y * y + z * z),
-                    s * (x * y - w * z),
-                    s * (x * z + w * y),
-                ],
-                [
-                    s * (x * y + w * z),
-                    1.0 - s * (x * x + z * z),
-                    s * (y * z - w * x),
-                ],
-                [
-                    s * (x * z - w * y),
-                    s * (y * z + w * x),
-                    1.0 - s * (x * x + y * y),
-                ],
-            ];
-            // R = G R'.
             std::array::from_fn(|i| {
-                std::array::from_fn(|c| g[i][0] * r[0][c] + g[i][1] * r[1][c] + g[i][2] * r[2][c])
+                // The largest eigenvalue's column; ties go to the first (the identity for a = 0).
+                let mut best = 0;
+                for k in 1..4 {
+                    if n[k][k][i] > n[best][best][i] {
+                        best = k;
+                    }
+                }
+                let [w, x, y, z] = [0, 1, 2, 3].map(|k| v[k][best][i]);
+                let s = 2.0 / (w * w + x * x + y * y + z * z);
+                let r = [
+                    [
+                        1.0 - s * (y * y + z * z),
+                        s * (x * y - w * z),
+                        s * (x * z + w * y),
+                    ],
+                    [
+                        s * (x * y + w * z),
+                        1.0 - s * (x * x + z * z),
+                        s * (y * z - w * x),
+                    ],
+                    [
+                        s * (x * z - w * y),
+                        s * (y * z + w * x),
+                        1.0 - s * (x * x + y * y),
+                    ],
+                ];
+                // R = G R'.
+                let g = &g[i];
+                std::array::from_fn(|i| {
+                    std::array::from_fn(|c| {
+                        g[i][0] * r[0][c] + g[i][1] * r[1][c] + g[i][2] * r[2][c]
+                    })
+                })
             })
+        }
+
+        /// The rotation nearest to `a` (row-major 3x3), row-major: the proper rotation R
+        /// maximising tr(Rᵀ a); the identity for a = 0.
+        pub fn $one(a: [[$f; 3]; 3]) -> [[$f; 3]; 3] {
+            let [r] = $lanes(&[a]);
+            r
         }
     };
 }
@@ -179,8 +222,8 @@ macro_rules! guess {
     }};
 }
 
-nearest_rotation!(nearest_rotation, f64);
-nearest_rotation!(nearest_rotation_f32, f32);
+nearest_rotations!(nearest_rotations, nearest_rotation, f64);
+nearest_rotations!(nearest_rotations_f32, nearest_rotation_f32, f32);
 
 #[cfg(test)]
 mod tests {
@@ -251,6 +294,29 @@ mod tests {
             nearest_rotation_f32([[0.0; 3]; 3]),
             rows(DMat3::IDENTITY).map(|r| r.map(|x| x as f32))
         );
+    }
+
+    #[test]
+    fn each_lane_is_its_matrix_alone() {
+        // Near-rotations, stretches, a reflection, rank 2, rank 1 and zero side by side.
+        let mut mats: Vec<[[f32; 3]; 3]> = vec![
+            [[3.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -1.0]],
+            [[1.0, 0.2, 0.0], [0.3, 0.4, 0.0], [0.0, 0.0, 0.0]],
+            [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.5, 1.0, 1.5]],
+            [[0.0; 3]; 3],
+        ];
+        mats.extend(
+            rotations()
+                .take(36)
+                .map(|r| rows(r * DMat3::from_diagonal(DVec3::new(1.5, 1.0, 0.7))))
+                .map(|m| m.map(|r| r.map(|x| x as f32))),
+        );
+        for chunk in mats.chunks(8) {
+            let lanes: [[[f32; 3]; 3]; 8] = chunk.try_into().expect("8 matrices");
+            for (got, a) in nearest_rotations_f32(&lanes).iter().zip(chunk) {
+                assert_eq!(*got, nearest_rotation_f32(*a), "{a:?}");
+            }
+        }
     }
 
     #[test]

@@ -334,13 +334,14 @@ pub fn key_gradients(model: &Model, bones: &[Affine], out: &mut [DMat3]) {
     }
 }
 
-/// A delta-mush key's gradient in one body for `f64` (the CPU reference) and `f32` (the CPU
-/// palette), with the order of operations of `glsl/predictor.glsl`.
-macro_rules! mush_gradient {
-    ($name:ident, $mat:ident, $f:ty, $polar:path) => {
-        /// `D_s(q) = polar(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)` of delta-mush key s
-        /// ([`crate::MushKeys`]) for one character's J bone transforms.
-        pub fn $name(keys: &MushKeys, s: usize, bones: &[Affine]) -> $mat {
+/// A delta-mush key's rigid fit's covariance in one body for `f64` (the CPU reference) and `f32`
+/// (the CPU palette), with the order of operations of `glsl/predictor.glsl`.
+macro_rules! mush_covariance {
+    ($name:ident, $f:ty) => {
+        /// `A_s(q) = Σ_i [Q_{b_i} | d_{b_i}] Ω_i` (row-major 3x3) of delta-mush key s
+        /// ([`crate::MushKeys`]) for one character's J bone transforms: its gradient is
+        /// `polar(A_s)`.
+        pub fn $name(keys: &MushKeys, s: usize, bones: &[Affine]) -> [[$f; 3]; 3] {
             let (ids, terms) = keys.key(s);
             let mut a = [[0.0 as $f; 3]; 3];
             for (&b, omega) in ids.iter().zip(terms) {
@@ -353,19 +354,21 @@ macro_rules! mush_gradient {
                     }
                 }
             }
-            // Rows as columns, transposed.
-            $mat::from_cols_array_2d(&$polar(a)).transpose()
+            a
         }
     };
 }
 
-mush_gradient!(mush_gradient, DMat3, f64, crate::polar::nearest_rotation);
-mush_gradient!(
-    mush_gradient_f32,
-    Mat3,
-    f32,
-    crate::polar::nearest_rotation_f32
-);
+mush_covariance!(mush_covariance, f64);
+mush_covariance!(mush_covariance_f32, f32);
+
+/// `D_s(q) = polar(A_s(q))` of delta-mush key s ([`mush_covariance`]) for one character's J
+/// bone transforms.
+pub fn mush_gradient(keys: &MushKeys, s: usize, bones: &[Affine]) -> DMat3 {
+    let r = crate::polar::nearest_rotation(mush_covariance(keys, s, bones));
+    // Rows as columns, transposed.
+    DMat3::from_cols_array_2d(&r).transpose()
+}
 
 /// `D_ℓ(q) = R(q) S(q)` for one predictor and one character's J bone transforms.
 pub fn key_gradient(model: &Model, pred: &KeyPredictor, bones: &[Affine]) -> DMat3 {

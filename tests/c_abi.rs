@@ -140,28 +140,19 @@ fn compile_example(dir: &Path, name: &str, libraries: &[&str]) -> PathBuf {
     exe
 }
 
-fn example_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rrskin-c-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
-}
-
-fn assert_passes(run: std::process::Output, dir: &Path) {
+fn assert_passes(run: std::process::Output) {
     let stdout = String::from_utf8_lossy(&run.stdout);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
         run.status.success() && stdout.contains("passed, 0 failed"),
         "stdout:\n{stdout}\nstderr:\n{stderr}"
     );
-    if std::env::var_os("RRSKIN_KEEP_C_DIR").is_none() {
-        std::fs::remove_dir_all(dir).ok();
-    }
 }
 
 #[test]
 fn the_c_example_drives_the_runtime_on_the_engines_device() {
     let (frames, characters) = (3usize, 64usize);
-    let dir = example_dir("crowd");
+    let dir = common::scratch::temp_dir("c-crowd");
     let model = random_model(
         Spec {
             grid: 12,
@@ -191,7 +182,7 @@ fn the_c_example_drives_the_runtime_on_the_engines_device() {
         .args(args(frames))
         .output()
         .expect("run the C example");
-    assert_passes(run, &dir);
+    assert_passes(run);
 }
 
 /// Runs `exe` under valgrind's memcheck: it must pass, with no error and nothing definitely
@@ -237,7 +228,7 @@ fn memcheck(exe: &Path, args: &[impl AsRef<std::ffi::OsStr>], vulkan: bool) {
 #[test]
 fn the_c_palette_example_skins_without_vulkan() {
     let (frames, characters) = (3usize, 20usize);
-    let dir = example_dir("palette");
+    let dir = common::scratch::temp_dir("c-palette");
     // With pose-space correctives: the program adds the weighted targets as a shader would.
     let model = with_correctives(
         &joint_blend_pattern(
@@ -273,7 +264,7 @@ fn the_c_palette_example_skins_without_vulkan() {
         .args(&args)
         .output()
         .expect("run the C palette example");
-    assert_passes(run, &dir);
+    assert_passes(run);
 }
 
 /// The headless path through the ABI (called in-process): a context of its own with

@@ -157,8 +157,7 @@ fn run_in_window(x: &Xvfb, sample: &Path, args: &[&str]) -> (String, Vec<Vec<[u8
 #[test]
 fn the_crowd_sample_presents_moving_characters_in_a_window_and_headless() {
     let sample = common::suite_artifacts().join("examples/crowd");
-    let dir = std::env::temp_dir().join(format!("rrskin-crowd-window-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let dir = common::scratch::temp_dir("crowd-window");
     let model = model_file(&dir);
     let model = model.to_str().expect("UTF-8 temp path");
     let x = Xvfb::start();
@@ -228,5 +227,4 @@ fn the_crowd_sample_presents_moving_characters_in_a_window_and_headless() {
         out.status.code() == Some(1) && stderr.contains("--headless") && !stderr.contains(".rs:"),
         "{stderr}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -59,13 +59,11 @@ fn valid_models_round_trip_exactly() {
         assert_eq!(back, m);
         assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
     }
-    let dir = std::env::temp_dir().join(format!("rrskin-roundtrip-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let dir = common::scratch::temp_dir("roundtrip");
     let path = dir.join("m.rrs");
     let m = model(2, 4);
     m.save(&path).expect("save");
     assert_eq!(Model::load(&path).expect("load"), m);
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -271,8 +269,7 @@ fn inconsistent_content_is_refused() {
 
 #[test]
 fn file_errors_name_the_file() {
-    let dir = std::env::temp_dir().join(format!("rrskin-badfile-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
+    let dir = common::scratch::temp_dir("badfile");
     let path = dir.join("broken.rrs");
     std::fs::write(&path, b"not a model at all, just some text").expect("write");
     let err = Model::load(&path).expect_err("not a model");
@@ -283,7 +280,6 @@ fn file_errors_name_the_file() {
     );
     let missing = Model::load(dir.join("absent.rrs")).expect_err("absent");
     assert!(matches!(missing, Error::Io { ref path, .. } if path.ends_with("absent.rrs")));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The problem [`Model::new`] finds in a model of the tests' shape with proxy correctives

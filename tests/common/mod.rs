@@ -3,6 +3,7 @@
 
 pub mod abi;
 pub mod engine;
+pub mod scratch;
 
 use glam::DVec3;
 use rrskin::vk::{Context, ContextDesc};

@@ -3,9 +3,12 @@
 
 #[path = "support/blender.rs"]
 mod blender;
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
 
-use blender::{blender, blender_script, count, eval_json, figure, repo, temp_dir};
+use blender::{blender, blender_script, count, eval_json, figure, repo};
 use rrskin_tools::set::ExampleSet;
+use scratch::temp_dir;
 
 fn exporter() -> std::path::PathBuf {
     repo().join("tools/blender/export_examples.py")
@@ -82,7 +85,6 @@ fn exports_the_bundled_rig_with_its_walk_as_test_poses() {
         assert!(figure(&e, "ssd", split) < 10.0, "{e}");
         assert!(figure(&e, "rr_full", split) < 10.0, "{e}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `--poses auto` on the bundled rig: rounds of random poses until the learning curve stops them
@@ -127,7 +129,6 @@ fn exports_as_many_poses_as_the_learning_curve_advises() {
         ),
         n => panic!("{n} rounds: {stdout}"),
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A black box saved as a .blend (tests/blender/make_rig.py: welded mesh, Preserve Volume, a
@@ -193,7 +194,6 @@ fn exports_a_black_box_blend_that_trains() {
         figure(&e, "rr_full", "train") < figure(&e, "ssd", "train"),
         "{e}"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// User mistakes: one `error:` line naming the problem, exit status 1, no Python traceback.
@@ -257,7 +257,6 @@ fn user_mistakes_are_one_line_and_status_1() {
             "{args:?}: a traceback:\n{stdout}{stderr}"
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A 1-D i4 .npy file.

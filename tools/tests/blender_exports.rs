@@ -14,12 +14,15 @@
 
 #[path = "support/blender.rs"]
 mod blender;
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
-use blender::{assert_same_figures, blender_script, count, figure, repo, rrskin, temp_dir};
+use blender::{assert_same_figures, blender_script, count, figure, repo, rrskin};
+use scratch::fixture_dir;
 
 /// Allowed gap between a scenario's `rigid`/`ssd`/`rig_lbs` EE (%) and its reference's. The
 /// caches hold the very same float32 positions (checked in scenarios.py to 1.2e-7), so mapping
@@ -43,7 +46,7 @@ struct Scenarios {
 fn scenarios() -> &'static Scenarios {
     static SCENARIOS: OnceLock<Scenarios> = OnceLock::new();
     SCENARIOS.get_or_init(|| {
-        let dir = temp_dir("blender-scenarios");
+        let dir = fixture_dir("blender-scenarios");
         let script = repo().join("tools/tests/blender/scenarios.py");
         let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
         blender_script(

@@ -7,8 +7,11 @@
 
 #[path = "support/blender.rs"]
 mod blender;
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
 
-use blender::{assert_same_figures, bpy_script, count, figure, repo, rrskin, temp_dir};
+use blender::{assert_same_figures, bpy_script, count, figure, repo, rrskin};
+use scratch::{fixture_dir, temp_dir};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -28,7 +31,7 @@ fn eval(args: &[&str]) -> (serde_json::Value, String) {
 fn scenarios() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = temp_dir("blender45-scenarios");
+        let dir = fixture_dir("blender45-scenarios");
         let script = repo().join("tools/tests/blender/scenarios.py");
         let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
         let (out, glb) = (dir.to_str().expect("utf-8"), glb.to_str().expect("utf-8"));
@@ -152,7 +155,6 @@ fn the_exporter_runs_on_blender_4_headless_and_as_an_add_on() {
             "rig_lbs {split} {lbs}: bones, weights and axes disagree"
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Truncated and corrupted copies of Blender's FBX and Alembic files are refused, naming the
@@ -193,7 +195,6 @@ fn broken_fbx_and_alembic_files_are_refused_naming_the_file() {
             }
         }
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The other mix: the bundled glTF rig with an Alembic cache of its clip `examples` from
@@ -228,5 +229,4 @@ fn a_gltf_rig_with_blenders_alembic_of_its_clip() {
             "rig_lbs {split} {lbs}: the cache is not the glTF's own skin"
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -156,7 +156,6 @@ fn a_cache_in_the_dccs_vertex_order_is_mapped_by_the_bind_pose_sample() {
             && note.contains("by position at the bind pose (sample 0)"),
         "{note}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Without a bind-pose sample the points are matched by trajectory. On CesiumMan's extreme
@@ -190,7 +189,6 @@ fn without_a_bind_pose_points_are_matched_by_trajectory_or_refused() {
             && e.contains("glTF file's vertex order"),
         "{e}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A cache in centimetres against the rig's metres (Alembic stores no units: Maya writes its
@@ -210,7 +208,6 @@ fn a_cache_in_centimetres_is_scaled() {
         note.contains("centimetres") && note.contains("Z-up"),
         "{note}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -246,7 +243,6 @@ fn a_z_up_mdd_and_an_object_space_pc2_are_converted() {
     assert!(got.notes[0]
         .1
         .contains("Z-up and in the mesh's object space"));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Blender's MDD of a scene starting at frame 1 holds frames 1..60 at times 0..59/fps: found
@@ -267,7 +263,6 @@ fn an_mdd_whose_times_start_at_zero_is_shifted_to_the_clips_frames() {
         notes(&got),
         "cache sample 0 holds the clip's frame 1, not frame 0 (MDD times start at 0, whatever the scene's first frame): shifted by 1 frame"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// MDD stores float32 seconds: 59/24 s reads as frame 58.99999…, which is frame 59, so
@@ -293,7 +288,6 @@ fn mdd_times_are_whole_frames_and_another_sample_rate_is_named() {
             && e.contains("--fps only numbers their frames"),
         "{e}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A cache in a space none of the hypotheses covers (here scaled by 1.5 about the origin, a
@@ -327,7 +321,6 @@ fn a_cache_the_rigs_skin_does_not_follow_is_refused() {
         },
     ));
     assert_refused(&e, "rolled.pc2");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Through the CLI: the fix is printed on stderr (under --json too), and the JSON is the
@@ -364,7 +357,6 @@ fn the_cli_prints_each_fix_on_one_line() {
     let json: serde_json::Value = serde_json::from_slice(&run.stdout).expect("JSON");
     assert_eq!(json["vertices"], 2338);
     assert!(json["rig_lbs"]["train"].as_f64().is_some_and(|e| e < 60.0));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Duplicate positions on the DCC's side: a point written twice (two coincident vertices that
@@ -398,5 +390,4 @@ fn coincident_cache_points_are_one_vertex_or_refused() {
             && e.contains("1 of 2338"),
         "{e}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }

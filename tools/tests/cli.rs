@@ -4,17 +4,15 @@
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
+use scratch::temp_dir;
+
 fn rrskin(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rrskin"))
         .args(args)
         .output()
         .expect("the binary runs")
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rrskin-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
 }
 
 fn json(out: &Output) -> serde_json::Value {
@@ -28,7 +26,7 @@ fn json(out: &Output) -> serde_json::Value {
 
 #[test]
 fn synth_info_and_profile_agree_on_the_model() {
-    let dir = temp_dir("profile");
+    let dir = temp_dir("cli-profile");
     let model = dir.join("m.rrs");
     let m = model.to_str().expect("utf-8 path");
     let out = rrskin(&[
@@ -88,12 +86,11 @@ fn synth_info_and_profile_agree_on_the_model() {
         let value = p[pass].as_f64().expect("a number");
         assert!(value > 0.0 && value.is_finite(), "{pass}: {p}");
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
 fn bad_model_files_fail_with_the_file_and_the_problem() {
-    let dir = temp_dir("bad");
+    let dir = temp_dir("cli-bad");
     let bad = dir.join("text.rrs");
     std::fs::write(&bad, "hello").expect("write");
     let out = rrskin(&["info", bad.to_str().expect("utf-8")]);
@@ -115,14 +112,13 @@ fn bad_model_files_fail_with_the_file_and_the_problem() {
     ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("must be 4 or 8"));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A closed pipe on stdout and stderr (`rrskin … 2>&1 | head`) ends output quietly: the exit
 /// status is the command's, not a panic's 101.
 #[test]
 fn closed_pipes_end_output_quietly() {
-    let dir = temp_dir("pipe");
+    let dir = temp_dir("cli-pipe");
     let model = dir.join("m.rrs");
     let m = model.to_str().expect("utf-8 path");
     let closed = |args: &[&str]| {
@@ -139,14 +135,13 @@ fn closed_pipes_end_output_quietly() {
     assert_eq!(closed(&["synth", "--grid", "5", "-o", m]), Some(0));
     assert_eq!(closed(&["info", m]), Some(0));
     assert_eq!(closed(&["info", "absent.rrs"]), Some(1));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Counts of zero, a crowd past the device's memory and unwritable outputs fail at once, exit 1,
 /// naming the flag or the path.
 #[test]
 fn bad_counts_and_outputs_fail_before_any_work() {
-    let dir = temp_dir("counts");
+    let dir = temp_dir("cli-counts");
     let model = dir.join("m.rrs");
     let m = model.to_str().expect("utf-8 path");
     assert!(rrskin(&["synth", "--grid", "5", "-o", m]).status.success());
@@ -197,14 +192,13 @@ fn bad_counts_and_outputs_fail_before_any_work() {
         );
         assert!(started.elapsed().as_secs() < 10, "{args:?} trained first");
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `rrskin reference` writes the C example's inputs: the poses, and the CPU evaluator's positions
 /// and tangents for exactly those poses.
 #[test]
 fn reference_writes_the_c_examples_inputs() {
-    let dir = temp_dir("reference");
+    let dir = temp_dir("cli-reference");
     let model = dir.join("m.rrs");
     let m = model.to_str().expect("utf-8 path");
     assert!(rrskin(&[
@@ -263,7 +257,6 @@ fn reference_writes_the_c_examples_inputs() {
         &floats("tangents.bin")[3 * 25 * 4..],
         "frame 1"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The learning curve of `eval`'s report: four points of 4-fold held-out EE at a quarter to all
@@ -476,7 +469,7 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
 fn a_trained_model_file_evaluates_as_trained() {
     let set = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../data/cesiumman");
     let set = set.to_str().expect("utf-8");
-    let dir = temp_dir("train");
+    let dir = temp_dir("cli-train");
     let model = dir.join("cm.rrs");
     let m = model.to_str().expect("utf-8");
     let trained = json(&rrskin(&[
@@ -633,14 +626,13 @@ fn a_trained_model_file_evaluates_as_trained() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("25 vertices") && err.contains("2338"), "{err}");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `rrskin demo` (the README's main job) trains on the bundled example and writes the model,
 /// the images and the report page.
 #[test]
 fn the_demo_writes_the_model_the_images_and_the_report() {
-    let dir = temp_dir("demo");
+    let dir = temp_dir("cli-demo");
     let out = rrskin(&["demo", "--out", dir.to_str().expect("utf-8")]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -691,7 +683,6 @@ fn the_demo_writes_the_model_the_images_and_the_report() {
         svg.starts_with("<svg") && svg.contains("runtime model") && svg.contains("DQS"),
         "{svg}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// `profile` and `bench` on a rig that lists every bone after its children (issue 13: this
@@ -700,7 +691,7 @@ fn the_demo_writes_the_model_the_images_and_the_report() {
 #[test]
 fn profile_and_bench_run_a_rig_listing_children_first() {
     use rrskin_render::synthetic::{random_model, random_poses, renumber_bones, Spec};
-    let dir = temp_dir("children-first");
+    let dir = temp_dir("cli-children-first");
     let plain = dir.join("plain.rrs");
     let p = plain.to_str().expect("utf-8 path");
     let synth = rrskin(&[
@@ -772,5 +763,4 @@ fn profile_and_bench_run_a_rig_listing_children_first() {
     ]));
     assert_eq!(bench["characters"], 3);
     assert!(bench["ratio"].as_f64().is_some_and(|r| r > 0.0), "{bench}");
-    std::fs::remove_dir_all(&dir).ok();
 }

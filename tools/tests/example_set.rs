@@ -53,7 +53,6 @@ fn error_after(name: &str, breaking: impl FnOnce(&Path)) -> String {
     write_valid(&dir);
     breaking(&dir);
     let err = ExampleSet::load(&dir).expect_err("a broken set must be refused");
-    std::fs::remove_dir_all(&dir).ok();
     err.to_string()
 }
 
@@ -74,7 +73,6 @@ fn a_valid_set_loads_with_its_split() {
     assert_eq!((set.train(), set.test()), (vec![0, 1], vec![2]));
     assert_eq!(set.parents, vec![None, Some(0)]);
     assert!(set.warnings.is_empty(), "{:?}", set.warnings);
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -204,7 +202,6 @@ fn degenerate_triangles_and_loose_vertices_are_warnings() {
         "{:?}",
         set.warnings
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -215,8 +212,6 @@ fn a_saved_set_loads_back() {
     let copy = temp_dir("set-save-copy");
     set.save(&copy).expect("save");
     assert_eq!(ExampleSet::load(&copy).expect("reload"), set);
-    std::fs::remove_dir_all(&dir).ok();
-    std::fs::remove_dir_all(&copy).ok();
 }
 
 #[test]
@@ -236,7 +231,6 @@ fn the_rigs_own_weights_load_when_present() {
         &skinned_by(&weights),
     );
     let set = ExampleSet::load(&dir).expect("valid");
-    std::fs::remove_dir_all(&dir).ok();
     let w = set.rig_weights.expect("weights");
     assert_eq!(w[0], vec![(0, 1.0)], "zero weights are dropped");
     assert_eq!(w[1], vec![(0, 0.25), (1, 0.75)]);
@@ -256,7 +250,6 @@ fn rig_weights_within_the_tolerance_are_rescaled_to_one() {
         &skinned_by(&weights),
     );
     let set = ExampleSet::load(&dir).expect("within the tolerance");
-    std::fs::remove_dir_all(&dir).ok();
     let w = set.rig_weights.expect("weights");
     let sum: f64 = w[3].iter().map(|(_, x)| x).sum();
     assert!((sum - 1.0).abs() < 1e-12, "row 3 sums to {sum}");

@@ -5,14 +5,17 @@
 
 #[path = "support/blender.rs"]
 mod blender;
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
 
-use blender::{blender_script, repo, rrskin, temp_dir};
+use blender::{blender_script, repo, rrskin};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::predict::Affine;
 use rrskin::{Model, ModelParts};
 use rrskin_render::synthetic::{palette_error, random_model, random_poses, with_mush_keys, Spec};
 use rrskin_tools::export::animation_pose;
 use rrskin_tools::import::gltf_rig::Rig;
+use scratch::temp_dir;
 use std::path::Path;
 use std::process::Command;
 

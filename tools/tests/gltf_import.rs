@@ -175,7 +175,6 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
         }
     }
     assert!(seams > 900, "{seams} seam pairs");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The rest tangents follow the texture: on each triangle, the direction along which u grows
@@ -293,7 +292,6 @@ fn bad_clips_and_caches_are_refused_with_their_numbers() {
     assert!(!out.exists(), "nothing may be written on error");
     let run = rrskin(&["eval", &rig(), "--cache", &cache()]);
     assert!(String::from_utf8_lossy(&run.stderr).contains("needs --clip"));
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Examples that are not the clip's keyframes (a wrong `--fps`), test frames outside the cache
@@ -373,7 +371,6 @@ fn frames_off_the_keys_or_the_cache_are_refused_before_training() {
         started.elapsed().as_secs() < 20 && !err.contains("training:"),
         "refused only after training: {err}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A one-triangle rig with one joint, written as .gltf + .bin: `skin` says whether the mesh
@@ -485,7 +482,6 @@ fn rigs_without_a_skin_or_with_a_singular_joint_are_refused() {
         e.contains("tiny.bin"),
         "the missing buffer file is named: {e}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// A file's TANGENT is taken to the rest mesh like its positions (here through the joint's
@@ -517,7 +513,6 @@ fn a_files_tangents_are_carried_to_the_rest_mesh_and_checked() {
         e.contains("tiny.gltf") && e.contains("TANGENT") && e.contains("vertex 0"),
         "{e}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The rest mesh is the mesh at its default morph weights (here one target moving every vertex
@@ -575,5 +570,4 @@ fn the_rest_mesh_is_at_the_default_morph_weights() {
             && notes.contains("animation 'a' animates the morph weights"),
         "{notes}"
     );
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -357,15 +357,13 @@ fn npy_example_sets_never_panic() {
     for f in files {
         std::fs::copy(seed_dir.join(f), work.join(f)).expect("copy");
     }
-    let dir = work.clone();
+    let dir = work.to_path_buf();
     let failures = campaign(seeds, move |seed, bytes| {
         let path = dir.join(&seed.name);
         std::fs::write(&path, bytes).expect("write mutant");
         let _ = ExampleSet::load(&dir);
         std::fs::write(&path, &seed.bytes).expect("restore");
     });
-    std::fs::remove_dir_all(&seed_dir).ok();
-    std::fs::remove_dir_all(&work).ok();
     assert_none(failures);
 }
 
@@ -407,7 +405,7 @@ fn gltf_rigs_and_point_caches_never_panic() {
     for (name, bytes) in &valid {
         std::fs::write(dir.join(name), bytes).expect("write seed");
     }
-    let work = dir.clone();
+    let work = dir.to_path_buf();
     let failures = campaign(seeds, move |seed, bytes| {
         let path = work.join(&seed.name);
         std::fs::write(&path, bytes).expect("write mutant");
@@ -425,7 +423,6 @@ fn gltf_rigs_and_point_caches_never_panic() {
         let _ = import(&work.join("rig.glb"), &options);
         std::fs::write(&path, &seed.bytes).expect("restore");
     });
-    std::fs::remove_dir_all(&dir).ok();
     assert_none(failures);
 }
 

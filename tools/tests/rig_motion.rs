@@ -26,7 +26,6 @@ fn a_rig_whose_own_lbs_is_no_better_than_rigid_bones_trains() {
     );
     let (ssd, rr) = (figure(&e, "ssd", "test"), figure(&e, "rr_reduced", "test"));
     assert!(rr < ssd, "held out: runtime model {rr} against SSD {ssd}");
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Vertices in other units (scaled 1.5x), rolled by a pose, or of another motion (the poses in
@@ -61,7 +60,6 @@ fn examples_that_are_not_the_rigs_motion_are_refused() {
             "{name}: {e}"
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// An animation whose vertices lag its poses by a frame loads with one warning saying so; the
@@ -88,7 +86,6 @@ fn poses_a_frame_out_of_step_are_named_on_one_line() {
             loaded.warnings
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// Bones that deform nothing and that the training poses leave at rest (an IK pole, an
@@ -127,5 +124,4 @@ fn bones_that_training_never_moves_get_nothing() {
             "weights {weights}: held out, still / moved"
         );
     }
-    std::fs::remove_dir_all(&dir).ok();
 }

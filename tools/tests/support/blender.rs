@@ -136,11 +136,3 @@ pub fn assert_same_figures(
 pub fn count(e: &serde_json::Value, key: &str) -> u64 {
     e[key].as_u64().unwrap_or_else(|| panic!("no {key} in {e}"))
 }
-
-/// A fresh empty folder under the system temp dir.
-pub fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("rrskin-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
-}

@@ -4,6 +4,10 @@
 use std::path::Path;
 
 pub mod limb;
+#[path = "../../../tests/common/scratch.rs"]
+mod scratch;
+#[allow(unused_imports)] // each test binary uses a different subset
+pub use scratch::temp_dir;
 
 pub fn write_f32(path: &Path, shape: &[usize], data: &[f32]) {
     rrskin_tools::import::npy::write_f32(path, shape, data).expect("write .npy");
@@ -11,14 +15,6 @@ pub fn write_f32(path: &Path, shape: &[usize], data: &[f32]) {
 
 pub fn write_i32(path: &Path, shape: &[usize], data: &[i32]) {
     rrskin_tools::import::npy::write_i32(path, shape, data).expect("write .npy");
-}
-
-/// A fresh empty folder under the system temp dir.
-pub fn temp_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("rrskin-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
 }
 
 /// A file of the repository's `data/`.
