@@ -8,7 +8,9 @@ const uint POLAR_SWEEPS = 4u;
 const float GUESS_SINE = 1e-4;
 
 // One Jacobi rotation of the symmetric 4x4 n (row-major) in the (p, q) plane, zeroing n[p][q]
-// (Numerical Recipes 11.1, t the smaller root), accumulated into the eigenvectors v.
+// (Numerical Recipes 11.1, eq. 11.1.14-11.1.18, t the smaller root): the diagonal moves by
+// t apq, the other rows' entries turn by (s, tau) and are mirrored, and the rotation is
+// accumulated into the eigenvectors v.
 void jacobi(inout float n[16], inout float v[16], uint p, uint q) {
     float apq = n[4u * p + q];
     if (apq == 0.0) {
@@ -26,23 +28,30 @@ void jacobi(inout float n[16], inout float v[16], uint p, uint q) {
     }
     float c = 1.0 / sqrt(t * t + 1.0);
     float s = t * c;
+    float tau = s / (1.0 + c);
+    float h = t * apq;
+    n[5u * p] -= h;
+    n[5u * q] += h;
+    n[4u * p + q] = 0.0;
+    n[4u * q + p] = 0.0;
     for (uint k = 0u; k < 4u; k++) {
-        float kp = n[4u * k + p];
-        float kq = n[4u * k + q];
-        n[4u * k + p] = c * kp - s * kq;
-        n[4u * k + q] = s * kp + c * kq;
+        if (k == p || k == q) {
+            continue;
+        }
+        float g = n[4u * k + p];
+        float hk = n[4u * k + q];
+        float kp = g - s * (hk + g * tau);
+        float kq = hk + s * (g - hk * tau);
+        n[4u * k + p] = kp;
+        n[4u * p + k] = kp;
+        n[4u * k + q] = kq;
+        n[4u * q + k] = kq;
     }
     for (uint k = 0u; k < 4u; k++) {
-        float pk = n[4u * p + k];
-        float qk = n[4u * q + k];
-        n[4u * p + k] = c * pk - s * qk;
-        n[4u * q + k] = s * pk + c * qk;
-    }
-    for (uint k = 0u; k < 4u; k++) {
-        float kp = v[4u * k + p];
-        float kq = v[4u * k + q];
-        v[4u * k + p] = c * kp - s * kq;
-        v[4u * k + q] = s * kp + c * kq;
+        float g = v[4u * k + p];
+        float hk = v[4u * k + q];
+        v[4u * k + p] = g - s * (hk + g * tau);
+        v[4u * k + q] = hk + s * (g - hk * tau);
     }
 }
 

@@ -41,17 +41,13 @@ macro_rules! nearest_rotations {
         /// The rotation nearest to each of `a`'s L matrices (row-major 3x3), row-major: the
         /// proper rotation R maximising tr(Rᵀ a); the identity for a = 0.
         pub fn $lanes<const L: usize>(a: &[[[$f; 3]; 3]; L]) -> [[[$f; 3]; 3]; L] {
-            /// Per lane, the cosine and sine of the Jacobi rotation that zeroes apq, from
-            /// t = tan of its angle, the smaller root; t = 0 (c = 1, s = 0) where apq = 0.
-            /// Selects of t alone, in a function of its own: inlined into the sweep, or with
-            /// selects of c or s, the compiler split the lanes into scalars.
+            /// Per lane, of the Jacobi rotation that zeroes apq: t = tan of its angle (the
+            /// smaller root; 0 where apq = 0), s = sin and τ = s / (1 + c). Selects of t alone,
+            /// in a function of its own: inlined into the sweep, or with selects of c or s, the
+            /// compiler split the lanes into scalars.
             #[inline(never)]
-            fn cos_sin<const L: usize>(
-                app: &[$f; L],
-                aqq: &[$f; L],
-                apq: &[$f; L],
-            ) -> ([$f; L], [$f; L]) {
-                let (mut c, mut s) = ([0.0 as $f; L], [0.0 as $f; L]);
+            fn angle<const L: usize>(app: &[$f; L], aqq: &[$f; L], apq: &[$f; L]) -> [[$f; L]; 3] {
+                let mut out = [[0.0 as $f; L]; 3];
                 for i in 0..L {
                     let theta = (aqq[i] - app[i]) / (2.0 * apq[i]);
                     let root = 1.0 / (theta.abs() + (theta * theta + 1.0).sqrt());
@@ -62,39 +58,43 @@ macro_rules! nearest_rotations {
                         root
                     };
                     let t = if apq[i] == 0.0 { 0.0 } else { t };
-                    c[i] = 1.0 / (t * t + 1.0).sqrt();
-                    s[i] = t * c[i];
+                    let c = 1.0 / (t * t + 1.0).sqrt();
+                    let s = t * c;
+                    [out[0][i], out[1][i], out[2][i]] = [t, s, s / (1.0 + c)];
                 }
-                (c, s)
+                out
             }
 
             /// The Jacobi rotation in the (P, Q) plane that zeroes n[P][Q] (Numerical Recipes
-            /// §11.1), applied to N on both sides and accumulated into V, on every lane.
+            /// §11.1, eq. 11.1.14–11.1.18), on every lane: N's diagonal moves by t apq, the
+            /// pair's entry becomes 0, and the other rows' entries turn by (s, τ), mirrored
+            /// to keep N symmetric; the rotation is accumulated into V.
             #[inline(always)]
             fn rotate<const P: usize, const Q: usize, const L: usize>(
                 n: &mut [[[$f; L]; 4]; 4],
                 v: &mut [[[$f; L]; 4]; 4],
             ) {
-                let (c, s) = cos_sin(&n[P][P], &n[Q][Q], &n[P][Q]);
-                for k in 0..4 {
+                let [t, s, tau] = angle(&n[P][P], &n[Q][Q], &n[P][Q]);
+                for i in 0..L {
+                    let h = t[i] * n[P][Q][i];
+                    n[P][P][i] -= h;
+                    n[Q][Q][i] += h;
+                    (n[P][Q][i], n[Q][P][i]) = (0.0, 0.0);
+                }
+                for k in (0..4).filter(|&k| k != P && k != Q) {
                     for i in 0..L {
-                        let (kp, kq) = (n[k][P][i], n[k][Q][i]);
-                        n[k][P][i] = c[i] * kp - s[i] * kq;
-                        n[k][Q][i] = s[i] * kp + c[i] * kq;
+                        let (g, h) = (n[k][P][i], n[k][Q][i]);
+                        let kp = g - s[i] * (h + g * tau[i]);
+                        let kq = h + s[i] * (g - h * tau[i]);
+                        (n[k][P][i], n[P][k][i]) = (kp, kp);
+                        (n[k][Q][i], n[Q][k][i]) = (kq, kq);
                     }
                 }
                 for k in 0..4 {
                     for i in 0..L {
-                        let (pk, qk) = (n[P][k][i], n[Q][k][i]);
-                        n[P][k][i] = c[i] * pk - s[i] * qk;
-                        n[Q][k][i] = s[i] * pk + c[i] * qk;
-                    }
-                }
-                for k in 0..4 {
-                    for i in 0..L {
-                        let (kp, kq) = (v[k][P][i], v[k][Q][i]);
-                        v[k][P][i] = c[i] * kp - s[i] * kq;
-                        v[k][Q][i] = s[i] * kp + c[i] * kq;
+                        let (g, h) = (v[k][P][i], v[k][Q][i]);
+                        v[k][P][i] = g - s[i] * (h + g * tau[i]);
+                        v[k][Q][i] = h + s[i] * (g - h * tau[i]);
                     }
                 }
             }
