@@ -135,8 +135,8 @@ macro_rules! nearest_rotations {
             (0..4).for_each(|k| v[k][k] = [1.0; L]);
             for _ in 0..SWEEPS {
                 // The pairs by literal indices, as glsl/polar.glsl names them: every index a
-                // constant, so n and v stay in registers (a loop over the pairs kept them in
-                // memory, and cost the CPU palette about twice as much).
+                // constant, so one lane's n and v stay in registers (a loop over the pairs kept
+                // them in memory, and cost the one-lane palette about twice as much).
                 rotate::<0, 1, L>(&mut n, &mut v);
                 rotate::<0, 2, L>(&mut n, &mut v);
                 rotate::<0, 3, L>(&mut n, &mut v);
