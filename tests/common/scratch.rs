@@ -39,7 +39,7 @@ impl AsRef<OsStr> for TempDir {
 }
 
 /// A folder for what a test binary makes once and keeps in a `static` (statics are never
-/// dropped, so a [`TempDir`] there would outlive the process): `NAME` in cargo's
+/// dropped, so a [`TempDir`] there would never be removed): `NAME` in cargo's
 /// `target/tmp`, emptied when made, replaced by the next run.
 pub fn fixture_dir(name: &str) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
