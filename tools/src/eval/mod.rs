@@ -425,8 +425,8 @@ fn mush_line(m: &mush::Mush) -> String {
             m.influences, m.mean_bones,
         );
     }
+    let margin = 100.0 * crate::train::delta_mush::MORE_KEYS_MARGIN;
     if !m.counts.is_empty() {
-        let margin = 100.0 * crate::train::delta_mush::MORE_KEYS_MARGIN;
         let counts: Vec<String> = (m.counts.iter())
             .map(|&(p, score, se)| format!("{p} {}", ee((score, se))))
             .collect();
@@ -438,7 +438,6 @@ fn mush_line(m: &mush::Mush) -> String {
     }
     if let [joint_blend, proxies, ref both @ ..] = m.scores[..] {
         let both = both.first().map_or(String::new(), |&b| {
-            let margin = 100.0 * crate::train::delta_mush::MORE_KEYS_MARGIN;
             format!(", both in one palette {} (to win by {margin:.0} %)", ee(b))
         });
         s += &format!(

@@ -124,15 +124,15 @@ pub struct Inputs<'a> {
 /// Fits delta-mush proxies of K = `options.influences` to the training poses and
 /// cross-validates them, alone and after the joint-blend model's, against the chosen
 /// joint-blend structure (kept without asking with [`Method::DeltaMush`], alone, and
-/// [`Method::Both`], after the joint-blend proxies); where they ship, as many as [`counts`]
-/// offers and the cross-validation keeps ([`MORE_KEYS_MARGIN`] a doubling). With the
-/// fit, the reduced model that ships in place of the joint-blend one (None where that stays),
-/// fitted to all training poses.
+/// [`Method::Both`], after the joint-blend proxies); where they ship, as many as
+/// [`offered_counts`] offers and the cross-validation keeps ([`MORE_KEYS_MARGIN`] a doubling).
+/// With the fit, the reduced model that ships in place of the joint-blend one (None where that
+/// stays), fitted to all training poses.
 pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduced>), TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let (params, vertex_ddm) =
         ddm::choose(set, train, &inputs.ssd.influences).map_err(smoothing)?;
-    let offered = counts(options, set.faces.len());
+    let offered = offered_counts(options, set.faces.len());
     let ladder = Groups::merge_at(set, train, &offered);
     let (proxy_params, plain, fitted) =
         proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0])?;
@@ -174,22 +174,12 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         kept: kinds.kept,
         correctives: kinds.correctives,
     };
-    let shipped = match (out.kept, kinds.shipped) {
-        (Kept::JointBlend, _) => None,
-        (_, Some(made)) => Some(made),
-        (Kept::DeltaMush, None) => Some(
-            out.proxies
-                .reduced(set.bone_count(), &inputs.ssd.influences),
-        ),
-        (Kept::Both, None) => Some(join(
-            inputs.reduced,
-            &out.proxies,
-            set,
-            train,
-            inputs.feats,
-            k,
-        )),
-    };
+    let shipped = kinds.shipped.or_else(|| {
+        let after = (out.kept == Kept::Both).then_some(inputs.reduced);
+        let (ssd, feats) = (inputs.ssd, inputs.feats);
+        (out.kept != Kept::JointBlend)
+            .then(|| mush_model(&out.proxies, (set, train), ssd, after, feats, k))
+    });
     Ok((out, shipped))
 }
 
@@ -236,17 +226,16 @@ fn choose_kind(
     };
     // Both kinds add P proxies to the joint-blend model's: where P is asked for
     // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
-    let alone = side
-        .proxies
-        .reduced(set.bone_count(), &inputs.ssd.influences);
-    let union = (options.method == Method::Auto)
-        .then(|| join(inputs.reduced, &side.proxies, set, train, inputs.feats, k));
+    let (ssd, feats) = (inputs.ssd, inputs.feats);
+    let alone = mush_model(&side.proxies, (set, train), ssd, None, feats, k);
+    let union = (options.method == Method::Auto).then(|| {
+        let after = Some(inputs.reduced);
+        mush_model(&side.proxies, (set, train), ssd, after, feats, k)
+    });
     let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
     let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
     let mut searched = corrective_searches(inputs, options, &kinds);
-    let choices: Vec<Option<Candidate>> = (searched.iter())
-        .map(|fit| fit.as_ref().and_then(|f| f.chosen))
-        .collect();
+    let choices = chosen_candidates(&searched);
     let validated = cross_validate(inputs, options, split, side, &choices).map_err(smoothing)?;
     let index = kept(&validated);
     Ok(Kinds {
@@ -265,7 +254,7 @@ fn smoothing(e: crate::Error) -> TrainError {
 
 /// The delta-mush proxy counts offered: P, and with `--reduction auto` the larger multiples of
 /// [`COUNT_FACTORS`] (at most one group a triangle).
-fn counts(options: &TrainOptions, triangles: usize) -> Vec<usize> {
+fn offered_counts(options: &TrainOptions, triangles: usize) -> Vec<usize> {
     let p = options.proxies.min(triangles);
     let mut counts = vec![p];
     if options.method == Method::Auto {
@@ -323,22 +312,19 @@ struct Ladder<'a> {
     params: &'a ddm::Params,
 }
 
-impl Ladder<'_> {
-    /// The kind's model of `proxies`, fitted to `poses` of a set with SSD `ssd`: the proxies
-    /// alone, or after `joint_blend`'s where both kinds ship.
-    fn model(
-        &self,
-        proxies: &MushProxies,
-        (set, poses): (&ExampleSet, &[usize]),
-        ssd: &Skinning,
-        joint_blend: Option<&Reduced>,
-        feats: &[PoseFeatures],
-        k: usize,
-    ) -> Reduced {
-        match (self.kind, joint_blend) {
-            (Kept::Both, Some(jb)) => join(jb, proxies, set, poses, feats, k),
-            _ => proxies.reduced(set.bone_count(), &ssd.influences),
-        }
+/// The delta-mush `proxies`' model as it ships, fitted to `poses` of a set with SSD `ssd`:
+/// after `joint_blend`'s proxies (both kinds in one palette), or alone.
+fn mush_model(
+    proxies: &MushProxies,
+    (set, poses): (&ExampleSet, &[usize]),
+    ssd: &Skinning,
+    joint_blend: Option<&Reduced>,
+    feats: &[PoseFeatures],
+    k: usize,
+) -> Reduced {
+    match joint_blend {
+        Some(jb) => join(jb, proxies, set, poses, feats, k),
+        None => proxies.reduced(set.bone_count(), &ssd.influences),
     }
 }
 
@@ -364,25 +350,17 @@ fn choose_count(
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let (ssd_weights, bones) = (&inputs.ssd.influences, set.bone_count());
     let larger = &ladder.groups[1..];
+    let after = (ladder.kind == Kept::Both).then_some(inputs.reduced);
     let mut fitted: Vec<(MushProxies, Reduced)> = (larger.iter())
         .map(|groups| {
             let proxies = MushProxies::fit(set, train, ladder.ddm, ssd_weights, groups, k);
-            let reduced = ladder.model(
-                &proxies,
-                (set, train),
-                inputs.ssd,
-                Some(inputs.reduced),
-                inputs.feats,
-                k,
-            );
+            let reduced = mush_model(&proxies, (set, train), inputs.ssd, after, inputs.feats, k);
             (proxies, reduced)
         })
         .collect();
     let models: Vec<&Reduced> = fitted.iter().map(|(_, reduced)| reduced).collect();
     let mut searched = corrective_searches(inputs, options, &models);
-    let choices: Vec<Option<Candidate>> = (searched.iter())
-        .map(|fit| fit.as_ref().and_then(|f| f.chosen))
-        .collect();
+    let choices = chosen_candidates(&searched);
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
     let held_out = try_cross_validate(split, &normaliser, larger.len(), TOLERANCE, |fold| {
         let f = FoldFit::new(inputs, k, fold);
@@ -400,7 +378,7 @@ fn choose_count(
                 .map(|(groups, choice)| {
                     let influences = &f.ssd.influences;
                     let mush = MushProxies::fit(&f.set, &f.inner, &fold_ddm, influences, groups, k);
-                    let model = ladder.model(
+                    let model = mush_model(
                         &mush,
                         (&f.set, &f.inner),
                         &f.ssd,
@@ -434,8 +412,7 @@ fn choose_count(
 fn kept_count(counts: &[(usize, f64, f64)]) -> usize {
     let clear = |&(more, score, _): &(usize, f64, f64),
                  &(kept, kept_score, _): &(usize, f64, f64)| {
-        let doublings = (more as f64 / kept as f64).log2();
-        score * (1.0 + MORE_KEYS_MARGIN).powf(2.0 * doublings) <= kept_score
+        wins_by_margin(score, kept_score, (more as f64 / kept as f64).log2())
     };
     (1..counts.len()).fold(0, |kept, i| match clear(&counts[i], &counts[kept]) {
         true => i,
@@ -518,6 +495,13 @@ fn corrective_searches(
         .collect()
 }
 
+/// Each search's chosen candidate (None: uncorrected, or no search).
+fn chosen_candidates(searched: &[Option<proxy_corrective::Fit>]) -> Vec<Option<Candidate>> {
+    (searched.iter())
+        .map(|fit| fit.as_ref().and_then(|f| f.chosen))
+        .collect()
+}
+
 /// The candidates' scores over the folds of `split`: the chosen joint-blend structure, the
 /// delta-mush proxies of `side`'s groups and smoothing, and, where offered (a third corrective
 /// choice), both in one palette; each corrected as `correctives` say.
@@ -540,14 +524,15 @@ fn cross_validate(
         // Each kind's held-out errors, as it ships: corrected as its candidate says.
         let held_error =
             |model: &Reduced, candidate| f.held_errors(inputs, options, model, candidate);
+        let (poses, feats) = ((&f.set, &f.inner[..]), inputs.feats);
+        let shipped = |after| mush_model(&mush, poses, &f.ssd, after, feats, k);
         let c = correctives;
         let mut rows = vec![
             held_error(&reduced, &c[0]),
-            held_error(&mush.reduced(bones, influences), &c[1]),
+            held_error(&shipped(None), &c[1]),
         ];
         if let Some(both) = c.get(2) {
-            let union = join(&reduced, &mush, &f.set, &f.inner, inputs.feats, k);
-            rows.push(held_error(&union, both));
+            rows.push(held_error(&shipped(Some(&reduced)), both));
         }
         Ok(rows)
     })
@@ -566,11 +551,18 @@ fn fold_joint_blend(inputs: &Inputs, options: &TrainOptions, f: &FoldFit) -> Red
 fn kept(validated: &Validated) -> usize {
     let alone = &validated.scores[..2];
     let best_alone = alone.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
-    let clear = |both: f64| both * (1.0 + MORE_KEYS_MARGIN).powi(2) <= best_alone;
+    // Both kinds add P keys to the better kind's: one doubling's margin.
+    let clear = |both: f64| wins_by_margin(both, best_alone, 1.0);
     match validated.chosen {
         2 if !clear(validated.scores[2].0) => validated.among_first(2, TOLERANCE).chosen,
         chosen => chosen,
     }
+}
+
+/// Whether a candidate of `score` with more delta-mush keys beats `against` by
+/// [`MORE_KEYS_MARGIN`] EE for each of its `doublings` of the keys, compounded (scores are EE²).
+fn wins_by_margin(score: f64, against: f64, doublings: f64) -> bool {
+    score * (1.0 + MORE_KEYS_MARGIN).powf(2.0 * doublings) <= against
 }
 
 #[cfg(test)]
