@@ -138,6 +138,7 @@
 //! vertex (xyz unit and orthogonal to the normal, w = ±1 with bitangent = cross(n, t) * w, as
 //! glTF's TANGENT; [`vk::TANGENT_STRIDE`] = 16 bytes), zero where the skinned tangent vanishes.
 
+pub mod cost;
 pub mod cpu;
 pub mod error;
 pub mod ffi;

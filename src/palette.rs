@@ -165,7 +165,6 @@ impl Palette {
     /// (the product then costs what the model's sparsity allows: joint-blend proxies read a
     /// few columns each).
     pub fn new(model: Model) -> Result<Palette> {
-        let j = model.bone_count();
         let keys: Vec<Key> = model
             .parts()
             .predictors
@@ -181,14 +180,7 @@ impl Palette {
                 h: k.h,
             })
             .collect();
-        let mut read = vec![false; j];
-        for k in &keys {
-            let second = k.second.map(|(b, _)| b);
-            for b in [Some(k.bone), k.parent, second].into_iter().flatten() {
-                read[b] = true;
-            }
-        }
-        let rotations = (0..j as u32).filter(|&b| read[b as usize]).collect();
+        let rotations = rotation_bones(&model);
         let blocks = BlockSparse::of(&model);
         let rest_normals = model.rest_normals();
         let drivers = (model.correctives().map_or(&[][..], |c| &c.drivers).iter())
@@ -447,6 +439,24 @@ impl Palette {
         self.proxy.correct(&scratch.features, &mut out[..p]);
         out[p..].copy_from_slice(q);
     }
+}
+
+/// The bones whose rotation relative to their parent (θ~_b) a character's predictors read: each
+/// key's bone, its parent and its second bone, ascending.
+pub(crate) fn rotation_bones(model: &Model) -> Vec<u32> {
+    let mut read = vec![false; model.bone_count()];
+    for k in &model.parts().predictors {
+        let (bone, second) = (k.bone as usize, k.second.as_ref().map(|s| s.bone as usize));
+        for b in [Some(bone), model.parent(bone), second]
+            .into_iter()
+            .flatten()
+        {
+            read[b] = true;
+        }
+    }
+    (0..read.len() as u32)
+        .filter(|&b| read[b as usize])
+        .collect()
 }
 
 /// Every delta-mush key's gradient `D_s = polar(A_s)` for one character's bones `q`, as three

@@ -9,6 +9,11 @@ use super::Model;
 /// column k' % 4 of bone k' / 4 (k' = k − 3P). A joint-blend proxy touches its own key's 3
 /// columns and its 2-3 bones' 4 each (~11 of 3P + 4J); the paper's reduction and synthetic
 /// models are dense.
+/// The block-sparse layout is chosen when the stored columns are fewer than this fraction of
+/// the P (3P + 4J) of the dense matrix (then it is also the smaller: 20 bytes a stored column
+/// against 16 a dense one).
+pub(crate) const MAX_SPARSE_DENSITY: f64 = 0.25;
+
 #[derive(Debug, Clone, Default, PartialEq)]
 pub(crate) struct BlockSparse {
     /// P + 1: proxy e's columns are `columns[offsets[e]..offsets[e + 1]]`.
@@ -38,6 +43,17 @@ impl BlockSparse {
             blocks.offsets.push(blocks.columns.len() as u32);
         }
         blocks
+    }
+
+    /// The layout the GPU's product runs on: `model`'s blocks, or `None` where the product
+    /// stays the dense GEMM (no proxies, an all-zero matrix, or stored columns at or above
+    /// [`MAX_SPARSE_DENSITY`] of the dense P (3P + 4J)).
+    pub fn layout_of(model: &Model) -> Option<BlockSparse> {
+        let width = 3 * model.proxy_count() + 4 * model.bone_count();
+        let blocks = BlockSparse::of(model);
+        let stored = blocks.columns.len() as f64;
+        let dense = (model.proxy_count() * width) as f64;
+        (stored > 0.0 && stored < MAX_SPARSE_DENSITY * dense).then_some(blocks)
     }
 
     /// Proxy e's stored columns and their values.

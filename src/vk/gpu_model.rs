@@ -132,7 +132,7 @@ impl GpuModel {
         model: &Model,
         settings: GpuModelDebugSettings,
     ) -> Result<GpuModel> {
-        let sparse = sparse_layout(model);
+        let sparse = BlockSparse::layout_of(model);
         let in_product = (settings.correctives_in_product).unwrap_or(!context.limits().cpu_device);
         let dims = model_dims(model, sparse.as_ref(), in_product);
         if model.vertex_count() as u64 >= u64::from(FAN_PIVOT) {
@@ -233,7 +233,7 @@ impl GpuModel {
     }
 
     /// Whether [C1 | C2] was stored block-sparse (the sparse product runs) rather than dense
-    /// (the tiled GEMM runs): see [`sparse_layout`].
+    /// (the tiled GEMM runs): see [`BlockSparse::layout_of`].
     pub fn is_block_sparse(&self) -> bool {
         self.inner.dims.sparse
     }
@@ -360,22 +360,6 @@ fn proxy_topology(model: &Model) -> Vec<u32> {
         .flatten()
         .copied()
         .collect()
-}
-
-/// The block-sparse layout is chosen when the stored columns are fewer than this fraction of
-/// the P (3P + 4J) of the dense matrix (then it is also the smaller: 20 bytes a stored column
-/// against 16 a dense one).
-pub(crate) const MAX_SPARSE_DENSITY: f64 = 0.25;
-
-/// The block-sparse layout of `model`'s [C1 | C2] the product runs on, or `None` where it
-/// should stay dense (no proxies, density at or above [`MAX_SPARSE_DENSITY`], or an all-zero
-/// matrix).
-pub(crate) fn sparse_layout(model: &Model) -> Option<BlockSparse> {
-    let width = 3 * model.proxy_count() + 4 * model.bone_count();
-    let blocks = BlockSparse::of(model);
-    let stored = blocks.columns.len() as f64;
-    let dense = (model.proxy_count() * width) as f64;
-    (stored > 0.0 && stored < MAX_SPARSE_DENSITY * dense).then_some(blocks)
 }
 
 /// The keys' words of `glsl/predictor.glsl`'s `mush()`, read after the J bone parents: P + 1

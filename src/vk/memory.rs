@@ -57,7 +57,7 @@ pub struct ModelSizes {
 
 impl ModelSizes {
     pub fn of(model: &Model) -> ModelSizes {
-        let columns = super::gpu_model::sparse_layout(model).map_or(0, |b| b.columns.len());
+        let columns = crate::model::BlockSparse::layout_of(model).map_or(0, |b| b.columns.len());
         ModelSizes::with_layout(model, columns, model.normal_fans().entries.len())
     }
 

@@ -42,7 +42,7 @@ enum Command {
     /// Write a synthetic model (random, valid, untrained) of chosen size, for profiling.
     Synth(cli::synth::SynthArgs),
     /// Rotational regression against plain SSD skinning of the same mesh: GPU time per frame.
-    Bench(cli::device::RunArgs),
+    Bench(cli::bench::BenchArgs),
     /// Per-pass GPU time (timestamp queries) of a crowd of the model's characters.
     Profile(cli::device::RunArgs),
     /// Write a crowd's bone transforms and the CPU evaluator's positions for them

@@ -1,10 +1,26 @@
-//! `rrskin bench MODEL.rrs`: the per-frame pipeline against plain palette skinning.
+//! `rrskin bench MODEL.rrs`: the per-frame pipeline against plain palette skinning, or with
+//! `--palette` the CPU palette.
 
 use super::device::RunArgs;
 use super::{count, Outcome};
+use rrskin_tools::run::palette_bench::PaletteBench;
 
-/// `rrskin bench`: RR against SSD and the optional outputs' costs.
-pub fn run(args: &RunArgs) -> Outcome {
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub run: RunArgs,
+    /// Measure the CPU palette instead (what an engine with its own skinning runs): µs a
+    /// character on one thread and on every core; no Vulkan device is used.
+    #[arg(long)]
+    pub palette: bool,
+}
+
+/// `rrskin bench`: RR against SSD and the optional outputs' costs, or the CPU palette.
+pub fn run(args: &BenchArgs) -> Outcome {
+    if args.palette {
+        return palette(&args.run);
+    }
+    let args = &args.run;
     let (m, choice) = args.load()?;
     let (characters, frames, json) = (args.characters, args.frames, args.json);
     let b = rrskin_tools::run::bench::Bench::run(&m, characters, frames, choice, json)?;
@@ -64,6 +80,24 @@ pub fn run(args: &RunArgs) -> Outcome {
             p.bytes as f64 / 1e6,
             p.effective_gbps()
         );
+    }
+    Ok(())
+}
+
+/// `rrskin bench --palette`.
+fn palette(args: &RunArgs) -> Outcome {
+    let (m, _) = args.load()?;
+    let b = PaletteBench::run(&m, args.characters, args.frames, args.json)?;
+    match args.json {
+        true => out!("{}", b.to_json()),
+        false => out!(
+            "CPU palette, {}, median of {}: {:.2} us a character on one thread, {:.2} us on {} threads",
+            count(b.characters, "character"),
+            count(b.frames, "run"),
+            b.us,
+            b.us_threads,
+            b.threads
+        ),
     }
     Ok(())
 }

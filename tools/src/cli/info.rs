@@ -23,7 +23,7 @@ pub fn run(args: &InfoArgs) -> Outcome {
             "tangents": m.has_tangents(), "correctives": m.corrective_count(),
             "proxy_correctives": m.proxy_corrective_count(),
             "mush_keys": m.mush_keys().map_or(0, |k| k.count()), "up": m.up(),
-            "clamped": clamped,
+            "clamped": clamped, "cost": rrskin_tools::eval::cost::to_json(&m),
         });
         out!("{dims}");
     } else {
@@ -46,6 +46,7 @@ pub fn run(args: &InfoArgs) -> Outcome {
             },
             if clamped { ", features clamped to the training range" } else { "" },
         );
+        out!("{}", rrskin_tools::eval::cost::line(&m));
     }
     Ok(())
 }

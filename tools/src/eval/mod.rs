@@ -6,6 +6,7 @@
 //! `EE = sqrt(Σ_i Σ_a |y_a(q_i) − y_a^i|² / Σ_i Σ_a |r_a(q_i) − y_a^i|²)` in percent, r the best
 //! rigid predictor (one bone per vertex, chosen on the training poses).
 
+pub mod cost;
 pub mod diagnose;
 pub mod learning_curve;
 pub mod mush;
