@@ -3,6 +3,7 @@
 use super::note;
 use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
 use rrskin_tools::set::ExampleSet;
+use rrskin_tools::train::budget::CostBudget;
 use rrskin_tools::train::{Method, TrainOptions};
 use std::path::PathBuf;
 
@@ -53,12 +54,48 @@ pub struct TrainArgs {
     /// Mush or Corrective Smooth; they cost training a mesh merging and a cross-validation).
     #[arg(long)]
     pub no_delta_mush: bool,
+    /// What the runtime model's frame may cost, as a multiple of the engine baseline (SSD's
+    /// weights, one skinning pass with transformed normals), by the cost model (`rrskin info`
+    /// reports it): every choice is the best cross-validated one within it. `none`: choose by
+    /// error alone.
+    #[arg(long, value_name = "R|none", default_value_t = FrameBudget(TrainOptions::default().budget.frame), value_parser = parse_budget)]
+    pub budget: FrameBudget,
+    /// What the CPU palette may cost, µs a character on one core (engines with their own
+    /// skinning; by the cost model, calibrated on this project's machines). No limit by default.
+    #[arg(long, value_name = "US", value_parser = parse_positive)]
+    pub palette_budget: Option<f64>,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
     pub no_gentle_poses: bool,
     /// One JSON object (the contract of docs/cli.md) on stdout, no progress.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `--budget`: a multiple of the engine baseline, or none.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameBudget(pub Option<f64>);
+
+impl std::fmt::Display for FrameBudget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(r) => write!(f, "{r}"),
+            None => write!(f, "none"),
+        }
+    }
+}
+
+fn parse_budget(text: &str) -> Result<FrameBudget, String> {
+    match text {
+        "none" => Ok(FrameBudget(None)),
+        _ => parse_positive(text).map(|r| FrameBudget(Some(r))),
+    }
+}
+
+fn parse_positive(text: &str) -> Result<f64, String> {
+    (text.trim().parse::<f64>().ok())
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| format!("'{text}': expected a positive number"))
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -93,6 +130,10 @@ impl TrainArgs {
                 Vec::new()
             } else {
                 defaults.gentle_scales
+            },
+            budget: CostBudget {
+                frame: self.budget.0,
+                palette_us: self.palette_budget,
             },
             quiet: self.json,
             ..defaults

@@ -20,6 +20,7 @@ use crate::train::proxy_corrective;
 use crate::train::selection::Choice;
 use crate::train::ssd;
 use crate::train::structure::{Chosen, Ridges, Structure, Why};
+use crate::train::budget::{CostBudget, Priced, Refused};
 use crate::train::{full_model, Method, TrainOptions, Trained};
 use crate::{Error, Result};
 use glam::DVec3;
@@ -94,6 +95,9 @@ pub struct Report {
     pub normal_error: normals::NormalErrors,
     /// The runtime model trained here (None with `Options::model` or P = 0).
     pub model: Option<rrskin::Model>,
+    /// The cost budget training kept to, and what it refused ([`crate::train::budget`]).
+    pub cost_budget: CostBudget,
+    pub refused: Vec<Refused>,
     /// The full model's F percentile, ridge and fallback chosen by cross-validation, and the
     /// mean weight of the regression in the triangles' blended gradients (1: the paper).
     pub choice: Option<(Choice, f64)>,
@@ -188,7 +192,44 @@ impl Report {
                 "rr_reduced": reduced_seconds,
             },
             "stages": stages,
+            "cost": self.model.as_ref().map(cost::to_json),
+            "budget": self.budget_json(),
         })
+    }
+
+    /// `budget`: the limits, the runtime model's price against them, and what they refused.
+    fn budget_json(&self) -> serde_json::Value {
+        let priced = |p: &Priced| serde_json::json!({"frame": p.frame, "palette_us": p.palette_us});
+        let b = &self.cost_budget;
+        serde_json::json!({
+            "frame": b.frame, "palette_us": b.palette_us,
+            "model": self.model.as_ref().map(|m| priced(&Priced::of(m))),
+            "refused": self.refused.iter().map(|r| serde_json::json!({
+                "candidate": r.candidate, "cost": priced(&r.priced), "load": r.load,
+                "ee": r.ee.map(|e| e.0), "kept_ee": r.ee.map(|e| e.1),
+            })).collect::<Vec<_>>(),
+        })
+    }
+
+    /// The runtime model's predicted cost against the budget, and what the budget refused.
+    fn budget_lines(&self) -> String {
+        let Some(model) = &self.model else {
+            return String::new();
+        };
+        let (p, b) = (Priced::of(model), &self.cost_budget);
+        let limit = |l: Option<f64>, unit: &str| l.map_or("no limit".to_string(), |l| format!("budget {l:.2}{unit}"));
+        let mut s = format!(
+            "cost: {:.2} x the engine baseline ({}), CPU palette {:.1} us a character ({})\n",
+            p.frame,
+            limit(b.frame, " x"),
+            p.palette_us,
+            limit(b.palette_us, " us"),
+        );
+        // What would have gained, or was not scored (the JSON lists every refusal).
+        for r in self.refused.iter().filter(|r| r.ee.is_none_or(|(ee, kept)| ee < kept)) {
+            s += &format!("  refused by the budget: {}\n", r.line());
+        }
+        s
     }
 
     /// The report as a table: one row of train and test EE per method, then the normals'
@@ -263,6 +304,7 @@ impl Report {
         if let Some(c) = &self.structure {
             s += &structure_line(c);
         }
+        s += &self.budget_lines();
         if let Some(m) = &self.mush {
             let label = format!("delta-mush proxies, P = {}", m.proxies);
             row(&mut s, &label, &m.errors);
@@ -390,6 +432,7 @@ fn structure_line(c: &Chosen) -> String {
         }
         Why::TooFewPoses => " (P as given: too few training poses to cross-validate)",
         Why::CrossValidated => "",
+        Why::Budget => " (the most the cost budget admits)",
     };
     if !why.is_empty() {
         return line + why + "\n";
@@ -597,6 +640,7 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
         stages.push(("learning curve", start.elapsed().as_secs_f64()));
     }
     report.stages = stages;
+    report.cost_budget = options.train.budget;
     report.folds = options.train.folds.min(scorer.train.len());
     Ok(report)
 }
@@ -671,6 +715,8 @@ fn score(
         budget: None,
         normal_error: Vec::new(),
         model: trained.model.clone(),
+        cost_budget: CostBudget::NONE,
+        refused: trained.refused.clone(),
         choice: full.map(|f| {
             let alpha = &f.selection.alpha;
             (

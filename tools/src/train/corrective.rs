@@ -62,6 +62,18 @@ pub struct Fit {
     pub correctives: Option<Correctives>,
 }
 
+impl Fit {
+    /// EE (%) without correctives and with the ridge kept (None: none kept) over the training
+    /// folds.
+    pub fn ee(&self) -> (f64, Option<f64>) {
+        let kept = (self.ridge)
+            .and_then(|r| RIDGES.iter().position(|&x| x == r))
+            .and_then(|i| self.scores.get(i + 1));
+        let ee = |s: &Score| crate::train::budget::ee_of_score(s.0);
+        (self.scores.first().map_or(f64::NAN, ee), kept.map(ee))
+    }
+}
+
 /// The per-pose features φ_b of every joint (zeros for roots).
 pub fn features(set: &ExampleSet, f: &PoseFeatures) -> Vec<[f64; 9]> {
     (0..set.bone_count())

@@ -27,6 +27,7 @@ use crate::train::reduce::mush::{join, Groups, MushProxies};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
 use crate::train::{corrective, proxy_corrective};
+use crate::train::budget::{ee_of_score, Ledger, Priced};
 use crate::train::{pose_scale, ssd, Method, TrainError, TrainOptions};
 use glam::DVec3;
 
@@ -119,6 +120,8 @@ pub struct Inputs<'a> {
     pub joint_blend: &'a JointBlendFit,
     /// The joint-blend model of `chosen`, fitted to all training poses.
     pub reduced: &'a Reduced,
+    /// What the cost budget refuses, noted.
+    pub ledger: &'a Ledger,
 }
 
 /// Fits delta-mush proxies of K = `options.influences` to the training poses and
@@ -132,8 +135,15 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let (params, vertex_ddm) =
         ddm::choose(set, train, &inputs.ssd.influences).map_err(smoothing)?;
-    let offered = offered_counts(options, set.faces.len());
-    let ladder = Groups::merge_at(set, train, &offered);
+    let mut offered = offered_counts(options, set.faces.len());
+    let fewer = fewer_counts(offered[0]);
+    let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
+    let mut ladder = Groups::merge_at(set, train, &counts);
+    let fewer_groups = ladder.split_off(offered.len());
+    if let Some(at) = first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)? {
+        // Fewer than P: the larger counts cost more still.
+        (offered, ladder) = (vec![fewer[at]], fewer_groups.into_iter().skip(at).take(1).collect());
+    }
     let (proxy_params, plain, fitted) =
         proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0])?;
     let proxy_ddm = plain.as_ref().unwrap_or(&vertex_ddm);
@@ -155,8 +165,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
                 ddm: proxy_ddm,
                 params: &proxy_params,
             };
-            let count =
-                choose_count(inputs, options, split, &larger, first_row).map_err(smoothing)?;
+            let count = choose_count(inputs, options, split, &larger, first_row)?;
             counts = count.scores;
             if let Some(more) = count.kept {
                 (proxies, kinds.correctives, kinds.shipped) = more;
@@ -235,15 +244,79 @@ fn choose_kind(
     let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
     let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
     let mut searched = corrective_searches(inputs, options, &kinds);
+    let refused = admit(inputs, options, &kinds, &mut searched)?;
     let choices = chosen_candidates(&searched);
     let validated = cross_validate(inputs, options, split, side, &choices).map_err(smoothing)?;
-    let index = kept(&validated);
+    // The kinds cost more in their order: those within the budget lead.
+    let index = match refused.iter().take_while(|r| r.is_none()).count() {
+        n if n == kinds.len() => kept(&validated),
+        1 => 0,
+        n => kept(&validated.among_first(n, TOLERANCE)),
+    };
+    let ee = |i: usize| ee_of_score(validated.scores[i].0);
+    for (i, priced) in refused.iter().enumerate() {
+        if let Some(priced) = priced {
+            let what = describe(kinds[i]);
+            let budget = &options.budget;
+            inputs.ledger.refuse(budget, what, *priced, Some((ee(i), ee(index))));
+        }
+    }
     Ok(Kinds {
         kept: [Kept::JointBlend, Kept::DeltaMush, Kept::Both][index],
         validated: Some(validated),
         correctives: searched.swap_remove(index),
         shipped: (index > 0).then(|| made.swap_remove(index - 1)),
     })
+}
+
+/// Prices each of `kinds` (fitted to all training poses) as it ships, with the proxy
+/// correctives its search (`searched`, alike) chose. Where only the correctives put a kind over
+/// the cost budget, they leave its search (noted); where it is over without them, its price:
+/// the kind is refused. The first kind, the joint-blend model, is never refused: it is what
+/// stays.
+fn admit(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    kinds: &[&Reduced],
+    searched: &mut [Option<proxy_corrective::Fit>],
+) -> Result<Vec<Option<Priced>>, TrainError> {
+    let (set, k, budget) = (inputs.set, options.influences, &options.budget);
+    let mut refused = Vec::with_capacity(kinds.len());
+    for (i, (kind, search)) in kinds.iter().zip(searched.iter_mut()).enumerate() {
+        let plain = kind.to_runtime(set, k)?;
+        if let Some(fit) = search.as_mut() {
+            if let Some(c) = &fit.correctives {
+                let corrected = rrskin::Model::new(rrskin::ModelParts {
+                    proxy_correctives: Some(c.to_runtime()),
+                    ..plain.parts().clone()
+                })?;
+                let priced = Priced::of(&corrected);
+                if budget.admits(&priced) {
+                    refused.push(None);
+                    continue;
+                }
+                let (uncorrected, ee) = fit.ee();
+                let what = format!("proxy correctives on {}", describe(kind));
+                let ee = ee.map(|ee| (ee, uncorrected));
+                inputs.ledger.refuse(budget, what, priced, ee);
+                (fit.chosen, fit.correctives) = (None, None);
+            }
+        }
+        let priced = Priced::of(&plain);
+        refused.push((i > 0 && !budget.admits(&priced)).then_some(priced));
+    }
+    Ok(refused)
+}
+
+/// A reduced model's keys, as the report names a candidate: "54 joint-blend proxies", "60
+/// delta-mush proxies", "54 joint-blend and 60 delta-mush proxies".
+fn describe(r: &Reduced) -> String {
+    let mush = r.mush.as_ref().map_or(0, Ddm::entries);
+    match (r.proxies - mush, mush) {
+        (jb, 0) => format!("{jb} joint-blend proxies"),
+        (0, mush) => format!("{mush} delta-mush proxies"),
+        (jb, mush) => format!("{jb} joint-blend and {mush} delta-mush proxies"),
+    }
 }
 
 fn smoothing(e: crate::Error) -> TrainError {
@@ -266,6 +339,48 @@ fn offered_counts(options: &TrainOptions, triangles: usize) -> Vec<usize> {
         }
     }
     counts
+}
+
+/// The counts below P the cost budget may step down to: P/2, P/4, … down to 1.
+fn fewer_counts(p: usize) -> Vec<usize> {
+    std::iter::successors(Some(p / 2), |&c| Some(c / 2))
+        .take_while(|&c| c >= 1)
+        .collect()
+}
+
+/// Where the delta-mush proxies alone at P (`groups`, smoothed by `vertex_ddm`) are over the
+/// cost budget (noted), the index in `fewer` (P/2, P/4, …) of the largest count within it
+/// (the cheapest where none is); None where P is within it.
+fn first_within_budget(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    vertex_ddm: &Ddm,
+    groups: &Groups,
+    fewer: &[Groups],
+) -> Result<Option<usize>, TrainError> {
+    let budget = &options.budget;
+    if *budget == crate::train::budget::CostBudget::NONE {
+        return Ok(None);
+    }
+    let (set, train, k) = (inputs.set, inputs.train, options.influences);
+    let price = |groups: &Groups| -> Result<Priced, TrainError> {
+        let proxies = MushProxies::fit(set, train, vertex_ddm, &inputs.ssd.influences, groups, k);
+        let model = mush_model(&proxies, (set, train), inputs.ssd, None, inputs.feats, k);
+        Ok(Priced::of(&model.to_runtime(set, k)?))
+    };
+    let mut priced = price(groups)?;
+    let mut count = groups.adjacency.len();
+    for (i, g) in std::iter::once(None).chain(fewer.iter().map(Some)).enumerate() {
+        if let Some(g) = g {
+            (priced, count) = (price(g)?, g.adjacency.len());
+        }
+        if budget.admits(&priced) {
+            return Ok(i.checked_sub(1));
+        }
+        let what = format!("{count} delta-mush proxies");
+        inputs.ledger.refuse(budget, what, priced, None);
+    }
+    Ok(Some(fewer.len().saturating_sub(1)))
 }
 
 /// The proxies' smoothing on `groups`: DDM's `params` (Ω `vertex_ddm`), or none (p = 0: each
@@ -346,7 +461,7 @@ fn choose_count(
     split: &Folds,
     ladder: &Ladder,
     first: &[f64],
-) -> crate::Result<Count> {
+) -> Result<Count, TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let (ssd_weights, bones) = (&inputs.ssd.influences, set.bone_count());
     let larger = &ladder.groups[1..];
@@ -358,8 +473,30 @@ fn choose_count(
             (proxies, reduced)
         })
         .collect();
+    // Each larger count costs more: those within the budget lead, the others are not scored.
+    let budget = &options.budget;
+    let mut within = fitted.len();
+    for (i, (_, reduced)) in fitted.iter().enumerate() {
+        let priced = Priced::of(&reduced.to_runtime(set, k)?);
+        if within == fitted.len() && !budget.admits(&priced) {
+            within = i;
+        }
+        if i >= within {
+            inputs.ledger.refuse(budget, describe(reduced), priced, None);
+        }
+    }
+    fitted.truncate(within);
+    if within == 0 {
+        let (score, se) = Validated::of(vec![first.to_vec()], TOLERANCE).scores[0];
+        return Ok(Count {
+            scores: vec![(ladder.offered[0], score, se)],
+            kept: None,
+        });
+    }
+    let larger = &larger[..within];
     let models: Vec<&Reduced> = fitted.iter().map(|(_, reduced)| reduced).collect();
     let mut searched = corrective_searches(inputs, options, &models);
+    admit(inputs, options, &models, &mut searched)?;
     let choices = chosen_candidates(&searched);
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
     let held_out = try_cross_validate(split, &normaliser, larger.len(), TOLERANCE, |fold| {
@@ -390,9 +527,10 @@ fn choose_count(
                 })
                 .collect(),
         )
-    })?;
+    })
+    .map_err(smoothing)?;
     let rows = std::iter::once(first.to_vec()).chain(held_out.relative);
-    let scores: Vec<(usize, f64, f64)> = (ladder.offered.iter())
+    let scores: Vec<(usize, f64, f64)> = (ladder.offered[..=within].iter())
         .zip(Validated::of(rows.collect(), TOLERANCE).scores)
         .map(|(&p, (score, se))| (p, score, se))
         .collect();

@@ -21,10 +21,12 @@
 //! | how many joint-blend proxies: chosen per set | [`structure`] | beyond the paper |
 //! | or delta-mush proxies, alone or after the joint-blend ones, where cross-validation prefers them | [`delta_mush`], [`reduce::mush`] | beyond the paper |
 //! | pose-space correctives on the runtime model | [`corrective`] | §8 (suggested there) |
+//! | what the runtime model may cost: every choice within it | [`budget`] | beyond the paper |
 //!
 //! Every choice is made on the training poses; test poses are never looked at here.
 
 pub mod augment;
+pub mod budget;
 pub mod corrective;
 pub mod cross_validate;
 pub mod delta_mush;
@@ -44,10 +46,12 @@ pub mod structure;
 use crate::progress::Progress;
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
+use budget::{CostBudget, Ledger, Priced, Refused};
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use rotreg::PoseFeatures;
 use selection::Selection;
+use cross_validate::Validated;
 use std::fmt;
 use std::time::Instant;
 
@@ -109,6 +113,8 @@ pub struct TrainOptions {
     /// model, kept where cross-validation prefers them (smoothing rigs: Delta Mush, Corrective
     /// Smooth). Off: the joint-blend model always.
     pub delta_mush: bool,
+    /// What the runtime model may cost ([`budget`]): every choice the best within it.
+    pub budget: CostBudget,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -128,6 +134,7 @@ impl Default for TrainOptions {
             proxy_kernels: false,
             up: Some([0.0, 1.0, 0.0]),
             delta_mush: true,
+            budget: CostBudget::default(),
             quiet: false,
         }
     }
@@ -229,6 +236,10 @@ pub struct Trained {
     /// both in one palette (None: not asked for, or no joint-blend model to compare with).
     pub delta_mush: Option<delta_mush::Fit>,
     pub model: Option<rrskin::Model>,
+    /// The runtime model's predicted cost ([`budget::Priced`]).
+    pub priced: Option<Priced>,
+    /// What the cost budget refused, in the order the stages met it.
+    pub refused: Vec<Refused>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
 }
@@ -333,6 +344,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     clock.lap("ssd");
     progress.step();
 
+    let ledger = Ledger::default();
     let stages = Stages {
         set,
         train: &train,
@@ -341,6 +353,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         ssd: &ssd,
         options,
         progress: &progress,
+        ledger: &ledger,
     };
     let full = match with_full {
         false => None,
@@ -363,13 +376,16 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         correctives: runtime.correctives,
         proxy_correctives: runtime.proxy_correctives,
         delta_mush: runtime.delta_mush,
+        priced: runtime.model.as_ref().map(Priced::of),
         model: runtime.model,
+        refused: ledger.into_refused(),
         seconds: clock.seconds,
     })
 }
 
 /// What the stages after SSD read: the set, its training poses and their features, the two
-/// baselines, the options, and the progress bar each stage reports to.
+/// baselines, the options, the progress bar each stage reports to, and the ledger of what the
+/// cost budget refused.
 struct Stages<'a> {
     set: &'a ExampleSet,
     train: &'a [usize],
@@ -378,6 +394,7 @@ struct Stages<'a> {
     ssd: &'a Skinning,
     options: &'a TrainOptions,
     progress: &'a Progress,
+    ledger: &'a Ledger,
 }
 
 /// The runtime model and what its stages chose ([`Trained`]'s fields of the same names; all
@@ -427,7 +444,7 @@ impl Stages<'_> {
         pool: usize,
         clock: &mut Clock,
     ) -> Result<Runtime, TrainError> {
-        let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock);
+        let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock)?;
         let (mut delta_mush, shipped) = match &joint_blend {
             Some(fit) => self.fit_delta_mush(&chosen, fit, &reduced, clock)?,
             None => (None, None),
@@ -474,6 +491,7 @@ impl Stages<'_> {
             chosen,
             joint_blend,
             reduced,
+            ledger: self.ledger,
         };
         let (fit, shipped) = delta_mush::fit(&inputs, self.options)?;
         clock.lap("delta-mush proxies");
@@ -490,7 +508,7 @@ impl Stages<'_> {
         proxies: usize,
         pool: usize,
         clock: &mut Clock,
-    ) -> (Reduced, Option<structure::JointBlendFit>, structure::Chosen) {
+    ) -> Result<(Reduced, Option<structure::JointBlendFit>, structure::Chosen), TrainError> {
         let (set, feats, ssd, options, progress) =
             (self.set, self.feats, self.ssd, self.options, self.progress);
         // Auto starts from its first candidate, which also fixes the ridges its folds use.
@@ -516,18 +534,64 @@ impl Stages<'_> {
                     (reduced, fitted) =
                         structure::build(set, feats, ssd, full_parts, &c.structure, options, None);
                 }
+                let built = self.within_budget(c, reduced, fitted)?;
                 clock.lap("structure");
                 progress.step();
-                c
+                return Ok(built);
             }
             _ => structure::Chosen {
                 structure: first,
                 candidates: Vec::new(),
                 folds: 0,
                 why: structure::Why::Asked,
+                relative: Vec::new(),
             },
         };
-        (reduced, fitted, chosen)
+        Ok((reduced, fitted, chosen))
+    }
+
+    /// The joint-blend structure `chosen` (built: `reduced`, `fitted`), or, where its model is
+    /// over the cost budget, the cross-validation's choice among the cheaper candidates (fewer
+    /// proxies), and below the cheapest half its proxies, until one is within the budget (or
+    /// one proxy is left).
+    fn within_budget(
+        &self,
+        mut chosen: structure::Chosen,
+        mut reduced: Reduced,
+        mut fitted: Option<structure::JointBlendFit>,
+    ) -> Result<(Reduced, Option<structure::JointBlendFit>, structure::Chosen), TrainError> {
+        let (set, options) = (self.set, self.options);
+        let budget = &options.budget;
+        let ridges = fitted.as_ref().map(structure::JointBlendFit::ridges);
+        loop {
+            let k = chosen.structure.influences;
+            let priced = Priced::of(&reduced.to_runtime(set, k)?);
+            let p = chosen.structure.proxies;
+            if budget.admits(&priced) || p <= 1 {
+                return Ok((reduced, fitted, chosen));
+            }
+            let at = (chosen.candidates.iter()).position(|c| c.structure == chosen.structure);
+            let (next, ee) = match at {
+                Some(i) if i > 0 => {
+                    let among = Validated::of(chosen.relative[..i].to_vec(), structure::TOLERANCE);
+                    let ee = |j: usize| budget::ee_of_score(chosen.candidates[j].score);
+                    (chosen.candidates[among.chosen].structure, Some((ee(i), ee(among.chosen))))
+                }
+                _ => {
+                    let fewer = structure::Structure {
+                        proxies: p / 2,
+                        ..chosen.structure
+                    };
+                    (fewer, None)
+                }
+            };
+            let what = format!("{p} joint-blend proxies");
+            self.ledger.refuse(budget, what, priced, ee);
+            (reduced, fitted) =
+                structure::build(set, self.feats, self.ssd, None, &next, options, ridges);
+            chosen.structure = next;
+            chosen.why = structure::Why::Budget;
+        }
     }
 
     /// With `--proxy-correctives`, their stage: fitted to `reduced`'s proxies (or `searched`,
@@ -545,7 +609,7 @@ impl Stages<'_> {
         }
         self.progress.stage("proxy correctives");
         let (set, feats, train) = (self.set, self.feats, self.train);
-        let fit = searched.unwrap_or_else(|| {
+        let mut fit = searched.unwrap_or_else(|| {
             proxy_corrective::fit(
                 set,
                 feats,
@@ -557,14 +621,31 @@ impl Stages<'_> {
             )
         });
         if let Some(c) = &fit.correctives {
-            model = rrskin::Model::new(rrskin::ModelParts {
+            let corrected = rrskin::Model::new(rrskin::ModelParts {
                 proxy_correctives: Some(c.to_runtime()),
-                ..model.into_parts()
+                ..model.parts().clone()
             })?;
+            let (uncorrected, ee) = fit.ee();
+            let what = format!("proxy correctives on {} proxies", reduced.proxies);
+            match self.admitted(&corrected, what, ee.map(|ee| (ee, uncorrected))) {
+                true => model = corrected,
+                false => (fit.chosen, fit.correctives) = (None, None),
+            }
         }
         clock.lap("proxy correctives");
         self.progress.step();
         Ok((model, Some(fit)))
+    }
+
+    /// Whether `model` is within the cost budget; if not, notes it as refused, as `what`, with
+    /// its and the kept model's cross-validated EE (`ee`).
+    fn admitted(&self, model: &rrskin::Model, what: String, ee: Option<(f64, f64)>) -> bool {
+        let (budget, priced) = (&self.options.budget, Priced::of(model));
+        let admitted = budget.admits(&priced);
+        if !admitted {
+            self.ledger.refuse(budget, what, priced, ee);
+        }
+        admitted
     }
 
     /// With `--correctives N`, their stage: fitted to what `model` leaves on the training poses
@@ -580,7 +661,7 @@ impl Stages<'_> {
         }
         self.progress.stage("correctives");
         let residuals = corrective::Residuals::of(self.set, self.feats, &model, self.train)?;
-        let fit = corrective::fit(
+        let mut fit = corrective::fit(
             self.set,
             self.ssd,
             self.rigid,
@@ -590,10 +671,16 @@ impl Stages<'_> {
             options.folds,
         );
         if let Some(c) = &fit.correctives {
-            model = rrskin::Model::new(rrskin::ModelParts {
+            let corrected = rrskin::Model::new(rrskin::ModelParts {
                 correctives: Some(c.to_runtime()),
-                ..model.into_parts()
+                ..model.parts().clone()
             })?;
+            let (without, ee) = fit.ee();
+            let what = format!("{} pose-space corrective targets", c.targets.len());
+            match self.admitted(&corrected, what, ee.map(|ee| (ee, without))) {
+                true => model = corrected,
+                false => (fit.ridge, fit.correctives) = (None, None),
+            }
         }
         clock.lap("correctives");
         self.progress.step();

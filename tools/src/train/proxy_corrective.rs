@@ -36,6 +36,7 @@
 //!    computed: a second cross-validation, of the chosen fit against it clamped, decides, in
 //!    that order, on the held-out poses that fall past a fold's ranges.
 
+use crate::train::budget::ee_of_score;
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
@@ -118,6 +119,17 @@ pub struct Fit {
     pub candidates: Vec<(Candidate, Score)>,
     pub chosen: Option<Candidate>,
     pub correctives: Option<ProxyCorrectives>,
+}
+
+impl Fit {
+    /// EE (%) of the uncorrected model and of the chosen candidate (None: none chosen) over the
+    /// training folds.
+    pub fn ee(&self) -> (f64, Option<f64>) {
+        let chosen = (self.candidates.iter())
+            .find(|(c, _)| Some(*c) == self.chosen)
+            .map(|(_, (score, _))| ee_of_score(*score));
+        (ee_of_score(self.uncorrected.0), chosen)
+    }
 }
 
 impl ProxyCorrectives {

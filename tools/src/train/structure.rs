@@ -55,6 +55,9 @@ pub struct Chosen {
     pub candidates: Vec<Scored>,
     pub folds: usize,
     pub why: Why,
+    /// Candidates x training poses: each held-out pose's relative error (empty where not
+    /// cross-validated), for the rule again over fewer candidates (the cost budget's).
+    pub relative: Vec<Vec<f64>>,
 }
 
 /// How the structure came to be.
@@ -68,6 +71,8 @@ pub enum Why {
     TooFewPoses,
     /// Chosen by cross-validation (`candidates` holds the scores).
     CrossValidated,
+    /// Fewer proxies than the cross-validation's choice: the most the cost budget admits.
+    Budget,
 }
 
 /// The candidates, most robust first (see the module docs). P_max = `options.proxies`, K =
@@ -222,6 +227,7 @@ pub fn choose(
                 true => Why::OnlyCandidate,
                 false => Why::TooFewPoses,
             },
+            relative: Vec::new(),
         };
     };
     let normaliser = pose_scale::rigid_pose_errors(set, &train, rigid);
@@ -268,6 +274,7 @@ pub fn choose(
             .collect(),
         folds,
         why: Why::CrossValidated,
+        relative: validated.relative,
     }
 }
 

@@ -1,0 +1,175 @@
+//! What the runtime model may cost (docs/cli.md "The cost budget"): every choice training makes
+//! (how many joint-blend proxies, the kind of keys, how many delta-mush keys, the proxy
+//! correctives, the pose-space correctives) is the best cross-validated one among the
+//! candidates within the budget, priced by the runtime's cost model ([`rrskin::cost`]) as the
+//! candidate would ship. What the budget refused is kept, with what it would have gained where
+//! the cross-validation scored it, for the report.
+
+use rrskin::cost::{Cost, Target, LAVAPIPE};
+use std::sync::Mutex;
+
+/// The default frame budget, as a multiple of the engine baseline: the engine's own skinning
+/// (SSD's weights, K influences, one pass with transformed normals) and a quarter more, the
+/// promise of a rig's deformation at about the cost of the skinning an engine already runs.
+/// docs/cli.md gives how it was chosen.
+pub const DEFAULT_FRAME: f64 = 1.25;
+
+/// The limits a runtime model must keep (None: no limit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CostBudget {
+    /// The Vulkan frame with transformed normals over the engine baseline's (`--budget`).
+    pub frame: Option<f64>,
+    /// The CPU palette, µs a character on one core (`--palette-budget`).
+    pub palette_us: Option<f64>,
+}
+
+impl Default for CostBudget {
+    fn default() -> CostBudget {
+        CostBudget {
+            frame: Some(DEFAULT_FRAME),
+            palette_us: None,
+        }
+    }
+}
+
+impl CostBudget {
+    /// No limit: every choice by its error alone.
+    pub const NONE: CostBudget = CostBudget {
+        frame: None,
+        palette_us: None,
+    };
+
+    /// The largest of the price's ratios to the limits set (at most 1: within the budget; 0
+    /// with no limit).
+    pub fn load(&self, p: &Priced) -> f64 {
+        let frame = self.frame.map_or(0.0, |limit| p.frame / limit);
+        let palette = self.palette_us.map_or(0.0, |limit| p.palette_us / limit);
+        frame.max(palette)
+    }
+
+    pub fn admits(&self, p: &Priced) -> bool {
+        self.load(p) <= 1.0
+    }
+}
+
+/// A model's predicted cost on the calibrated device ([`LAVAPIPE`]): what the budget limits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Priced {
+    /// The Vulkan frame with transformed normals over the engine baseline's.
+    pub frame: f64,
+    /// The CPU palette, µs a character on one core.
+    pub palette_us: f64,
+}
+
+impl Priced {
+    pub fn of(model: &rrskin::Model) -> Priced {
+        let frame = Cost::of(model, Target::Transformed, &LAVAPIPE);
+        Priced {
+            frame: frame.ratio().unwrap_or(f64::INFINITY),
+            palette_us: Cost::of(model, Target::Palette, &LAVAPIPE).microseconds(),
+        }
+    }
+}
+
+/// A candidate the budget refused.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refused {
+    /// What it was ("240 delta-mush proxies", "proxy correctives on 54 joint-blend proxies").
+    pub candidate: String,
+    pub priced: Priced,
+    /// Its price over the budget ([`CostBudget::load`]).
+    pub load: f64,
+    /// Its cross-validated EE (%) and the one kept in its place, where both were scored.
+    pub ee: Option<(f64, f64)>,
+}
+
+impl Refused {
+    /// The report's line: "240 delta-mush proxies: 1.9 EE points better, 1.8 x the budget".
+    pub fn line(&self) -> String {
+        let gain = match self.ee {
+            Some((ee, kept)) if ee < kept => format!("{:.1} EE points better", kept - ee),
+            Some((ee, kept)) => format!("{:.1} EE points worse", ee - kept),
+            None => "not fitted".to_string(),
+        };
+        format!("{}: {gain}, {:.2} x the budget", self.candidate, self.load)
+    }
+}
+
+/// The budget and what it refused, as the stages meet it.
+#[derive(Debug, Default)]
+pub struct Ledger {
+    refused: Mutex<Vec<Refused>>,
+}
+
+impl Ledger {
+    /// Notes `candidate`, priced `priced`, as refused by `budget` (with its and the kept
+    /// candidate's cross-validated EE, where scored).
+    pub fn refuse(
+        &self,
+        budget: &CostBudget,
+        candidate: String,
+        priced: Priced,
+        ee: Option<(f64, f64)>,
+    ) {
+        let refused = Refused {
+            candidate,
+            load: budget.load(&priced),
+            priced,
+            ee,
+        };
+        // A panic elsewhere while noting leaves the list as it was: keep it.
+        let mut list = self.refused.lock().unwrap_or_else(|e| e.into_inner());
+        list.push(refused);
+    }
+
+    pub fn into_refused(self) -> Vec<Refused> {
+        self.refused.into_inner().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// EE (%) of a cross-validation score (the mean relative squared error, EE² / 100²).
+pub fn ee_of_score(score: f64) -> f64 {
+    100.0 * score.max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_load_is_the_tighter_limit() {
+        let p = Priced {
+            frame: 1.5,
+            palette_us: 10.0,
+        };
+        let both = CostBudget {
+            frame: Some(1.25),
+            palette_us: Some(5.0),
+        };
+        assert_eq!(both.load(&p), 2.0);
+        assert!(!both.admits(&p));
+        let frame_only = CostBudget {
+            frame: Some(1.5),
+            palette_us: None,
+        };
+        assert!(frame_only.admits(&p));
+        assert_eq!(CostBudget::NONE.load(&p), 0.0);
+    }
+
+    #[test]
+    fn a_refusal_says_what_it_would_have_gained() {
+        let r = Refused {
+            candidate: "240 delta-mush proxies".into(),
+            priced: Priced {
+                frame: 2.25,
+                palette_us: 80.0,
+            },
+            load: 1.8,
+            ee: Some((13.5, 15.4)),
+        };
+        assert_eq!(
+            r.line(),
+            "240 delta-mush proxies: 1.9 EE points better, 1.80 x the budget"
+        );
+    }
+}
