@@ -12,6 +12,11 @@ palette. A Vulkan pass is fitted as its time over the engine baseline's in the s
 machines are noisy from run to run, not within one); the rates' scale is set by the engine
 baseline's mean time. Then each model's predicted against measured ratio to the engine baseline
 and palette µs are printed, with the error. Paste the rates into `LAVAPIPE` in src/cost.rs.
+
+    tools/calibrate-cost.py --check MODEL.rrs...
+
+checks the rates in src/cost.rs (as `rrskin info --json` applies them) on models, fitting
+nothing: for models the fit did not see.
 """
 import argparse
 import itertools
@@ -113,25 +118,43 @@ def main():
     ap.add_argument("--rrskin", default="target/release/rrskin")
     ap.add_argument("--characters", type=int, default=256)
     ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--check", action="store_true", help="predict with the rates the binary has; fit nothing")
     ap.add_argument("--passes", action="store_true", help="also print each pass's measured and predicted time over the engine baseline's")
     args = ap.parse_args()
     results = []
     for m in args.models:
         print(f"measuring {m}", file=sys.stderr)
         results.append(measure(args.rrskin, m, args.characters, args.frames))
+    if args.check:
+        report(results, None, None)
+        return
     frame = fit_frame(results)
     a = np.array([r["palette_work"] / r["palette_ns"] for r in results])
     palette = nnls(a, np.ones(len(results)))
     print("frame rates (ns per group, byte, load, gather, madd, special):", ", ".join(f"{x:.6g}" for x in frame))
     print("palette rates (ns per group, byte, load, gather, madd, special):", ", ".join(f"{x:.6g}" for x in palette))
     print()
+    report(results, frame, palette)
+    if args.passes:
+        for r in results:
+            e = r["engine"][0] @ frame
+            print(r["model"], " ".join(f"{n} {rho:.3f}/{w @ frame / e:.3f}" for n, (w, rho) in zip(r["names"], r["rows"])))
+
+
+def report(results, frame, palette):
+    """Each model's predicted against measured ratios and palette µs (the binary's own
+    predictions where `frame` and `palette` are None)."""
     print("| model | RR / engine measured (paired) | predicted | error | RR recomputed / engine measured | predicted | error | palette us measured | predicted | error |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     worst = 0.0
     for r in results:
-        t = predicted_ratio(r["info"], "transformed_normals", frame)
-        c = predicted_ratio(r["info"], "recomputed_normals", frame)
-        p = r["palette_work"] @ palette * 1e-3
+        if frame is None:
+            t, c = (r["info"][k]["ratio"] for k in ("transformed_normals", "recomputed_normals"))
+            p = r["info"]["palette"]["us"]
+        else:
+            t = predicted_ratio(r["info"], "transformed_normals", frame)
+            c = predicted_ratio(r["info"], "recomputed_normals", frame)
+            p = r["palette_work"] @ palette * 1e-3
         m = r["palette_ns"] * 1e-3
         errors = [t / r["rr_vs_engine"] - 1, c / r["rr_over_engine"] - 1, p / m - 1]
         worst = max(worst, *map(abs, errors))
@@ -139,10 +162,6 @@ def main():
               f"| {r['rr_over_engine']:.3f} | {c:.3f} | {100 * errors[1]:+.1f} % "
               f"| {m:.2f} | {p:.2f} | {100 * errors[2]:+.1f} % |")
     print(f"\nlargest error: {100 * worst:.1f} %")
-    if args.passes:
-        for r in results:
-            e = r["engine"][0] @ frame
-            print(r["model"], " ".join(f"{n} {rho:.3f}/{w @ frame / e:.3f}" for n, (w, rho) in zip(r["names"], r["rows"])))
 
 
 if __name__ == "__main__":

@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # The GPU check (issue 16): the runtime on a real GPU against the CPU reference, and `rrskin
 # bench` at 1, 256, 4096 and 16384 characters on the CesiumMan and human_heavy models (and
-# CesiumMan with 32 pose-space correctives, CesiumMan of delta-mush keys, and CesiumMan of both
-# kinds of proxy in one palette, for their cost on a GPU), into one JSON file. The GPU machine has no network and maybe no Rust, so the work is in two steps:
+# CesiumMan with 32 pose-space correctives, CesiumMan of 60 and of 240 delta-mush keys, and
+# CesiumMan of both kinds of proxy in one palette, trained without a cost budget, for their cost
+# on a GPU), each beside the cost model's prediction (`rrskin info --json`'s `cost`, calibrated
+# on lavapipe: the run checks how it carries over), into one JSON file. The GPU machine has no network and maybe no Rust, so the work is in two steps:
 #
 #   tools/gpu-bench.sh prepare [DIR]     here (network, Rust): build, train, download, into DIR
 #   tools/gpu-bench.sh run [DIR] [OUT]   there, from the repository root: one run, a few minutes
 #
 # DIR (default target/gpu-bench, ~60 MiB, an ignored path: hand it to the device's `carry`)
-# holds release builds of `rrskin` and of the Vulkan test binaries, the five trained models and
+# holds release builds of `rrskin` and of the Vulkan test binaries, the six trained models and
 # the Debian packages of the Vulkan loader and the validation layer (docs/gpu-measurement.md:
 # unpacked with dpkg -x, then ldconfig). OUT defaults to $OUT/gpu-bench.json when
 # $OUT is set (the device's output folder), else DIR/gpu-bench.json. CHARACTERS (default
@@ -19,6 +21,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 step=${1:-}
 dir=${2:-target/gpu-bench}
+MODELS="cesiumman human_heavy cesiumman_correctives cesiumman_mush cesiumman_mush240 cesiumman_both"
 
 prepare() {
     mkdir -p "$dir/bin" "$dir/debs"
@@ -34,9 +37,15 @@ for line in sys.stdin:
         | while read -r name exe; do cp "$exe" "$dir/bin/test-$name"; done
     target/release/rrskin train data/cesiumman -o "$dir/cesiumman.rrs"
     target/release/rrskin train data/human_heavy -o "$dir/human_heavy.rrs"
-    target/release/rrskin train data/cesiumman --correctives 32 -o "$dir/cesiumman_correctives.rrs"
-    target/release/rrskin train data/cesiumman --reduction delta-mush -o "$dir/cesiumman_mush.rrs"
-    target/release/rrskin train data/cesiumman --reduction both -o "$dir/cesiumman_both.rrs"
+    local free=(--budget none)
+    target/release/rrskin train data/cesiumman --correctives 32 "${free[@]}" \
+        -o "$dir/cesiumman_correctives.rrs"
+    target/release/rrskin train data/cesiumman --reduction delta-mush "${free[@]}" \
+        -o "$dir/cesiumman_mush.rrs"
+    target/release/rrskin train data/cesiumman --reduction delta-mush --proxies 240 \
+        "${free[@]}" -o "$dir/cesiumman_mush240.rrs"
+    target/release/rrskin train data/cesiumman --reduction both "${free[@]}" \
+        -o "$dir/cesiumman_both.rrs"
     (cd "$dir/debs" && apt-get download libvulkan1 libegl1 libglvnd0 libopengl0 libgl1 libglx0 \
         libgles2 vulkan-validationlayers)
     du -sh "$dir"
@@ -60,7 +69,7 @@ run() {
         # The trained-file check (ignored by default) runs on every trained model.
         if ! "$t" --test-threads 1 >>"$log" 2>&1; then status=failed; fi
         if [[ $name == vulkan ]]; then
-            for m in cesiumman human_heavy cesiumman_correctives cesiumman_mush cesiumman_both; do
+            for m in $MODELS; do
                 RRSKIN_MODEL="$dir/$m.rrs" "$t" --ignored --test-threads 1 >>"$log" 2>&1 \
                     || status=failed
             done
@@ -68,7 +77,10 @@ run() {
         tests+=("\"$name\": \"$status\"")
     done
     local benches=()
-    for m in cesiumman human_heavy cesiumman_correctives cesiumman_mush cesiumman_both; do
+    for m in $MODELS; do
+        local predicted
+        predicted=$("$dir/bin/rrskin" info "$dir/$m.rrs" --json 2>>"$log") || predicted=null
+        benches+=("{\"model\": \"$m\", \"info\": $predicted}")
         for c in ${CHARACTERS:-1 256 4096 16384}; do
             local b
             b=$("$dir/bin/rrskin" bench "$dir/$m.rrs" --characters "$c" \

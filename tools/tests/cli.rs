@@ -337,10 +337,30 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "learning_curve",
         "learning_curve_advice",
         "mush",
+        "cost",
+        "budget",
+        "pareto",
     ] {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
-    assert_eq!(keys.len(), 27, "{e}");
+    assert_eq!(keys.len(), 30, "{e}");
+    // The front: every structure candidate and every kind, scored and priced.
+    let points = e["pareto"].as_array().expect("the front's points");
+    let stage = |s: &str| points.iter().filter(|p| p["stage"] == s).count();
+    assert_eq!((stage("structure"), stage("kind")), (3, 3), "{e}");
+    assert!(points.iter().any(|p| p["front"] == true), "{e}");
+    for p in points {
+        assert!(p["ee"].as_f64().is_some_and(|ee| ee > 0.0), "{p}");
+        assert!(p["cost"]["frame"].as_f64().is_some_and(|r| r >= 1.0), "{p}");
+    }
+    // The default budget, and the model within it.
+    assert_eq!(e["budget"]["frame"], 1.25, "{e}");
+    let priced = e["budget"]["model"]["frame"].as_f64().expect("a price");
+    assert!(priced <= 1.25, "{e}");
+    assert_eq!(
+        e["cost"]["targets"]["transformed_normals"]["ratio"],
+        e["budget"]["model"]["frame"]
+    );
     learning_curve_falls(&e);
     assert!(e["correctives"].is_null(), "off by default: {e}");
     assert!(
@@ -483,6 +503,9 @@ fn a_trained_model_file_evaluates_as_trained() {
         "joint-blend",
         "--correctives",
         "8",
+        // Correctives, whatever they cost (the default budget refuses 8 targets).
+        "--budget",
+        "none",
         "--json",
     ]));
     let info = json(&rrskin(&["info", m, "--json"]));

@@ -16,11 +16,11 @@ use crate::set::ExampleSet;
 use crate::skinning::error::{deform_all, enveloping_error, squared_error};
 use crate::skinning::lbs::Skinning;
 use crate::skinning::{cor, ddm, dqs};
+use crate::train::budget::{CostBudget, Point, Priced, Refused};
 use crate::train::proxy_corrective;
 use crate::train::selection::Choice;
 use crate::train::ssd;
 use crate::train::structure::{Chosen, Ridges, Structure, Why};
-use crate::train::budget::{CostBudget, Priced, Refused};
 use crate::train::{full_model, Method, TrainOptions, Trained};
 use crate::{Error, Result};
 use glam::DVec3;
@@ -98,6 +98,8 @@ pub struct Report {
     /// The cost budget training kept to, and what it refused ([`crate::train::budget`]).
     pub cost_budget: CostBudget,
     pub refused: Vec<Refused>,
+    /// Every candidate training scored and priced ([`crate::train::budget::Point`]).
+    pub points: Vec<Point>,
     /// The full model's F percentile, ridge and fallback chosen by cross-validation, and the
     /// mean weight of the regression in the triangles' blended gradients (1: the paper).
     pub choice: Option<(Choice, f64)>,
@@ -194,6 +196,12 @@ impl Report {
             "stages": stages,
             "cost": self.model.as_ref().map(cost::to_json),
             "budget": self.budget_json(),
+            "pareto": self.points.iter().map(|p| serde_json::json!({
+                "stage": p.stage, "kind": p.kind, "proxies": p.proxies, "ee": p.ee,
+                "cost": {"frame": p.priced.frame, "palette_us": p.priced.palette_us},
+                "within_budget": self.cost_budget.admits(&p.priced),
+                "front": !self.points.iter().any(|q| p.dominated_by(q)),
+            })).collect::<Vec<_>>(),
         })
     }
 
@@ -217,7 +225,9 @@ impl Report {
             return String::new();
         };
         let (p, b) = (Priced::of(model), &self.cost_budget);
-        let limit = |l: Option<f64>, unit: &str| l.map_or("no limit".to_string(), |l| format!("budget {l:.2}{unit}"));
+        let limit = |l: Option<f64>, unit: &str| {
+            l.map_or("no limit".to_string(), |l| format!("budget {l:.2}{unit}"))
+        };
         let mut s = format!(
             "cost: {:.2} x the engine baseline ({}), CPU palette {:.1} us a character ({})\n",
             p.frame,
@@ -225,8 +235,30 @@ impl Report {
             p.palette_us,
             limit(b.palette_us, " us"),
         );
+        let front: Vec<&Point> = (self.points.iter())
+            .filter(|p| !self.points.iter().any(|q| p.dominated_by(q)))
+            .collect();
+        if !front.is_empty() {
+            s += "  the front (cross-validated EE % against the frame's cost, x the engine baseline):";
+            for p in front {
+                let over = if b.admits(&p.priced) {
+                    ""
+                } else {
+                    ", over the budget"
+                };
+                s += &format!(
+                    " {} {} {:.2} at {:.2}{over};",
+                    p.proxies, p.kind, p.ee, p.priced.frame
+                );
+            }
+            s += "\n";
+        }
         // What would have gained, or was not scored (the JSON lists every refusal).
-        for r in self.refused.iter().filter(|r| r.ee.is_none_or(|(ee, kept)| ee < kept)) {
+        for r in self
+            .refused
+            .iter()
+            .filter(|r| r.ee.is_none_or(|(ee, kept)| ee < kept))
+        {
             s += &format!("  refused by the budget: {}\n", r.line());
         }
         s
@@ -591,6 +623,8 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     if options.model.is_some() {
         train_options.proxies = 0;
     }
+    // eval's front prices every structure candidate; `train` (no baselines) saves that.
+    train_options.front = !options.skip_baselines;
     let trained = crate::train::run(set, &train_options)?;
     let mut stages = trained.seconds.clone();
     let baselines = match options.skip_baselines {
@@ -717,6 +751,7 @@ fn score(
         model: trained.model.clone(),
         cost_budget: CostBudget::NONE,
         refused: trained.refused.clone(),
+        points: trained.points.clone(),
         choice: full.map(|f| {
             let alpha = &f.selection.alpha;
             (

@@ -95,10 +95,34 @@ impl Refused {
     }
 }
 
-/// The budget and what it refused, as the stages meet it.
+/// A candidate the cross-validation scored, priced: a point of the accuracy/cost front.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Point {
+    /// The comparison that scored it: "structure" (joint-blend P, uncorrected), "kind" (each
+    /// kind with its proxy correctives) or "count" (more delta-mush proxies, corrected alike).
+    pub stage: &'static str,
+    /// "joint-blend", "delta-mush" or "both".
+    pub kind: &'static str,
+    pub proxies: usize,
+    /// Its cross-validated EE (%) on the training folds, as it would ship.
+    pub ee: f64,
+    pub priced: Priced,
+}
+
+impl Point {
+    /// Whether `other` is as good or better on error and both costs, and better on one.
+    pub fn dominated_by(&self, other: &Point) -> bool {
+        let (a, b) = (&self.priced, &other.priced);
+        let no_worse = other.ee <= self.ee && b.frame <= a.frame && b.palette_us <= a.palette_us;
+        no_worse && (other.ee < self.ee || b.frame < a.frame || b.palette_us < a.palette_us)
+    }
+}
+
+/// The budget's refusals and the front's points, as the stages meet them.
 #[derive(Debug, Default)]
 pub struct Ledger {
     refused: Mutex<Vec<Refused>>,
+    points: Mutex<Vec<Point>>,
 }
 
 impl Ledger {
@@ -122,8 +146,18 @@ impl Ledger {
         list.push(refused);
     }
 
-    pub fn into_refused(self) -> Vec<Refused> {
-        self.refused.into_inner().unwrap_or_else(|e| e.into_inner())
+    /// Notes a scored and priced candidate.
+    pub fn point(&self, point: Point) {
+        let mut list = self.points.lock().unwrap_or_else(|e| e.into_inner());
+        list.push(point);
+    }
+
+    /// What the budget refused, and the front's points (every candidate scored and priced,
+    /// in the order met).
+    pub fn into_parts(self) -> (Vec<Refused>, Vec<Point>) {
+        let refused = self.refused.into_inner().unwrap_or_else(|e| e.into_inner());
+        let points = self.points.into_inner().unwrap_or_else(|e| e.into_inner());
+        (refused, points)
     }
 }
 

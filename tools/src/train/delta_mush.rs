@@ -20,6 +20,7 @@ use crate::set::ExampleSet;
 use crate::skinning::ddm::{self, Ddm};
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::{rigid_errors, Skinning};
+use crate::train::budget::{ee_of_score, Ledger, Point, Priced};
 use crate::train::cross_validate::{try_cross_validate, Fold, Folds, Validated};
 use crate::train::proxy_corrective::Candidate;
 use crate::train::reduce::c1c2::Reduced;
@@ -27,7 +28,6 @@ use crate::train::reduce::mush::{join, Groups, MushProxies};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
 use crate::train::{corrective, proxy_corrective};
-use crate::train::budget::{ee_of_score, Ledger, Priced};
 use crate::train::{pose_scale, ssd, Method, TrainError, TrainOptions};
 use glam::DVec3;
 
@@ -140,9 +140,13 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
     let mut ladder = Groups::merge_at(set, train, &counts);
     let fewer_groups = ladder.split_off(offered.len());
-    if let Some(at) = first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)? {
+    if let Some(at) = first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)?
+    {
         // Fewer than P: the larger counts cost more still.
-        (offered, ladder) = (vec![fewer[at]], fewer_groups.into_iter().skip(at).take(1).collect());
+        (offered, ladder) = (
+            vec![fewer[at]],
+            fewer_groups.into_iter().skip(at).take(1).collect(),
+        );
     }
     let (proxy_params, plain, fitted) =
         proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0])?;
@@ -244,21 +248,23 @@ fn choose_kind(
     let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
     let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
     let mut searched = corrective_searches(inputs, options, &kinds);
-    let refused = admit(inputs, options, &kinds, &mut searched)?;
+    let priced = admit(inputs, options, &kinds, &mut searched)?;
     let choices = chosen_candidates(&searched);
     let validated = cross_validate(inputs, options, split, side, &choices).map_err(smoothing)?;
     // The kinds cost more in their order: those within the budget lead.
-    let index = match refused.iter().take_while(|r| r.is_none()).count() {
+    let index = match priced.iter().take_while(|(_, within)| *within).count() {
         n if n == kinds.len() => kept(&validated),
         1 => 0,
         n => kept(&validated.among_first(n, TOLERANCE)),
     };
     let ee = |i: usize| ee_of_score(validated.scores[i].0);
-    for (i, priced) in refused.iter().enumerate() {
-        if let Some(priced) = priced {
-            let what = describe(kinds[i]);
-            let budget = &options.budget;
-            inputs.ledger.refuse(budget, what, *priced, Some((ee(i), ee(index))));
+    for (i, &(priced, within)) in priced.iter().enumerate() {
+        inputs.ledger.point(point("kind", kinds[i], ee(i), priced));
+        if !within {
+            let (what, budget) = (describe(kinds[i]), &options.budget);
+            inputs
+                .ledger
+                .refuse(budget, what, priced, Some((ee(i), ee(index))));
         }
     }
     Ok(Kinds {
@@ -270,16 +276,16 @@ fn choose_kind(
 }
 
 /// Prices each of `kinds` (fitted to all training poses) as it ships, with the proxy
-/// correctives its search (`searched`, alike) chose. Where only the correctives put a kind over
-/// the cost budget, they leave its search (noted); where it is over without them, its price:
-/// the kind is refused. The first kind, the joint-blend model, is never refused: it is what
+/// correctives its search (`searched`, alike) chose, and says whether it is within the cost
+/// budget. Where only the correctives put a kind over, they leave its search (noted) and it is
+/// priced without them. The first kind, the joint-blend model, is always within: it is what
 /// stays.
 fn admit(
     inputs: &Inputs,
     options: &TrainOptions,
     kinds: &[&Reduced],
     searched: &mut [Option<proxy_corrective::Fit>],
-) -> Result<Vec<Option<Priced>>, TrainError> {
+) -> Result<Vec<(Priced, bool)>, TrainError> {
     let (set, k, budget) = (inputs.set, options.influences, &options.budget);
     let mut refused = Vec::with_capacity(kinds.len());
     for (i, (kind, search)) in kinds.iter().zip(searched.iter_mut()).enumerate() {
@@ -292,7 +298,7 @@ fn admit(
                 })?;
                 let priced = Priced::of(&corrected);
                 if budget.admits(&priced) {
-                    refused.push(None);
+                    refused.push((priced, true));
                     continue;
                 }
                 let (uncorrected, ee) = fit.ee();
@@ -303,9 +309,27 @@ fn admit(
             }
         }
         let priced = Priced::of(&plain);
-        refused.push((i > 0 && !budget.admits(&priced)).then_some(priced));
+        refused.push((priced, i == 0 || budget.admits(&priced)));
     }
     Ok(refused)
+}
+
+/// The front's point of `r` (as [`describe`] names it), scored `ee` by the comparison `stage`,
+/// priced `priced`.
+fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
+    let mush = r.mush.as_ref().map_or(0, Ddm::entries);
+    let kind = match (r.proxies - mush, mush) {
+        (_, 0) => "joint-blend",
+        (0, _) => "delta-mush",
+        _ => "both",
+    };
+    Point {
+        stage,
+        kind,
+        proxies: r.proxies,
+        ee,
+        priced,
+    }
 }
 
 /// A reduced model's keys, as the report names a candidate: "54 joint-blend proxies", "60
@@ -370,7 +394,10 @@ fn first_within_budget(
     };
     let mut priced = price(groups)?;
     let mut count = groups.adjacency.len();
-    for (i, g) in std::iter::once(None).chain(fewer.iter().map(Some)).enumerate() {
+    for (i, g) in std::iter::once(None)
+        .chain(fewer.iter().map(Some))
+        .enumerate()
+    {
         if let Some(g) = g {
             (priced, count) = (price(g)?, g.adjacency.len());
         }
@@ -482,7 +509,9 @@ fn choose_count(
             within = i;
         }
         if i >= within {
-            inputs.ledger.refuse(budget, describe(reduced), priced, None);
+            inputs
+                .ledger
+                .refuse(budget, describe(reduced), priced, None);
         }
     }
     fitted.truncate(within);
@@ -496,7 +525,7 @@ fn choose_count(
     let larger = &larger[..within];
     let models: Vec<&Reduced> = fitted.iter().map(|(_, reduced)| reduced).collect();
     let mut searched = corrective_searches(inputs, options, &models);
-    admit(inputs, options, &models, &mut searched)?;
+    let shipped = admit(inputs, options, &models, &mut searched)?;
     let choices = chosen_candidates(&searched);
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
     let held_out = try_cross_validate(split, &normaliser, larger.len(), TOLERANCE, |fold| {
@@ -534,6 +563,13 @@ fn choose_count(
         .zip(Validated::of(rows.collect(), TOLERANCE).scores)
         .map(|(&p, (score, se))| (p, score, se))
         .collect();
+    for ((_, reduced), (&(_, score, _), &(priced, _))) in
+        fitted.iter().zip(scores[1..].iter().zip(&shipped))
+    {
+        inputs
+            .ledger
+            .point(point("count", reduced, ee_of_score(score), priced));
+    }
     let index = kept_count(&scores);
     Ok(Count {
         scores,

@@ -47,11 +47,11 @@ use crate::progress::Progress;
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
 use budget::{CostBudget, Ledger, Priced, Refused};
+use cross_validate::Validated;
 use full_model::{FullModel, Prepared};
 use reduce::c1c2::Reduced;
 use rotreg::PoseFeatures;
 use selection::Selection;
-use cross_validate::Validated;
 use std::fmt;
 use std::time::Instant;
 
@@ -115,6 +115,9 @@ pub struct TrainOptions {
     pub delta_mush: bool,
     /// What the runtime model may cost ([`budget`]): every choice the best within it.
     pub budget: CostBudget,
+    /// Also price every joint-blend structure candidate (each built once more on all training
+    /// poses), so that the accuracy/cost front has them (`rrskin eval`'s `pareto`).
+    pub front: bool,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -135,6 +138,7 @@ impl Default for TrainOptions {
             up: Some([0.0, 1.0, 0.0]),
             delta_mush: true,
             budget: CostBudget::default(),
+            front: false,
             quiet: false,
         }
     }
@@ -240,6 +244,8 @@ pub struct Trained {
     pub priced: Option<Priced>,
     /// What the cost budget refused, in the order the stages met it.
     pub refused: Vec<Refused>,
+    /// Every candidate scored and priced: the accuracy/cost front's points.
+    pub points: Vec<budget::Point>,
     /// Wall time per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
 }
@@ -365,6 +371,7 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
     };
     progress.step();
     progress.finish();
+    let (refused, points) = ledger.into_parts();
     Ok(Trained {
         feats,
         rigid,
@@ -378,7 +385,8 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         delta_mush: runtime.delta_mush,
         priced: runtime.model.as_ref().map(Priced::of),
         model: runtime.model,
-        refused: ledger.into_refused(),
+        refused,
+        points,
         seconds: clock.seconds,
     })
 }
@@ -528,11 +536,14 @@ impl Stages<'_> {
         let chosen = match (options.method, &fitted) {
             (Method::Auto, Some(f)) => {
                 progress.stage("structure");
-                let candidates = structure::candidates(options, pool);
-                let c = structure::choose(set, feats, self.rigid, &candidates, f.ridges(), options);
+                let (candidates, ridges) = (structure::candidates(options, pool), f.ridges());
+                let c = structure::choose(set, feats, self.rigid, &candidates, ridges, options);
                 if c.structure != first {
                     (reduced, fitted) =
                         structure::build(set, feats, ssd, full_parts, &c.structure, options, None);
+                }
+                if options.front {
+                    self.price_structures(&c, &reduced, ridges)?;
                 }
                 let built = self.within_budget(c, reduced, fitted)?;
                 clock.lap("structure");
@@ -548,6 +559,44 @@ impl Stages<'_> {
             },
         };
         Ok((reduced, fitted, chosen))
+    }
+
+    /// Notes every joint-blend structure candidate of `chosen` as a point of the front: its
+    /// cross-validated EE and the price of its model fitted to all training poses (`reduced`
+    /// for the chosen one; the others built with `ridges`, uncorrected as the folds scored them).
+    fn price_structures(
+        &self,
+        chosen: &structure::Chosen,
+        reduced: &Reduced,
+        ridges: structure::Ridges,
+    ) -> Result<(), TrainError> {
+        let (set, options) = (self.set, self.options);
+        for c in &chosen.candidates {
+            let built = match c.structure == chosen.structure {
+                true => None,
+                false => Some(
+                    structure::build(
+                        set,
+                        self.feats,
+                        self.ssd,
+                        None,
+                        &c.structure,
+                        options,
+                        Some(ridges),
+                    )
+                    .0,
+                ),
+            };
+            let model = built.as_ref().unwrap_or(reduced);
+            self.ledger.point(budget::Point {
+                stage: "structure",
+                kind: "joint-blend",
+                proxies: model.proxies,
+                ee: budget::ee_of_score(c.score),
+                priced: Priced::of(&model.to_runtime(set, c.structure.influences)?),
+            });
+        }
+        Ok(())
     }
 
     /// The joint-blend structure `chosen` (built: `reduced`, `fitted`), or, where its model is
@@ -575,7 +624,10 @@ impl Stages<'_> {
                 Some(i) if i > 0 => {
                     let among = Validated::of(chosen.relative[..i].to_vec(), structure::TOLERANCE);
                     let ee = |j: usize| budget::ee_of_score(chosen.candidates[j].score);
-                    (chosen.candidates[among.chosen].structure, Some((ee(i), ee(among.chosen))))
+                    (
+                        chosen.candidates[among.chosen].structure,
+                        Some((ee(i), ee(among.chosen))),
+                    )
                 }
                 _ => {
                     let fewer = structure::Structure {

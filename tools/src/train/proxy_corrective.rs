@@ -36,10 +36,10 @@
 //!    computed: a second cross-validation, of the chosen fit against it clamped, decides, in
 //!    that order, on the held-out poses that fall past a fold's ranges.
 
-use crate::train::budget::ee_of_score;
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
+use crate::train::budget::ee_of_score;
 use crate::train::corrective;
 use crate::train::cross_validate::{cross_validate, Fold, Folds, Score, Validated};
 use crate::train::pose_scale;

@@ -1,0 +1,187 @@
+//! The cost model (`rrskin::cost`) and the training budget it prices (`train::budget`): the
+//! engine baseline is the unit, each key kind costs what its passes do, and training keeps
+//! every choice within the budget it is given, naming what the budget refused.
+
+#[path = "../../tests/common/scratch.rs"]
+mod scratch;
+
+use rrskin::cost::{Cost, Target, LAVAPIPE};
+use rrskin::Model;
+use rrskin_render::synthetic::{random_model, with_mush_keys, Spec};
+use rrskin_tools::cylinder_chain::Chain;
+use rrskin_tools::train::budget::{CostBudget, Priced};
+use rrskin_tools::train::{self, TrainOptions};
+use scratch::temp_dir;
+use std::process::Command;
+
+fn model(proxies: usize) -> Model {
+    let spec = Spec {
+        grid: 24,
+        bones: 8,
+        proxies,
+        influences: 4,
+    };
+    random_model(spec, 7).expect("a valid model")
+}
+
+fn ratio(m: &Model, target: Target) -> f64 {
+    Cost::of(m, target, &LAVAPIPE)
+        .ratio()
+        .expect("a Vulkan target")
+}
+
+#[test]
+fn plain_skinning_costs_the_engine_baseline_and_recomputed_normals_cost_more() {
+    let plain = model(0);
+    assert_eq!(ratio(&plain, Target::Transformed), 1.0);
+    assert!(ratio(&plain, Target::Recomputed) > 1.0);
+    let passes: Vec<&str> = (Cost::of(&plain, Target::Recomputed, &LAVAPIPE)
+        .passes
+        .iter())
+    .map(|p| p.pass)
+    .collect();
+    assert_eq!(passes, ["skinning", "normals"]);
+}
+
+#[test]
+fn proxies_and_delta_mush_keys_cost_more_on_every_target() {
+    let (few, many) = (model(6), model(24));
+    for target in [Target::Recomputed, Target::Transformed] {
+        assert!(ratio(&few, target) > 1.0);
+        assert!(ratio(&many, target) > ratio(&few, target), "{target:?}");
+    }
+    let us = |m: &Model| Cost::of(m, Target::Palette, &LAVAPIPE).microseconds();
+    assert!(us(&many) > us(&few) && us(&few) > 0.0);
+    // A delta-mush key (a rigid fit: a 4x4 eigen-problem) costs more than a predictor key.
+    let some = with_mush_keys(&many, 8, 1).expect("delta-mush keys");
+    let all = with_mush_keys(&many, 24, 1).expect("delta-mush keys");
+    for target in Target::ALL {
+        let ns = |m: &Model| Cost::of(m, target, &LAVAPIPE).ns;
+        assert!(ns(&some) > ns(&many), "{target:?}");
+        assert!(ns(&all) > ns(&some), "{target:?}");
+    }
+}
+
+#[test]
+fn info_reports_the_cost_of_every_target() {
+    let dir = temp_dir("cost-info");
+    let path = dir.join("m.rrs");
+    model(12).save(&path).expect("written");
+    let out = Command::new(env!("CARGO_BIN_EXE_rrskin"))
+        .args(["info", path.to_str().expect("utf-8"), "--json"])
+        .output()
+        .expect("rrskin runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let info: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let targets = &info["cost"]["targets"];
+    for (name, ratio) in [
+        ("recomputed_normals", true),
+        ("transformed_normals", true),
+        ("palette", false),
+    ] {
+        let t = &targets[name];
+        assert!(t["ns"].as_f64().is_some_and(|ns| ns > 0.0), "{info}");
+        assert_eq!(t["ratio"].is_number(), ratio, "{info}");
+        assert!(
+            !t["passes"].as_array().expect("passes").is_empty(),
+            "{info}"
+        );
+    }
+    let text = Command::new(env!("CARGO_BIN_EXE_rrskin"))
+        .args(["info", path.to_str().expect("utf-8")])
+        .output()
+        .expect("rrskin runs");
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("x the engine baseline"), "{text}");
+}
+
+#[test]
+fn bench_measures_the_palette_of_any_model() {
+    let dir = temp_dir("cost-palette");
+    let path = dir.join("m.rrs");
+    with_mush_keys(&model(12), 4, 2)
+        .expect("delta-mush keys")
+        .save(&path)
+        .expect("written");
+    let out = Command::new(env!("CARGO_BIN_EXE_rrskin"))
+        .args(["bench", path.to_str().expect("utf-8"), "--palette"])
+        .args(["--characters", "8", "--frames", "2", "--json"])
+        .output()
+        .expect("rrskin runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let b: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    for key in ["palette_us", "palette_us_threads"] {
+        assert!(b[key].as_f64().is_some_and(|us| us > 0.0), "{b}");
+    }
+    assert_eq!(b["characters"], 8);
+}
+
+/// A cylinder chain, small: its keys are a large share of its frame.
+fn chain() -> rrskin_tools::set::ExampleSet {
+    let chain = Chain {
+        rings: 12,
+        segments: 8,
+        bones: 4,
+        poses: 24,
+    };
+    chain.build().expect("a valid chain")
+}
+
+fn trained(budget: CostBudget) -> train::Trained {
+    let options = TrainOptions {
+        proxies: 12,
+        full_model: false,
+        quiet: true,
+        budget,
+        ..TrainOptions::default()
+    };
+    train::run(&chain(), &options).expect("training")
+}
+
+#[test]
+fn training_keeps_to_the_budget_and_names_what_it_refused() {
+    let free = trained(CostBudget::NONE);
+    assert!(free.refused.is_empty());
+    let free_price = free.priced.expect("a runtime model").frame;
+    // A budget below what the unlimited model costs: a cheaper model, within it.
+    let limit = 1.0 + (free_price - 1.0) / 2.0;
+    let budget = CostBudget {
+        frame: Some(limit),
+        palette_us: None,
+    };
+    let held = trained(budget);
+    let model = held.model.as_ref().expect("a runtime model");
+    let priced = Priced::of(model);
+    assert_eq!(held.priced, Some(priced));
+    assert!(
+        priced.frame <= limit || model.proxy_count() == 1,
+        "{} over {limit} with {} proxies",
+        priced.frame,
+        model.proxy_count()
+    );
+    assert!(!held.refused.is_empty());
+    assert!(
+        held.refused.iter().all(|r| r.load > 1.0),
+        "{:?}",
+        held.refused
+    );
+    // The palette's limit alike.
+    let palette = CostBudget {
+        frame: None,
+        palette_us: Some(Priced::of(free.model.as_ref().expect("a model")).palette_us / 2.0),
+    };
+    let held = trained(palette);
+    let priced = held.priced.expect("a runtime model");
+    assert!(
+        priced.palette_us <= palette.palette_us.expect("a limit")
+            || held.model.as_ref().is_some_and(|m| m.proxy_count() == 1)
+    );
+}
