@@ -392,14 +392,20 @@ fn first_within_budget(
         let model = mush_model(&proxies, (set, train), inputs.ssd, None, inputs.feats, k);
         Ok(Priced::of(&model.to_runtime(set, k)?))
     };
-    let mut priced = price(groups)?;
-    let mut count = groups.adjacency.len();
+    let (mut priced, mut count) = (price(groups)?, groups.adjacency.len());
     for (i, g) in std::iter::once(None)
         .chain(fewer.iter().map(Some))
         .enumerate()
     {
         if let Some(g) = g {
-            (priced, count) = (price(g)?, g.adjacency.len());
+            // The load scaled down with the count is below the count's own (the engine's part
+            // does not scale): a count it puts over is over, and is not fitted.
+            let c = g.adjacency.len();
+            let last = i == fewer.len();
+            if budget.load(&priced) * c as f64 / count as f64 > 1.0 && !last {
+                continue;
+            }
+            (priced, count) = (price(g)?, c);
         }
         if budget.admits(&priced) {
             return Ok(i.checked_sub(1));
