@@ -44,7 +44,7 @@ impl PaletteBench {
             progress.step();
         }
         progress.finish();
-        let median = |v: Vec<f64>| rrskin::cpu::median(v.into_iter()).unwrap_or(f64::NAN);
+        let median = |v: Vec<f64>| rrskin::cpu::median(v).unwrap_or(f64::NAN);
         Ok(PaletteBench {
             characters,
             frames,

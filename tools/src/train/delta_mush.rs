@@ -506,20 +506,7 @@ fn choose_count(
             (proxies, reduced)
         })
         .collect();
-    // Each larger count costs more: those within the budget lead, the others are not scored.
-    let budget = &options.budget;
-    let mut within = fitted.len();
-    for (i, (_, reduced)) in fitted.iter().enumerate() {
-        let priced = Priced::of(&reduced.to_runtime(set, k)?);
-        if within == fitted.len() && !budget.admits(&priced) {
-            within = i;
-        }
-        if i >= within {
-            inputs
-                .ledger
-                .refuse(budget, describe(reduced), priced, None);
-        }
-    }
+    let within = counts_within_budget(inputs, options, &fitted)?;
     fitted.truncate(within);
     if within == 0 {
         let (score, se) = Validated::of(vec![first.to_vec()], TOLERANCE).scores[0];
@@ -584,6 +571,30 @@ fn choose_count(
             (proxies, searched.swap_remove(index - 1), Some(reduced))
         }),
     })
+}
+
+/// How many of the larger counts' models (`fitted`, uncorrected, each costlier than the one
+/// before) are within the cost budget: those that lead; the others are noted as refused, not
+/// scored.
+fn counts_within_budget(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    fitted: &[(MushProxies, Reduced)],
+) -> Result<usize, TrainError> {
+    let (budget, k) = (&options.budget, options.influences);
+    let mut within = fitted.len();
+    for (i, (_, reduced)) in fitted.iter().enumerate() {
+        let priced = Priced::of(&reduced.to_runtime(inputs.set, k)?);
+        if within == fitted.len() && !budget.admits(&priced) {
+            within = i;
+        }
+        if i >= within {
+            inputs
+                .ledger
+                .refuse(budget, describe(reduced), priced, None);
+        }
+    }
+    Ok(within)
 }
 
 /// The count kept of `counts` ((proxies, score, standard error), smallest first): each larger
