@@ -33,7 +33,9 @@
 //! [`cpu::CpuEvaluator`] runs them on the CPU in `f64` (the reference); [`vk`] runs them as
 //! Vulkan compute passes, recorded for all crowds into one command buffer. For an engine that
 //! skins with its own shaders, [`palette::Palette`] runs steps 1–3 on the CPU in `f32`: bones in,
-//! the P + J palette (and the N corrective weights) out, with no Vulkan at all.
+//! the P + J palette (and the N corrective weights) out, with no Vulkan at all. [`cost::Cost`]
+//! predicts what a model costs on each, per character and against the engine's own skinning,
+//! before it runs (docs/method.md §24).
 //!
 //! ## Contract
 //!

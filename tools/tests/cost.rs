@@ -185,3 +185,24 @@ fn training_keeps_to_the_budget_and_names_what_it_refused() {
             || held.model.as_ref().is_some_and(|m| m.proxy_count() == 1)
     );
 }
+
+#[test]
+fn a_budget_is_a_positive_number_or_none() {
+    let set = concat!(env!("CARGO_MANIFEST_DIR"), "/../data/cesiumman");
+    for (flag, value) in [
+        ("--budget", "0"),
+        ("--budget", "cheap"),
+        ("--palette-budget", "-3"),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_rrskin"))
+            .args(["train", set, "-o", "unused.rrs", flag, value])
+            .output()
+            .expect("rrskin runs");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{flag} {value} accepted");
+        assert!(
+            err.contains(flag) && err.contains("positive number"),
+            "{err}"
+        );
+    }
+}
