@@ -58,11 +58,11 @@ pub struct TrainArgs {
     /// weights, one skinning pass with transformed normals), by the cost model (`rrskin info`
     /// reports it): every choice is the best cross-validated one within it. `none`: choose by
     /// error alone.
-    #[arg(long, value_name = "R|none", default_value_t = FrameBudget(TrainOptions::default().budget.frame), value_parser = parse_budget)]
+    #[arg(long, value_name = "R|none", default_value_t = FrameBudget(TrainOptions::default().budget.frame), value_parser = parse_budget, allow_hyphen_values = true)]
     pub budget: FrameBudget,
     /// What the CPU palette may cost, µs a character on one core (engines with their own
     /// skinning; by the cost model, calibrated on this project's machines). No limit by default.
-    #[arg(long, value_name = "US", value_parser = parse_positive)]
+    #[arg(long, value_name = "US", value_parser = parse_positive, allow_hyphen_values = true)]
     pub palette_budget: Option<f64>,
     /// --reduction paper: no gentle poses meshed by the full model (see `train::augment`).
     #[arg(long)]
