@@ -703,7 +703,11 @@ fn the_demo_writes_the_model_the_images_and_the_report() {
     assert_eq!(report.matches("<tr><td>").count(), 5 + 4, "{report}");
     let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).expect("tradeoff.svg");
     assert!(
-        svg.starts_with("<svg") && svg.contains("runtime model") && svg.contains("DQS"),
+        svg.starts_with("<svg")
+            && svg.contains("runtime model")
+            && svg.contains("DQS")
+            && svg.contains("the front")
+            && svg.contains("budget 1.25 x"),
         "{svg}"
     );
 }

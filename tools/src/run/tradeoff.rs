@@ -1,6 +1,8 @@
 //! The demo report's accuracy/size trade-off: the runtime model trained as `rrskin train` makes
 //! it (no full model) at several P, with its enveloping error and file bytes, drawn as an SVG
-//! curve beside the baselines a user would pick instead.
+//! curve beside the baselines a user would pick instead; and beside it the accuracy/cost front
+//! training scored (every candidate's cross-validated EE against its predicted frame cost,
+//! docs/method.md §24) with the budget's line.
 
 use crate::eval::{self, Report};
 use crate::set::ExampleSet;
@@ -55,7 +57,8 @@ pub fn sweep(set: &ExampleSet, main: &Report, quiet: bool) -> crate::Result<Vec<
     Ok(points)
 }
 
-/// Held-out EE (training EE where the set has no test poses) against P, with SSD's and DQS's.
+/// Held-out EE (training EE where the set has no test poses) against P, with SSD's and DQS's;
+/// and on the right the front of `report` ([`front`]).
 pub fn plot(path: &Path, points: &[Point], report: &Report) -> crate::Result<()> {
     let output = |problem: String| crate::Error::Output {
         path: path.to_path_buf(),
@@ -88,9 +91,12 @@ pub fn plot(path: &Path, points: &[Point], report: &Report) -> crate::Result<()>
         .chain(baselines.iter().map(|b| b.1))
         .fold(1.0, f64::max)
         * 1.15;
-    let root = SVGBackend::new(path, (640, 400)).into_drawing_area();
+    let root = SVGBackend::new(path, (1200, 400)).into_drawing_area();
+    let (left, right) = root.split_horizontally(640);
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
+        front(&right, report)?;
+        let root = left;
         let split = if held_out { "held-out" } else { "training" };
         let mut chart = ChartBuilder::on(&root)
             .caption(
@@ -129,4 +135,63 @@ pub fn plot(path: &Path, points: &[Point], report: &Report) -> crate::Result<()>
         Ok(())
     };
     draw().map_err(|e| output(e.to_string()))
+}
+
+/// The candidates training scored (`report.points`): cross-validated EE on the training folds
+/// against the predicted frame over the engine baseline, the non-dominated joined as the front,
+/// and the frame budget's line.
+fn front(
+    area: &DrawingArea<SVGBackend, plotters::coord::Shift>,
+    report: &Report,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let points = &report.points;
+    let dominated = |p: &crate::train::budget::Point| points.iter().any(|q| p.dominated_by(q));
+    let mut on_front: Vec<(f64, f64)> = (points.iter())
+        .filter(|p| !dominated(p))
+        .map(|p| (p.priced.frame, p.ee))
+        .collect();
+    on_front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let budget = report.cost_budget.frame;
+    let x_max = (points.iter().map(|p| p.priced.frame))
+        .chain(budget)
+        .fold(1.3, f64::max)
+        * 1.05;
+    let y_max = points.iter().map(|p| p.ee).fold(1.0, f64::max) * 1.15;
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            "cross-validated EE % against the frame's cost",
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(1.0..x_max, 0.0..y_max)?;
+    chart
+        .configure_mesh()
+        .x_desc("predicted frame, x the engine baseline")
+        .y_desc("EE %")
+        .draw()?;
+    chart.draw_series(
+        (points.iter()).map(|p| Circle::new((p.priced.frame, p.ee), 3, BLACK.mix(0.35).filled())),
+    )?;
+    chart
+        .draw_series(LineSeries::new(
+            on_front.iter().copied(),
+            BLACK.stroke_width(2),
+        ))?
+        .label("the front (every candidate: dots)")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLACK));
+    if let Some(b) = budget {
+        chart
+            .draw_series(LineSeries::new([(b, 0.0), (b, y_max)], RED))?
+            .label(format!("budget {b} x"))
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    Ok(())
 }
