@@ -62,21 +62,23 @@ fn proxies_and_delta_mush_keys_cost_more_on_every_target() {
     }
 }
 
+/// `rrskin ARGS`'s one JSON object, the run having succeeded.
+fn json(args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_rrskin"))
+        .args(args)
+        .output()
+        .expect("rrskin runs");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{args:?}: {stderr}");
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
 #[test]
 fn info_reports_the_cost_of_every_target() {
     let dir = temp_dir("cost-info");
     let path = dir.join("m.rrs");
     model(12).save(&path).expect("written");
-    let out = Command::new(env!("CARGO_BIN_EXE_rrskin"))
-        .args(["info", path.to_str().expect("utf-8"), "--json"])
-        .output()
-        .expect("rrskin runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let info: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let info = json(&["info", path.to_str().expect("utf-8"), "--json"]);
     let targets = &info["cost"]["targets"];
     for (name, ratio) in [
         ("recomputed_normals", true),
@@ -107,17 +109,17 @@ fn bench_measures_the_palette_of_any_model() {
         .expect("delta-mush keys")
         .save(&path)
         .expect("written");
-    let out = Command::new(env!("CARGO_BIN_EXE_rrskin"))
-        .args(["bench", path.to_str().expect("utf-8"), "--palette"])
-        .args(["--characters", "8", "--frames", "2", "--json"])
-        .output()
-        .expect("rrskin runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let b: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let path = path.to_str().expect("utf-8");
+    let b = json(&[
+        "bench",
+        path,
+        "--palette",
+        "--characters",
+        "8",
+        "--frames",
+        "2",
+        "--json",
+    ]);
     for key in ["palette_us", "palette_us_threads"] {
         assert!(b[key].as_f64().is_some_and(|us| us > 0.0), "{b}");
     }
