@@ -374,7 +374,7 @@ fn fewer_counts(p: usize) -> Vec<usize> {
 
 /// Where the delta-mush proxies alone at P (`groups`, smoothed by `vertex_ddm`) are over the
 /// cost budget (noted), the index in `fewer` (P/2, P/4, …) of the largest count within it
-/// (the cheapest where none is); None where P is within it.
+/// (the cheapest where none is); None where P is within it, or was asked for.
 fn first_within_budget(
     inputs: &Inputs,
     options: &TrainOptions,
@@ -383,7 +383,9 @@ fn first_within_budget(
     fewer: &[Groups],
 ) -> Result<Option<usize>, TrainError> {
     let budget = &options.budget;
-    if *budget == crate::train::budget::CostBudget::NONE {
+    // P delta-mush proxies asked for (`--reduction delta-mush` or `both`) are built as asked.
+    let asked = matches!(options.method, Method::DeltaMush | Method::Both);
+    if asked || *budget == crate::train::budget::CostBudget::NONE {
         return Ok(None);
     }
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
