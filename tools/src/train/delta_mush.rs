@@ -136,20 +136,28 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let (params, vertex_ddm) =
         ddm::choose(set, train, &inputs.ssd.influences).map_err(smoothing)?;
     let mut offered = offered_counts(options, set.faces.len());
-    let fewer = fewer_counts(offered[0]);
+    let fewer = match steps_down(options) {
+        true => fewer_counts(offered[0]),
+        false => Vec::new(),
+    };
     let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
     let mut ladder = Groups::merge_at(set, train, &counts);
     let fewer_groups = ladder.split_off(offered.len());
-    if let Some(at) = first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)?
-    {
-        // Fewer than P: the larger counts cost more still.
-        (offered, ladder) = (
-            vec![fewer[at]],
-            fewer_groups.into_iter().skip(at).take(1).collect(),
-        );
+    let mut smoothed = None;
+    if steps_down(options) {
+        let (at, fitted) =
+            first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)?;
+        if let Some(at) = at {
+            // Fewer than P: the larger counts cost more still.
+            (offered, ladder) = (
+                vec![fewer[at]],
+                fewer_groups.into_iter().skip(at).take(1).collect(),
+            );
+        }
+        smoothed = Some(fitted);
     }
     let (proxy_params, plain, fitted) =
-        proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0])?;
+        proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0], smoothed)?;
     let proxy_ddm = plain.as_ref().unwrap_or(&vertex_ddm);
     let split = Folds::new(train.len(), options.folds);
     let first = Side {
@@ -372,29 +380,32 @@ fn fewer_counts(p: usize) -> Vec<usize> {
         .collect()
 }
 
+/// Whether the cost budget may step the delta-mush count below P: it limits something, and P
+/// was not asked for (`--reduction delta-mush` or `both` build the P asked).
+fn steps_down(options: &TrainOptions) -> bool {
+    let asked = matches!(options.method, Method::DeltaMush | Method::Both);
+    !asked && options.budget != crate::train::budget::CostBudget::NONE
+}
+
 /// Where the delta-mush proxies alone at P (`groups`, smoothed by `vertex_ddm`) are over the
 /// cost budget (noted), the index in `fewer` (P/2, P/4, …) of the largest count within it
-/// (the cheapest where none is); None where P is within it, or was asked for.
+/// (the cheapest where none is; None where P is within it), with the proxies of that count
+/// (the fit [`proxy_smoothing`] would make with `vertex_ddm`).
 fn first_within_budget(
     inputs: &Inputs,
     options: &TrainOptions,
     vertex_ddm: &Ddm,
     groups: &Groups,
     fewer: &[Groups],
-) -> Result<Option<usize>, TrainError> {
+) -> Result<(Option<usize>, MushProxies), TrainError> {
     let budget = &options.budget;
-    // P delta-mush proxies asked for (`--reduction delta-mush` or `both`) are built as asked.
-    let asked = matches!(options.method, Method::DeltaMush | Method::Both);
-    if asked || *budget == crate::train::budget::CostBudget::NONE {
-        return Ok(None);
-    }
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
-    let price = |groups: &Groups| -> Result<Priced, TrainError> {
+    let price = |groups: &Groups| -> Result<(Priced, MushProxies), TrainError> {
         let proxies = MushProxies::fit(set, train, vertex_ddm, &inputs.ssd.influences, groups, k);
         let model = mush_model(&proxies, (set, train), inputs.ssd, None, inputs.feats, k);
-        Ok(Priced::of(&model.to_runtime(set, k)?))
+        Ok((Priced::of(&model.to_runtime(set, k)?), proxies))
     };
-    let (mut priced, mut count) = (price(groups)?, groups.adjacency.len());
+    let ((mut priced, mut proxies), mut count) = (price(groups)?, groups.adjacency.len());
     for (i, g) in std::iter::once(None)
         .chain(fewer.iter().map(Some))
         .enumerate()
@@ -407,27 +418,29 @@ fn first_within_budget(
             if budget.load(&priced) * c as f64 / count as f64 > 1.0 && !last {
                 continue;
             }
-            (priced, count) = (price(g)?, c);
+            ((priced, proxies), count) = (price(g)?, c);
         }
         if budget.admits(&priced) {
-            return Ok(i.checked_sub(1));
+            return Ok((i.checked_sub(1), proxies));
         }
         let what = format!("{count} delta-mush proxies");
         inputs.ledger.refuse(budget, what, priced, None);
     }
-    Ok(Some(fewer.len().saturating_sub(1)))
+    Ok((Some(fewer.len().saturating_sub(1)), proxies))
 }
 
 /// The proxies' smoothing on `groups`: DDM's `params` (Ω `vertex_ddm`), or none (p = 0: each
 /// group's rigid fit of its LBS motion), whichever fits the training poses better (the same
 /// models, so no cross-validation). The smoothing kept, its Ω where it is none (else
-/// `vertex_ddm`'s), and the proxies fitted with it.
+/// `vertex_ddm`'s), and the proxies fitted with it. `smoothed`: the proxies of `groups` with
+/// `vertex_ddm` where the budget's count search fitted them already.
 fn proxy_smoothing(
     inputs: &Inputs,
     k: usize,
     params: ddm::Params,
     vertex_ddm: &Ddm,
     groups: &Groups,
+    smoothed: Option<MushProxies>,
 ) -> Result<(ddm::Params, Option<Ddm>, MushProxies), TrainError> {
     let (set, train, ssd_weights) = (inputs.set, inputs.train, &inputs.ssd.influences);
     let unsmoothed = ddm::Params {
@@ -437,15 +450,16 @@ fn proxy_smoothing(
     let bones = set.bone_count();
     let plain =
         Ddm::new(&set.rest, &set.faces, ssd_weights, bones, &unsmoothed).map_err(smoothing)?;
-    let fit_with = |d: &Ddm| {
-        let m = MushProxies::fit(set, train, d, ssd_weights, groups, k);
+    let fit = |d: &Ddm| MushProxies::fit(set, train, d, ssd_weights, groups, k);
+    let scored = |m: MushProxies| {
         let meshes: Vec<Vec<DVec3>> = (train.iter())
             .map(|&i| m.deform(&set.rest, &set.poses[i].bones))
             .collect();
         (squared_error(set, train, &meshes), m)
     };
+    let smoothed = smoothed.unwrap_or_else(|| fit(vertex_ddm));
     let ((smoothed_error, smoothed), (plain_error, unsmoothed_fit)) =
-        (fit_with(vertex_ddm), fit_with(&plain));
+        (scored(smoothed), scored(fit(&plain)));
     Ok(match plain_error < smoothed_error {
         true => (unsmoothed, Some(plain), unsmoothed_fit),
         false => (params, None, smoothed),
