@@ -97,6 +97,8 @@ pub struct Report {
     pub model: Option<rrskin::Model>,
     /// The cost budget training kept to, and what it refused ([`crate::train::budget`]).
     pub cost_budget: CostBudget,
+    /// The runtime model's price against it (None without a model trained here).
+    pub priced: Option<Priced>,
     pub refused: Vec<Refused>,
     /// Every candidate training scored and priced ([`crate::train::budget::Point`]).
     pub points: Vec<Point>,
@@ -200,7 +202,7 @@ impl Report {
                 "stage": p.stage, "kind": p.kind, "proxies": p.proxies, "ee": p.ee,
                 "cost": {"frame": p.priced.frame, "palette_us": p.priced.palette_us},
                 "within_budget": self.cost_budget.admits(&p.priced),
-                "front": !self.points.iter().any(|q| p.dominated_by(q)),
+                "front": p.on_front(&self.points),
             })).collect::<Vec<_>>(),
         })
     }
@@ -211,7 +213,7 @@ impl Report {
         let b = &self.cost_budget;
         serde_json::json!({
             "frame": b.frame, "palette_us": b.palette_us,
-            "model": self.model.as_ref().map(|m| priced(&Priced::of(m))),
+            "model": self.priced.as_ref().map(priced),
             "refused": self.refused.iter().map(|r| serde_json::json!({
                 "candidate": r.candidate, "cost": priced(&r.priced), "load": r.load,
                 "ee": r.ee.map(|e| e.0), "kept_ee": r.ee.map(|e| e.1),
@@ -221,10 +223,9 @@ impl Report {
 
     /// The runtime model's predicted cost against the budget, and what the budget refused.
     fn budget_lines(&self) -> String {
-        let Some(model) = &self.model else {
+        let (Some(p), b) = (self.priced, &self.cost_budget) else {
             return String::new();
         };
-        let (p, b) = (Priced::of(model), &self.cost_budget);
         let limit = |l: Option<f64>, unit: &str| {
             l.map_or("no limit".to_string(), |l| format!("budget {l:.2}{unit}"))
         };
@@ -236,7 +237,7 @@ impl Report {
             limit(b.palette_us, " us"),
         );
         let front: Vec<&Point> = (self.points.iter())
-            .filter(|p| !self.points.iter().any(|q| p.dominated_by(q)))
+            .filter(|p| p.on_front(&self.points))
             .collect();
         if !front.is_empty() {
             s += "  the front (cross-validated EE % against the frame's cost, x the engine baseline):";
@@ -750,6 +751,7 @@ fn score(
         normal_error: Vec::new(),
         model: trained.model.clone(),
         cost_budget: CostBudget::NONE,
+        priced: trained.priced,
         refused: trained.refused.clone(),
         points: trained.points.clone(),
         choice: full.map(|f| {

@@ -145,9 +145,8 @@ fn front(
     report: &Report,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let points = &report.points;
-    let dominated = |p: &crate::train::budget::Point| points.iter().any(|q| p.dominated_by(q));
     let mut on_front: Vec<(f64, f64)> = (points.iter())
-        .filter(|p| !dominated(p))
+        .filter(|p| p.on_front(points))
         .map(|p| (p.priced.frame, p.ee))
         .collect();
     on_front.sort_by(|a, b| a.0.total_cmp(&b.0));

@@ -116,6 +116,11 @@ impl Point {
         let no_worse = other.ee <= self.ee && b.frame <= a.frame && b.palette_us <= a.palette_us;
         no_worse && (other.ee < self.ee || b.frame < a.frame || b.palette_us < a.palette_us)
     }
+
+    /// Whether no point of `points` dominates this one: it is on their front.
+    pub fn on_front(&self, points: &[Point]) -> bool {
+        !points.iter().any(|q| self.dominated_by(q))
+    }
 }
 
 /// The budget's refusals and the front's points, as the stages meet them.
