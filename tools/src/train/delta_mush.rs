@@ -298,25 +298,13 @@ fn admit(
     let mut refused = Vec::with_capacity(kinds.len());
     for (i, (kind, search)) in kinds.iter().zip(searched.iter_mut()).enumerate() {
         let plain = kind.to_runtime(set, k)?;
-        if let Some(fit) = search.as_mut() {
-            if let Some(c) = &fit.correctives {
-                let corrected = rrskin::Model::new(rrskin::ModelParts {
-                    proxy_correctives: Some(c.to_runtime()),
-                    ..plain.parts().clone()
-                })?;
-                let priced = Priced::of(&corrected);
-                if budget.admits(&priced) {
-                    refused.push((priced, true));
-                    continue;
-                }
-                let (uncorrected, ee) = fit.ee();
-                let what = format!("proxy correctives on {}", describe(kind));
-                let ee = ee.map(|ee| (ee, uncorrected));
-                inputs.ledger.refuse(budget, what, priced, ee);
-                (fit.chosen, fit.correctives) = (None, None);
+        let priced = match search.as_mut() {
+            Some(fit) => {
+                fit.apply_within(plain, budget, inputs.ledger, &describe(kind))?
+                    .1
             }
-        }
-        let priced = Priced::of(&plain);
+            None => Priced::of(&plain),
+        };
         refused.push((priced, i == 0 || budget.admits(&priced)));
     }
     Ok(refused)

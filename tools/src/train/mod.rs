@@ -652,7 +652,7 @@ impl Stages<'_> {
     fn add_proxy_correctives(
         &self,
         reduced: &Reduced,
-        mut model: rrskin::Model,
+        model: rrskin::Model,
         searched: Option<proxy_corrective::Fit>,
         clock: &mut Clock,
     ) -> Result<(rrskin::Model, Option<proxy_corrective::Fit>), TrainError> {
@@ -672,18 +672,8 @@ impl Stages<'_> {
                 self.options,
             )
         });
-        if let Some(c) = &fit.correctives {
-            let corrected = rrskin::Model::new(rrskin::ModelParts {
-                proxy_correctives: Some(c.to_runtime()),
-                ..model.parts().clone()
-            })?;
-            let (uncorrected, ee) = fit.ee();
-            let what = format!("proxy correctives on {} proxies", reduced.proxies);
-            match self.admitted(&corrected, what, ee.map(|ee| (ee, uncorrected))) {
-                true => model = corrected,
-                false => (fit.chosen, fit.correctives) = (None, None),
-            }
-        }
+        let (budget, what) = (&self.options.budget, format!("{} proxies", reduced.proxies));
+        let (model, _) = fit.apply_within(model, budget, self.ledger, &what)?;
         clock.lap("proxy correctives");
         self.progress.step();
         Ok((model, Some(fit)))

@@ -39,7 +39,7 @@
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
-use crate::train::budget::ee_of_score;
+use crate::train::budget::{ee_of_score, CostBudget, Ledger, Priced};
 use crate::train::corrective;
 use crate::train::cross_validate::{cross_validate, Fold, Folds, Score, Validated};
 use crate::train::pose_scale;
@@ -129,6 +129,34 @@ impl Fit {
             .find(|(c, _)| Some(*c) == self.chosen)
             .map(|(_, (score, _))| ee_of_score(*score));
         (ee_of_score(self.uncorrected.0), chosen)
+    }
+
+    /// `model` (whose proxies are `what`, as the report names them) with these correctives,
+    /// and its price, where the cost budget admits it; else `model` as it is and its price, the
+    /// correctives noted as refused in `ledger` and cleared from the fit.
+    pub fn apply_within(
+        &mut self,
+        model: rrskin::Model,
+        budget: &CostBudget,
+        ledger: &Ledger,
+        what: &str,
+    ) -> rrskin::Result<(rrskin::Model, Priced)> {
+        if let Some(c) = &self.correctives {
+            let corrected = rrskin::Model::new(rrskin::ModelParts {
+                proxy_correctives: Some(c.to_runtime()),
+                ..model.parts().clone()
+            })?;
+            let priced = Priced::of(&corrected);
+            if budget.admits(&priced) {
+                return Ok((corrected, priced));
+            }
+            let (uncorrected, ee) = self.ee();
+            let ee = ee.map(|ee| (ee, uncorrected));
+            ledger.refuse(budget, format!("proxy correctives on {what}"), priced, ee);
+            (self.chosen, self.correctives) = (None, None);
+        }
+        let priced = Priced::of(&model);
+        Ok((model, priced))
     }
 }
 
