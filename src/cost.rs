@@ -246,21 +246,22 @@ struct Dims {
     j: f64,
     k: f64,
     p: f64,
-    /// The block-sparse layout the GPU product runs on (None: the dense GEMM).
-    sparse: Option<BlockSparse>,
     /// Every proxy's stored columns (the CPU palette's product reads these always).
     blocks: BlockSparse,
+    /// Whether they are the layout the GPU product runs on (else the dense GEMM runs).
+    sparse: bool,
 }
 
 impl Dims {
     fn of(model: &Model) -> Dims {
+        let blocks = BlockSparse::of(model);
         Dims {
             v: model.vertex_count() as f64,
             j: model.bone_count() as f64,
             k: model.influences() as f64,
             p: model.proxy_count() as f64,
-            sparse: BlockSparse::layout_of(model),
-            blocks: BlockSparse::of(model),
+            sparse: blocks.is_layout_of(model),
+            blocks,
         }
     }
 }
@@ -335,10 +336,8 @@ fn frame_passes(model: &Model, d: &Dims, target: Target, device: &Device) -> Vec
             out.push(PassWork { pass, work });
         }
     };
-    let fused = d
-        .sparse
-        .as_ref()
-        .is_some_and(BlockSparse::one_key_per_proxy);
+    let sparse = d.sparse.then_some(&d.blocks);
+    let fused = sparse.is_some_and(BlockSparse::one_key_per_proxy);
     let corrected = model.proxy_corrective_count() > 0;
     let corrects_in_product = fused && corrected && !device.cpu_driver && model.up().is_none();
     if d.p > 0.0 {
@@ -346,7 +345,7 @@ fn frame_passes(model: &Model, d: &Dims, target: Target, device: &Device) -> Vec
         // Invocations of 64 over the keys then the bones (predict.comp, fused_product.comp).
         let rows = Work::groups(((d.p + d.j) / 64.0).ceil());
         let keys = || (0..model.proxy_count()).map(|l| key(model, l));
-        match (&d.sparse, fused) {
+        match (sparse, fused) {
             (Some(blocks), true) => {
                 let own_keys =
                     (0..model.proxy_count()).map(|e| key(model, own_key(blocks, e, d.p)));

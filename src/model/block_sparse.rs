@@ -49,11 +49,17 @@ impl BlockSparse {
     /// stays the dense GEMM (no proxies, an all-zero matrix, or stored columns at or above
     /// [`MAX_SPARSE_DENSITY`] of the dense P (3P + 4J)).
     pub fn layout_of(model: &Model) -> Option<BlockSparse> {
-        let width = 3 * model.proxy_count() + 4 * model.bone_count();
         let blocks = BlockSparse::of(model);
-        let stored = blocks.columns.len() as f64;
+        blocks.is_layout_of(model).then_some(blocks)
+    }
+
+    /// Whether these blocks (`model`'s) are the layout its product runs on
+    /// ([`BlockSparse::layout_of`]).
+    pub fn is_layout_of(&self, model: &Model) -> bool {
+        let width = 3 * model.proxy_count() + 4 * model.bone_count();
+        let stored = self.columns.len() as f64;
         let dense = (model.proxy_count() * width) as f64;
-        (stored > 0.0 && stored < MAX_SPARSE_DENSITY * dense).then_some(blocks)
+        stored > 0.0 && stored < MAX_SPARSE_DENSITY * dense
     }
 
     /// Proxy e's stored columns and their values.
