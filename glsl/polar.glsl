@@ -1,158 +1,73 @@
-// The rotation nearest to a 3x3 matrix A, the proper R maximising tr(R^T A) (Horn's quaternion
-// method by cyclic Jacobi sweeps from a guess): src/polar.rs in f32, same guess, sweeps and ties.
-// A and the result are row-major: a[3r + c] = A[r][c].
+// The rotation of a delta-mush key's rigid fit for a 3x3 A, toward the proper R maximising
+// tr(R^T A): the Gram-Schmidt guess and Newton steps on the rotation group, src/polar.rs in f32
+// with the same guess, steps, damping and order of operations. A and the result are row-major:
+// a[3r + c] = A[r][c].
 
-const uint POLAR_SWEEPS = 4u;
+const uint NEWTON_STEPS = 2u;
 // Below this sine of the angle between A's first two columns (or with either zero), the guess
 // is the identity.
 const float GUESS_SINE = 1e-4;
+// H is damped by this times tr(M).
+const float DAMPING = 1e-3;
 
-// One Jacobi rotation of the symmetric 4x4 n (row-major) in the (p, q) plane, zeroing n[p][q]
-// (Numerical Recipes 11.1, eq. 11.1.14-11.1.18, t the smaller root): the diagonal moves by
-// t apq, the other rows' entries turn by (s, tau) and are mirrored, and the rotation is
-// accumulated into the eigenvectors v.
-void jacobi(inout float n[16], inout float v[16], uint p, uint q) {
-    float apq = n[4u * p + q];
-    if (apq == 0.0) {
-        return;
-    }
-    float theta = (n[5u * q] - n[5u * p]) / (2.0 * apq);
-    float t;
-    if (abs(theta) > 1e15) {
-        t = 0.5 / theta;
-    } else {
-        t = 1.0 / (abs(theta) + sqrt(theta * theta + 1.0));
-        if (theta < 0.0) {
-            t = -t;
-        }
-    }
-    float c = 1.0 / sqrt(t * t + 1.0);
-    float s = t * c;
-    float tau = s / (1.0 + c);
-    float h = t * apq;
-    n[5u * p] -= h;
-    n[5u * q] += h;
-    n[4u * p + q] = 0.0;
-    n[4u * q + p] = 0.0;
-    for (uint k = 0u; k < 4u; k++) {
-        if (k == p || k == q) {
-            continue;
-        }
-        float g = n[4u * k + p];
-        float hk = n[4u * k + q];
-        float kp = g - s * (hk + g * tau);
-        float kq = hk + s * (g - hk * tau);
-        n[4u * k + p] = kp;
-        n[4u * p + k] = kp;
-        n[4u * k + q] = kq;
-        n[4u * q + k] = kq;
-    }
-    for (uint k = 0u; k < 4u; k++) {
-        float g = v[4u * k + p];
-        float hk = v[4u * k + q];
-        v[4u * k + p] = g - s * (hk + g * tau);
-        v[4u * k + q] = hk + s * (g - hk * tau);
-    }
-}
-
-// The guess G (row-major) of src/polar.rs: the Gram-Schmidt frame of A's first two columns,
-// the identity below GUESS_SINE. The sweeps then work on A' = G^T A, nearly symmetric wherever
-// A is nearly a rotation times a stretch, and the result is G R'.
-void guess(float a[9], out float g[9]) {
-    vec3 c0 = vec3(a[0], a[3], a[6]);
-    vec3 c1 = vec3(a[1], a[4], a[7]);
+// The guess G (columns): g0 = a0 / |a0|, g2 = (a0 x a1) / |a0 x a1|, g1 = g2 x g0; the identity
+// below GUESS_SINE.
+mat3 guess(mat3 a) {
+    vec3 c0 = a[0];
+    vec3 c1 = a[1];
     vec3 x = vec3(c0.y * c1.z - c0.z * c1.y, c0.z * c1.x - c0.x * c1.z, c0.x * c1.y - c0.y * c1.x);
     float l0 = sqrt(dot(c0, c0));
     float l1 = sqrt(dot(c1, c1));
     float lx = sqrt(dot(x, x));
-    vec3 g0 = vec3(1.0, 0.0, 0.0);
-    vec3 g1 = vec3(0.0, 1.0, 0.0);
-    vec3 g2 = vec3(0.0, 0.0, 1.0);
     if (lx > GUESS_SINE * l0 * l1) {
-        g0 = c0 / l0;
-        g2 = x / lx;
-        g1 = vec3(g2.y * g0.z - g2.z * g0.y, g2.z * g0.x - g2.x * g0.z, g2.x * g0.y - g2.y * g0.x);
+        vec3 g0 = c0 / l0;
+        vec3 g2 = x / lx;
+        vec3 g1 = vec3(g2.y * g0.z - g2.z * g0.y, g2.z * g0.x - g2.x * g0.z, g2.x * g0.y - g2.y * g0.x);
+        return mat3(g0, g1, g2);
     }
-    g[0] = g0.x; g[1] = g1.x; g[2] = g2.x;
-    g[3] = g0.y; g[4] = g1.y; g[5] = g2.y;
-    g[6] = g0.z; g[7] = g1.z; g[8] = g2.z;
+    return mat3(1.0);
+}
+
+// One Newton step from the rotation r toward the fit of a (both by columns): r R(w), with
+// M = r^T A, g its skew part's axis, H = tr(M) (1 + DAMPING) I - sym(M), w = H^-1 g, R(w) the
+// rotation of the quaternion (1, w / 2); r itself where H is not positive definite.
+mat3 newton_step(mat3 r, mat3 a) {
+    mat3 m = transpose(r) * a;   // m[c][r] = M[r][c]
+    vec3 g = vec3(m[1][2] - m[2][1], m[2][0] - m[0][2], m[0][1] - m[1][0]);
+    float t = m[0][0] + m[1][1] + m[2][2];
+    float d = t * (1.0 + DAMPING);
+    float h00 = d - m[0][0];
+    float h11 = d - m[1][1];
+    float h22 = d - m[2][2];
+    float h01 = -0.5 * (m[1][0] + m[0][1]);
+    float h02 = -0.5 * (m[2][0] + m[0][2]);
+    float h12 = -0.5 * (m[2][1] + m[1][2]);
+    float j00 = h11 * h22 - h12 * h12;
+    float j11 = h00 * h22 - h02 * h02;
+    float j22 = h00 * h11 - h01 * h01;
+    float j01 = h02 * h12 - h01 * h22;
+    float j02 = h01 * h12 - h02 * h11;
+    float j12 = h01 * h02 - h00 * h12;
+    float det = h00 * j00 + h01 * j01 + h02 * j02;
+    float half_ = (h00 > 0.0 && j22 > 0.0 && det > 0.0) ? 0.5 / det : 0.0;
+    float x = half_ * (j00 * g.x + j01 * g.y + j02 * g.z);
+    float y = half_ * (j01 * g.x + j11 * g.y + j12 * g.z);
+    float z = half_ * (j02 * g.x + j12 * g.y + j22 * g.z);
+    float s = 2.0 / (1.0 + x * x + y * y + z * z);
+    mat3 q = mat3(
+        1.0 - s * (y * y + z * z), s * (x * y + z), s * (x * z - y),
+        s * (x * y - z), 1.0 - s * (x * x + z * z), s * (y * z + x),
+        s * (x * z + y), s * (y * z - x), 1.0 - s * (x * x + y * y));
+    return r * q;
 }
 
 void nearest_rotation(float a_in[9], out float rot[9]) {
-    float g[9];
-    guess(a_in, g);
-    // A' = G^T A, written out: a local array indexed in a loop costs CPU drivers a round trip
-    // through memory per lane.
-    mat3 gm = mat3(g[0], g[3], g[6], g[1], g[4], g[7], g[2], g[5], g[8]);   // columns
-    mat3 am = mat3(a_in[0], a_in[3], a_in[6], a_in[1], a_in[4], a_in[7], a_in[2], a_in[5], a_in[8]);
-    mat3 ap = transpose(gm) * am;
-    float a[9];
-    a[0] = ap[0][0]; a[1] = ap[1][0]; a[2] = ap[2][0];
-    a[3] = ap[0][1]; a[4] = ap[1][1]; a[5] = ap[2][1];
-    a[6] = ap[0][2]; a[7] = ap[1][2]; a[8] = ap[2][2];
-    float n[16];
-    n[0] = a[0] + a[4] + a[8];
-    n[1] = a[7] - a[5];
-    n[2] = a[2] - a[6];
-    n[3] = a[3] - a[1];
-    n[5] = a[0] - a[4] - a[8];
-    n[6] = a[3] + a[1];
-    n[7] = a[2] + a[6];
-    n[10] = a[4] - a[0] - a[8];
-    n[11] = a[7] + a[5];
-    n[15] = a[8] - a[0] - a[4];
-    n[4] = n[1];
-    n[8] = n[2];
-    n[9] = n[6];
-    n[12] = n[3];
-    n[13] = n[7];
-    n[14] = n[11];
-    float v[16];
-    for (uint i = 0u; i < 16u; i++) {
-        v[i] = (i % 5u == 0u) ? 1.0 : 0.0;
+    mat3 a = mat3(a_in[0], a_in[3], a_in[6], a_in[1], a_in[4], a_in[7], a_in[2], a_in[5], a_in[8]);
+    mat3 r = guess(a);
+    for (uint step = 0u; step < NEWTON_STEPS; step++) {
+        r = newton_step(r, a);
     }
-    // The pairs by literal indices (no loop over them): once the driver inlines jacobi(),
-    // every index into n and v is a constant, so both stay in registers.
-    for (uint sweep = 0u; sweep < POLAR_SWEEPS; sweep++) {
-        jacobi(n, v, 0u, 1u);
-        jacobi(n, v, 0u, 2u);
-        jacobi(n, v, 0u, 3u);
-        jacobi(n, v, 1u, 2u);
-        jacobi(n, v, 1u, 3u);
-        jacobi(n, v, 2u, 3u);
-    }
-    // The largest eigenvalue's column, ties to the first (the identity for A = 0).
-    float top = n[0];
-    vec4 e = vec4(v[0], v[4], v[8], v[12]);
-    if (n[5] > top) {
-        top = n[5];
-        e = vec4(v[1], v[5], v[9], v[13]);
-    }
-    if (n[10] > top) {
-        top = n[10];
-        e = vec4(v[2], v[6], v[10], v[14]);
-    }
-    if (n[15] > top) {
-        e = vec4(v[3], v[7], v[11], v[15]);
-    }
-    float w = e.x;
-    float x = e.y;
-    float y = e.z;
-    float z = e.w;
-    float s = 2.0 / (w * w + x * x + y * y + z * z);
-    float r[9];
-    r[0] = 1.0 - s * (y * y + z * z);
-    r[1] = s * (x * y - w * z);
-    r[2] = s * (x * z + w * y);
-    r[3] = s * (x * y + w * z);
-    r[4] = 1.0 - s * (x * x + z * z);
-    r[5] = s * (y * z - w * x);
-    r[6] = s * (x * z - w * y);
-    r[7] = s * (y * z + w * x);
-    r[8] = 1.0 - s * (x * x + y * y);
-    // R = G R'
-    mat3 rm = gm * mat3(r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8]);
-    rot[0] = rm[0][0]; rot[1] = rm[1][0]; rot[2] = rm[2][0];
-    rot[3] = rm[0][1]; rot[4] = rm[1][1]; rot[5] = rm[2][1];
-    rot[6] = rm[0][2]; rot[7] = rm[1][2]; rot[8] = rm[2][2];
+    rot[0] = r[0][0]; rot[1] = r[1][0]; rot[2] = r[2][0];
+    rot[3] = r[0][1]; rot[4] = r[1][1]; rot[5] = r[2][1];
+    rot[6] = r[0][2]; rot[7] = r[1][2]; rot[8] = r[2][2];
 }

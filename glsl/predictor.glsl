@@ -100,7 +100,7 @@ uint mush(uint i) {
     return uint(parents[pc.J + i]);
 }
 
-// Delta-mush key l's D = polar(sum_i [Q_i | d_i] Omega_i) (src/model/mod.rs, MushKeys), its
+// Delta-mush key l's D = fit(sum_i [Q_i | d_i] Omega_i) (src/model/mod.rs, MushKeys), its
 // terms being words first..end of mush().
 mat3 mush_gradient(uint first, uint end, uint base) {
     float a[9];

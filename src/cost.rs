@@ -273,9 +273,10 @@ const JOINT_ROTATION: Work = Work {
 };
 /// exp of a scaled axis (predictor.glsl `exp_rotation`).
 const EXP: Work = Work::new(0.0, 0.0, 50.0, 5.0);
-/// The rotation fit of a delta-mush key: a guess, 4 Jacobi sweeps of 6 rotations, the
-/// quaternion's matrix (glsl/polar.glsl, src/polar.rs).
-const POLAR: Work = Work::new(0.0, 0.0, 770.0, 150.0);
+/// The rotation fit of a delta-mush key: the Gram-Schmidt guess (35 multiply-adds, 3 roots
+/// and 6 divisions) and 2 Newton steps of 130 multiply-adds and 2 divisions each
+/// (glsl/polar.glsl, src/polar.rs).
+const POLAR: Work = Work::new(0.0, 0.0, 295.0, 13.0);
 /// How many lanes of the CPU palette's rotation fits one SSE instruction carries
 /// ([`crate::polar::nearest_rotations_f32`]).
 const PALETTE_POLAR_LANES: f64 = 4.0;

@@ -459,10 +459,9 @@ pub(crate) fn rotation_bones(model: &Model) -> Vec<u32> {
         .collect()
 }
 
-/// Every delta-mush key's gradient `D_s = polar(A_s)` for one character's bones `q`, as three
-/// columns each into `out` (3 S), [`MUSH_LANES`] keys at a time: one key's rotation fit is
-/// the latency of 24 dependent Jacobi rotations, which lanes pay once for all of them
-/// ([`nearest_rotations_f32`]).
+/// Every delta-mush key's gradient `D_s = fit(A_s)` for one character's bones `q`, as three
+/// columns each into `out` (3 S), [`MUSH_LANES`] keys at a time: one key's rotation fit is a
+/// chain of dependent steps, which lanes pay once for all of them ([`nearest_rotations_f32`]).
 fn mush_gradients(keys: &MushKeys, q: &[Affine], out: &mut [Vec3]) {
     for (chunk, out) in out.chunks_mut(3 * MUSH_LANES).enumerate() {
         let first = chunk * MUSH_LANES;

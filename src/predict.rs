@@ -340,7 +340,7 @@ macro_rules! mush_covariance {
     ($name:ident, $f:ty) => {
         /// `A_s(q) = Σ_i [Q_{b_i} | d_{b_i}] Ω_i` (row-major 3x3) of delta-mush key s
         /// ([`crate::MushKeys`]) for one character's J bone transforms: its gradient is
-        /// `polar(A_s)`.
+        /// `fit(A_s)` ([`crate::polar::nearest_rotation`]).
         pub fn $name(keys: &MushKeys, s: usize, bones: &[Affine]) -> [[$f; 3]; 3] {
             let (ids, terms) = keys.key(s);
             let mut a = [[0.0 as $f; 3]; 3];
@@ -362,7 +362,7 @@ macro_rules! mush_covariance {
 mush_covariance!(mush_covariance, f64);
 mush_covariance!(mush_covariance_f32, f32);
 
-/// `D_s(q) = polar(A_s(q))` of delta-mush key s ([`mush_covariance`]) for one character's J
+/// `D_s(q) = fit(A_s(q))` of delta-mush key s ([`mush_covariance`]) for one character's J
 /// bone transforms.
 pub fn mush_gradient(keys: &MushKeys, s: usize, bones: &[Affine]) -> DMat3 {
     let r = crate::polar::nearest_rotation(mush_covariance(keys, s, bones));

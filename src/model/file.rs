@@ -3,9 +3,10 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION (6; versions 1, without CORR,
+//! 8       4          format version (u32) = FORMAT_VERSION (7; versions 1, without CORR,
 //!                    PCOR and MUSH, 2, without PCOR and MUSH, 3, without MUSH, 4,
-//!                    without PCOR's gravity, and 5, without PCOR's ranges, read too)
+//!                    without PCOR's gravity, 5, without PCOR's ranges, and 6, with MUSH's
+//!                    terms out of the keys' frames, read too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -33,7 +34,7 @@
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
 //! | PCOR | optional (version 3): proxy correctives: E u32, C u32, features u32 (bit 0 linear; bit 1 gravity, version 5; bit 2 ranges, version 6), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), up 3 f32 (with gravity only), ranges J x (12 lower, 12 upper) f32 (with ranges only), maps 12 D (9 linear + 3 gravity + C) f32 |
-//! | MUSH | optional (version 4): delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 |
+//! | MUSH | optional (version 4): delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 (from version 7 in each key's principal frame, C1 turned to match; earlier files are turned as they load, `ModelParts::in_key_frames`) |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
@@ -45,7 +46,9 @@ use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 /// The version this build writes; it reads every version from 1 to this one.
-pub const FORMAT_VERSION: u32 = 6;
+pub const FORMAT_VERSION: u32 = 7;
+/// The first version whose delta-mush keys are in their principal frames.
+pub const KEY_FRAMES_VERSION: u32 = 7;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
@@ -220,8 +223,9 @@ pub fn predictor_words(k: &KeyPredictor) -> [u32; PREDICTOR_WORDS] {
     words
 }
 
-pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
+pub fn decode(bytes: &[u8]) -> Result<(ModelParts, u32), ModelProblem> {
     let body = checked_body(bytes)?;
+    let version = le_u32(bytes, 8);
     let table = SectionTable::read(body)?;
 
     let dims = table.section(body, DIMS, 20)?;
@@ -279,7 +283,7 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         None => None,
     };
 
-    Ok(ModelParts {
+    let parts = ModelParts {
         rest_positions: f32s(rest).chunks_exact(3).map(array).collect(),
         triangles: u32s(tris).chunks_exact(3).map(array).collect(),
         bone_parents: prnt
@@ -303,7 +307,8 @@ pub fn decode(bytes: &[u8]) -> Result<ModelParts, ModelProblem> {
         correctives,
         proxy_correctives,
         mush_keys,
-    })
+    };
+    Ok((parts, version))
 }
 
 /// The MUSH section: S and N, then the lengths they give (checked before anything else is read).

@@ -241,12 +241,15 @@ pub const MAX_MUSH_BONES: usize = 256;
 /// several bones' motions, Direct Delta Mush's fit for one group of vertices. Key R + s (R =
 /// `predictors.len()`) is delta-mush key s, with bones b_i and terms Ω_i (i in its CSR range):
 ///
-/// `D(q) = polar(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)`
+/// `D(q) = fit(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)`
 ///
 /// where `[Q | d]` is the bone's 3x4 transform, Ω_i is 4x3 (row-major, 12 floats) and
-/// `polar(A)` is the rotation nearest to A, the R maximising tr(Rᵀ A)
-/// ([`crate::polar::nearest_rotation`]; the identity for A = 0). The key's proxy takes its
-/// translation from C1 and C2 as any proxy does (for a group's fit, `t = Σ_i M_i ω_i − D p`).
+/// `fit(A)` is the rotation [`crate::polar::nearest_rotation`] gives: Newton steps toward the
+/// rotation nearest to A (the R maximising tr(Rᵀ A)) from a guess that is exact for a rigid
+/// motion where the terms are in the key's principal frame, as training writes them
+/// ([`MushKeys::in_principal_frames`]); the identity for A = 0. The key's proxy takes its
+/// translation from C1 and C2 as any proxy does (for a group's fit, `t = Σ_i M_i ω_i − D p`),
+/// and C1 turns D back out of the key's frame.
 ///
 /// Limits: S ≥ 1 keys, each with 1 to [`MAX_MUSH_BONES`] distinct bones.
 #[derive(Debug, Clone, PartialEq)]
@@ -269,6 +272,60 @@ impl MushKeys {
     pub fn key(&self, s: usize) -> (&[u32], &[[f32; 12]]) {
         let range = self.offsets[s] as usize..self.offsets[s + 1] as usize;
         (&self.bones[range.clone()], &self.terms[range])
+    }
+
+    /// Key s's rest covariance `C_s = Σ_i Ω_i[0..3]` (row-major): its A when every bone is
+    /// at rest.
+    pub fn rest_covariance(&self, s: usize) -> [[f64; 3]; 3] {
+        let mut c = [[0.0; 3]; 3];
+        for omega in self.key(s).1 {
+            for (k, row) in c.iter_mut().enumerate() {
+                row.iter_mut()
+                    .enumerate()
+                    .for_each(|(m, x)| *x += f64::from(omega[3 * k + m]));
+            }
+        }
+        c
+    }
+
+    /// These keys with each key's terms in its principal frame, `Ω_i P_s / λ_s`
+    /// ([`crate::polar::principal_frame`] of [`MushKeys::rest_covariance`]), and the frames
+    /// P_s (row-major rotations): the fit of the new terms is the key's rotation in its frame,
+    /// `D_s P_s`, so a proxy reading the key reads `D_s P_sᵀ` ([`ModelParts::in_key_frames`]).
+    /// A rigid motion of the key's vertices then makes the fit's guess exact.
+    pub fn in_principal_frames(&self) -> (MushKeys, Vec<[[f64; 3]; 3]>) {
+        let mut keys = self.clone();
+        let frames = (0..self.count())
+            .map(|s| {
+                let (p, scale) = crate::polar::principal_frame(self.rest_covariance(s));
+                let range = self.offsets[s] as usize..self.offsets[s + 1] as usize;
+                for omega in &mut keys.terms[range] {
+                    let o = omega.map(f64::from);
+                    *omega = std::array::from_fn(|i| {
+                        let (k, m) = (i / 3, i % 3);
+                        let turned: f64 = (0..3).map(|c| o[3 * k + c] * p[c][m]).sum();
+                        (turned / scale) as f32
+                    });
+                }
+                p
+            })
+            .collect();
+        (keys, frames)
+    }
+}
+
+/// The model's 4P x 3P C1 (row-major) for delta-mush keys whose fit gives `D_s P_s` (the
+/// first `first` keys are predictors'): each key's three columns times its frame P_s
+/// (row-major), so that every proxy still reads `D_s = (D_s P_s) P_sᵀ`.
+pub fn c1_in_key_frames(c1: &mut [f32], p: usize, first: usize, frames: &[[[f64; 3]; 3]]) {
+    for row in c1.chunks_exact_mut(3 * p) {
+        for (s, frame) in frames.iter().enumerate() {
+            let at = 3 * (first + s);
+            let old = [0, 1, 2].map(|c| f64::from(row[at + c]));
+            for m in 0..3 {
+                row[at + m] = (0..3).map(|c| old[c] * frame[c][m]).sum::<f64>() as f32;
+            }
+        }
     }
 }
 
@@ -315,6 +372,20 @@ impl ModelParts {
     /// P: the predictors' keys, then the delta-mush keys.
     pub fn key_count(&self) -> usize {
         self.predictors.len() + self.mush_keys.as_ref().map_or(0, MushKeys::count)
+    }
+
+    /// These parts with their delta-mush keys in their principal frames
+    /// ([`MushKeys::in_principal_frames`]) and C1 turned to match ([`c1_in_key_frames`]): the
+    /// same model, whose keys' fits start from an exact guess for rigid motions. Files before
+    /// version 7 stored the keys' terms unturned, for an exact polar rotation.
+    pub fn in_key_frames(mut self) -> ModelParts {
+        if let Some(keys) = &self.mush_keys {
+            let (turned, frames) = keys.in_principal_frames();
+            let p = self.key_count();
+            c1_in_key_frames(&mut self.c1, p, self.predictors.len(), &frames);
+            self.mush_keys = Some(turned);
+        }
+        self
     }
 }
 
@@ -393,11 +464,16 @@ impl Model {
     }
 
     fn from_bytes_named(bytes: &[u8], origin: &str) -> Result<Model> {
-        let parts = file::decode(bytes).map_err(|problem| Error::BadModel {
+        let (parts, version) = file::decode(bytes).map_err(|problem| Error::BadModel {
             origin: origin.to_string(),
             problem,
         })?;
-        Self::with_origin(parts, origin)
+        let model = Self::with_origin(parts, origin)?;
+        match version < file::KEY_FRAMES_VERSION && model.mush_keys().is_some() {
+            // Valid, so every key's range is in bounds; turning it keeps it valid.
+            true => Self::with_origin(model.into_parts().in_key_frames(), origin),
+            false => Ok(model),
+        }
     }
 
     /// The `.rrs` image of this model.

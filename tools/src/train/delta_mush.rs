@@ -25,6 +25,7 @@ use crate::train::cross_validate::{try_cross_validate, Fold, Folds, Validated};
 use crate::train::proxy_corrective::Candidate;
 use crate::train::reduce::c1c2::Reduced;
 use crate::train::reduce::mush::{join, Groups, MushProxies};
+use crate::train::reduce::mush_keys::Keys;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
 use crate::train::{corrective, proxy_corrective};
@@ -100,7 +101,7 @@ impl Kept {
 impl Fit {
     /// P
     pub fn proxies(&self) -> usize {
-        self.proxies.proxies.entries()
+        self.proxies.proxies.count()
     }
 
     /// The mean bones per proxy's rigid fit: the run-time cost of the keys.
@@ -313,7 +314,7 @@ fn admit(
 /// The front's point of `r` (as [`describe`] names it), scored `ee` by the comparison `stage`,
 /// priced `priced`.
 fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
-    let mush = r.mush.as_ref().map_or(0, Ddm::entries);
+    let mush = r.mush.as_ref().map_or(0, Keys::count);
     let kind = match (r.proxies - mush, mush) {
         (_, 0) => "joint-blend",
         (0, _) => "delta-mush",
@@ -331,7 +332,7 @@ fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
 /// A reduced model's keys, as the report names a candidate: "54 joint-blend proxies", "60
 /// delta-mush proxies", "54 joint-blend and 60 delta-mush proxies".
 fn describe(r: &Reduced) -> String {
-    let mush = r.mush.as_ref().map_or(0, Ddm::entries);
+    let mush = r.mush.as_ref().map_or(0, Keys::count);
     match (r.proxies - mush, mush) {
         (jb, 0) => format!("{jb} joint-blend proxies"),
         (0, mush) => format!("{mush} delta-mush proxies"),

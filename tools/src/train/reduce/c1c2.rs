@@ -17,8 +17,8 @@
 
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet, Pose};
-use crate::skinning::ddm::Ddm;
 use crate::skinning::lbs::Skinning;
+use crate::train::reduce::mush_keys::Keys;
 use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::PoseFeatures;
@@ -36,9 +36,9 @@ pub struct Reduced {
     /// 4P x 4J, row-major.
     pub c2: Vec<f64>,
     /// The keys, as the runtime orders them (P in all): the predictors' (paper §3), then the
-    /// delta-mush keys' (docs/method.md §23), Direct Delta Mush's Ω of their groups.
+    /// delta-mush keys' (docs/method.md §23), Direct Delta Mush's fits of their groups.
     pub predictors: Vec<TrainedPredictor>,
-    pub mush: Option<Ddm>,
+    pub mush: Option<Keys>,
     /// Per vertex: (palette entry, weight); entries < P are proxies, P + b bone b.
     pub skin: Vec<Vec<(usize, f64)>>,
     /// Per vertex: SSD's (bone, weight), the baseline the runtime model carries.
@@ -434,40 +434,18 @@ impl Reduced {
                 },
             })
             .collect();
+        let mut c1: Vec<f32> = self.c1.iter().map(|&x| x as f32).collect();
+        if let Some(keys) = &self.mush {
+            let first = self.predictors.len();
+            rrskin::model::c1_in_key_frames(&mut c1, self.proxies, first, keys.frames());
+        }
         rrskin::Model::new(rrskin::ModelParts {
             predictors,
-            c1: self.c1.iter().map(|&x| x as f32).collect(),
+            c1,
             c2: self.c2.iter().map(|&x| x as f32).collect(),
-            mush_keys: self.mush.as_ref().map(mush_keys),
+            mush_keys: self.mush.as_ref().map(|keys| keys.runtime.clone()),
             ..runtime_parts(set, influences, &self.skin, &self.baseline)
         })
-    }
-}
-
-/// The runtime's delta-mush keys of the groups of `mush` ([`Ddm::linear_fit`]); a group
-/// without weight keeps one zero term, whose rotation fit is the identity (as
-/// [`Ddm::motions`] leaves it).
-fn mush_keys(mush: &Ddm) -> rrskin::MushKeys {
-    let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
-    for g in 0..mush.entries() {
-        match mush.linear_fit(g) {
-            Some(fit) => {
-                for (b, a, _) in &fit.terms {
-                    bones.push(*b as u32);
-                    terms.push(std::array::from_fn(|i| a[i / 3][i % 3] as f32));
-                }
-            }
-            None => {
-                bones.push(0);
-                terms.push([0.0; 12]);
-            }
-        }
-        offsets.push(bones.len() as u32);
-    }
-    rrskin::MushKeys {
-        offsets,
-        bones,
-        terms,
     }
 }
 

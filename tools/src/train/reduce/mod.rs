@@ -4,6 +4,7 @@
 pub mod c1c2;
 pub mod joint_blend;
 pub mod mush;
+pub mod mush_keys;
 pub mod predictor;
 pub mod refit;
 pub mod stretch;

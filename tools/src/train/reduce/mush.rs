@@ -14,8 +14,9 @@
 //!   [`merge_groups_at`]) on the training poses, P groups;
 //! - Ω_g = Σ_a s_ag Ω_a, s_ag the share of vertex a's incident triangles in group g, bones
 //!   below [`FLOOR`] of the group's mass left out (and past the runtime's 256 heaviest);
-//! - per pose, T_g = [`Ddm::motions`]: `Q_g = Σ_j M_j Ω_gj`, the rotation nearest to its
-//!   covariance part, and the translation that keeps the group's smoothed centre;
+//! - per pose, T_g = [`Keys::motions`]: `Q_g = Σ_j M_j Ω_gj`, the runtime's rotation fit of
+//!   its covariance part (`rrskin::polar`), and the translation that keeps the group's
+//!   smoothed centre;
 //! - per vertex, NNLS weights (at most K, Σ = 1) over its own groups, the adjacent ones and its
 //!   SSD bones (the runtime palette holds the J bones after the P proxies), fitted on the
 //!   training poses (best subset, as SSD's and the vertex reduction's). Where the rig does not
@@ -29,6 +30,7 @@
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::ddm::Ddm;
 use crate::train::reduce::c1c2::Reduced;
+use crate::train::reduce::mush_keys::Keys;
 use crate::train::reduce::vertex::merge_groups_at;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::fit_weights_best_subset;
@@ -40,8 +42,8 @@ pub const FLOOR: f64 = 1e-3;
 
 /// P delta-mush proxies and the vertices' weights over them.
 pub struct MushProxies {
-    /// P groups' Ω.
-    pub proxies: Ddm,
+    /// P groups' keys.
+    pub proxies: Keys,
     /// Per vertex (V): (palette entry, weight), at most K, summing to 1 (empty: a vertex on no
     /// triangle, left at rest); entries below P are proxies, P + b bone b.
     pub weights: Vec<Vec<(usize, f64)>>,
@@ -83,7 +85,7 @@ impl MushProxies {
     ) -> MushProxies {
         let (shares, adjacency) = (&groups.shares, &groups.adjacency);
         let cap = rrskin::model::MAX_MUSH_BONES;
-        let groups = vertex_ddm.grouped(shares, adjacency.len(), FLOOR, cap);
+        let groups = Keys::of(&vertex_ddm.grouped(shares, adjacency.len(), FLOOR, cap));
         let p = adjacency.len();
         let motions: Vec<Vec<Affine>> = (train.iter())
             .map(|&i| palette(&groups, &set.poses[i].bones))
@@ -105,9 +107,9 @@ impl MushProxies {
     /// These proxies as a reduced model of P delta-mush keys and no predictor, over J =
     /// `bones`, with SSD's (bone, weight) lists `baseline` as its baseline ([`key_rows`]).
     pub fn reduced(&self, bones: usize, baseline: &[Vec<(usize, f64)>]) -> Reduced {
-        let (c1, c2) = key_rows(&self.proxies, bones);
+        let (c1, c2) = self.proxies.rows(bones);
         Reduced {
-            proxies: self.proxies.entries(),
+            proxies: self.proxies.count(),
             bones,
             c1,
             c2,
@@ -139,30 +141,6 @@ fn groups_near<'a>(
     (shares[a].iter()).flat_map(|&(g, _)| std::iter::once(g).chain(adjacency[g].iter().copied()))
 }
 
-/// C1 (4P x 3P) and C2 (4P x 4J, J = `bones`), row-major, of P delta-mush keys' proxies in
-/// docs/method.md §8's index convention: proxy g's transform `T_g = [D_g | Σ_j M_j ω_j − D_g
-/// p_g]` ([`Ddm::linear_fit`]) takes its key's D through C1 (and −p, its last row) and the
-/// ω_j through C2. A group without weight stays at rest (its D is the identity).
-fn key_rows(keys: &Ddm, bones: usize) -> (Vec<f64>, Vec<f64>) {
-    let (p, j) = (keys.entries(), bones);
-    let (mut c1, mut c2) = (vec![0.0; 12 * p * p], vec![0.0; 16 * p * j]);
-    for g in 0..p {
-        (0..3).for_each(|k| c1[(4 * g + k) * 3 * p + 3 * g + k] = 1.0);
-        let Some(fit) = keys.linear_fit(g) else {
-            continue;
-        };
-        for (b, _, omega) in &fit.terms {
-            for (m, w) in omega.iter().enumerate() {
-                c2[(4 * g + 3) * 4 * j + 4 * b + m] = *w;
-            }
-        }
-        for k in 0..3 {
-            c1[(4 * g + 3) * 3 * p + 3 * g + k] = -fit.centre[k];
-        }
-    }
-    (c1, c2)
-}
-
 /// Both kinds of proxy in one palette (docs/method.md §23): `base`'s (its predictors' keys,
 /// no delta-mush key), then `mush`'s; each vertex's K = `influences` weights refitted on the
 /// poses `train` of `set` (`feats`: every pose's features), by NNLS as [`MushProxies::fit`]'s,
@@ -176,9 +154,9 @@ pub fn join(
     feats: &[PoseFeatures],
     influences: usize,
 ) -> Reduced {
-    let (p1, p2, j) = (base.proxies, mush.proxies.entries(), set.bone_count());
+    let (p1, p2, j) = (base.proxies, mush.proxies.count(), set.bone_count());
     let p = p1 + p2;
-    let (mush_c1, mush_c2) = key_rows(&mush.proxies, j);
+    let (mush_c1, mush_c2) = mush.proxies.rows(j);
     let mut c1 = vec![0.0; 12 * p * p];
     for r in 0..4 * p1 {
         c1[r * 3 * p..r * 3 * p + 3 * p1].copy_from_slice(&base.c1[r * 3 * p1..(r + 1) * 3 * p1]);
@@ -238,7 +216,7 @@ fn vertex_weights(
 }
 
 /// The palette of a pose (P + J): the P proxies' motions, then the J `bones`.
-fn palette(proxies: &Ddm, bones: &[Affine]) -> Vec<Affine> {
+fn palette(proxies: &Keys, bones: &[Affine]) -> Vec<Affine> {
     let mut out = proxies.motions(bones);
     out.extend_from_slice(bones);
     out
@@ -310,7 +288,7 @@ mod tests {
     #[test]
     fn a_rigid_motion_of_every_bone_moves_the_mesh_rigidly() {
         let (set, _, mush) = fitted(3, 6, 2);
-        assert_eq!(mush.proxies.entries(), 6);
+        assert_eq!(mush.proxies.count(), 6);
         for w in &mush.weights {
             assert!(w.len() <= 4 && (w.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-6);
         }
