@@ -169,20 +169,20 @@ pub const LAVAPIPE: Device = Device {
     name: "lavapipe",
     cpu_driver: true,
     frame: Rates {
-        group: 288.9,
-        byte: 0.04894,
+        group: 0.0,
+        byte: 0.571,
         load: 0.0,
-        gather: 2.566,
-        madd: 0.2197,
-        special: 0.6414,
+        gather: 3.141,
+        madd: 0.5654,
+        special: 5.287,
     },
     palette: Rates {
-        group: 442.7,
-        byte: 0.0,
+        group: 335.7,
+        byte: 0.02224,
         load: 0.0,
-        gather: 0.04598,
-        madd: 0.07434,
-        special: 6.791,
+        gather: 0.4526,
+        madd: 0.0,
+        special: 10.52,
     },
 };
 
@@ -277,9 +277,11 @@ const EXP: Work = Work::new(0.0, 0.0, 50.0, 5.0);
 /// and 6 divisions) and 2 Newton steps of 130 multiply-adds and 2 divisions each
 /// (glsl/polar.glsl, src/polar.rs).
 const POLAR: Work = Work::new(0.0, 0.0, 295.0, 13.0);
-/// How many lanes of the CPU palette's rotation fits one SSE instruction carries
-/// ([`crate::polar::nearest_rotations_f32`]).
-const PALETTE_POLAR_LANES: f64 = 4.0;
+/// How many of the CPU palette's rotation fits ([`crate::polar::nearest_rotations_f32`], 8
+/// lanes) one core's instructions carry at once, by the calibration: 2 fits the 60-key model
+/// without correctives within 1 %, 4 left it 22 % low (the Newton steps vectorise less than
+/// the Jacobi sweeps did).
+const PALETTE_POLAR_LANES: f64 = 2.0;
 
 /// A predictor key on the GPU: its record (340 bytes), its bones' two rotations, exp and the
 /// scale/shear `H x` (predictor.glsl `predict_key`); a second bone adds one more of each.

@@ -16,11 +16,14 @@ and palette µs are printed, with the error. Paste the rates into `LAVAPIPE` in 
     tools/calibrate-cost.py --check MODEL.rrs...
 
 checks the rates in src/cost.rs (as `rrskin info --json` applies them) on models, fitting
-nothing: for models the fit did not see.
+nothing: for models the fit did not see. `--cache DIR` keeps the measurements (bench and
+palette JSON per model) and reuses them, so that a change to the work counts is refitted at
+once.
 """
 import argparse
 import itertools
 import json
+import os
 import subprocess
 import sys
 
@@ -76,11 +79,26 @@ def fit_frame(results, iterations=8):
     return r
 
 
-def measure(rrskin, model, characters, frames):
+def measured(rrskin, cache, name, *args):
+    """`rrskin ARGS --json`, or its output saved under `cache` (a folder, or None) as NAME."""
+    path = cache and os.path.join(cache, name)
+    if path and os.path.exists(path):
+        with open(path) as f:
+            return json.load(f)
+    out = run(rrskin, *args)
+    if path:
+        os.makedirs(cache, exist_ok=True)
+        with open(path, "w") as f:
+            json.dump(out, f)
+    return out
+
+
+def measure(rrskin, model, characters, frames, cache):
     info = run(rrskin, "info", model, "--json")["cost"]["targets"]
     common = ["--characters", str(characters), "--frames", str(frames), "--json"]
-    bench = run(rrskin, "bench", model, *common)
-    palette = run(rrskin, "bench", model, "--palette", *common)
+    stem = os.path.basename(model)
+    bench = measured(rrskin, cache, f"{stem}.bench.json", "bench", model, *common)
+    palette = measured(rrskin, cache, f"{stem}.palette.json", "bench", model, "--palette", *common)
     per_char = 1e6 / characters  # ms a frame to ns a character
     engine = info["transformed_normals"]["engine"]
     engine = (np.array([engine[u] for u in UNITS]), bench["engine_passes"]["skin_ms"] * per_char)
@@ -120,11 +138,12 @@ def main():
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--check", action="store_true", help="predict with the rates the binary has; fit nothing")
     ap.add_argument("--passes", action="store_true", help="also print each pass's measured and predicted time over the engine baseline's")
+    ap.add_argument("--cache", help="a folder: keep each model's measurements there, and reuse those kept (to refit after changing the work counts, without measuring again)")
     args = ap.parse_args()
     results = []
     for m in args.models:
         print(f"measuring {m}", file=sys.stderr)
-        results.append(measure(args.rrskin, m, args.characters, args.frames))
+        results.append(measure(args.rrskin, m, args.characters, args.frames, args.cache))
     if args.check:
         report(results, None, None)
         return

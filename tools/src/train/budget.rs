@@ -154,7 +154,12 @@ impl Ledger {
     /// Notes a scored and priced candidate.
     pub fn point(&self, point: Point) {
         let mut list = self.points.lock().unwrap_or_else(|e| e.into_inner());
-        list.push(point);
+        // A candidate met again (the joint-blend model beside each delta-mush count) is one.
+        let same =
+            |p: &Point| (p.stage, p.kind, p.proxies) == (point.stage, point.kind, point.proxies);
+        if !list.iter().any(same) {
+            list.push(point);
+        }
     }
 
     /// What the budget refused, and the front's points (every candidate scored and priced,

@@ -143,19 +143,19 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     };
     let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
     let mut ladder = Groups::merge_at(set, train, &counts);
-    let fewer_groups = ladder.split_off(offered.len());
+    let mut fewer_groups = ladder.split_off(offered.len());
     let mut smoothed = None;
+    let mut below = 0;
     if steps_down(options) {
         let (at, fitted) =
             first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)?;
         if let Some(at) = at {
             // Fewer than P: the larger counts cost more still.
-            (offered, ladder) = (
-                vec![fewer[at]],
-                fewer_groups.into_iter().skip(at).take(1).collect(),
-            );
+            offered = vec![fewer[at]];
+            ladder = fewer_groups.drain(..=at).skip(at).collect();
         }
         smoothed = Some(fitted);
+        below = fewer.len() - fewer_groups.len();
     }
     let (proxy_params, plain, fitted) =
         proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0], smoothed)?;
@@ -167,7 +167,26 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         proxies: fitted,
     };
     let mut kinds = choose_kind(inputs, options, split.as_ref(), &first)?;
-    let (mut proxies, mut counts) = (first.proxies, Vec::new());
+    let mut proxies = first.proxies;
+    // Where the budget refused the proxy correctives, fewer proxies with their correctives
+    // may be the better model within it: step down while the cross-validation says so.
+    for groups in &fewer_groups {
+        if !kinds.correctives_refused {
+            break;
+        }
+        let lower = Side {
+            groups,
+            params: &proxy_params,
+            proxies: MushProxies::fit(set, train, proxy_ddm, &inputs.ssd.influences, groups, k),
+        };
+        let lower_kinds = choose_kind(inputs, options, split.as_ref(), &lower)?;
+        if lower_kinds.kept == Kept::JointBlend || lower_kinds.score() >= kinds.score() {
+            break;
+        }
+        (kinds, proxies, offered) = (lower_kinds, lower.proxies, vec![fewer[below]]);
+        below += 1;
+    }
+    let mut counts = Vec::new();
     if let (Some(split), Some(validated)) = (&split, &kinds.validated) {
         if kinds.kept != Kept::JointBlend && offered.len() > 1 {
             let first_row = &validated.relative[kinds.kept as usize];
@@ -216,6 +235,8 @@ struct Side<'a> {
 /// What [`choose_kind`] found.
 struct Kinds {
     kept: Kept,
+    /// Whether the budget refused a delta-mush kind's proxy correctives.
+    correctives_refused: bool,
     /// The cross-validation of the kinds, where it ran (the joint-blend model, the delta-mush
     /// proxies alone, then both where offered).
     validated: Option<Validated>,
@@ -223,6 +244,13 @@ struct Kinds {
     correctives: Option<proxy_corrective::Fit>,
     /// The kept kind fitted to all training poses, where the cross-validation made it.
     shipped: Option<Reduced>,
+}
+
+impl Kinds {
+    /// The kept kind's cross-validation score (infinite where none ran).
+    fn score(&self) -> f64 {
+        (self.validated.as_ref()).map_or(f64::INFINITY, |v| v.scores[self.kept as usize].0)
+    }
 }
 
 /// The kind kept: asked for, or the cross-validation's over the folds of `split` (the
@@ -236,6 +264,7 @@ fn choose_kind(
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let asked = |kept| Kinds {
         kept,
+        correctives_refused: false,
         validated: None,
         correctives: None,
         shipped: None,
@@ -257,7 +286,14 @@ fn choose_kind(
     let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
     let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
     let mut searched = corrective_searches(inputs, options, &kinds);
+    let had = |s: &[Option<proxy_corrective::Fit>]| -> Vec<bool> {
+        (s.iter()
+            .map(|f| f.as_ref().is_some_and(|f| f.correctives.is_some())))
+        .collect()
+    };
+    let before = had(&searched);
     let priced = admit(inputs, options, &kinds, &mut searched)?;
+    let correctives_refused = (before.iter().zip(had(&searched)).skip(1)).any(|(b, a)| *b && !a);
     let choices = chosen_candidates(&searched);
     let validated = cross_validate(inputs, options, split, side, &choices).map_err(smoothing)?;
     // The kinds cost more in their order: those within the budget lead.
@@ -278,6 +314,7 @@ fn choose_kind(
     }
     Ok(Kinds {
         kept: [Kept::JointBlend, Kept::DeltaMush, Kept::Both][index],
+        correctives_refused,
         validated: Some(validated),
         correctives: searched.swap_remove(index),
         shipped: (index > 0).then(|| made.swap_remove(index - 1)),
