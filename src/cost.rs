@@ -172,7 +172,7 @@ pub const LAVAPIPE: Device = Device {
         group: 0.0,
         byte: 0.571,
         load: 0.0,
-        gather: 3.141,
+        gather: 3.14096,
         madd: 0.5654,
         special: 5.287,
     },
