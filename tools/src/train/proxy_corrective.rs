@@ -440,48 +440,98 @@ fn regress(
     poses: &Poses,
     fit: &[usize],
 ) -> ProxyCorrectives {
-    let up = candidate.gravity.then_some(up);
-    let mut out =
-        ProxyCorrectives::basis(candidate.basis, up, candidate.clamped, &poses.features, fit);
-    let ridge = candidate.ridge;
-    let mut x = Vec::new();
-    for (e, d) in drivers.iter().enumerate().filter(|(_, d)| !d.is_empty()) {
-        let f = d.len() * out.features_per_driver();
-        let (mut gram, mut rhs) = (vec![0.0; f * f], vec![0.0; f * 12]);
-        for &i in fit {
-            let Some(target) = poses.targets[targets][i][e] else {
-                continue;
-            };
-            out.features(d, &poses.features[i], &mut x);
-            for p in 0..f {
-                for q in 0..f {
-                    gram[p * f + q] += x[p] * x[q];
+    Normal::of(&[targets], candidate, up, drivers, poses, fit).solve(0, candidate.ridge)
+}
+
+/// The normal equations of [`regress`] before the ridge, which is all a candidate's ridge and
+/// anchor change: one Gram matrix per corrected proxy for the basis, and the right-hand side
+/// of each set of targets. A search builds them once per basis and gravity, and solves them
+/// per ridge and anchor (8 x 3 solves of one accumulation over the poses).
+struct Normal {
+    /// The basis, with no proxy yet.
+    basis: ProxyCorrectives,
+    /// Per proxy with drivers: (proxy, drivers, F, Gram (F x F), per targets' set the
+    /// right-hand sides (F x 12)).
+    proxies: Vec<(usize, Vec<usize>, usize, Vec<f64>, Vec<Vec<f64>>)>,
+}
+
+impl Normal {
+    /// The normal equations of the targets `targets` (indices into [`ANCHORS`]) with
+    /// `candidate`'s basis, gravity and clamping, over the poses `fit`.
+    fn of(
+        targets: &[usize],
+        candidate: &Candidate,
+        up: DVec3,
+        drivers: &[Vec<usize>],
+        poses: &Poses,
+        fit: &[usize],
+    ) -> Normal {
+        let up = candidate.gravity.then_some(up);
+        let basis =
+            ProxyCorrectives::basis(candidate.basis, up, candidate.clamped, &poses.features, fit);
+        let mut x = Vec::new();
+        let proxies = (drivers.iter().enumerate())
+            .filter(|(_, d)| !d.is_empty())
+            .map(|(e, d)| {
+                let f = d.len() * basis.features_per_driver();
+                let mut gram = vec![0.0; f * f];
+                let mut rhs = vec![vec![0.0; f * 12]; targets.len()];
+                for &i in fit {
+                    // Every anchor's targets exist where the unanchored ones do.
+                    if poses.targets[targets[0]][i][e].is_none() {
+                        continue;
+                    }
+                    basis.features(d, &poses.features[i], &mut x);
+                    for p in 0..f {
+                        for q in 0..f {
+                            gram[p * f + q] += x[p] * x[q];
+                        }
+                    }
+                    for (t, rhs) in targets.iter().zip(&mut rhs) {
+                        let Some(target) = poses.targets[*t][i][e] else {
+                            continue;
+                        };
+                        for p in 0..f {
+                            for c in 0..12 {
+                                rhs[p * 12 + c] += x[p] * target[c];
+                            }
+                        }
+                    }
                 }
-                for c in 0..12 {
-                    rhs[p * 12 + c] += x[p] * target[c];
-                }
-            }
-        }
-        let mean = (0..f).map(|p| gram[p * f + p]).sum::<f64>() / f as f64;
-        for p in 0..f {
-            gram[p * f + p] += ridge * mean.max(f64::MIN_POSITIVE);
-        }
-        let factor = DenseCholesky::new(&gram, f);
-        let mut map = vec![0.0; f * 12];
-        for c in 0..12 {
-            let mut col: Vec<f64> = (0..f).map(|p| rhs[p * 12 + c]).collect();
-            factor.solve(&mut col);
-            for (p, v) in col.iter().enumerate() {
-                map[p * 12 + c] = *v;
-            }
-        }
-        out.proxies.push(Corrected {
-            proxy: e,
-            drivers: d.clone(),
-            map,
-        });
+                (e, d.clone(), f, gram, rhs)
+            })
+            .collect();
+        Normal { basis, proxies }
     }
-    out
+
+    /// The correctives of the `t`-th set of targets with ridge λ = `ridge` (times the Gram
+    /// matrix's mean diagonal).
+    fn solve(&self, t: usize, ridge: f64) -> ProxyCorrectives {
+        let mut out = self.basis.clone();
+        for (e, d, f, gram, rhs) in &self.proxies {
+            let f = *f;
+            let mean = (0..f).map(|p| gram[p * f + p]).sum::<f64>() / f as f64;
+            let mut gram = gram.clone();
+            for p in 0..f {
+                gram[p * f + p] += ridge * mean.max(f64::MIN_POSITIVE);
+            }
+            let factor = DenseCholesky::new(&gram, f);
+            let mut map = vec![0.0; f * 12];
+            for c in 0..12 {
+                let mut col: Vec<f64> = (0..f).map(|p| rhs[t][p * 12 + c]).collect();
+                factor.solve(&mut col);
+                for (p, v) in col.iter().enumerate() {
+                    map[p * 12 + c] = *v;
+                }
+            }
+            out.proxies.push(Corrected {
+                proxy: *e,
+                drivers: d.clone(),
+                map,
+            });
+        }
+        out
+    }
 }
 
 /// Fits the proxy correctives of `reduced` on the training poses `train`, anchor, basis (the
@@ -519,12 +569,32 @@ pub fn fit(
             .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
             .collect()
     };
+    let anchors: Vec<usize> = (0..ANCHORS.len()).collect();
     let validated = cross_validate(&folds, &normaliser, 1 + grid.len(), 0.0, |fold| {
         let uncorrected = (fold.held.iter())
             .map(|&k| held_error(set, train, reduced, &poses, k, None))
             .collect();
-        let corrected = grid.iter().map(|c| corrected(c, fold));
-        std::iter::once(uncorrected).chain(corrected).collect()
+        let mut rows = vec![uncorrected];
+        // One set of normal equations per basis and gravity, solved per anchor and ridge.
+        let mut normals: Vec<((Basis, bool), Normal)> = Vec::new();
+        for &(a, c) in &grid {
+            let key = (c.basis, c.gravity);
+            let at = match normals.iter().position(|(k, _)| *k == key) {
+                Some(at) => at,
+                None => {
+                    let built = Normal::of(&anchors, &c, up, &drivers, &poses, &fold.inner);
+                    normals.push((key, built));
+                    normals.len() - 1
+                }
+            };
+            let fitted = normals[at].1.solve(a, c.ridge);
+            rows.push(
+                (fold.held.iter())
+                    .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))
+                    .collect(),
+            );
+        }
+        rows
     });
     let mut candidates: Vec<(Candidate, Score)> = grid
         .iter()
