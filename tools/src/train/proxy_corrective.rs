@@ -450,9 +450,20 @@ fn regress(
 struct Normal {
     /// The basis, with no proxy yet.
     basis: ProxyCorrectives,
-    /// Per proxy with drivers: (proxy, drivers, F, Gram (F x F), per targets' set the
-    /// right-hand sides (F x 12)).
-    proxies: Vec<(usize, Vec<usize>, usize, Vec<f64>, Vec<Vec<f64>>)>,
+    /// Per proxy with drivers.
+    proxies: Vec<ProxyNormal>,
+}
+
+/// One corrected proxy's normal equations.
+struct ProxyNormal {
+    proxy: usize,
+    drivers: Vec<usize>,
+    /// F: its drivers' features.
+    features: usize,
+    /// F x F, row-major.
+    gram: Vec<f64>,
+    /// Per set of targets, F x 12.
+    rhs: Vec<Vec<f64>>,
 }
 
 impl Normal {
@@ -498,7 +509,13 @@ impl Normal {
                         }
                     }
                 }
-                (e, d.clone(), f, gram, rhs)
+                ProxyNormal {
+                    proxy: e,
+                    drivers: d.clone(),
+                    features: f,
+                    gram,
+                    rhs,
+                }
             })
             .collect();
         Normal { basis, proxies }
@@ -508,8 +525,8 @@ impl Normal {
     /// matrix's mean diagonal).
     fn solve(&self, t: usize, ridge: f64) -> ProxyCorrectives {
         let mut out = self.basis.clone();
-        for (e, d, f, gram, rhs) in &self.proxies {
-            let f = *f;
+        for n in &self.proxies {
+            let (f, gram, rhs) = (n.features, &n.gram, &n.rhs);
             let mean = (0..f).map(|p| gram[p * f + p]).sum::<f64>() / f as f64;
             let mut gram = gram.clone();
             for p in 0..f {
@@ -525,8 +542,8 @@ impl Normal {
                 }
             }
             out.proxies.push(Corrected {
-                proxy: *e,
-                drivers: d.clone(),
+                proxy: n.proxy,
+                drivers: n.drivers.clone(),
                 map,
             });
         }
