@@ -128,6 +128,10 @@ fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
         flags: spv::WriterFlags::empty(),
         force_loop_bounding: false,
         emit_int_div_checks: false,
+        // No zeroing of shared memory at each workgroup's start (naga's default polyfill: a
+        // store per variable and a barrier, every workgroup): every shader writes its shared
+        // memory before a barrier and reads it after (glsl/bounds.comp, dense_product.comp).
+        zero_initialize_workgroup_memory: spv::ZeroInitializeWorkgroupMemoryMode::None,
         ..Default::default()
     };
     let pipeline = spv::PipelineOptions {
@@ -138,19 +142,25 @@ fn compile(path: &Path, source: &str, defines: &[(&str, &str)]) -> Vec<u32> {
         .unwrap_or_else(|e| panic!("{}: SPIR-V output: {e}", path.display()))
 }
 
-/// GLSL's `barrier()` as the workgroup barrier it is. naga's GLSL front end reads it as
-/// `Barrier::all()`, SUB_GROUP included, and its SPIR-V back end then gives the
-/// OpControlBarrier a *subgroup* execution scope: where a workgroup spans several subgroups
-/// (64 invocations are two warps on NVIDIA) they do not wait for each other, and a warp with no
-/// columns to multiply runs ahead into the GEMM's next tile of shared memory while another
-/// still reads the last one (a wrong mesh that changes from run to run; lavapipe runs every
-/// barrier across the workgroup, so it never showed). `pass::tests` checks every barrier's
-/// scope in the SPIR-V.
+/// GLSL's `barrier()` as the workgroup barrier it is, `OpControlBarrier(Workgroup, Workgroup,
+/// AcquireRelease | WorkgroupMemory)` as glslang emits it. naga's GLSL front end reads it as
+/// `Barrier::all()`, and its SPIR-V back end then gives the barrier:
+/// - with SUB_GROUP, a *subgroup* execution scope: where a workgroup spans several subgroups
+///   (64 invocations are two warps on NVIDIA) they do not wait for each other, and a warp with
+///   no columns to multiply runs ahead into the GEMM's next tile of shared memory while another
+///   still reads the last one (a wrong mesh that changes from run to run; lavapipe runs every
+///   barrier across the workgroup, so it never showed);
+/// - with STORAGE and TEXTURE, a *device* memory scope over uniform and image memory: a
+///   device-wide acquire-release in the GEMM's tile loop, which GLSL's `barrier()` never asks
+///   for (only shared memory; no shader here orders buffer accesses by a barrier, it reads
+///   its buffers before and writes them after).
+///
+/// `passes::tests` checks every barrier's scopes and semantics in the SPIR-V.
 fn workgroup_barriers(block: &mut naga::Block) {
     use naga::Statement as S;
     for statement in block.iter_mut() {
         match statement {
-            S::ControlBarrier(flags) => flags.remove(naga::Barrier::SUB_GROUP),
+            S::ControlBarrier(flags) => *flags = naga::Barrier::WORK_GROUP,
             S::Block(inner) => workgroup_barriers(inner),
             S::If { accept, reject, .. } => {
                 workgroup_barriers(accept);

@@ -89,7 +89,7 @@
 //! | positions (this frame's buffer) | compute write (pass 4), then read (pass 5) | device-local, vertex + storage + transfer-src |
 //! | previous positions | not touched | the buffer the last recorded frame wrote |
 //! | normals | compute write (passes 4, 5), then read (pass 6) | device-local, vertex + storage + transfer-src |
-//! | bounds, slot f | compute write (pass 5) | host-visible, storage |
+//! | bounds, slot f | compute write (pass 5) | host-visible, cached (read back), storage |
 //! | tangents | compute write (passes 4, 6) | device-local, vertex + storage + transfer-src |
 //! | corrective weights | compute write (pass 1), then read (pass 4) | device-local, internal (models with correctives) |
 //!

@@ -155,7 +155,7 @@ impl Batch {
         // SAFETY: our pool.
         batch.cmd = unsafe { device.allocate_command_buffers(&info) }
             .map_err(Error::vk("vkAllocateCommandBuffers"))?[0];
-        if shared.limits.timestamp_period_ns.is_some() {
+        if shared.limits.timestamps.is_some() {
             let info = vk::QueryPoolCreateInfo::default()
                 .query_type(vk::QueryType::TIMESTAMP)
                 .query_count(TIMESTAMPS * MAX_FRAMES_IN_FLIGHT as u32);
@@ -245,7 +245,7 @@ impl Batch {
     /// once the engine's command buffer has completed; `NotReady` if the results are not there
     /// yet.
     pub fn timings(&self, frame: usize) -> Result<PassTimings> {
-        let (Some(q), Some(period)) = (self.queries, self.shared.limits.timestamp_period_ns) else {
+        let (Some(q), Some(clock)) = (self.queries, self.shared.limits.timestamps) else {
             return Err(Error::NotReady {
                 what: "timestamps (the queue has no timestamp support)",
             });
@@ -269,7 +269,7 @@ impl Batch {
             vk::Result::NOT_READY => Error::NotReady { what: "timestamps" },
             result => self.shared.note(Error::vk("vkGetQueryPoolResults")(result)),
         })?;
-        let ms = |i: usize| ticks[i + 1].wrapping_sub(ticks[i]) as f64 * period * 1e-6;
+        let ms = |i: usize| clock.ms_between(ticks[i], ticks[i + 1]);
         let phases: [f64; SCHEDULE.len()] = std::array::from_fn(ms);
         // One field per phase of the schedule (a new phase needs its field here).
         let [predict_ms, product_ms, proxy_correctives_ms, skin_ms, normals_ms, tangents_ms] =

@@ -63,12 +63,33 @@ pub struct Limits {
     pub device_local_bytes: u64,
     /// Queue families of the physical device (the outputs may be released to any other).
     pub queue_family_count: u32,
-    /// Nanoseconds per timestamp tick; `None` if the queue has no timestamps.
-    pub timestamp_period_ns: Option<f64>,
+    /// The queue's timestamp counter; `None` if it has no timestamps.
+    pub timestamps: Option<TimestampClock>,
     /// The device is a CPU implementation (lavapipe): it pays a buffer load once per lane even
     /// where every lane of a workgroup reads the same address, which GPUs broadcast; passes that
     /// differ only in how they share such loads choose by it.
     pub cpu_device: bool,
+}
+
+/// A queue's timestamp counter: nanoseconds a tick, and how many of its low bits count
+/// (`timestampValidBits`: 64 on most GPUs, 36 on some), past which it wraps.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimestampClock {
+    pub period_ns: f64,
+    pub valid_bits: u32,
+}
+
+impl TimestampClock {
+    /// Milliseconds from tick `start` to tick `end` (the later), also where the counter wrapped
+    /// between them: the difference is taken modulo 2^valid_bits, so bits above those that
+    /// count never enter it.
+    pub fn ms_between(&self, start: u64, end: u64) -> f64 {
+        let mask = match self.valid_bits {
+            64.. => u64::MAX,
+            bits => (1u64 << bits) - 1,
+        };
+        (end.wrapping_sub(start) & mask) as f64 * self.period_ns * 1e-6
+    }
 }
 
 /// A shared handle to the Vulkan device the runtime uses.
@@ -223,8 +244,10 @@ impl Context {
             max_workgroup_count: props.limits.max_compute_work_group_count,
             device_local_bytes: physical.device_local_bytes(),
             queue_family_count: physical.queue_families().len() as u32,
-            timestamp_period_ns: (family.timestamp_valid_bits > 0)
-                .then_some(props.limits.timestamp_period as f64),
+            timestamps: (family.timestamp_valid_bits > 0).then_some(TimestampClock {
+                period_ns: props.limits.timestamp_period as f64,
+                valid_bits: family.timestamp_valid_bits,
+            }),
             cpu_device: props.device_type == vk::PhysicalDeviceType::CPU,
         };
         let device_name = props
@@ -635,4 +658,27 @@ fn pick_queue_family(device: Physical) -> Result<u32> {
 /// message lists) stays consistent, so carry on rather than propagate the panic.
 pub(crate) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TimestampClock;
+
+    #[test]
+    fn a_timestamp_difference_counts_only_the_valid_bits_across_a_wrap() {
+        // 36 valid bits (some Intel GPUs) at 52.08 ns a tick: 2^36 ticks wrap in an hour.
+        let clock = TimestampClock {
+            period_ns: 52.08,
+            valid_bits: 36,
+        };
+        let top = (1u64 << 36) - 10;
+        assert!((clock.ms_between(top, 5) - 15.0 * 52.08e-6).abs() < 1e-12);
+        assert!((clock.ms_between(100, 1100) - 1000.0 * 52.08e-6).abs() < 1e-12);
+        // 64 bits: the plain difference.
+        let wide = TimestampClock {
+            period_ns: 1.0,
+            valid_bits: 64,
+        };
+        assert_eq!(wide.ms_between(u64::MAX - 1, 2), 4.0 * 1e-6);
+    }
 }

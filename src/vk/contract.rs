@@ -71,6 +71,7 @@ fn memory(b: CrowdBuffer) -> &'static str {
         usage.contains(vk::BufferUsageFlags::VERTEX_BUFFER),
     ) {
         (MemoryLocation::CpuToGpu, _) => "host-visible",
+        (MemoryLocation::GpuToCpu, _) => "host-visible, cached (read back)",
         (_, true) => "device-local, vertex + storage + transfer-src",
         (_, false) => "device-local, internal",
     }

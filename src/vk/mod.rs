@@ -36,7 +36,7 @@ mod requirements;
 
 pub use ash;
 pub use batch::{Batch, PassTimings};
-pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits};
+pub use context::{Context, ContextDesc, DeviceChoice, EngineDevice, Limits, TimestampClock};
 pub use crowd::{
     Aabb, Crowd, CrowdDebugSettings, CrowdOptions, CrowdOutput, HostIntermediates, HostOutput,
     BOUNDS_STRIDE, MAX_FRAMES_IN_FLIGHT, TANGENT_STRIDE,

@@ -617,10 +617,10 @@ mod tests {
         }
     }
 
-    /// The execution scope of every OpControlBarrier of `spirv`: the values of the constants
-    /// its first operand names (SPIR-V: a 5-word header, then instructions whose first word is
-    /// word count << 16 | opcode).
-    fn barrier_scopes(spirv: &[u8]) -> Vec<u32> {
+    /// Every OpControlBarrier of `spirv` as (execution scope, memory scope, semantics): the
+    /// values of the constants its operands name (SPIR-V: a 5-word header, then instructions
+    /// whose first word is word count << 16 | opcode).
+    fn barriers(spirv: &[u8]) -> Vec<[u32; 3]> {
         const OP_CONSTANT: u32 = 43;
         const OP_CONTROL_BARRIER: u32 = 224;
         let words: Vec<u32> = (spirv.chunks_exact(4))
@@ -640,23 +640,44 @@ mod tests {
         };
         (instructions.iter())
             .filter(|i| i[0] & 0xFFFF == OP_CONTROL_BARRIER)
-            .map(|i| constant(i[1]))
+            .map(|i| [constant(i[1]), constant(i[2]), constant(i[3])])
             .collect()
     }
 
-    /// GLSL's `barrier()` waits for the whole workgroup. naga's SPIR-V gave it a subgroup
-    /// scope (build.rs `workgroup_barriers`), which let the GEMM's warps race on its shared
-    /// tile on a real GPU; lavapipe cannot show that race, so the SPIR-V is checked here.
+    /// GLSL's `barrier()` is `OpControlBarrier(Workgroup, Workgroup, AcquireRelease |
+    /// WorkgroupMemory)`, as glslang emits it (build.rs `workgroup_barriers`). naga's SPIR-V
+    /// gave it a subgroup execution scope, which let the GEMM's warps race on its shared tile
+    /// on a real GPU, and a device memory scope over uniform and image memory, a device-wide
+    /// fence in the tile loop; lavapipe shows neither, so the SPIR-V is checked here. Each
+    /// shader has exactly the barriers its GLSL writes: none added to zero shared memory.
     #[test]
-    fn every_barrier_waits_for_the_whole_workgroup() {
+    fn every_barrier_is_glsl_s_workgroup_barrier_and_no_other_is_added() {
         const WORKGROUP: u32 = 2;
-        let dense = barrier_scopes(Pass::DenseProduct.desc().shader.spirv);
+        const ACQUIRE_RELEASE_WORKGROUP_MEMORY: u32 = 0x8 | 0x100;
+        let dense = barriers(Pass::DenseProduct.desc().shader.spirv);
         assert!(dense.len() >= 2, "the GEMM's tile barriers: {dense:?}");
         for pass in Pass::ALL {
-            let scopes = barrier_scopes(pass.desc().shader.spirv);
+            let shader = &pass.desc().shader;
+            let found = barriers(shader.spirv);
+            let expected = [WORKGROUP, WORKGROUP, ACQUIRE_RELEASE_WORKGROUP_MEMORY];
             assert!(
-                scopes.iter().all(|&s| s == WORKGROUP),
-                "{pass:?}: barrier execution scopes {scopes:?} (2 = Workgroup, 3 = Subgroup)"
+                found.iter().all(|b| *b == expected),
+                "{pass:?}: barriers (execution scope, memory scope, semantics) {found:x?} \
+                 (scope 1 = Device, 2 = Workgroup, 3 = Subgroup; semantics 0x108 = AcquireRelease \
+                 | WorkgroupMemory)"
+            );
+            let source = std::fs::read_to_string(
+                std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("glsl")
+                    .join(shader.glsl),
+            )
+            .expect("the pass's GLSL");
+            let written = source.matches("barrier();").count();
+            assert_eq!(
+                found.len(),
+                written,
+                "{pass:?}: barriers in {}",
+                shader.glsl
             );
         }
     }
