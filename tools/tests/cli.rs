@@ -344,10 +344,23 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         assert!(keys.contains(&key), "missing {key} in {e}");
     }
     assert_eq!(keys.len(), 30, "{e}");
-    // The front: every structure candidate and every kind, scored and priced.
+    // The front: every structure candidate and every kind, scored and priced: the joint-blend
+    // model once, and the delta-mush proxies alone and after it at every count the kinds'
+    // comparison tried (fewer where the budget refused their proxy correctives).
     let points = e["pareto"].as_array().expect("the front's points");
     let stage = |s: &str| points.iter().filter(|p| p["stage"] == s).count();
-    assert_eq!((stage("structure"), stage("kind")), (3, 3), "{e}");
+    let kind = |k: &str| {
+        (points.iter())
+            .filter(|p| p["stage"] == "kind" && p["kind"] == k)
+            .count()
+    };
+    assert_eq!(stage("structure"), 3, "{e}");
+    assert_eq!(kind("joint-blend"), 1, "{e}");
+    assert!(
+        kind("delta-mush") >= 1 && kind("both") == kind("delta-mush"),
+        "{e}"
+    );
+    assert_eq!(stage("kind"), 1 + 2 * kind("delta-mush"), "{e}");
     assert!(points.iter().any(|p| p["front"] == true), "{e}");
     for p in points {
         assert!(p["ee"].as_f64().is_some_and(|ee| ee > 0.0), "{p}");
