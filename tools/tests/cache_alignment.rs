@@ -391,3 +391,276 @@ fn coincident_cache_points_are_one_vertex_or_refused() {
         "{e}"
     );
 }
+
+/// The bundled rig's GLB: its JSON chunk parsed, and its binary chunk (with header) as is.
+fn rig_chunks() -> (serde_json::Value, Vec<u8>) {
+    let glb = std::fs::read(rig()).expect("the bundled rig");
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().expect("4 bytes")) as usize;
+    let json = serde_json::from_slice(&glb[20..20 + json_len]).expect("the GLB's JSON chunk");
+    (json, glb[20 + json_len..].to_vec())
+}
+
+/// The bundled rig with its nodes edited (`edit` on the glTF JSON's nodes), written as a GLB
+/// into `dir`.
+fn edited_rig(dir: &Path, name: &str, edit: &dyn Fn(&mut [serde_json::Value])) -> PathBuf {
+    let (mut json, bin) = rig_chunks();
+    edit(json["nodes"].as_array_mut().expect("nodes"));
+    let mut text = serde_json::to_vec(&json).expect("JSON");
+    text.resize(text.len().div_ceil(4) * 4, b' ');
+    let mut out = Vec::with_capacity(20 + text.len() + bin.len());
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((20 + text.len() + bin.len()) as u32).to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(text);
+    out.extend(bin);
+    let path = dir.join(name);
+    std::fs::write(&path, out).expect("write the rig");
+    path
+}
+
+/// A node's local matrix (glTF: column-major `matrix`, or identity TRS here).
+fn node_matrix(node: &serde_json::Value) -> DMat4 {
+    node["matrix"].as_array().map_or(DMat4::IDENTITY, |m| {
+        let cols: Vec<f64> = m.iter().map(|x| x.as_f64().expect("a number")).collect();
+        DMat4::from_cols_slice(&cols)
+    })
+}
+
+fn set_matrix(node: &mut serde_json::Value, m: DMat4) {
+    node["matrix"] = serde_json::json!(m.to_cols_array());
+}
+
+/// How a DCC's object transforms place the rig: the mesh node's world matrix, and the scale
+/// the skeleton's root carries into the skin's world.
+struct Placement {
+    name: &'static str,
+    /// The mesh node's world matrix: what takes the DCC's object space to the world.
+    mesh_world: Option<DMat4>,
+    /// A uniform scale on the root node above the armature, the mesh under it unscaled
+    /// (`false`: scaled with it, as a Blender armature scaled 0.01 carries its mesh).
+    root_scale: Option<(f64, bool)>,
+}
+
+/// The object transforms DCCs write: mesh nodes scaled 0.01 and 100 (an armature scaled for
+/// glTF's metres, and back), turned ±90° about X (Z-up ↔ Y-up), moved and turned, and a scaled
+/// armature with its mesh scaled or not.
+fn placements() -> Vec<Placement> {
+    let x = |angle: f64| DMat4::from_rotation_x(angle.to_radians());
+    let moved = DMat4::from_translation(DVec3::new(0.3, -0.2, 1.5))
+        * DMat4::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+    let mesh = |name, m| Placement {
+        name,
+        mesh_world: Some(m),
+        root_scale: None,
+    };
+    let root = |name, scale, mesh_unscaled| Placement {
+        name,
+        mesh_world: None,
+        root_scale: Some((scale, mesh_unscaled)),
+    };
+    vec![
+        mesh("mesh-0.01", DMat4::from_scale(DVec3::splat(0.01))),
+        mesh("mesh-100", DMat4::from_scale(DVec3::splat(100.0))),
+        mesh("mesh-x+90", x(90.0)),
+        mesh("mesh-x-90", x(-90.0)),
+        mesh("mesh-moved", moved),
+        mesh(
+            "mesh-x+90-0.01",
+            x(90.0) * DMat4::from_scale(DVec3::splat(0.01)),
+        ),
+        root("armature-0.01", 0.01, false),
+        root("armature-100-mesh-unscaled", 100.0, true),
+    ]
+}
+
+/// The bundled rig placed by `p` (nodes 0 and 1: the root and the armature; 2: the skinned
+/// mesh, a child of the armature): the rig file, the mesh node's world matrix, and the scale
+/// of the skin's world against the bundled rig's.
+fn placed_rig(dir: &Path, p: &Placement) -> (PathBuf, DMat4, f64) {
+    let (json, _) = rig_chunks();
+    let above_mesh = node_matrix(&json["nodes"][0]) * node_matrix(&json["nodes"][1]);
+    assert_eq!(json["nodes"][2]["skin"], 0, "node 2 is the skinned mesh");
+    let (scale, mesh_unscaled) = p.root_scale.unwrap_or((1.0, false));
+    let root = DMat4::from_scale(DVec3::splat(scale)) * node_matrix(&json["nodes"][0]);
+    let mesh_world = match (p.mesh_world, mesh_unscaled) {
+        (Some(m), _) => m,
+        (None, true) => above_mesh,
+        (None, false) => DMat4::from_scale(DVec3::splat(scale)) * above_mesh,
+    };
+    let local = (root * node_matrix(&json["nodes"][1])).inverse() * mesh_world;
+    let path = edited_rig(dir, &format!("{}.glb", p.name), &|nodes| {
+        set_matrix(&mut nodes[0], root);
+        set_matrix(&mut nodes[2], local);
+    });
+    (path, mesh_world, scale)
+}
+
+/// Every right cache of every object transform DCCs write lines up: in object space and in
+/// world space, from the clip's first frame or the next, as MDD and PC2, each gives the
+/// aligned examples (scaled with the skin, where the skeleton's root is), and no two names for
+/// one placement are called ambiguous (a mesh node scaled 0.01 makes object space and world
+/// space in centimetres one placement). A cache scaled 1.5x, rolled by a pose or reversed is
+/// still refused, whatever the transform.
+#[test]
+fn every_right_cache_lines_up_whatever_the_objects_transform() {
+    let dir = temp_dir("align-placements");
+    let want = reference();
+    let world = aligned_cache();
+    for p in placements() {
+        let (rig_path, mesh_world, scale) = placed_rig(&dir, &p);
+        let skin_world = DMat4::from_scale(DVec3::splat(scale));
+        for (space, to_cache) in [
+            ("object", mesh_world.inverse() * skin_world),
+            ("world", skin_world),
+        ] {
+            let cache = transformed(&world, to_cache);
+            for (start, format) in [
+                (0, Format::Pc2),
+                (0, Format::Mdd),
+                (1, Format::Pc2),
+                (1, Format::Mdd),
+            ] {
+                let name = format!(
+                    "{}-{space}-{start}.{}",
+                    p.name,
+                    ["pc2", "mdd"][usize::from(format == Format::Mdd)]
+                );
+                let cache = from_frame(&cache, start, format);
+                let path = write(&dir, &name, &cache);
+                let got =
+                    import(&rig_path, &options(&path)).unwrap_or_else(|e| panic!("{name}: {e}"));
+                assert_scaled_examples(&got, &want, start, scale, &name);
+            }
+        }
+        for (wrong, cache) in wrong_caches(&world) {
+            let name = format!("{}-{wrong}.pc2", p.name);
+            let path = write(&dir, &name, &transformed(&cache, skin_world));
+            match import(&rig_path, &options(&path)) {
+                Err(e) => assert!(e.to_string().contains(&name), "{e}"),
+                Ok(i) => panic!("{name}: a wrong cache imported, {:?}", i.notes),
+            }
+        }
+    }
+}
+
+/// `cache` from sample `start` on, as `format` writes it: PC2 keeps the frame numbers, MDD's
+/// times start at 0 whatever the first frame.
+fn from_frame(cache: &PointCache, start: usize, format: Format) -> PointCache {
+    let n = cache.positions.len() - start;
+    let first = match format {
+        Format::Mdd => 0.0,
+        _ => cache.frames[start],
+    };
+    PointCache {
+        format,
+        frames: (0..n).map(|i| first + i as f64).collect(),
+        times: (0..n).map(|i| (first + i as f64) / 24.0).collect(),
+        positions: cache.positions[start..].to_vec(),
+    }
+}
+
+/// Caches no placement explains: scaled 1.5x about the origin, each sample holding the next
+/// key's pose, the samples in reverse.
+fn wrong_caches(c: &PointCache) -> Vec<(&'static str, PointCache)> {
+    let mut rolled = c.positions.clone();
+    rolled.rotate_left(1);
+    let mut reversed = c.positions.clone();
+    reversed.reverse();
+    vec![
+        (
+            "scaled",
+            transformed(c, DMat4::from_scale(DVec3::splat(1.5))),
+        ),
+        (
+            "rolled",
+            PointCache {
+                positions: rolled,
+                ..c.clone()
+            },
+        ),
+        (
+            "reversed",
+            PointCache {
+                positions: reversed,
+                ..c.clone()
+            },
+        ),
+    ]
+}
+
+/// The reference examples from pose `skip_first`, with the skin's world scaled by `scale`:
+/// every vertex to 1e-5 of the mesh size, the split and the weld.
+fn assert_scaled_examples(
+    got: &Imported,
+    want: &Imported,
+    skip_first: usize,
+    scale: f64,
+    name: &str,
+) {
+    assert_eq!(got.weld, want.weld, "{name}: the weld");
+    let want_poses = &want.set.poses[skip_first..];
+    assert_eq!(got.set.poses.len(), want_poses.len(), "{name}");
+    let size = scale * rrskin_tools::set::diagonal(&want.set.rest);
+    for (i, (a, b)) in got.set.poses.iter().zip(want_poses).enumerate() {
+        let worst = (a.vertices.iter().zip(&b.vertices))
+            .map(|(x, y)| (*x - scale * *y).length())
+            .fold(0.0, f64::max);
+        assert!(
+            worst < 1e-5 * size,
+            "{name}: pose {i}: vertices {worst} apart"
+        );
+    }
+    assert_eq!(
+        got.set.is_test,
+        want.set.is_test[skip_first..].to_vec(),
+        "{name}"
+    );
+}
+
+/// A rig whose deformer departs from its own skin by 5 % of the mesh size on average (here a
+/// wave over the mesh, off at the bind pose), far more than the 0.1–2 % of the rigs the suite
+/// and users have shown: its right caches still line up, in object space under a mesh node
+/// scaled 0.01 (two names for one placement) and Z-up, and give the examples of its own cache.
+#[test]
+fn a_rig_far_from_its_own_skin_still_lines_up() {
+    let dir = temp_dir("align-residual");
+    let want = reference();
+    let size = rrskin_tools::set::diagonal(&want.set.rest);
+    let world = aligned_cache();
+    let wave = |s: usize, p: DVec3| -> DVec3 {
+        let k = std::f64::consts::TAU * 3.0 / size;
+        let dir = DVec3::new((k * p.y).sin(), (k * p.z).cos(), (k * p.x).sin());
+        p + usize::from(s > 0) as f64 * 0.05 * size / 1.3 * dir
+    };
+    let deformed = PointCache {
+        positions: (world.positions.iter().enumerate())
+            .map(|(s, ps)| ps.iter().map(|&p| wave(s, p)).collect())
+            .collect(),
+        ..world.clone()
+    };
+    let reference_path = write(&dir, "deformed.pc2", &deformed);
+    let expected = imported(&reference_path);
+    let residual = (expected.set.poses.iter().zip(&want.set.poses).skip(1))
+        .flat_map(|(a, b)| {
+            a.vertices
+                .iter()
+                .zip(&b.vertices)
+                .map(|(x, y)| x.distance(*y))
+        })
+        .sum::<f64>()
+        / ((want.set.poses.len() - 1) * want.set.rest.len()) as f64;
+    assert!(
+        (residual / size - 0.05).abs() < 0.01,
+        "the wave: {:.3} of the size",
+        residual / size
+    );
+    let p = &placements()[0];
+    let (rig_path, mesh_world, _) = placed_rig(&dir, p);
+    let mut object = transformed(&deformed, to_z_up() * mesh_world.inverse());
+    object.format = Format::Mdd;
+    let path = write(&dir, "object-z-up.mdd", &object);
+    let got = import(&rig_path, &options(&path)).unwrap_or_else(|e| panic!("{e}"));
+    assert_scaled_examples(&got, &expected, 0, 1.0, "object-z-up.mdd");
+}

@@ -16,9 +16,14 @@
 //! The frames and the space are told apart without knowing the vertex order: each hypothesis is
 //! scored by how far the skinned mesh's points are from the nearest cache point (a one-sided
 //! Chamfer distance on a subsample), and the best must be at most [`MARGIN`] of the next best.
+//! A hypothesis is its placement, the frame offset and the matrix that takes the cache to the
+//! world: two names for one placement (object space under a mesh node scaled 0.01, and world
+//! space in centimetres) are one hypothesis, described by its simplest name, so that only two
+//! different placements are ever ambiguous.
 
 use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::{Format, PointCache};
+use crate::import::preflight;
 use crate::import::vertex_map::{self, tree};
 use crate::set::diagonal;
 use crate::set::{Affine, InputError};
@@ -29,12 +34,10 @@ use std::path::Path;
 
 /// The best hypothesis's score must be at most this fraction of the next one's.
 pub const MARGIN: f64 = 0.5;
-/// A best hypothesis further than this from the cache (mean distance over the mesh size) fits
-/// none: which is best is not asked, and the checks after it (the vertex map, the rig's motion)
-/// say what is wrong. Right caches scored 0.11–0.19 % (CesiumMan's DQS and smoothing in every
-/// conversion the suite makes, Blender's default MDD, PC2, FBX and Alembic); a cache scaled 1.5x
-/// or rolled by a pose 4.9–5.3 %, one of 10 points 19 %.
-const PLAUSIBLE: f64 = 0.02;
+/// Placements that take the cache's bounding box to within this fraction of the mesh size of
+/// each other are one placement: far below what a score can tell apart (a rig departs from its
+/// own skin by 0.1–2 % of its size), far above float32's rounding of a node's matrix.
+const SAME_PLACEMENT: f64 = 1e-5;
 /// Samples and skinned vertices the hypotheses are scored on.
 const SCORED_SAMPLES: usize = 16;
 const SCORED_VERTICES: usize = 128;
@@ -124,6 +127,14 @@ impl Space {
         space.into_iter().chain(units).collect()
     }
 
+    /// How many conversions the space names (an object space, an up axis, a unit factor): of
+    /// two names for one placement, the simpler has fewer.
+    fn conversions(self) -> usize {
+        usize::from(self.object.is_some())
+            + usize::from(self.up != Up::Same)
+            + usize::from(self.units != 1.0)
+    }
+
     fn describe(self) -> String {
         format!(
             "{}, {}{}",
@@ -153,7 +164,7 @@ struct Hypothesis {
 
 /// Lines `cache` up with animation `clip` of `rig` (at `fps`): its frames, its space and its
 /// vertex order, each fixed with a note, or an error where the cache is off the clip's keys
-/// or two hypotheses fit about as well.
+/// or two placements fit about as well.
 pub fn align(
     rig: &Rig,
     rig_path: &Path,
@@ -180,47 +191,120 @@ pub fn align(
     let size = diagonal(&rig.rest);
     let spaces = spaces(rig);
     let hypotheses = score(rig, cache, fps, &spaces, &offsets, size);
-    let best = unambiguous(hypotheses, rig_path, cache, clip).map_err(bad)?;
-
-    let mut notes: Vec<String> = best.space.note();
-    let frames: Vec<f64> = cache.frames.iter().map(|f| f + best.offset).collect();
-    let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
-    if best.offset != 0.0 {
-        notes.push(shift_note(cache, frames[0], best.offset));
+    let close = close_placements(distinct(hypotheses, &corners(&cache.positions[0]), size));
+    if let [only] = close[..] {
+        return (lined_up(rig, cache, fps, only).map(|(aligned, _)| aligned)).map_err(bad);
     }
-    let to_world = best.space.matrix();
-    let world: Vec<Vec<DVec3>> = cache
-        .positions
-        .iter()
+    // The Chamfer scores cannot tell these apart (a limb turned about its own axis, a body
+    // about its vertical): their points in correspondence, through each one's vertex map, can.
+    let (mut fits, mut first) = (Vec::new(), None);
+    for &h in &close {
+        match lined_up(rig, cache, fps, h) {
+            Ok((aligned, r)) if r.follows() => fits.push((h, aligned, r.paired)),
+            Ok((aligned, _)) => drop(first.get_or_insert(Ok(aligned))),
+            Err(e) => drop(first.get_or_insert(Err(e))),
+        }
+    }
+    fits.sort_by(|a, b| a.2.total_cmp(&b.2));
+    match &fits[..] {
+        // None is followed by the rig's skin: the first, for the checks after this to refuse.
+        [] => first.unwrap_or_else(|| Err(String::new())).map_err(bad),
+        [(a, _, ra), (b, _, rb), ..] if *ra > MARGIN * rb => {
+            Err(bad(ambiguous((*a, *ra), (*b, *rb), rig_path, cache, clip)))
+        }
+        _ => Ok(fits.swap_remove(0).1),
+    }
+}
+
+/// How the rig's skin follows a lined-up cache, in correspondence (mean distances over the
+/// mesh size): `paired`, each sample's points from the skin of its own pose; `unpaired`, from
+/// the skins of the other samples.
+#[derive(Debug, Clone, Copy)]
+struct Residual {
+    paired: f64,
+    unpaired: f64,
+}
+
+impl Residual {
+    /// The rig's skin follows the cache: its own pose much nearer than the others, by the
+    /// pre-flight's relative test ([`preflight::PAIRING_LIMIT`]).
+    fn follows(self) -> bool {
+        self.paired <= preflight::PAIRING_LIMIT * self.unpaired
+    }
+
+    /// The residual of `positions` (per sample, in the glTF's order) against `skin`.
+    fn of(positions: &[Vec<DVec3>], skin: &[Vec<DVec3>], size: f64) -> Residual {
+        let mean = |shift: usize| {
+            let n = positions.len();
+            let (sum, count) = (0..n)
+                .flat_map(|s| positions[s].iter().zip(&skin[(s + shift) % n]))
+                .fold((0.0, 0usize), |(sum, k), (a, b)| {
+                    (sum + a.distance(*b), k + 1)
+                });
+            sum / count.max(1) as f64 / size
+        };
+        let others = (1..positions.len()).map(mean);
+        Residual {
+            paired: mean(0),
+            unpaired: others.sum::<f64>() / (positions.len().max(2) - 1) as f64,
+        }
+    }
+}
+
+/// At most this many placements the Chamfer scores cannot tell apart are lined up in full.
+const CLOSE_PLACEMENTS: usize = 4;
+
+/// The best-scoring placement and those the score cannot tell from it (the best more than
+/// [`MARGIN`] of theirs), at most [`CLOSE_PLACEMENTS`], best first.
+fn close_placements(mut placements: Vec<Hypothesis>) -> Vec<Hypothesis> {
+    placements.sort_by(|a, b| a.score.total_cmp(&b.score));
+    let best = placements[0].score;
+    (placements.into_iter())
+        .take_while(|h| best > MARGIN * h.score || h.score == best)
+        .take(CLOSE_PLACEMENTS)
+        .collect()
+}
+
+/// The cache lined up by `h`: its frames shifted, its points taken to the world and mapped to
+/// the glTF's vertices, with the notes; and how the rig's skin follows it.
+fn lined_up(
+    rig: &Rig,
+    cache: &PointCache,
+    fps: f64,
+    h: Hypothesis,
+) -> Result<(Aligned, Residual), String> {
+    let mut notes: Vec<String> = h.space.note();
+    let frames: Vec<f64> = cache.frames.iter().map(|f| f + h.offset).collect();
+    let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
+    if h.offset != 0.0 {
+        notes.push(shift_note(cache, frames[0], h.offset));
+    }
+    let to_world = h.space.matrix();
+    let world: Vec<Vec<DVec3>> = (cache.positions.iter())
         .map(|s| s.iter().map(|&p| to_world.transform_point3(p)).collect())
         .collect();
     let bones: Vec<Vec<Affine>> = times.iter().map(|&t| rig.bones_at(t)).collect();
     let skin: Vec<Vec<DVec3>> = bones.iter().map(|b| rig.skin(b)).collect();
+    let size = diagonal(&rig.rest);
     let at_bind = bones.iter().position(|b| {
         b.iter()
             .all(|x| x.q.abs_diff_eq(DMat3::IDENTITY, AT_BIND) && x.d.length() <= AT_BIND * size)
     });
-    let map = vertex_map::map(
-        &rig.rest,
-        &rig.triangles,
-        &rig.primitives,
-        &skin,
-        &world,
-        at_bind,
-    )
-    .map_err(bad)?;
+    let (rest, triangles, primitives) = (&rig.rest, &rig.triangles, &rig.primitives);
+    let map = vertex_map::map(rest, triangles, primitives, &skin, &world, at_bind)?;
     notes.extend(map.note);
-    let positions = world
-        .iter()
+    let positions: Vec<Vec<DVec3>> = (world.iter())
         .map(|s| map.point_of.iter().map(|&p| s[p]).collect())
         .collect();
-    Ok(Aligned {
+    let residual = Residual::of(&positions, &skin, size);
+    let aligned = Aligned {
         positions,
         frames,
         times,
         bones,
         notes,
-    })
+    };
+    Ok((aligned, residual))
 }
 
 /// The spaces the cache may be in: world space or each distinct object space the rig knows
@@ -247,36 +331,71 @@ fn spaces(rig: &Rig) -> Vec<Space> {
         .collect()
 }
 
-/// The best-scoring hypothesis, or the message saying which two fit about as well (a
-/// plausible best not at most [`MARGIN`] of the next best).
-fn unambiguous(
-    mut hypotheses: Vec<Hypothesis>,
+/// The eight corners of the bounding box of `points`.
+fn corners(points: &[DVec3]) -> [DVec3; 8] {
+    let (lo, hi) = points.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    std::array::from_fn(|i| {
+        DVec3::select(glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0), hi, lo)
+    })
+}
+
+/// One hypothesis per placement: those with one frame offset whose matrices take the cache's
+/// bounding box (`corners`) to the same points, within [`SAME_PLACEMENT`] of the mesh `size`,
+/// are one, scored by the best of them and named by the simplest ([`Space::conversions`]).
+fn distinct(hypotheses: Vec<Hypothesis>, corners: &[DVec3], size: f64) -> Vec<Hypothesis> {
+    let placed = |h: &Hypothesis| -> Vec<DVec3> {
+        let m = h.space.matrix();
+        corners.iter().map(|&c| m.transform_point3(c)).collect()
+    };
+    let mut kept: Vec<(Hypothesis, Vec<DVec3>)> = Vec::new();
+    for h in hypotheses {
+        let points = placed(&h);
+        let same = |(k, at): &&mut (Hypothesis, Vec<DVec3>)| {
+            k.offset == h.offset
+                && (at.iter().zip(&points)).all(|(a, b)| a.distance(*b) <= SAME_PLACEMENT * size)
+        };
+        match kept.iter_mut().find(same) {
+            Some((k, _)) => {
+                let score = k.score.min(h.score);
+                if h.space.conversions() < k.space.conversions() {
+                    *k = h;
+                }
+                k.score = score;
+            }
+            None => kept.push((h, points)),
+        }
+    }
+    kept.into_iter().map(|(h, _)| h).collect()
+}
+
+/// The message for two placements that fit about as well: `a` and `b` with their residuals
+/// in correspondence (the better not at most [`MARGIN`] of the other).
+fn ambiguous(
+    (a, ra): (Hypothesis, f64),
+    (b, rb): (Hypothesis, f64),
     rig_path: &Path,
     cache: &PointCache,
     clip: &str,
-) -> Result<Hypothesis, String> {
-    hypotheses.sort_by(|a, b| a.score.total_cmp(&b.score));
-    let best = hypotheses[0];
-    if let Some(next) =
-        (hypotheses.get(1)).filter(|n| best.score <= PLAUSIBLE && best.score > MARGIN * n.score)
-    {
-        let what = |h: &Hypothesis| {
-            format!(
-                "{} with cache frame {} as the clip's frame {} ({:.2} % of the mesh size apart)",
-                h.space.describe(),
-                cache.frames[0],
-                cache.frames[0] + h.offset,
-                100.0 * h.score
-            )
-        };
-        return Err(format!(
-            "cannot tell how the cache lines up with animation '{clip}' of {}: as {} or as {} (the glTF's own skin against the cache's points); export the cache in world space, in the glTF's Y-up, over the clip's own frame range",
-            rig_path.display(),
-            what(&best),
-            what(next)
-        ));
-    }
-    Ok(best)
+) -> String {
+    let what = |h: &Hypothesis, residual: f64| {
+        format!(
+            "{} with cache frame {} as the clip's frame {} (the skin {:.2} % of the mesh size from the nearest cache points, {:.2} % from the points it maps to)",
+            h.space.describe(),
+            cache.frames[0],
+            cache.frames[0] + h.offset,
+            100.0 * h.score,
+            100.0 * residual
+        )
+    };
+    format!(
+        "cannot tell how the cache lines up with animation '{clip}' of {}: as {} or as {} (the glTF's own skin against the cache's points); export the cache in world space, in the glTF's Y-up, over the clip's own frame range",
+        rig_path.display(),
+        what(&a, ra),
+        what(&b, rb)
+    )
 }
 
 /// The note for a cache shifted by `offset` frames, whose sample 0 holds the clip's frame
