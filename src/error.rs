@@ -55,6 +55,14 @@ pub enum Error {
         needed: u64,
         limit: u64,
     },
+    /// One of a crowd's buffers would be larger than the device can make and bind
+    /// (`maxMemoryAllocationSize`, `maxBufferSize`): a crowd of fewer characters, or several,
+    /// fits.
+    BufferTooLarge {
+        buffer: &'static str,
+        needed: u64,
+        limit: u64,
+    },
     /// Results were asked for before the GPU produced them (timestamps of unfinished work).
     NotReady { what: &'static str },
     /// An optional output was asked for from an object made without it (bounds of a crowd
@@ -265,6 +273,14 @@ impl fmt::Display for Error {
             } => {
                 write!(f, "{what} needs {needed}, the device allows {limit}")
             }
+            BufferTooLarge {
+                buffer,
+                needed,
+                limit,
+            } => write!(
+                f,
+                "{buffer} needs one buffer of {needed} bytes, and the device makes and binds at most {limit} (maxMemoryAllocationSize, maxBufferSize): make the crowd of fewer characters, or several crowds"
+            ),
             NotReady { what } => write!(f, "{what} is not ready yet"),
             NotEnabled { what } => write!(f, "{what} was not enabled"),
             NotInModel { what } => write!(f, "the model has no {what}"),

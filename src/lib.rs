@@ -74,7 +74,16 @@
 //! submissions to this recording's compute reads and writes, so last frame's draws of the
 //! outputs may still be in flight on the queue. After: a global barrier makes every compute
 //! write visible to compute shader reads, transfer reads, host reads and (on a graphics queue)
-//! vertex attribute reads. In between, per crowd and frame slot f (pass n of the list above; the
+//! vertex attribute reads. Readers the end barrier does not cover record their own barrier
+//! after the recording, from `COMPUTE_SHADER` / `SHADER_WRITE` (the runtime's last writes) to:
+//! - vertex pulling (the outputs read as storage buffers in a vertex shader): `VERTEX_SHADER` /
+//!   `SHADER_READ` (`SHADER_STORAGE_READ` with synchronization2);
+//! - a ray-tracing BLAS built or refitted from the positions:
+//!   `ACCELERATION_STRUCTURE_BUILD_KHR` / `SHADER_READ` (VK_KHR_acceleration_structure reads
+//!   build inputs with that access);
+//! - another stage or family: as Vulkan says for it (another family: after the acquire).
+//!
+//! In between, per crowd and frame slot f (pass n of the list above; the
 //! bounds are written with the normals, a fused product reads the bones, and the proxy
 //! correctives read the bones (and, where they see gravity, the characters' up vectors) and
 //! update the palette's proxies in place):
@@ -112,11 +121,17 @@
 //! (`rrskin_query_memory`) give the bytes a model and a crowd of C characters will take, from
 //! their sizes alone ([`vk::ModelSizes::of`] a model, including the stored columns of a
 //! block-sparse C1/C2); creating a crowd beyond the largest device-local heap is a
-//! `DeviceLimit` error. [`vk::requirements`] (`rrskin_get_requirements`) gives the Vulkan
-//! version (1.1), extensions (none), features (none), queue flags and storage-buffer limit the
-//! runtime needs, before any device exists; [`vk::Context::from_engine`] checks them and checks
-//! that every Vulkan function the runtime calls is there (`MissingFunction` otherwise, never a
-//! call through a NULL pointer).
+//! `DeviceLimit` error, and one with a buffer past the largest the device makes and binds
+//! (`maxMemoryAllocationSize`, and `maxBufferSize` with maintenance4; per character:
+//! [`vk::crowd_largest_buffer_bytes`]) a `BufferTooLarge` error naming the buffer, where
+//! Vulkan would be undefined behaviour: make several crowds of fewer characters.
+//! [`vk::requirements`] (`rrskin_get_requirements`) gives the Vulkan version (1.1), extensions
+//! (none), features (none), queue flags and the storage buffers per stage that every model in
+//! every mode runs with, before any device exists; [`vk::Context::from_engine`] checks the
+//! version and that every Vulkan function the runtime calls is there (`MissingFunction`
+//! otherwise, never a call through a NULL pointer). A device with fewer storage buffers per
+//! stage runs the models whose passes fit: a crowd whose widest pass binds more is a
+//! `DeviceLimit` error naming maxPerStageDescriptorStorageBuffers.
 //!
 //! **Threads.** [`vk::Context`] is `Send + Sync`; recording and running take `&mut` on what they
 //! write, so Rust's borrow rules are the threading rules. C: any function from any thread; calls

@@ -9,7 +9,8 @@ use common::*;
 use rrskin::cpu::CpuEvaluator;
 use rrskin::vk::ash::vk;
 use rrskin::vk::{
-    Aabb, Batch, Context, Crowd, CrowdDebugSettings, CrowdOptions, GpuModel, GpuModelDebugSettings,
+    Aabb, Batch, Context, ContextDesc, Crowd, CrowdDebugSettings, CrowdOptions, GpuModel,
+    GpuModelDebugSettings,
 };
 use rrskin::{Error, Model, NormalMode};
 use rrskin_render::synthetic::renumber_bones;
@@ -183,6 +184,98 @@ fn crowds_split_into_chunks_when_a_binding_would_be_too_large() {
     };
     let crowd = check(&ctx, &model, 300, options, 9);
     assert!(crowd.chunk_count() >= 8, "{} chunks", crowd.chunk_count());
+}
+
+/// A buffer past the device's maxMemoryAllocationSize or maxBufferSize is undefined behaviour,
+/// not a Vulkan error: a crowd that would need one is refused before anything is made, naming
+/// the buffer and the limit. Lowered by the debug settings until every buffer just fits, the
+/// crowd runs, and its read-back stages the outputs in pieces of at most that size.
+#[test]
+fn a_buffer_past_the_devices_largest_is_refused_and_one_at_it_reads_back_in_pieces() {
+    let ctx = validated_context();
+    let model = random_model(RR, 7);
+    let characters = 300;
+    let at_most = |limit: u64| CrowdOptions {
+        debug_settings: CrowdDebugSettings {
+            max_buffer_bytes: Some(limit),
+            ..Default::default()
+        },
+        ..CrowdOptions::default()
+    };
+    let gpu = GpuModel::new(&ctx, &model).expect("upload");
+    let mut limit = 1024;
+    let fits = loop {
+        match Crowd::with_options(&gpu, characters, at_most(limit)) {
+            Ok(_) => break limit,
+            Err(
+                e @ Error::BufferTooLarge {
+                    needed,
+                    limit: told,
+                    ..
+                },
+            ) => {
+                assert!(needed > limit && told == limit, "{e}");
+                let text = e.to_string();
+                assert!(
+                    text.contains("maxMemoryAllocationSize") && text.contains("crowd"),
+                    "{text}"
+                );
+                limit = needed;
+            }
+            Err(e) => panic!("{e}"),
+        }
+    };
+    let positions = characters as u64 * model.vertex_count() as u64 * 12;
+    assert!(fits >= positions && fits < 2 * positions, "{fits} bytes");
+    check(&ctx, &model, characters, at_most(fits), 7);
+    assert_no_validation_messages(&ctx);
+}
+
+/// A device's maxPerStageDescriptorStorageBuffers decides which models and modes it runs, not
+/// whether the runtime starts: lowered to what a plain LBS model's passes bind with recomputed
+/// normals, that crowd runs and matches the CPU, and the same model with transformed normals
+/// (their skinning pass binds the normals too) is refused when its crowd is made, naming the
+/// limit. No pipeline past the limit is made, which the validation layer would report.
+#[test]
+fn a_device_with_few_storage_buffers_runs_the_models_whose_passes_fit() {
+    let capped = |n: u32| {
+        Context::new(&ContextDesc {
+            validation: true,
+            max_storage_buffers_per_stage: Some(n),
+            ..Default::default()
+        })
+        .expect("a Vulkan device with the validation layer")
+    };
+    let needs = |ctx: &Context, model: &Model, normals: NormalMode| {
+        let gpu = GpuModel::new(ctx, model).expect("upload");
+        let options = CrowdOptions {
+            normals,
+            ..CrowdOptions::default()
+        };
+        match Crowd::with_options(&gpu, 4, options) {
+            Ok(_) => None,
+            Err(e @ Error::DeviceLimit { needed, .. }) => {
+                let text = e.to_string();
+                assert!(
+                    text.contains("maxPerStageDescriptorStorageBuffers"),
+                    "{text}"
+                );
+                Some(needed as u32)
+            }
+            Err(e) => panic!("{e}"),
+        }
+    };
+    let lbs = random_model(LBS, 3);
+    let four = capped(4);
+    let recomputed = needs(&four, &lbs, NormalMode::Recomputed).expect("more than 4 buffers");
+    let ctx = capped(recomputed);
+    assert_eq!(needs(&ctx, &lbs, NormalMode::Recomputed), None);
+    check(&ctx, &lbs, 5, CrowdOptions::default(), 3);
+    let transformed = needs(&ctx, &lbs, NormalMode::Transformed).expect("a wider pass");
+    assert!(transformed > recomputed);
+    assert!(transformed <= rrskin::vk::requirements().storage_buffers_per_stage);
+    assert_no_validation_messages(&ctx);
+    assert_no_validation_messages(&four);
 }
 
 #[test]
@@ -1129,6 +1222,7 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
                     // The first crowd in chunks of 4 characters' positions.
                     max_binding_bytes: (i == 0).then_some(4 * v * 12),
                     fill_nan: true,
+                    ..Default::default()
                 },
                 ..CrowdOptions::default()
             };
@@ -1302,6 +1396,7 @@ fn proxy_correctives_after_each_product(in_product: bool) {
                     // The second crowd in chunks of 16 characters' positions.
                     max_binding_bytes: (i == 1).then_some(16 * v * 12),
                     fill_nan: true,
+                    ..Default::default()
                 },
                 ..CrowdOptions::default()
             };

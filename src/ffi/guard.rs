@@ -56,7 +56,7 @@ impl From<Error> for Failure {
             Error::NoDevice { .. } => S::ErrorNoDevice,
             Error::MissingLayer { .. } => S::ErrorMissingLayer,
             Error::Allocation { .. } => S::ErrorAllocation,
-            Error::DeviceLimit { .. } => S::ErrorDeviceLimit,
+            Error::DeviceLimit { .. } | Error::BufferTooLarge { .. } => S::ErrorDeviceLimit,
             Error::NotReady { .. } => S::ErrorNotReady,
             Error::NotEnabled { .. } => S::ErrorNotEnabled,
             Error::MissingFunction { .. } => S::ErrorMissingFunction,

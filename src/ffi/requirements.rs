@@ -17,7 +17,9 @@ pub struct RrskinRequirements {
     pub api_version: u32,
     /// VkQueueFlags the context's queue family must have.
     pub queue_flags: u32,
-    /// The maxPerStageDescriptorStorageBuffers it needs (Vulkan guarantees only 4).
+    /// The maxPerStageDescriptorStorageBuffers every model runs with in every mode (Vulkan
+    /// guarantees only 4); a device with fewer runs the models whose passes fit
+    /// (`rrskin_crowd_create` fails with RRSKIN_ERROR_DEVICE_LIMIT for the others).
     pub storage_buffers_per_stage: u32,
     pub instance_extension_count: u32,
     /// `instance_extension_count` extension names to enable on the instance (NULL when 0);

@@ -40,6 +40,10 @@ pub struct ContextDesc {
     /// Extra device extensions, e.g. `VK_KHR_swapchain`. Devices without all of them are not
     /// picked.
     pub device_extensions: Vec<&'static CStr>,
+    /// Use at most this many storage buffers per shader stage, below the device's
+    /// maxPerStageDescriptorStorageBuffers: tests run a device that holds only some models'
+    /// passes.
+    pub max_storage_buffers_per_stage: Option<u32>,
 }
 
 /// An engine's Vulkan objects, borrowed (never destroyed) by [`Context::from_engine`].
@@ -61,6 +65,12 @@ pub struct Limits {
     pub max_workgroup_count: [u32; 3],
     /// The largest device-local heap: no crowd larger than this is attempted.
     pub device_local_bytes: u64,
+    /// maxPerStageDescriptorStorageBuffers (or the context's lower setting): a crowd whose
+    /// widest pass binds more is refused, and no pipeline is made for a pass that binds more.
+    pub max_storage_buffers_per_stage: u32,
+    /// The largest buffer the device can make and bind (`maxMemoryAllocationSize`, and
+    /// `maxBufferSize` with maintenance4): each of a crowd's buffers must fit it.
+    pub max_buffer_bytes: u64,
     /// Queue families of the physical device (the outputs may be released to any other).
     pub queue_family_count: u32,
     /// The queue's timestamp counter; `None` if it has no timestamps.
@@ -166,9 +176,9 @@ impl Context {
             instance,
             physical_device,
             device,
-            queue_family_index,
-            queue,
+            (queue_family_index, queue),
             Some(owned),
+            desc.max_storage_buffers_per_stage,
         )
     }
 
@@ -216,8 +226,8 @@ impl Context {
             instance,
             engine.physical_device,
             device,
-            engine.queue_family_index,
-            engine.queue,
+            (engine.queue_family_index, engine.queue),
+            None,
             None,
         )
     }
@@ -227,9 +237,9 @@ impl Context {
         instance: ash::Instance,
         physical_device: vk::PhysicalDevice,
         device: ash::Device,
-        queue_family_index: u32,
-        queue: vk::Queue,
+        (queue_family_index, queue): (u32, vk::Queue),
         owned: Option<Owned>,
+        max_storage_buffers: Option<u32>,
     ) -> Result<Context> {
         // SAFETY: both callers pass a device of this instance: enumerated by `new`, or the
         // engine's under `from_engine`'s contract.
@@ -243,6 +253,9 @@ impl Context {
             min_storage_buffer_offset_alignment: props.limits.min_storage_buffer_offset_alignment,
             max_workgroup_count: props.limits.max_compute_work_group_count,
             device_local_bytes: physical.device_local_bytes(),
+            max_buffer_bytes: physical.max_buffer_bytes(),
+            max_storage_buffers_per_stage: (props.limits.max_per_stage_descriptor_storage_buffers)
+                .min(max_storage_buffers.unwrap_or(u32::MAX)),
             queue_family_count: physical.queue_families().len() as u32,
             timestamps: (family.timestamp_valid_bits > 0).then_some(TimestampClock {
                 period_ns: props.limits.timestamp_period as f64,
@@ -285,7 +298,7 @@ impl Context {
         })?;
         *lock(&shared.allocator) = Some(allocator);
         shared.create_one_time()?;
-        shared.pipelines = Pipelines::new(&shared.device)?;
+        shared.pipelines = Pipelines::new(&shared.device, limits.max_storage_buffers_per_stage)?;
         Ok(Context {
             shared: Arc::new(shared),
         })

@@ -68,6 +68,9 @@ pub struct CrowdDebugSettings {
     /// Largest descriptor range to use, below the device's maxStorageBufferRange: forces smaller
     /// chunks (tests exercise chunking without gigabytes of output).
     pub max_binding_bytes: Option<u64>,
+    /// Largest buffer to make, below the device's (maxMemoryAllocationSize, maxBufferSize):
+    /// tests exercise the limit, and the read-back's staging in pieces, without gigabytes.
+    pub max_buffer_bytes: Option<u64>,
     /// Fill every buffer the crowd allocates, but the bone input, with NaN (0x7FC00000) once
     /// at creation, before any pass writes it: a pass that reads what no pass wrote (an
     /// uninitialised read that a real GPU answers with whatever the memory held) then spreads
@@ -176,6 +179,8 @@ pub struct Crowd {
     last: AtomicU8,
     last_frame: AtomicU8,
     release_to: Option<u32>,
+    /// The largest buffer the crowd makes (the device's, or the debug settings' lower one).
+    buffer_limit: u64,
     pool: vk::DescriptorPool,
     pub(crate) chunks: Vec<Chunk>,
 }
@@ -195,12 +200,7 @@ impl Crowd {
         let m = &model.inner;
         let shared = m.context.shared.clone();
         check_request(&shared, m, characters, &options)?;
-        let dims = Dims {
-            bounds: options.bounds,
-            tangents: options.tangents,
-            normals: options.normals,
-            ..m.dims
-        };
+        let dims = crowd_dims(m, &options);
 
         let c = characters as u64;
         let per_character = CrowdBuffer::ALL.map(|b| bytes_per_character(&dims, b));
@@ -215,6 +215,7 @@ impl Crowd {
             last: AtomicU8::new(0),
             last_frame: AtomicU8::new(0),
             release_to: options.release_to_queue_family,
+            buffer_limit: buffer_limit(&shared, &options),
             pool: vk::DescriptorPool::null(),
             chunks: Vec::new(),
         };
@@ -636,21 +637,58 @@ impl Crowd {
         })
     }
 
-    /// The whole of each of `buffers` as f32, in one submission (waits): after the compute
-    /// writes, through a host-visible staging copy.
+    /// The whole of each of `buffers` as f32 (waits): after the compute writes, through a
+    /// host-visible staging buffer of at most [`READ_BACK_STAGING`] bytes (and the largest
+    /// buffer the crowd makes), one submission each time it fills.
     fn read_floats(&self, buffers: &[&Buffer]) -> Result<Vec<Vec<f32>>> {
         let shared = &self.model.inner.context.shared;
-        let total = buffers.iter().map(|b| b.size).sum();
+        let total: u64 = buffers.iter().map(|b| b.size).sum();
+        let piece = (total.min(READ_BACK_STAGING).min(self.buffer_limit) & !3).max(4);
         let mut staging = Buffer::new(
             shared,
             "read-back",
-            total,
+            piece,
             vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
+        let mut floats: Vec<Vec<f32>> = (buffers.iter())
+            .map(|b| Vec::with_capacity(b.size as usize / 4))
+            .collect();
+        // (buffer, offset in it, bytes) of each copy into the staging buffer, in its order.
+        let mut pending: Vec<(usize, u64, u64)> = Vec::new();
+        let mut filled = 0;
+        for (i, src) in buffers.iter().enumerate() {
+            let mut offset = 0;
+            while offset < src.size {
+                let size = (piece - filled).min(src.size - offset);
+                pending.push((i, offset, size));
+                (filled, offset) = (filled + size, offset + size);
+                if filled == piece {
+                    self.stage(buffers, &pending, &mut staging, &mut floats)?;
+                    (filled, pending) = (0, Vec::new());
+                }
+            }
+        }
+        if !pending.is_empty() {
+            self.stage(buffers, &pending, &mut staging, &mut floats)?;
+        }
+        Ok(floats)
+    }
+
+    /// Copies `pieces` ((buffer, offset, bytes), packed in order) of `buffers` into `staging`
+    /// in one submission, waits, and appends their floats to `floats`.
+    fn stage(
+        &self,
+        buffers: &[&Buffer],
+        pieces: &[(usize, u64, u64)],
+        staging: &mut Buffer,
+        floats: &mut [Vec<f32>],
+    ) -> Result<()> {
+        let shared = &self.model.inner.context.shared;
         shared.record_and_submit(|cmd| {
             let device = &shared.device;
-            // SAFETY: cmd is recording; the buffers are alive and have TRANSFER_SRC.
+            // SAFETY: cmd is recording; the buffers are alive and have TRANSFER_SRC, and the
+            // pieces lie within them and, packed, within the staging buffer.
             unsafe {
                 global_barrier(
                     device,
@@ -659,14 +697,14 @@ impl Crowd {
                     &[Access::TransferRead],
                 );
                 let mut at = 0;
-                for src in buffers {
+                for &(i, offset, size) in pieces {
                     let region = [vk::BufferCopy {
-                        src_offset: 0,
+                        src_offset: offset,
                         dst_offset: at,
-                        size: src.size,
+                        size,
                     }];
-                    device.cmd_copy_buffer(cmd, src.handle, staging.handle, &region);
-                    at += src.size;
+                    device.cmd_copy_buffer(cmd, buffers[i].handle, staging.handle, &region);
+                    at += size;
                 }
                 transfer_to_host_barrier(device, cmd);
             }
@@ -674,16 +712,14 @@ impl Crowd {
         })?;
         let mapped = staging.mapped()?;
         let mut at = 0usize;
-        Ok(buffers
-            .iter()
-            .map(|b| {
-                let bytes = &mapped[at..at + b.size as usize];
-                at += b.size as usize;
-                (bytes.chunks_exact(4))
-                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    .collect()
-            })
-            .collect())
+        for &(i, _, size) in pieces {
+            let bytes = &mapped[at..at + size as usize];
+            at += size as usize;
+            floats[i].extend(
+                (bytes.chunks_exact(4)).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            );
+        }
+        Ok(())
     }
 
     pub(crate) fn shared(&self) -> &Arc<Shared> {
@@ -705,7 +741,8 @@ impl Drop for Crowd {
 
 /// What `Crowd::with_options` refuses before it creates anything: no characters, frames in
 /// flight out of 1..4, a release to the context's own (or no) queue family, tangents of a model
-/// without rest tangents, a crowd beyond the largest device-local heap.
+/// without rest tangents, a buffer beyond the largest the device makes, a crowd beyond the
+/// largest device-local heap.
 fn check_request(
     shared: &Shared,
     m: &Inner,
@@ -744,6 +781,28 @@ fn check_request(
             what: "rest tangents (train from a glTF rig with TANGENT or TEXCOORD_0) for a crowd with tangents",
         });
     }
+    let dims = crowd_dims(m, options);
+    let widest = (Pass::of_model(&dims).map(|p| p.desc().bindings.len() as u32)).max();
+    let storage = shared.limits.max_storage_buffers_per_stage;
+    if let Some(needed) = widest.filter(|&n| n > storage) {
+        return Err(Error::DeviceLimit {
+            what: "storage buffers per shader stage of the model's widest pass in this mode (maxPerStageDescriptorStorageBuffers)",
+            needed: needed as u64,
+            limit: storage as u64,
+        });
+    }
+    let limit = buffer_limit(shared, options);
+    for b in (CrowdBuffer::ALL.into_iter()).filter(|&b| crowd_buffer_copies(b, &dims, options) > 0)
+    {
+        let needed = bytes_per_character(&dims, b).saturating_mul(characters as u64);
+        if needed > limit {
+            return Err(Error::BufferTooLarge {
+                buffer: kind(b).0,
+                needed,
+                limit,
+            });
+        }
+    }
     let bytes = crowd_bytes(&m.sizes, characters, options)?;
     let heap = shared.limits.device_local_bytes;
     if bytes > heap {
@@ -754,6 +813,25 @@ fn check_request(
         });
     }
     Ok(())
+}
+
+/// The sizes of a crowd of model `m` made with `options`: the model's, with the outputs asked.
+fn crowd_dims(m: &Inner, options: &CrowdOptions) -> Dims {
+    Dims {
+        bounds: options.bounds,
+        tangents: options.tangents,
+        normals: options.normals,
+        ..m.dims
+    }
+}
+
+/// The read-back's staging buffer at most: a crowd's outputs are gigabytes at 16k characters.
+const READ_BACK_STAGING: u64 = 64 << 20;
+
+/// The largest buffer the crowd makes: the device's, or lower where the debug settings say.
+fn buffer_limit(shared: &Shared, options: &CrowdOptions) -> u64 {
+    let device = shared.limits.max_buffer_bytes;
+    (options.debug_settings.max_buffer_bytes).map_or(device, |cap| cap.min(device))
 }
 
 /// The characters per chunk: as many as fit the binding range, a multiple of the granularity

@@ -43,6 +43,30 @@ impl<'a> Physical<'a> {
         unsafe { self.instance.get_physical_device_properties(self.handle) }
     }
 
+    /// The largest buffer the device can make and bind: `maxMemoryAllocationSize` (Vulkan 1.1),
+    /// and `maxBufferSize` where the device has maintenance4 (Vulkan 1.3). Past either, a
+    /// buffer is undefined behaviour, not an error, so the runtime checks before it asks.
+    pub fn max_buffer_bytes(self) -> u64 {
+        let maintenance4 = self.has_extensions(&[ash::khr::maintenance4::NAME]);
+        let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
+        let mut m4 = vk::PhysicalDeviceMaintenance4Properties::default();
+        let mut props = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
+        if maintenance4 {
+            props = props.push_next(&mut m4);
+        }
+        // SAFETY: a physical device of a live instance (module docs); the chain holds core
+        // 1.1 properties and maintenance4's only where the device has the extension.
+        unsafe {
+            self.instance
+                .get_physical_device_properties2(self.handle, &mut props)
+        };
+        let allocation = m3.max_memory_allocation_size;
+        match maintenance4 {
+            true => allocation.min(m4.max_buffer_size),
+            false => allocation,
+        }
+    }
+
     /// The size of the largest device-local memory heap.
     pub fn device_local_bytes(self) -> u64 {
         // SAFETY: a physical device of a live instance (module docs).

@@ -19,10 +19,14 @@ pub struct PassPipeline {
 pub struct Pipelines([PassPipeline; Pass::COUNT]);
 
 impl Pipelines {
-    pub fn new(device: &ash::Device) -> Result<Pipelines> {
+    /// The pipelines of every pass that binds at most `max_storage_buffers` (the device's
+    /// maxPerStageDescriptorStorageBuffers); the others stay null: a layout past the limit is
+    /// invalid, and a crowd that would run such a pass is refused before it records one.
+    pub fn new(device: &ash::Device, max_storage_buffers: u32) -> Result<Pipelines> {
         let mut made = Pipelines::default();
+        let fits = |pass: &Pass| pass.desc().bindings.len() as u32 <= max_storage_buffers;
         // Assign one by one so that `destroy` can clean up a partial set on error.
-        let result = Pass::ALL.into_iter().try_for_each(|pass| {
+        let result = Pass::ALL.into_iter().filter(fits).try_for_each(|pass| {
             made.0[pass as usize] = PassPipeline::new(device, pass.desc())?;
             Ok(())
         });

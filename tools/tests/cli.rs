@@ -161,7 +161,7 @@ fn bad_counts_and_outputs_fail_before_any_work() {
     let err = failed(&["profile", m, "--characters", "2000000000", "--frames", "1"]);
     assert!(
         err.contains("--characters 2000000000")
-            && err.contains("allocates at most")
+            && err.contains("makes buffers of at most")
             && err.contains("lower --characters"),
         "{err}"
     );

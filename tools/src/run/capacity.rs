@@ -1,35 +1,22 @@
 //! How many characters of a model a Vulkan device holds, for the error of a `--characters` too
 //! large: the runtime only says that an allocation failed.
 
-use rrskin::vk::ash::vk;
 use rrskin::vk::{
     crowd_bytes, crowd_largest_buffer_bytes, Context, Crowd, CrowdOptions, GpuModel, ModelSizes,
 };
 use rrskin::Model;
 
-/// The bounds on a crowd of `m` on the device: characters whose largest buffer fits its largest
-/// single allocation, and characters whose buffers fit its largest device-local heap.
+/// The bounds on a crowd of `m` on the device: characters whose largest buffer fits the largest
+/// buffer it makes, and characters whose buffers fit its largest device-local heap.
 fn limits(ctx: &Context, m: &Model, options: &CrowdOptions) -> String {
-    let instance = ctx.instance();
-    // SAFETY: the physical device belongs to the context's live instance.
-    let memory = unsafe { instance.get_physical_device_memory_properties(ctx.physical_device()) };
-    let heap = memory.memory_heaps[..memory.memory_heap_count as usize]
-        .iter()
-        .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
-        .map(|h| h.size)
-        .max()
-        .unwrap_or(0);
-    let mut maintenance = vk::PhysicalDeviceMaintenance3Properties::default();
-    let mut properties = vk::PhysicalDeviceProperties2::default().push_next(&mut maintenance);
-    // SAFETY: as above; the chained struct lives across the call.
-    unsafe { instance.get_physical_device_properties2(ctx.physical_device(), &mut properties) };
-    let allocation = maintenance.max_memory_allocation_size;
+    let limits = ctx.limits();
+    let (allocation, heap) = (limits.max_buffer_bytes, limits.device_local_bytes);
     let sizes = ModelSizes::of(m);
     let total = crowd_bytes(&sizes, 1, options).unwrap_or(u64::MAX);
     let largest = crowd_largest_buffer_bytes(&sizes, options).unwrap_or(u64::MAX);
     let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
     format!(
-        "{} allocates at most {:.1} GiB at once ({} characters of this model's largest buffer) and has {:.1} GiB of device memory (about {} characters, {total} bytes each)",
+        "{} makes buffers of at most {:.1} GiB ({} characters of this model's largest buffer) and has {:.1} GiB of device memory (about {} characters, {total} bytes each)",
         ctx.device_name(),
         gib(allocation),
         allocation / largest.max(1),
@@ -48,13 +35,15 @@ pub fn crowd(
     options: CrowdOptions,
 ) -> Result<Crowd, Box<dyn std::error::Error>> {
     match Crowd::with_options(gpu_model, characters, options) {
-        Err(e @ (rrskin::Error::Allocation { .. } | rrskin::Error::DeviceLimit { .. })) => {
-            Err(format!(
-                "--characters {characters}: {e}: {}; lower --characters",
-                limits(ctx, m, &options)
-            )
-            .into())
-        }
+        Err(
+            e @ (rrskin::Error::Allocation { .. }
+            | rrskin::Error::DeviceLimit { .. }
+            | rrskin::Error::BufferTooLarge { .. }),
+        ) => Err(format!(
+            "--characters {characters}: {e}: {}; lower --characters",
+            limits(ctx, m, &options)
+        )
+        .into()),
         other => Ok(other?),
     }
 }
