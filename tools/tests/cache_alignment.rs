@@ -664,3 +664,62 @@ fn a_rig_far_from_its_own_skin_still_lines_up() {
     let got = import(&rig_path, &options(&path)).unwrap_or_else(|e| panic!("{e}"));
     assert_scaled_examples(&got, &expected, 0, 1.0, "object-z-up.mdd");
 }
+
+/// A folder of per-frame meshes is a cache: OBJ (vertices in their faces' order of first use,
+/// mapped as any DCC's order would be) and PLY (vertices in file order), each frame
+/// numbered by its name, give the aligned examples; a folder without meshes, a mesh without a
+/// frame number and a frame with fewer points are refused, naming the file.
+#[test]
+fn obj_and_ply_sequences_are_caches() {
+    let dir = temp_dir("align-meshes");
+    let rig = Rig::load(&rig(), "examples").expect("rig");
+    let cache = aligned_cache();
+    let want = reference();
+    let obj = dir.join("obj");
+    let ply = dir.join("ply");
+    for (s, points) in cache.positions.iter().enumerate() {
+        let frame = cache.frames[s] as usize;
+        let v: String = points
+            .iter()
+            .map(|p| format!("v {} {} {}\n", p.x, p.y, p.z))
+            .collect();
+        let f: String = (rig.triangles.iter())
+            .map(|t| format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1))
+            .collect();
+        write_file(
+            &obj.join(format!("walk_{frame:04}.obj")),
+            &format!("o body\n{v}{f}"),
+        );
+        let header = format!(
+            "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+            points.len()
+        );
+        let v: String = points
+            .iter()
+            .map(|p| format!("{} {} {}\n", p.x, p.y, p.z))
+            .collect();
+        write_file(
+            &ply.join(format!("walk.{frame:03}.ply")),
+            &format!("{header}{v}"),
+        );
+    }
+    assert_same_examples(&imported(&obj), &want, 0);
+    assert_same_examples(&imported(&ply), &want, 0);
+
+    let empty = dir.join("empty");
+    write_file(&empty.join("readme.txt"), "no meshes");
+    assert!(refused(&empty).contains("holds no .obj or .ply meshes"));
+    let unnumbered = dir.join("unnumbered");
+    write_file(&unnumbered.join("rest.ply"), "ply\n");
+    assert!(refused(&unnumbered)
+        .contains("rest.ply: a frame's mesh is named with its frame number last"));
+    let short = obj.join("walk_0061.obj");
+    write_file(&short, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    let e = refused(&obj);
+    assert!(e.contains("sample 61 has 3 points"), "{e}");
+}
+
+fn write_file(path: &Path, text: &str) {
+    std::fs::create_dir_all(path.parent().expect("a folder")).expect("mkdir");
+    std::fs::write(path, text).expect("write");
+}

@@ -150,13 +150,13 @@ pub struct SetArgs {
     /// samples.
     #[arg(long)]
     pub clip: Option<String>,
-    /// Rig: the point cache (.pc2, .mdd or Alembic .abc) of the black-box rig's vertices, in
-    /// the rig's vertex order or the DCC's own (mapped), world or object space, Y-up or Z-up
-    /// (detected).
+    /// Rig: the point cache (.pc2, .mdd, Alembic .abc, or a folder of per-frame .obj or .ply
+    /// meshes numbered by their names) of the black-box rig's vertices, in the rig's vertex
+    /// order or the DCC's own (mapped), world or object space, Y-up or Z-up (detected).
     #[arg(long)]
     pub cache: Option<PathBuf>,
     /// Rig: the clip's frames per second (glTF key time x fps = the DCC's frame number;
-    /// PC2 frames become times with it, MDD and Alembic times frames).
+    /// PC2 and mesh-sequence frames become times with it, MDD and Alembic times frames).
     #[arg(long, default_value_t = 24.0)]
     pub fps: f64,
     /// Rig: frames held out as test poses, e.g. 41..60 (inclusive; the DCC's frame
@@ -190,7 +190,7 @@ impl SetArgs {
         }
         let (Some(clip), Some(cache)) = (&self.clip, &self.cache) else {
             return Err(format!(
-                "{}: a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc",
+                "{}: a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc|FOLDER (per-frame .obj or .ply meshes)",
                 self.set.display()
             )
             .into());

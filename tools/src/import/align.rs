@@ -407,7 +407,7 @@ fn shift_note(cache: &PointCache, first: f64, offset: f64) -> String {
         cache.frames[0],
         match cache.format {
             Format::Mdd => " (MDD times start at 0, whatever the scene's first frame)",
-            Format::Pc2 | Format::Alembic => "",
+            Format::Pc2 | Format::Alembic | Format::Meshes => "",
         },
         offset,
         if offset.abs() == 1.0 { "" } else { "s" }
@@ -498,7 +498,7 @@ fn off_the_keys(rig_path: &Path, cache: &PointCache, keys: &[f64], clip: &str, f
         (Format::Mdd | Format::Alembic, Some(k), Some(c)) if (c - k).abs() > 1e-3 * k => format!(
             "; the cache was sampled at {c:.3} fps (its samples are 1/{c:.3} s apart) and the clip's keys are 1/{k} s apart: bake the cache at the clip's {k} fps (MDD and Alembic store seconds: --fps only numbers their frames)"
         ),
-        (Format::Pc2, Some(k), _) if k != fps => format!("; the keys are 1/{k} s apart: is it --fps {k}?"),
+        (Format::Pc2 | Format::Meshes, Some(k), _) if k != fps => format!("; the keys are 1/{k} s apart: is it --fps {k}?"),
         _ => "; no whole-frame shift of the cache fits either: bake the cache at the clip's keys".into(),
     };
     let s = (0..cache.times.len())

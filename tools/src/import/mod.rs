@@ -6,6 +6,7 @@ pub mod align;
 pub mod fbx_rig;
 pub mod gltf;
 pub mod gltf_rig;
+pub mod mesh_sequence;
 pub mod npy;
 pub mod numpy_folder;
 pub mod point_cache;

@@ -7,6 +7,8 @@
 //!   frames x points x 3 f32.
 //! - Alembic (`.abc`, Ogawa): the one animated PolyMesh's positions in world space, at its time
 //!   sampling's times in seconds ([`crate::import::alembic`]).
+//! - A folder of per-frame OBJ or PLY meshes, numbered by their names' last digits
+//!   ([`crate::import::mesh_sequence`]): frames as PC2's.
 //!
 //! Frame numbers are the DCC's: a sample whose frame is within float32's reach of a whole
 //! number is that whole frame (MDD's f32 seconds put Blender's frame 59 at 58.99999809), so a
@@ -24,6 +26,8 @@ pub enum Format {
     Mdd,
     /// Times in seconds per sample, as MDD.
     Alembic,
+    /// Frames in the file names: `--fps` gives their times, as PC2's.
+    Meshes,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -59,8 +63,8 @@ fn bad(file: &Path, message: impl Into<String>) -> InputError {
 }
 
 impl PointCache {
-    /// Reads a .pc2, .mdd or .abc file (by extension); `fps` turns PC2 frames into seconds and
-    /// MDD and Alembic seconds into frames.
+    /// Reads a .pc2, .mdd or .abc file (by extension), or a folder of per-frame meshes; `fps`
+    /// turns PC2 and mesh frames into seconds and MDD and Alembic seconds into frames.
     pub fn load(path: &Path, fps: f64) -> Result<PointCache, InputError> {
         let ext = path
             .extension()
@@ -69,12 +73,20 @@ impl PointCache {
             .to_ascii_lowercase();
         let bytes = || std::fs::read(path).map_err(|e| format!("cannot read: {e}"));
         let cache = match ext.as_str() {
+            _ if path.is_dir() => crate::import::mesh_sequence::read(path).map(|(frames, positions)| {
+                PointCache {
+                    format: Format::Meshes,
+                    times: frames.iter().map(|f| f / fps).collect(),
+                    frames,
+                    positions,
+                }
+            }),
             "pc2" => bytes().and_then(|b| Self::from_pc2(&b, fps)),
             "mdd" => bytes().and_then(|b| Self::from_mdd(&b, fps)),
             "abc" => crate::import::alembic::read(path)
                 .map(|c| Self::from_seconds(Format::Alembic, &c.times, c.positions, fps)),
             _ => Err(format!(
-                "unknown point cache extension '.{ext}' (expected .pc2, .mdd or .abc)"
+                "unknown point cache extension '.{ext}' (expected .pc2, .mdd, .abc, or a folder of per-frame .obj or .ply meshes)"
             )),
         }
         .map_err(|m| bad(path, m))?;
