@@ -196,8 +196,8 @@ fn the_aligned_references_train_and_agree() {
     assert_eq!(count(&main, "triangles"), 4672);
     assert_eq!(count(&main, "bones"), 19);
     // Two materials: two primitives, the seam between them split as well.
-    let rig = rrskin_tools::import::gltf_rig::Rig::load(Path::new(&path("rig.glb")), "rom")
-        .expect("rig.glb");
+    let rig =
+        rrskin_tools::import::rig::Rig::load(Path::new(&path("rig.glb")), "rom").expect("rig.glb");
     assert_eq!(rig.primitives.len(), 2);
     // The glTF file's 4416 vertices, welded for training: Blender's own 2338.
     assert_eq!(

@@ -161,8 +161,8 @@ fn the_exporter_runs_on_blender_4_headless_and_as_an_add_on() {
 /// file, and never panic through the loaders.
 #[test]
 fn broken_fbx_and_alembic_files_are_refused_naming_the_file() {
-    use rrskin_tools::import::gltf_rig::Rig;
     use rrskin_tools::import::point_cache::PointCache;
+    use rrskin_tools::import::rig::Rig;
     let dir = temp_dir("blender45-broken");
     for (file, load) in [
         (

@@ -10,9 +10,10 @@
 mod support;
 
 use glam::{DMat4, DVec3};
-use rrskin_tools::import::gltf::{import, weld, Imported};
-use rrskin_tools::import::gltf_rig::Rig;
+use rrskin_tools::import::gltf::{import, Imported};
 use rrskin_tools::import::point_cache::{Format, PointCache};
+use rrskin_tools::import::rig::Rig;
+use rrskin_tools::import::weld::weld;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use support::{cesiumman_options as options, data, temp_dir};

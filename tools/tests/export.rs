@@ -14,7 +14,7 @@ use rrskin::predict::Affine;
 use rrskin::{Model, ModelParts};
 use rrskin_render::synthetic::{palette_error, random_model, random_poses, with_mush_keys, Spec};
 use rrskin_tools::export::animation_pose;
-use rrskin_tools::import::gltf_rig::Rig;
+use rrskin_tools::import::rig::Rig;
 use scratch::temp_dir;
 use std::path::Path;
 use std::process::Command;

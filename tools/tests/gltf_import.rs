@@ -125,8 +125,7 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
     assert_eq!(model.triangle_count(), imported.triangles.len());
 
     // Evaluate held-out frame 50 over the glTF vertices.
-    let rig =
-        rrskin_tools::import::gltf_rig::Rig::load(Path::new(&rig()), "examples").expect("rig");
+    let rig = rrskin_tools::import::rig::Rig::load(Path::new(&rig()), "examples").expect("rig");
     let bones: Vec<rrskin::predict::Affine> = rig
         .bones_at(50.0 / 24.0)
         .iter()
@@ -183,7 +182,7 @@ fn the_model_is_written_over_the_gltf_vertices_with_welded_seams_shading_as_one(
 /// across triangles, so agreement is asked of nearly every triangle, not all.
 #[test]
 fn rest_tangents_follow_the_texture_coordinates() {
-    use rrskin_tools::import::gltf_rig::Rig;
+    use rrskin_tools::import::rig::Rig;
     use rrskin_tools::import::tangents::Source;
     let imported = import(Path::new(&rig()), &options(Path::new(&cache()))).expect("import");
     let (tangents, source) = imported.tangents.as_ref().expect("tangents");
@@ -449,7 +448,7 @@ fn tiny_rig_with(dir: &Path, skin: bool, joint_scale: f32, tangent: Option<[f32;
 
 #[test]
 fn rigs_without_a_skin_or_with_a_singular_joint_are_refused() {
-    use rrskin_tools::import::gltf_rig::Rig;
+    use rrskin_tools::import::rig::Rig;
     let dir = temp_dir("gltf-tiny");
     let ok = tiny_rig(&dir, true, 1.0);
     let rig = Rig::load(&ok, "a").expect("a valid tiny rig (.gltf with an external buffer)");
@@ -489,7 +488,7 @@ fn rigs_without_a_skin_or_with_a_singular_joint_are_refused() {
 /// refused, naming the file and the vertex.
 #[test]
 fn a_files_tangents_are_carried_to_the_rest_mesh_and_checked() {
-    use rrskin_tools::import::gltf_rig::Rig;
+    use rrskin_tools::import::rig::Rig;
     let dir = temp_dir("gltf-tangent");
     let rig = Rig::load(&tiny_rig(&dir, true, 1.0), "a").expect("rig");
     assert!(rig.tangents.is_none() && rig.uvs.is_none());
@@ -519,7 +518,7 @@ fn a_files_tangents_are_carried_to_the_rest_mesh_and_checked() {
 /// by (0, 0, 1) at weight 0.5), and a clip animating morph weights is named on a line.
 #[test]
 fn the_rest_mesh_is_at_the_default_morph_weights() {
-    use rrskin_tools::import::gltf_rig::Rig;
+    use rrskin_tools::import::rig::Rig;
     let dir = temp_dir("gltf-morph");
     let path = tiny_rig(&dir, true, 1.0);
     let mut bin = std::fs::read(dir.join("tiny.bin")).expect("bin");

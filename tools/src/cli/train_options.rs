@@ -1,7 +1,8 @@
 //! The training options `eval` and `train` share, and SET: the example set they load.
 
 use super::note;
-use rrskin_tools::import::gltf::{Imported, Options as ImportOptions};
+use rrskin_tools::import::gltf::Imported;
+use rrskin_tools::import::{ImportOptions, Loaded};
 use rrskin_tools::set::ExampleSet;
 use rrskin_tools::train::budget::CostBudget;
 use rrskin_tools::train::{Method, TrainOptions};
@@ -166,48 +167,24 @@ pub struct SetArgs {
 }
 
 impl SetArgs {
-    pub fn is_rig(&self) -> bool {
-        let ext = self
-            .set
-            .extension()
-            .and_then(|e| e.to_str())
-            .unwrap_or("")
-            .to_ascii_lowercase();
-        ext == "glb" || ext == "gltf" || ext == "fbx"
-    }
-
-    /// The example set, and for a glTF rig what maps it back to the file's vertices.
+    /// The example set, and for a rig what maps it back to the file's vertices.
     pub fn load(&self) -> Result<(ExampleSet, Option<Imported>), Box<dyn std::error::Error>> {
-        if !self.is_rig() {
-            if self.clip.is_some() || self.cache.is_some() || self.test_frames.is_some() {
-                return Err(format!(
-                    "{}: --clip, --cache and --test-frames apply to a rig (.glb/.gltf/.fbx)",
-                    self.set.display()
-                )
-                .into());
-            }
-            return Ok((ExampleSet::load(&self.set)?, None));
-        }
-        let (Some(clip), Some(cache)) = (&self.clip, &self.cache) else {
-            return Err(format!(
-                "{}: a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc|FOLDER (per-frame .obj or .ply meshes)",
-                self.set.display()
-            )
-            .into());
-        };
-        let test_frames = self.test_frames.as_deref().map(parse_range).transpose()?;
         let options = ImportOptions {
-            clip: clip.clone(),
-            cache: cache.clone(),
+            clip: self.clip.clone(),
+            cache: self.cache.clone(),
             fps: self.fps,
-            test_frames,
+            test_frames: self.test_frames.as_deref().map(parse_range).transpose()?,
         };
-        let imported = rrskin_tools::import::gltf::import(&self.set, &options)?;
-        // Facts about the inputs, not progress: printed under --json too (on stderr).
-        for (file, line) in &imported.notes {
-            note(format_args!("note: {}: {line}", file.display()));
+        match rrskin_tools::import::load(&self.set, &options)? {
+            Loaded::Folder(set) => Ok((set, None)),
+            Loaded::Rig(imported) => {
+                // Facts about the inputs, not progress: printed under --json too (on stderr).
+                for (file, line) in &imported.notes {
+                    note(format_args!("note: {}: {line}", file.display()));
+                }
+                Ok((imported.set.clone(), Some(*imported)))
+            }
         }
-        Ok((imported.set.clone(), Some(imported)))
     }
 }
 

@@ -18,7 +18,8 @@
 pub mod bake;
 pub mod glb;
 
-use crate::import::gltf_rig::{load_buffers, Rig};
+use crate::import::gltf_rig::load_buffers;
+use crate::import::rig::Rig;
 use crate::linalg::procrustes;
 use crate::set::InputError;
 use crate::{Error, Result};
@@ -240,7 +241,7 @@ fn rig_source(
     model: &Model,
     buffer: &mut Buffer,
 ) -> Result<(Geometry, Vec<Clip>)> {
-    if crate::import::fbx_rig::is_fbx(path) {
+    if crate::import::SetFormat::of(path) == crate::import::SetFormat::Fbx {
         return Err(input(path, "--rig takes the glTF of the rig (its materials and UVs come from there; FBX rigs are read for training only): export the rig as glTF from the DCC (Blender: File > Export > glTF 2.0) and train from that glb, or export without --rig (docs/export.md)"));
     }
     let bytes = std::fs::read(path).map_err(|e| input(path, format!("cannot read: {e}")))?;

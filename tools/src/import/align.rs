@@ -21,9 +21,9 @@
 //! space in centimetres) are one hypothesis, described by its simplest name, so that only two
 //! different placements are ever ambiguous.
 
-use crate::import::gltf_rig::{Rig, TIME_SLACK};
 use crate::import::point_cache::{Format, PointCache};
 use crate::import::preflight;
+use crate::import::rig::{Rig, TIME_SLACK};
 use crate::import::vertex_map::{self, tree};
 use crate::set::diagonal;
 use crate::set::{Affine, InputError};

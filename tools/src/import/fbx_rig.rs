@@ -10,10 +10,11 @@
 //! skin cluster (the `_end` leaf bones Blender's FBX exporter adds by default, IK controls)
 //! deform nothing and are left out, each kind with a note.
 
-use crate::import::gltf_rig::{Motion, Rig};
+use crate::import::rig::{Rig, Sampled};
 use crate::set::{Affine, InputError};
 use glam::{DMat3, DMat4, DVec3, DVec4};
 use std::path::Path;
+use std::sync::Arc;
 
 fn bad(file: &Path, message: impl Into<String>) -> InputError {
     InputError {
@@ -29,11 +30,6 @@ fn mat4(m: &ufbx::Matrix) -> DMat4 {
         DVec4::new(m.m02, m.m12, m.m22, 0.0),
         DVec4::new(m.m03, m.m13, m.m23, 1.0),
     )
-}
-
-/// Whether `path` names an FBX file (by its extension).
-pub fn is_fbx(path: &Path) -> bool {
-    (path.extension()).is_some_and(|e| e.eq_ignore_ascii_case("fbx"))
 }
 
 /// Loads the rig and the animation stack named `clip` (or `ARMATURE|clip`, as Blender names
@@ -78,7 +74,7 @@ pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
         bind: None,
         mesh_world: Some(to_world).filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
         notes,
-        motion,
+        motion: Arc::new(motion),
     })
 }
 
@@ -247,7 +243,7 @@ fn sample(
     skeleton: &Skeleton,
     from_world: DMat4,
     notes: &mut Vec<String>,
-) -> Result<Motion, InputError> {
+) -> Result<Sampled, InputError> {
     let stacks: Vec<&ufbx::AnimStack> = scene.anim_stacks.iter().map(|s| &**s).collect();
     let named = |s: &&&ufbx::AnimStack| {
         let name: &str = &s.element.name;
@@ -296,7 +292,7 @@ fn sample(
         times.push(time);
         bones.push(pose);
     }
-    Ok(Motion::Sampled { times, bones })
+    Ok(Sampled { times, bones })
 }
 
 /// A note where some frames of `stack` fall between the keys of one of its animated curves:

@@ -4,16 +4,14 @@
 //! at the nodes' default pose and default morph weights (mesh-space POSITIONs are not always the
 //! rest pose), and per time `T_b = W_b(t) · W_b(default)⁻¹` from a sampled animation clip. A
 //! clip's morph weight channels are not played: the cache carries their effect. An FBX rig
-//! loads into the same [`Rig`] through `fbx_rig`.
+//! loads into the same [`Rig`] through `fbx_rig` (`Rig::load` reads either).
 
+use crate::import::rig::{Clip, Rig, TIME_SLACK};
 use crate::set::{Affine, InputError};
 use glam::{DMat4, DQuat, DVec3, DVec4};
 use gltf::animation::{Interpolation, Property};
 use std::path::Path;
-
-/// Key times are compared with this slack (seconds): STEP keys at i/24 s stored as f32 must
-/// be hit by frame times computed in f64.
-pub const TIME_SLACK: f64 = 1e-5;
+use std::sync::Arc;
 
 fn bad(file: &Path, message: impl Into<String>) -> InputError {
     InputError {
@@ -52,53 +50,6 @@ struct Channel {
     values: Values,
 }
 
-#[derive(Debug, Clone)]
-pub struct Rig {
-    /// G rest positions in glTF order (primitives concatenated).
-    pub rest: Vec<DVec3>,
-    /// glTF triangles (indices into `rest`).
-    pub triangles: Vec<[usize; 3]>,
-    /// The vertices of each primitive, in file order.
-    pub primitives: Vec<std::ops::Range<usize>>,
-    /// J bone names (node names, or "joint N").
-    pub names: Vec<String>,
-    pub parents: Vec<Option<usize>>,
-    /// Per glTF vertex, the skin's own (bone, weight) pairs (JOINTS_0/WEIGHTS_0, weight > 0,
-    /// normalised): the baseline an engine skins with.
-    pub weights: Vec<Vec<(usize, f64)>>,
-    /// Per glTF vertex, TEXCOORD_0, if every primitive has it.
-    pub uvs: Option<Vec<[f32; 2]>>,
-    /// Per glTF vertex, TANGENT taken to the rest mesh like the positions (xyz through the
-    /// default pose's blended joint matrix, renormalised; w as stored), if every primitive has
-    /// it.
-    pub tangents: Option<Vec<[f32; 4]>>,
-    /// The skin's bind matrix `W_j(default) · IBM_j`, mesh space to world, when every joint has
-    /// the same one (the mesh was bound at the default pose): what takes an object-space cache
-    /// to the rig's world.
-    pub bind: Option<DMat4>,
-    /// The skinned mesh node's world matrix at the default pose (the mesh object's transform in
-    /// the DCC), unless it is the identity: what takes the DCC's object space to the world.
-    pub mesh_world: Option<DMat4>,
-    /// What the user should know about the file that is not an error (morph targets), a line
-    /// each.
-    pub notes: Vec<String>,
-    /// How the clip poses the bones.
-    pub(crate) motion: Motion,
-}
-
-/// How a rig's clip poses its bones.
-#[derive(Debug, Clone)]
-pub(crate) enum Motion {
-    /// A glTF clip: channels on the node tree, played at any time.
-    Channels(Channels),
-    /// Bones at sampled times (an FBX stack, evaluated by ufbx at each frame): a time between
-    /// samples takes the nearest one.
-    Sampled {
-        times: Vec<f64>,
-        bones: Vec<Vec<Affine>>,
-    },
-}
-
 /// A glTF clip on the node tree.
 #[derive(Debug, Clone)]
 pub(crate) struct Channels {
@@ -111,104 +62,57 @@ pub(crate) struct Channels {
     channels: Vec<Channel>,
 }
 
-impl Rig {
-    /// Loads the rig and the animation named `clip`: the file, its node tree, the skin (one
-    /// for every skinned mesh), the skeleton, the rest mesh with its tangents, the clip's
-    /// channels.
-    pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
-        if crate::import::fbx_rig::is_fbx(path) {
-            return crate::import::fbx_rig::load(path, clip);
-        }
-        let (gltf, buffers) = read_file(path)?;
-        let doc = &gltf.document;
-        let nodes: Vec<gltf::Node> = doc.nodes().collect();
-        let tree = NodeTree::of(&nodes);
-        let (skinned, skin) = one_skin(path, &nodes)?;
-        let skeleton = Skeleton::of(path, &nodes, &tree, &skin, &buffers)?;
-        let mesh = RestMesh::of(path, &skinned, &skeleton.joint_matrices, &buffers)?;
-        let mut notes = mesh.notes;
-        let channels = channels(path, doc, clip, &buffers, &mut notes)?;
-        notes.dedup();
-        Ok(Rig {
-            bind: common_bind(&skeleton.joint_matrices),
-            mesh_world: Some(tree.world_default[skinned[0].index()])
-                .filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
-            primitives: mesh.primitives,
-            notes,
-            rest: mesh.rest,
-            weights: mesh.weights,
-            uvs: mesh.uvs,
-            tangents: mesh.tangents,
-            triangles: mesh.triangles,
-            names: skeleton.names,
-            parents: skeleton.parents,
-            motion: Motion::Channels(Channels {
-                joints: skeleton.joints,
-                node_parents: tree.parents,
-                defaults: tree.defaults,
-                default_inverse: skeleton.default_inverse,
-                channels,
-            }),
-        })
-    }
+/// Loads the glTF rig and the animation named `clip`: the file, its node tree, the skin (one
+/// for every skinned mesh), the skeleton, the rest mesh with its tangents, the clip's
+/// channels.
+pub(crate) fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
+    let (gltf, buffers) = read_file(path)?;
+    let doc = &gltf.document;
+    let nodes: Vec<gltf::Node> = doc.nodes().collect();
+    let tree = NodeTree::of(&nodes);
+    let (skinned, skin) = one_skin(path, &nodes)?;
+    let skeleton = Skeleton::of(path, &nodes, &tree, &skin, &buffers)?;
+    let mesh = RestMesh::of(path, &skinned, &skeleton.joint_matrices, &buffers)?;
+    let mut notes = mesh.notes;
+    let channels = channels(path, doc, clip, &buffers, &mut notes)?;
+    notes.dedup();
+    Ok(Rig {
+        bind: common_bind(&skeleton.joint_matrices),
+        mesh_world: Some(tree.world_default[skinned[0].index()])
+            .filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
+        primitives: mesh.primitives,
+        notes,
+        rest: mesh.rest,
+        weights: mesh.weights,
+        uvs: mesh.uvs,
+        tangents: mesh.tangents,
+        triangles: mesh.triangles,
+        names: skeleton.names,
+        parents: skeleton.parents,
+        motion: Arc::new(Channels {
+            joints: skeleton.joints,
+            node_parents: tree.parents,
+            defaults: tree.defaults,
+            default_inverse: skeleton.default_inverse,
+            channels,
+        }),
+    })
+}
 
-    /// The clip's key times (seconds) over all its channels, increasing, without repeats (an
-    /// FBX stack: its frames).
-    pub fn key_times(&self) -> Vec<f64> {
-        let channels = match &self.motion {
-            Motion::Channels(c) => &c.channels,
-            Motion::Sampled { times, .. } => return times.clone(),
-        };
-        let mut times: Vec<f64> = channels.iter().flat_map(|c| c.times.clone()).collect();
+impl Clip for Channels {
+    fn key_times(&self) -> Vec<f64> {
+        let mut times: Vec<f64> = (self.channels.iter())
+            .flat_map(|c| c.times.clone())
+            .collect();
         times.sort_by(f64::total_cmp);
         times.dedup_by(|a, b| (*a - *b).abs() <= TIME_SLACK);
         times
     }
 
-    /// Whether every channel of the clip holds its keys (STEP): the clip is a series of poses.
-    pub fn holds_keys(&self) -> bool {
-        match &self.motion {
-            Motion::Channels(c) => {
-                (c.channels.iter()).all(|c| c.interpolation == Interpolation::Step)
-            }
-            Motion::Sampled { .. } => false,
-        }
+    fn holds_keys(&self) -> bool {
+        (self.channels.iter()).all(|c| c.interpolation == Interpolation::Step)
     }
 
-    /// The rest mesh under the rig's own skin (linear blend skinning with its weights).
-    pub fn skin(&self, bones: &[Affine]) -> Vec<DVec3> {
-        (0..self.rest.len())
-            .map(|v| self.skin_vertex(v, bones))
-            .collect()
-    }
-
-    /// Vertex `v` of [`Rig::skin`].
-    pub fn skin_vertex(&self, v: usize, bones: &[Affine]) -> DVec3 {
-        if self.weights[v].is_empty() {
-            return self.rest[v];
-        }
-        self.weights[v]
-            .iter()
-            .map(|&(b, w)| bones[b].apply(self.rest[v]) * w)
-            .sum()
-    }
-
-    /// Every bone's transform at `time` (seconds) relative to the rest pose.
-    pub fn bones_at(&self, time: f64) -> Vec<Affine> {
-        match &self.motion {
-            Motion::Channels(c) => c.bones_at(time),
-            Motion::Sampled { times, bones } => {
-                let k = times.partition_point(|&t| t < time);
-                let nearest = [k.saturating_sub(1), k.min(times.len() - 1)]
-                    .into_iter()
-                    .min_by(|&a, &b| (times[a] - time).abs().total_cmp(&(times[b] - time).abs()));
-                nearest.map_or_else(Vec::new, |k| bones[k].clone())
-            }
-        }
-    }
-}
-
-impl Channels {
     fn bones_at(&self, time: f64) -> Vec<Affine> {
         let mut locals = self.defaults.clone();
         for ch in &self.channels {

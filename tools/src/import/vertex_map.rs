@@ -20,7 +20,7 @@
 //! match must be clear and every point used (or a copy of a used one), else the mapping is
 //! refused: a wrong mapping would train on garbage.
 
-use crate::import::gltf::weld;
+use crate::import::weld::weld;
 use crate::set::diagonal;
 use glam::DVec3;
 use kdtree::distance::squared_euclidean;
