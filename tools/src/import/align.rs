@@ -232,21 +232,30 @@ impl Residual {
         self.paired <= preflight::PAIRING_LIMIT * self.unpaired
     }
 
-    /// The residual of `positions` (per sample, in the glTF's order) against `skin`.
+    /// The residual of `positions` (per sample, in the glTF's order) against `skin`, over at
+    /// most [`SCORED_SAMPLES`] samples spread over the cache (each against the others' skins).
     fn of(positions: &[Vec<DVec3>], skin: &[Vec<DVec3>], size: f64) -> Residual {
+        let n = positions.len();
+        let samples: Vec<usize> = (0..SCORED_SAMPLES.min(n))
+            .map(|i| i * n / SCORED_SAMPLES.min(n))
+            .collect();
         let mean = |shift: usize| {
-            let n = positions.len();
-            let (sum, count) = (0..n)
-                .flat_map(|s| positions[s].iter().zip(&skin[(s + shift) % n]))
+            let m = samples.len();
+            let (sum, count) = (0..m)
+                .flat_map(|i| {
+                    positions[samples[i]]
+                        .iter()
+                        .zip(&skin[samples[(i + shift) % m]])
+                })
                 .fold((0.0, 0usize), |(sum, k), (a, b)| {
                     (sum + a.distance(*b), k + 1)
                 });
             sum / count.max(1) as f64 / size
         };
-        let others = (1..positions.len()).map(mean);
+        let others = (1..samples.len()).map(mean);
         Residual {
             paired: mean(0),
-            unpaired: others.sum::<f64>() / (positions.len().max(2) - 1) as f64,
+            unpaired: others.sum::<f64>() / (samples.len().max(2) - 1) as f64,
         }
     }
 }
