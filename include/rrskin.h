@@ -119,7 +119,12 @@
  * the crowd has; whole buffers, compute writes); the engine records the matching acquires on
  * its queue after a semaphore wait. The runtime never reads an output a previous recording
  * wrote, so nothing needs to come back: the next recording overwrites it (undefined old
- * contents are never read).
+ * contents are never read). The drawn outputs (positions, normals, tangents) are one buffer
+ * each, shared by every frame slot (positions alternate between two with previous positions),
+ * and the recording's first barrier orders only work on the context's queue: an engine that
+ * reads them on another family (async compute) makes the compute submission of the next
+ * recording, whatever its slot, wait on a semaphore its reading submission signals after its
+ * last read (draws, copies, a BLAS build), or that recording overwrites what is still drawn.
  *
  * Memory and requirements before creation. `vk::model_bytes` and `vk::crowd_bytes`
  * (`rrskin_query_memory`) give the bytes a model and a crowd of C characters will take, from
