@@ -12,7 +12,9 @@ use super::barrier::{global_barrier, Access, PASS_ACCESSES};
 use super::buffer::{transfer_to_host_barrier, Buffer};
 use super::context::Shared;
 use super::gpu_model::{GpuModel, Inner};
-use super::memory::{bytes_per_character, crowd_buffer_copies, crowd_bytes, XYZ_BYTES};
+use super::memory::{
+    bytes_per_character, crowd_buffer_copies, crowd_buffers, crowd_bytes, XYZ_BYTES,
+};
 use super::pass::{Binding, CrowdBuffer, Dims};
 use super::passes::Pass;
 use super::pipelines::PassPipeline;
@@ -792,8 +794,7 @@ fn check_request(
         });
     }
     let limit = buffer_limit(shared, options);
-    for b in (CrowdBuffer::ALL.into_iter()).filter(|&b| crowd_buffer_copies(b, &dims, options) > 0)
-    {
+    for b in crowd_buffers(&dims, options) {
         let needed = bytes_per_character(&dims, b).saturating_mul(characters as u64);
         if needed > limit {
             return Err(Error::BufferTooLarge {

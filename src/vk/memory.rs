@@ -226,12 +226,19 @@ pub(crate) fn crowd_buffer_copies(b: CrowdBuffer, d: &Dims, options: &CrowdOptio
 /// what a device's largest allocation bounds.
 pub fn crowd_largest_buffer_bytes(s: &ModelSizes, options: &CrowdOptions) -> Result<u64> {
     let dims = s.dims(options)?;
-    Ok(CrowdBuffer::ALL
-        .iter()
-        .filter(|&&b| crowd_buffer_copies(b, &dims, options) > 0)
-        .map(|&b| bytes_per_character(&dims, b))
+    Ok(crowd_buffers(&dims, options)
+        .map(|b| bytes_per_character(&dims, b))
         .max()
         .unwrap_or(0))
+}
+
+/// The kinds of buffer a crowd of a model of sizes `d` made with `options` has (one or more
+/// copies each).
+pub(crate) fn crowd_buffers<'a>(
+    d: &'a Dims,
+    options: &'a CrowdOptions,
+) -> impl Iterator<Item = CrowdBuffer> + 'a {
+    (CrowdBuffer::ALL.into_iter()).filter(move |&b| crowd_buffer_copies(b, d, options) > 0)
 }
 
 /// Bytes of the buffers of a [`super::Crowd`] of `characters` characters of a model of these

@@ -22,10 +22,10 @@
 //! different placements are ever ambiguous.
 
 use crate::import::point_cache::{Format, PointCache};
-use crate::import::preflight;
+use crate::import::preflight::RigFit;
 use crate::import::rig::{Rig, TIME_SLACK};
 use crate::import::vertex_map::{self, tree};
-use crate::set::diagonal;
+use crate::set::{bounds, diagonal};
 use crate::set::{Affine, InputError};
 use glam::{DMat3, DMat4, DVec3};
 use kdtree::distance::squared_euclidean;
@@ -197,10 +197,11 @@ pub fn align(
     }
     // The Chamfer scores cannot tell these apart (a limb turned about its own axis, a body
     // about its vertical): their points in correspondence, through each one's vertex map, can.
+    // Kept: the placements the rig's skin follows, as the last check (`preflight`) asks.
     let (mut fits, mut first) = (Vec::new(), None);
     for &h in &close {
         match lined_up(rig, cache, fps, h) {
-            Ok((aligned, r)) if r.follows() => fits.push((h, aligned, r.paired)),
+            Ok((aligned, Some(f))) if f.follows() => fits.push((h, aligned, f.residual)),
             Ok((aligned, _)) => drop(first.get_or_insert(Ok(aligned))),
             Err(e) => drop(first.get_or_insert(Err(e))),
         }
@@ -213,50 +214,6 @@ pub fn align(
             Err(bad(ambiguous((*a, *ra), (*b, *rb), rig_path, cache, clip)))
         }
         _ => Ok(fits.swap_remove(0).1),
-    }
-}
-
-/// How the rig's skin follows a lined-up cache, in correspondence (mean distances over the
-/// mesh size): `paired`, each sample's points from the skin of its own pose; `unpaired`, from
-/// the skins of the other samples.
-#[derive(Debug, Clone, Copy)]
-struct Residual {
-    paired: f64,
-    unpaired: f64,
-}
-
-impl Residual {
-    /// The rig's skin follows the cache: its own pose much nearer than the others, by the
-    /// pre-flight's relative test ([`preflight::PAIRING_LIMIT`]).
-    fn follows(self) -> bool {
-        self.paired <= preflight::PAIRING_LIMIT * self.unpaired
-    }
-
-    /// The residual of `positions` (per sample, in the glTF's order) against `skin`, over at
-    /// most [`SCORED_SAMPLES`] samples spread over the cache (each against the others' skins).
-    fn of(positions: &[Vec<DVec3>], skin: &[Vec<DVec3>], size: f64) -> Residual {
-        let n = positions.len();
-        let samples: Vec<usize> = (0..SCORED_SAMPLES.min(n))
-            .map(|i| i * n / SCORED_SAMPLES.min(n))
-            .collect();
-        let mean = |shift: usize| {
-            let m = samples.len();
-            let (sum, count) = (0..m)
-                .flat_map(|i| {
-                    positions[samples[i]]
-                        .iter()
-                        .zip(&skin[samples[(i + shift) % m]])
-                })
-                .fold((0.0, 0usize), |(sum, k), (a, b)| {
-                    (sum + a.distance(*b), k + 1)
-                });
-            sum / count.max(1) as f64 / size
-        };
-        let others = (1..samples.len()).map(mean);
-        Residual {
-            paired: mean(0),
-            unpaired: others.sum::<f64>() / (samples.len().max(2) - 1) as f64,
-        }
     }
 }
 
@@ -275,13 +232,14 @@ fn close_placements(mut placements: Vec<Hypothesis>) -> Vec<Hypothesis> {
 }
 
 /// The cache lined up by `h`: its frames shifted, its points taken to the world and mapped to
-/// the glTF's vertices, with the notes; and how the rig's skin follows it.
+/// the glTF's vertices, with the notes; and how the rig's skin follows it, over every sample
+/// (None where the samples do not move).
 fn lined_up(
     rig: &Rig,
     cache: &PointCache,
     fps: f64,
     h: Hypothesis,
-) -> Result<(Aligned, Residual), String> {
+) -> Result<(Aligned, Option<RigFit>), String> {
     let mut notes: Vec<String> = h.space.note();
     let frames: Vec<f64> = cache.frames.iter().map(|f| f + h.offset).collect();
     let times: Vec<f64> = frames.iter().map(|f| f / fps).collect();
@@ -305,7 +263,8 @@ fn lined_up(
     let positions: Vec<Vec<DVec3>> = (world.iter())
         .map(|s| map.point_of.iter().map(|&p| s[p]).collect())
         .collect();
-    let residual = Residual::of(&positions, &skin, size);
+    let vertices: Vec<&[DVec3]> = positions.iter().map(Vec::as_slice).collect();
+    let fit = RigFit::between(&rig.rest, &vertices, &skin);
     let aligned = Aligned {
         positions,
         frames,
@@ -313,7 +272,7 @@ fn lined_up(
         bones,
         notes,
     };
-    Ok((aligned, residual))
+    Ok((aligned, fit))
 }
 
 /// The spaces the cache may be in: world space or each distinct object space the rig knows
@@ -342,10 +301,7 @@ fn spaces(rig: &Rig) -> Vec<Space> {
 
 /// The eight corners of the bounding box of `points`.
 fn corners(points: &[DVec3]) -> [DVec3; 8] {
-    let (lo, hi) = points.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+    let (lo, hi) = bounds(points);
     std::array::from_fn(|i| {
         DVec3::select(glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0), hi, lo)
     })
@@ -381,7 +337,7 @@ fn distinct(hypotheses: Vec<Hypothesis>, corners: &[DVec3], size: f64) -> Vec<Hy
 }
 
 /// The message for two placements that fit about as well: `a` and `b` with their residuals
-/// in correspondence (the better not at most [`MARGIN`] of the other).
+/// in correspondence (RMS over the mesh size; the better not at most [`MARGIN`] of the other).
 fn ambiguous(
     (a, ra): (Hypothesis, f64),
     (b, rb): (Hypothesis, f64),

@@ -80,25 +80,33 @@ impl RigFit {
     pub fn of(set: &ExampleSet) -> Option<RigFit> {
         let weights = set.rig_weights.as_ref()?;
         let train = set.train();
-        let n = train.len();
-        if n < 2 {
-            return None;
-        }
         let skin = Skinning {
             influences: weights.clone(),
         };
         let skins: Vec<Vec<DVec3>> = (train.par_iter())
             .map(|&i| skin.deform(&set.rest, &set.poses[i].bones))
             .collect();
-        let sums = (0..set.vertex_count())
+        let vertices: Vec<&[DVec3]> = (train.iter())
+            .map(|&i| set.poses[i].vertices.as_slice())
+            .collect();
+        RigFit::between(&set.rest, &vertices, &skins)
+    }
+
+    /// The fit of poses' vertices (`vertices[k]`: pose k's, over the `rest` mesh) to the rig's
+    /// skin of each pose (`skins[k]`): None for fewer than two poses, or poses that do not move.
+    pub fn between(rest: &[DVec3], vertices: &[&[DVec3]], skins: &[Vec<DVec3>]) -> Option<RigFit> {
+        let n = vertices.len();
+        if n < 2 {
+            return None;
+        }
+        let sums = (0..rest.len())
             .into_par_iter()
-            .map(|a| vertex_sums(set, &train, &skins, a))
+            .map(|a| vertex_sums(rest[a], vertices, skins, a))
             .reduce(|| [0.0; 4], |x, y| std::array::from_fn(|k| x[k] + y[k]));
         let [paired, all_pairs, next, previous] = sums;
-        let size = diagonal(&set.rest);
-        let rms = |sum: f64, pairs: usize| {
-            (sum.max(0.0) / (pairs * set.vertex_count()) as f64).sqrt() / size
-        };
+        let size = diagonal(rest);
+        let rms =
+            |sum: f64, pairs: usize| (sum.max(0.0) / (pairs * rest.len()) as f64).sqrt() / size;
         let unpaired = rms(all_pairs - paired, n * (n - 1));
         if unpaired <= 1e-9 {
             return None;
@@ -119,9 +127,15 @@ impl RigFit {
         self.residual / self.unpaired
     }
 
+    /// Whether the rig's skin follows each pose much better than the others: the examples are
+    /// the rig's motion.
+    pub fn follows(&self) -> bool {
+        self.pairing() <= PAIRING_LIMIT
+    }
+
     /// Why the examples are not the rig's motion, or None where they are.
     pub fn refusal(&self) -> Option<String> {
-        (self.pairing() > PAIRING_LIMIT).then(|| {
+        (!self.follows()).then(|| {
             format!(
                 "the rig's own skin follows each pose no better than it follows the others (each pose's vertices are {:.2} % of the mesh size from the rig's skin of that pose, {:.2} % from its skin of the other poses; a rig's own motion is below {:.0} % of the second): the vertices are not this rig's motion",
                 100.0 * self.residual,
@@ -147,14 +161,13 @@ impl RigFit {
     }
 }
 
-/// Per vertex `a`, with y_i its position in training pose i and s_i the rig's skin of it:
+/// Per vertex `a` (at `rest`), with y_i its position in pose i and s_i the rig's skin of it:
 /// `[Σ_i |y_i − s_i|², Σ_{i,j} |y_i − s_j|², Σ_{i<n−1} |y_i − s_{i+1}|², Σ_{i>0} |y_i − s_{i−1}|²]`. The
 /// sum over all pairs is `n Σ|y_i|² + n Σ|s_j|² − 2 Σy_i · Σs_j`, about the rest position (so
 /// that nothing large cancels): O(n), not O(n²).
-fn vertex_sums(set: &ExampleSet, train: &[usize], skins: &[Vec<DVec3>], a: usize) -> [f64; 4] {
-    let n = train.len();
-    let rest = set.rest[a];
-    let y = |k: usize| set.poses[train[k]].vertices[a] - rest;
+fn vertex_sums(rest: DVec3, vertices: &[&[DVec3]], skins: &[Vec<DVec3>], a: usize) -> [f64; 4] {
+    let n = vertices.len();
+    let y = |k: usize| vertices[k][a] - rest;
     let s = |k: usize| skins[k][a] - rest;
     let (mut paired, mut next, mut previous) = (0.0, 0.0, 0.0);
     let (mut y2, mut s2, mut y_sum, mut s_sum) = (0.0, 0.0, DVec3::ZERO, DVec3::ZERO);

@@ -210,13 +210,18 @@ impl ExampleSet {
     }
 }
 
+/// The bounding box of `points`: its lowest and highest corners.
+pub fn bounds(points: &[DVec3]) -> (DVec3, DVec3) {
+    points.iter().fold(
+        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    )
+}
+
 /// The length of the bounding box's diagonal (at least 1e-12): the mesh size that relative
 /// tolerances use.
 pub fn diagonal(points: &[DVec3]) -> f64 {
-    let (lo, hi) = points.iter().fold(
-        (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
-        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-    );
+    let (lo, hi) = bounds(points);
     (hi - lo).length().max(1e-12)
 }
 
