@@ -216,9 +216,57 @@ impl Cost {
             Target::Palette => (palette_passes(model, &dims), &device.palette),
             _ => (frame_passes(model, &dims, target, device), &device.frame),
         };
+        Cost::priced(passes, target, device, rates, dims.v, dims.k)
+    }
+
+    /// The least any model of `vertices` vertices, at most `influences` influences and
+    /// `mush_keys` delta-mush keys costs on `target` of `device`: the skinning pass and each
+    /// key's rotation fit over one bone, which every such model runs (its other work grows with
+    /// what training fits). Training prices a count by it before fitting one: a count whose
+    /// floor is over the budget is over.
+    pub fn floor(
+        vertices: usize,
+        influences: usize,
+        mush_keys: usize,
+        target: Target,
+        device: &Device,
+    ) -> Cost {
+        let (v, k, s) = (vertices as f64, influences as f64, mush_keys as f64);
+        let (passes, rates) = match target {
+            Target::Palette => {
+                let lanes = (s / 8.0).ceil() * 8.0;
+                let fits = POLAR * (lanes / PALETTE_POLAR_LANES);
+                let keys = PassWork {
+                    pass: "delta-mush keys",
+                    work: Work::groups(1.0) + fits,
+                };
+                (vec![keys], &device.palette)
+            }
+            _ => {
+                let keys = PassWork {
+                    pass: "predict",
+                    work: mush_key(1.0) * s,
+                };
+                let skin = PassWork {
+                    pass: "skinning",
+                    work: skinning(v, k, 0.0, target),
+                };
+                (vec![keys, skin], &device.frame)
+            }
+        };
+        Cost::priced(passes, target, device, rates, v, k)
+    }
+
+    fn priced(
+        passes: Vec<PassWork>,
+        target: Target,
+        device: &Device,
+        rates: &Rates,
+        v: f64,
+        k: f64,
+    ) -> Cost {
         let ns = passes.iter().map(|p| rates.ns(p.work)).sum();
-        let engine =
-            (target != Target::Palette).then(|| skinning(dims.v, dims.k, 0.0, Target::Transformed));
+        let engine = (target != Target::Palette).then(|| skinning(v, k, 0.0, Target::Transformed));
         Cost {
             target,
             device: device.name,

@@ -216,7 +216,7 @@ impl Report {
             "model": self.priced.as_ref().map(priced),
             "refused": self.refused.iter().map(|r| serde_json::json!({
                 "candidate": r.candidate, "cost": priced(&r.priced), "load": r.load,
-                "ee": r.ee.map(|e| e.0), "kept_ee": r.ee.map(|e| e.1),
+                "ee": r.ee.map(|e| e.0), "kept_ee": r.ee.map(|e| e.1), "fitted": !r.floor,
             })).collect::<Vec<_>>(),
         })
     }

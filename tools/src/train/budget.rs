@@ -63,10 +63,20 @@ pub struct Priced {
 
 impl Priced {
     pub fn of(model: &rrskin::Model) -> Priced {
-        let frame = Cost::of(model, Target::Transformed, &LAVAPIPE);
+        Priced::from(|target| Cost::of(model, target, &LAVAPIPE))
+    }
+
+    /// The least any model of `vertices` vertices, at most `influences` influences and
+    /// `mush_keys` delta-mush keys is priced ([`Cost::floor`]): a count it puts over the budget
+    /// is over before it is fitted.
+    pub fn floor(vertices: usize, influences: usize, mush_keys: usize) -> Priced {
+        Priced::from(|target| Cost::floor(vertices, influences, mush_keys, target, &LAVAPIPE))
+    }
+
+    fn from(cost: impl Fn(Target) -> Cost) -> Priced {
         Priced {
-            frame: frame.ratio().unwrap_or(f64::INFINITY),
-            palette_us: Cost::of(model, Target::Palette, &LAVAPIPE).microseconds(),
+            frame: cost(Target::Transformed).ratio().unwrap_or(f64::INFINITY),
+            palette_us: cost(Target::Palette).microseconds(),
         }
     }
 }
@@ -81,6 +91,8 @@ pub struct Refused {
     pub load: f64,
     /// Its cross-validated EE (%) and the one kept in its place, where both were scored.
     pub ee: Option<(f64, f64)>,
+    /// Whether `priced` is a floor ([`Priced::floor`]): the candidate was not fitted.
+    pub floor: bool,
 }
 
 impl Refused {
@@ -89,9 +101,11 @@ impl Refused {
         let gain = match self.ee {
             Some((ee, kept)) if ee < kept => format!("{:.1} EE points better", kept - ee),
             Some((ee, kept)) => format!("{:.1} EE points worse", ee - kept),
-            None => "not fitted".to_string(),
+            None if self.floor => "not fitted".to_string(),
+            None => "not scored".to_string(),
         };
-        format!("{}: {gain}, {:.2} x the budget", self.candidate, self.load)
+        let least = if self.floor { "at least " } else { "" };
+        format!("{}: {gain}, {least}{:.2} x the budget", self.candidate, self.load)
     }
 }
 
@@ -140,12 +154,28 @@ impl Ledger {
         priced: Priced,
         ee: Option<(f64, f64)>,
     ) {
-        let refused = Refused {
+        self.note(Refused {
             candidate,
             load: budget.load(&priced),
             priced,
             ee,
-        };
+            floor: false,
+        });
+    }
+
+    /// Notes `candidate` as refused by `budget` before it was fitted: its floor
+    /// ([`Priced::floor`]) is over.
+    pub fn refuse_unfitted(&self, budget: &CostBudget, candidate: String, floor: Priced) {
+        self.note(Refused {
+            candidate,
+            load: budget.load(&floor),
+            priced: floor,
+            ee: None,
+            floor: true,
+        });
+    }
+
+    fn note(&self, refused: Refused) {
         // A panic elsewhere while noting leaves the list as it was: keep it.
         let mut list = self.refused.lock().unwrap_or_else(|e| e.into_inner());
         list.push(refused);
@@ -210,6 +240,7 @@ mod tests {
             },
             load: 1.8,
             ee: Some((13.5, 15.4)),
+            floor: false,
         };
         assert_eq!(
             r.line(),

@@ -415,8 +415,10 @@ fn steps_down(options: &TrainOptions) -> bool {
 
 /// Where the delta-mush proxies alone at P (`groups`, smoothed by `vertex_ddm`) are over the
 /// cost budget (noted), the index in `fewer` (P/2, P/4, …) of the largest count within it
-/// (the cheapest where none is; None where P is within it), with the proxies of that count
-/// (the fit [`proxy_smoothing`] would make with `vertex_ddm`).
+/// (the cheapest where none is; None where P is within it, or is the cheapest), with the
+/// proxies of that count (the fit [`proxy_smoothing`] would make with `vertex_ddm`). A count
+/// is fitted only where neither its floor ([`Priced::floor`]) nor the last fitted count's load
+/// scaled down to it puts it over: an impossible request is answered without fitting it.
 fn first_within_budget(
     inputs: &Inputs,
     options: &TrainOptions,
@@ -431,28 +433,34 @@ fn first_within_budget(
         let model = mush_model(&proxies, (set, train), inputs.ssd, None, inputs.feats, k);
         Ok((Priced::of(&model.to_runtime(set, k)?), proxies))
     };
-    let ((mut priced, mut proxies), mut count) = (price(groups)?, groups.adjacency.len());
-    for (i, g) in std::iter::once(None)
-        .chain(fewer.iter().map(Some))
-        .enumerate()
-    {
-        if let Some(g) = g {
-            // The load scaled down with the count is below the count's own (the engine's part
-            // does not scale): a count it puts over is over, and is not fitted.
-            let c = g.adjacency.len();
-            let last = i == fewer.len();
-            if budget.load(&priced) * c as f64 / count as f64 > 1.0 && !last {
-                continue;
-            }
-            ((priced, proxies), count) = (price(g)?, c);
+    let counts: Vec<&Groups> = std::iter::once(groups).chain(fewer).collect();
+    let (last, named) = (fewer.len(), |g: &Groups| format!("{} delta-mush proxies", g.adjacency.len()));
+    let mut fitted: Option<(usize, f64)> = None;
+    for (i, g) in counts[..last].iter().enumerate() {
+        let count = g.adjacency.len();
+        let floor = Priced::floor(set.rest.len(), k, count);
+        if !budget.admits(&floor) {
+            inputs.ledger.refuse_unfitted(budget, named(g), floor);
+            continue;
         }
+        // The load scaled down with the count is below the count's own (the engine's part
+        // does not scale): a count it puts over is over.
+        if fitted.is_some_and(|(c, load)| load * count as f64 / c as f64 > 1.0) {
+            continue;
+        }
+        let (priced, proxies) = price(g)?;
         if budget.admits(&priced) {
             return Ok((i.checked_sub(1), proxies));
         }
-        let what = format!("{count} delta-mush proxies");
-        inputs.ledger.refuse(budget, what, priced, None);
+        inputs.ledger.refuse(budget, named(g), priced, None);
+        fitted = Some((count, budget.load(&priced)));
     }
-    Ok((Some(fewer.len().saturating_sub(1)), proxies))
+    // The cheapest count ships even over the budget, noted.
+    let (priced, proxies) = price(counts[last])?;
+    if !budget.admits(&priced) {
+        inputs.ledger.refuse(budget, named(counts[last]), priced, None);
+    }
+    Ok((last.checked_sub(1), proxies))
 }
 
 /// The proxies' smoothing on `groups`: DDM's `params` (Ω `vertex_ddm`), or none (p = 0: each
