@@ -31,8 +31,8 @@ pub struct ExportArgs {
 /// `rrskin export`: the model as a skinned glTF.
 pub fn run(args: &ExportArgs) -> Outcome {
     check_writable(args.output.parent().unwrap_or(Path::new("")))?;
-    let e = rrskin_tools::export::run(&rrskin_tools::export::Options {
-        model: args.model.clone(),
+    let model = rrskin::Model::load(&args.model)?;
+    let e = rrskin_tools::export::run(model, &rrskin_tools::export::Options {
         output: args.output.clone(),
         rig: args.rig.clone(),
         clips: args.clips.clone(),

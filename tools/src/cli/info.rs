@@ -17,14 +17,7 @@ pub fn run(args: &InfoArgs) -> Outcome {
     let m = Model::load(model)?;
     let clamped = m.proxy_correctives().is_some_and(|c| !c.ranges.is_empty());
     if json {
-        let dims = serde_json::json!({
-            "vertices": m.vertex_count(), "triangles": m.triangle_count(),
-            "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
-            "tangents": m.has_tangents(), "correctives": m.corrective_count(),
-            "proxy_correctives": m.proxy_corrective_count(),
-            "mush_keys": m.mush_keys().map_or(0, |k| k.count()), "up": m.up(),
-            "clamped": clamped, "cost": rrskin_tools::eval::cost::to_json(&m),
-        });
+        let dims = rrskin_tools::run::info::to_json(&m);
         out!("{dims}");
     } else {
         out!(

@@ -27,8 +27,8 @@ pub struct TrainArgs {
     /// prefers them), joint-blend proxies with P (or P delta-mush proxies alone where preferred),
     /// the paper's reduction of the full model, P delta-mush proxies whatever the
     /// cross-validation says, or both: joint-blend proxies with P then P delta-mush proxies.
-    #[arg(long, value_enum, default_value_t = Reduction::Auto)]
-    pub reduction: Reduction,
+    #[arg(long, value_name = "auto|joint-blend|paper|delta-mush|both", default_value_t = Method::Auto)]
+    pub reduction: Method,
     /// At most this many pose-space corrective targets on the runtime model (0: none; the
     /// cross-validation over the training poses may keep none). Each costs the runtime about
     /// 3 % of palette skinning.
@@ -99,15 +99,6 @@ fn parse_positive(text: &str) -> Result<f64, String> {
         .ok_or_else(|| format!("'{text}': expected a positive number"))
 }
 
-#[derive(Clone, Copy, clap::ValueEnum)]
-pub enum Reduction {
-    Auto,
-    JointBlend,
-    Paper,
-    DeltaMush,
-    Both,
-}
-
 impl TrainArgs {
     pub fn options(&self) -> TrainOptions {
         let defaults = TrainOptions::default();
@@ -120,13 +111,7 @@ impl TrainArgs {
             proxy_kernels: self.proxy_kernels,
             up: (!self.no_gravity).then_some(self.up),
             delta_mush: !self.no_delta_mush,
-            method: match self.reduction {
-                Reduction::Auto => Method::Auto,
-                Reduction::JointBlend => Method::JointBlend,
-                Reduction::Paper => Method::Paper,
-                Reduction::DeltaMush => Method::DeltaMush,
-                Reduction::Both => Method::Both,
-            },
+            method: self.reduction,
             gentle_scales: if self.no_gentle_poses {
                 Vec::new()
             } else {

@@ -104,7 +104,8 @@ pub fn measure(
     if counts.len() < 2 {
         return Ok(None);
     }
-    let progress = Progress::new("learning curve", folds.len() * counts.len(), options.quiet);
+    let progress = Progress::new("learning curve", folds.len() * counts.len(), options.quiet)
+        .observed(options.observer.clone());
     // Each training quiet: the curve's own progress counts them.
     let options = TrainOptions {
         quiet: true,
@@ -114,7 +115,8 @@ pub fn measure(
     let jobs: Vec<(usize, usize)> = (0..folds.len())
         .flat_map(|f| counts.iter().map(move |&n| (f, n)))
         .collect();
-    progress.stage(&format!("{} trainings, on {counts:?} poses", jobs.len()));
+    (progress.stage(&format!("{} trainings, on {counts:?} poses", jobs.len())))
+        .map_err(crate::train::TrainError::from)?;
     let held: Vec<Vec<usize>> = folds.iter().map(|f| f.poses(&train).1).collect();
     // Every point's denominator: the rigid predictor's squared error over all held poses.
     let reference: f64 = (held.iter())

@@ -34,7 +34,6 @@ use std::path::{Path, PathBuf};
 
 #[derive(Debug, Clone)]
 pub struct Options {
-    pub model: PathBuf,
     pub output: PathBuf,
     /// The glTF rig the model was trained from: its mesh, materials and clips.
     pub rig: Option<PathBuf>,
@@ -94,8 +93,8 @@ struct Geometry {
     extensions: Vec<String>,
 }
 
-pub fn run(options: &Options) -> Result<Exported> {
-    let model = Model::load(&options.model)?;
+/// `model` as a skinned glTF at `options.output`, each clip baked to within the tolerance.
+pub fn run(model: Model, options: &Options) -> Result<Exported> {
     let palette = Palette::new(model)?;
     let mut buffer = Buffer::default();
     let (geometry, clips) = match &options.rig {

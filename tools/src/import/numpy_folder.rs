@@ -1,21 +1,42 @@
-//! Example sets read from the NumPy folder layout of data/README.md (and written back to it),
-//! validated by [`ExampleSet::new`] and [`preflight::check`]. Errors name the file and
-//! the index of what is wrong; oddities that do not stop training (degenerate triangles,
-//! unreferenced vertices) are collected as warnings.
+//! Example sets in the NumPy folder layout of data/README.md: read from a folder (and written
+//! back to it), or from the same arrays in memory ([`Arrays`], the Python package's
+//! `rrskin.ExampleSet`), validated by [`ExampleSet::new`] and [`preflight::check`] alike.
+//! Errors name the file (or the caller's argument) and the index of what is wrong; oddities that
+//! do not stop training (degenerate triangles, unreferenced vertices) are collected as warnings.
 
 use crate::import::preflight;
 use crate::set::{Affine, ExampleSet, InputError, Pose, SetFiles, SetParts};
 use glam::{DMat3, DVec3};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 fn bad(file: &Path, message: impl Into<String>) -> InputError {
     InputError::new(file, message)
 }
 
-/// An NPY array read as f64 (from f4/f8) or i64 (from i4/i8), C order.
-struct Array<T> {
-    shape: Vec<u64>,
-    data: Vec<T>,
+/// An array of the layout, C order, named as its errors name it: its file, or the caller's
+/// argument that held it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Named<T> {
+    pub name: PathBuf,
+    pub shape: Vec<u64>,
+    pub data: Vec<T>,
+}
+
+/// A set's arrays, as the layout's files hold them, before validation:
+/// `rest_vertices` (V, 3), `faces` (T, 3), `bone_parents` (J,) with -1 for a root,
+/// `pose_transforms` (N, J, 3, 4) (each bone's `[Q | d]`, rows), `pose_vertices` (N, V, 3), and
+/// optionally `split` (N,) (0 train, 1 test; all train without it), `skin_weights` (V, J) and
+/// `bone_names` (J,).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Arrays {
+    pub rest: Named<f64>,
+    pub faces: Named<i64>,
+    pub parents: Named<i64>,
+    pub transforms: Named<f64>,
+    pub vertices: Named<f64>,
+    pub split: Option<Named<i64>>,
+    pub weights: Option<Named<f64>>,
+    pub bone_names: Option<Named<String>>,
 }
 
 fn open(path: &Path) -> Result<npyz::NpyFile<std::io::Cursor<Vec<u8>>>, InputError> {
@@ -30,7 +51,7 @@ fn open(path: &Path) -> Result<npyz::NpyFile<std::io::Cursor<Vec<u8>>>, InputErr
 }
 
 /// Reads the array as `T`, from either of two stored dtypes (the narrow one first).
-fn read_array<T, Narrow, Wide>(path: &Path, kinds: &str) -> Result<Array<T>, InputError>
+fn read_array<T, Narrow, Wide>(path: &Path, kinds: &str) -> Result<Named<T>, InputError>
 where
     Narrow: npyz::Deserialize + Into<T>,
     Wide: npyz::Deserialize + Into<T>,
@@ -56,29 +77,37 @@ where
             }
         },
     };
-    Ok(Array { shape, data })
+    Ok(Named {
+        name: path.to_path_buf(),
+        shape,
+        data,
+    })
 }
 
-fn read_floats(path: &Path) -> Result<Array<f64>, InputError> {
-    let array = read_array::<f64, f32, f64>(path, "a float32/float64")?;
-    if let Some(i) = array.data.iter().position(|x| !x.is_finite()) {
-        return Err(bad(
-            path,
+fn read_floats(path: &Path) -> Result<Named<f64>, InputError> {
+    read_array::<f64, f32, f64>(path, "a float32/float64")
+}
+
+/// The first element of `array` that is not a number, refused.
+fn check_finite(array: &Named<f64>) -> Result<(), InputError> {
+    match array.data.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(bad(
+            &array.name,
             format!(
                 "element {i} ({}) is not finite",
                 index_text(&array.shape, i)
             ),
-        ));
+        )),
+        None => Ok(()),
     }
-    Ok(array)
 }
 
-/// `rest_vertices.npy`: V > 0 points.
-fn read_rest(path: &Path) -> Result<Vec<DVec3>, InputError> {
-    let rest = read_floats(path)?;
-    expect_shape(path, &rest.shape, &[None, Some(3)], "(V, 3)")?;
+/// `rest_vertices`: V > 0 points.
+fn rest(rest: &Named<f64>) -> Result<Vec<DVec3>, InputError> {
+    check_finite(rest)?;
+    expect_shape(&rest.name, &rest.shape, &[None, Some(3)], "(V, 3)")?;
     if rest.shape[0] == 0 {
-        return Err(bad(path, "no vertices"));
+        return Err(bad(&rest.name, "no vertices"));
     }
     Ok(rest
         .data
@@ -87,13 +116,12 @@ fn read_rest(path: &Path) -> Result<Vec<DVec3>, InputError> {
         .collect())
 }
 
-/// `faces.npy`: triangles of the `v` vertices.
-fn read_faces(path: &Path, v: usize) -> Result<Vec<[usize; 3]>, InputError> {
-    let faces = read_ints(path)?;
-    expect_shape(path, &faces.shape, &[None, Some(3)], "(T, 3)")?;
+/// `faces`: triangles of the `v` vertices.
+fn faces(faces: &Named<i64>, v: usize) -> Result<Vec<[usize; 3]>, InputError> {
+    expect_shape(&faces.name, &faces.shape, &[None, Some(3)], "(T, 3)")?;
     if let Some(i) = faces.data.iter().position(|&x| x < 0 || x >= v as i64) {
         return Err(bad(
-            path,
+            &faces.name,
             format!(
                 "face {} has vertex index {} outside 0..{v}",
                 i / 3,
@@ -108,100 +136,103 @@ fn read_faces(path: &Path, v: usize) -> Result<Vec<[usize; 3]>, InputError> {
         .collect())
 }
 
-/// `bone_parents.npy`: J > 0 parents (-1 for a root), without cycles.
-fn read_parents(path: &Path) -> Result<Vec<Option<usize>>, InputError> {
-    let parents = read_ints(path)?;
-    expect_shape(path, &parents.shape, &[None], "(J,)")?;
+/// `bone_parents`: J > 0 parents (-1 for a root); [`ExampleSet::new`] refuses cycles.
+fn parents(parents: &Named<i64>) -> Result<Vec<Option<usize>>, InputError> {
+    expect_shape(&parents.name, &parents.shape, &[None], "(J,)")?;
     let j = parents.shape[0] as usize;
     if j == 0 {
-        return Err(bad(path, "no bones"));
+        return Err(bad(&parents.name, "no bones"));
     }
     if let Some(b) = parents.data.iter().position(|&p| p < -1 || p >= j as i64) {
         return Err(bad(
-            path,
+            &parents.name,
             format!("bone {b} has parent {} outside -1..{j}", parents.data[b]),
         ));
     }
-    let parents: Vec<Option<usize>> = parents
-        .data
-        .iter()
+    Ok((parents.data.iter())
         .map(|&p| usize::try_from(p).ok())
-        .collect();
-    Ok(parents)
+        .collect())
 }
 
-/// `pose_transforms.npy` (N > 0 poses of `j` bones) and `pose_vertices.npy` (N poses of `v`
-/// vertices), their shapes checked.
-fn read_pose_arrays(
-    transforms_path: &Path,
-    vertices_path: &Path,
+/// `pose_transforms` (N > 0 poses of `j` bones) and `pose_vertices` (N poses of `v`
+/// vertices): their shapes and numbers checked.
+fn check_pose_arrays(
+    transforms: &Named<f64>,
+    vertices: &Named<f64>,
     j: usize,
     v: usize,
-) -> Result<(Array<f64>, Array<f64>), InputError> {
-    let transforms = read_floats(transforms_path)?;
+) -> Result<(), InputError> {
+    check_finite(transforms)?;
     expect_shape(
-        transforms_path,
+        &transforms.name,
         &transforms.shape,
         &[None, Some(j as u64), Some(3), Some(4)],
         &format!("(N, J = {j}, 3, 4)"),
     )?;
     let n = transforms.shape[0] as usize;
     if n == 0 {
-        return Err(bad(transforms_path, "no poses"));
+        return Err(bad(&transforms.name, "no poses"));
     }
-    let vertices = read_floats(vertices_path)?;
+    check_finite(vertices)?;
     expect_shape(
-        vertices_path,
+        &vertices.name,
         &vertices.shape,
         &[Some(n as u64), Some(v as u64), Some(3)],
         &format!("(N = {n}, V = {v}, 3)"),
-    )?;
-    Ok((transforms, vertices))
+    )
 }
 
-/// `split.npy` if present (0 = train, 1 = test per pose; all train without it); some pose
-/// must be a training pose.
-fn read_split(path: &Path, n: usize) -> Result<Vec<bool>, InputError> {
-    let is_test = if path.exists() {
-        let split = read_ints(path)?;
-        expect_shape(
-            path,
-            &split.shape,
-            &[Some(n as u64)],
-            &format!("(N = {n},)"),
-        )?;
-        if let Some(i) = split.data.iter().position(|&s| s != 0 && s != 1) {
-            return Err(bad(
-                path,
-                format!(
-                    "pose {i} has split {} (must be 0 = train or 1 = test)",
-                    split.data[i]
-                ),
-            ));
-        }
-        split.data.iter().map(|&s| s == 1).collect()
-    } else {
-        vec![false; n]
+/// `split` if given (0 = train, 1 = test per pose; all train without it).
+fn split(split: Option<&Named<i64>>, n: usize) -> Result<Vec<bool>, InputError> {
+    let Some(split) = split else {
+        return Ok(vec![false; n]);
     };
-    Ok(is_test)
+    expect_shape(
+        &split.name,
+        &split.shape,
+        &[Some(n as u64)],
+        &format!("(N = {n},)"),
+    )?;
+    if let Some(i) = split.data.iter().position(|&s| s != 0 && s != 1) {
+        return Err(bad(
+            &split.name,
+            format!(
+                "pose {i} has split {} (must be 0 = train or 1 = test)",
+                split.data[i]
+            ),
+        ));
+    }
+    Ok(split.data.iter().map(|&s| s == 1).collect())
 }
 
-/// `bone_names.json` if present: `j` names.
-fn read_bone_names(path: &Path, j: usize) -> Result<Option<Vec<String>>, InputError> {
+/// `bone_names.json` if present: a list of strings.
+fn read_bone_names(path: &Path) -> Result<Option<Named<String>>, InputError> {
     if !path.exists() {
         return Ok(None);
     }
     let text = std::fs::read_to_string(path).map_err(|e| bad(path, e.to_string()))?;
     let names: Vec<String> = serde_json::from_str(&text)
         .map_err(|e| bad(path, format!("not a JSON list of strings: {e}")))?;
-    if names.len() != j {
-        return Err(bad(path, format!("{} names for {j} bones", names.len())));
-    }
-    Ok(Some(names))
+    Ok(Some(Named {
+        name: path.to_path_buf(),
+        shape: vec![names.len() as u64],
+        data: names,
+    }))
 }
 
-/// The poses of the arrays of [`read_pose_arrays`].
-fn poses(transforms: &Array<f64>, vertices: &Array<f64>, j: usize, v: usize) -> Vec<Pose> {
+/// `bone_names` if given: `j` names.
+fn bone_names(names: Option<&Named<String>>, j: usize) -> Result<Option<Vec<String>>, InputError> {
+    match names {
+        Some(names) if names.data.len() != j => Err(bad(
+            &names.name,
+            format!("{} names for {j} bones", names.data.len()),
+        )),
+        names => Ok(names.map(|n| n.data.clone())),
+    }
+}
+
+/// The poses of the arrays of [`check_pose_arrays`].
+fn poses(transforms: &Named<f64>, vertices: &Named<f64>, j: usize, v: usize) -> Vec<Pose> {
     let n = transforms.shape[0] as usize;
     let mut poses = Vec::with_capacity(n);
     for i in 0..n {
@@ -230,7 +261,7 @@ fn poses(transforms: &Array<f64>, vertices: &Array<f64>, j: usize, v: usize) -> 
     poses
 }
 
-fn read_ints(path: &Path) -> Result<Array<i64>, InputError> {
+fn read_ints(path: &Path) -> Result<Named<i64>, InputError> {
     read_array::<i64, i32, i64>(path, "an int32/int64")
 }
 
@@ -272,44 +303,60 @@ impl ExampleSet {
             return Err(bad(dir, "not a folder (expected a NumPy example set)"));
         }
         let f = |name: &str| dir.join(name);
-        let rest = read_rest(&f("rest_vertices.npy"))?;
-        let v = rest.len();
-        let faces_path = f("faces.npy");
-        let faces = read_faces(&faces_path, v)?;
-        let parents = read_parents(&f("bone_parents.npy"))?;
-        let j = parents.len();
-        let transforms_path = f("pose_transforms.npy");
-        let (transforms, vertices) =
-            read_pose_arrays(&transforms_path, &f("pose_vertices.npy"), j, v)?;
-        let n = transforms.shape[0] as usize;
-        let is_test = read_split(&f("split.npy"), n)?;
-        let bone_names = read_bone_names(&f("bone_names.json"), j)?;
-        let weights_path = f("skin_weights.npy");
-        let rig_weights = match weights_path.exists() {
-            true => Some(read_rig_weights(&weights_path, v, j)?),
-            false => None,
+        let (split, weights) = (f("split.npy"), f("skin_weights.npy"));
+        let arrays = Arrays {
+            rest: read_floats(&f("rest_vertices.npy"))?,
+            faces: read_ints(&f("faces.npy"))?,
+            parents: read_ints(&f("bone_parents.npy"))?,
+            transforms: read_floats(&f("pose_transforms.npy"))?,
+            vertices: read_floats(&f("pose_vertices.npy"))?,
+            split: split.exists().then(|| read_ints(&split)).transpose()?,
+            weights: (weights.exists())
+                .then(|| read_floats(&weights))
+                .transpose()?,
+            bone_names: read_bone_names(&f("bone_names.json"))?,
         };
-        let poses = poses(&transforms, &vertices, j, v);
+        let fix = "pose_vertices.npy is not in the space, units, vertex order or poses of pose_transforms.npy and rest_vertices.npy (by the rig's weights in skin_weights.npy)";
+        ExampleSet::from_arrays(&arrays, fix)
+    }
+
+    /// Validates a set's `arrays` ([`Arrays`] gives their shapes), then the mesh and, where
+    /// `skin_weights` is given, the rig's skin, whose refusal says `fix`.
+    pub fn from_arrays(arrays: &Arrays, fix: &str) -> Result<ExampleSet, InputError> {
+        let a = arrays;
+        let rest = rest(&a.rest)?;
+        let v = rest.len();
+        let faces = faces(&a.faces, v)?;
+        let parents = parents(&a.parents)?;
+        let j = parents.len();
+        check_pose_arrays(&a.transforms, &a.vertices, j, v)?;
+        let n = a.transforms.shape[0] as usize;
+        let is_test = split(a.split.as_ref(), n)?;
+        let bone_names = bone_names(a.bone_names.as_ref(), j)?;
+        let rig_weights = a.weights.as_ref().map(|w| rig_weights(w, v, j)).transpose()?;
         let parts = SetParts {
             rest,
             faces,
             parents,
-            poses,
+            poses: poses(&a.transforms, &a.vertices, j, v),
             is_test,
             bone_names,
             rig_weights,
         };
+        let name = |n: Option<&PathBuf>, default: &str| {
+            n.cloned().unwrap_or_else(|| a.rest.name.with_file_name(default))
+        };
+        let weights = name(a.weights.as_ref().map(|w| &w.name), "skin_weights.npy");
         let files = SetFiles {
-            mesh: faces_path,
-            skeleton: f("bone_parents.npy"),
-            transforms: transforms_path.clone(),
-            split: f("split.npy"),
-            weights: weights_path.clone(),
+            mesh: a.faces.name.clone(),
+            skeleton: a.parents.name.clone(),
+            transforms: a.transforms.name.clone(),
+            split: name(a.split.as_ref().map(|s| &s.name), "split.npy"),
+            weights: weights.clone(),
             pose_labels: None,
         };
         let mut set = ExampleSet::new(parts, &files)?;
-        let fix = "pose_vertices.npy is not in the space, units, vertex order or poses of pose_transforms.npy and rest_vertices.npy (by the rig's weights in skin_weights.npy)";
-        preflight::check(&mut set, &weights_path, fix, &transforms_path)?;
+        preflight::check(&mut set, &weights, fix, &a.transforms.name)?;
         Ok(set)
     }
 
@@ -388,12 +435,12 @@ impl ExampleSet {
     }
 }
 
-/// `skin_weights.npy`: (V, J), as each vertex's non-zero weights ([`ExampleSet::new`] checks
+/// `skin_weights`: (V, J), as each vertex's non-zero weights ([`ExampleSet::new`] checks
 /// them).
-fn read_rig_weights(path: &Path, v: usize, j: usize) -> Result<Vec<Vec<(usize, f64)>>, InputError> {
-    let w = read_floats(path)?;
+fn rig_weights(w: &Named<f64>, v: usize, j: usize) -> Result<Vec<Vec<(usize, f64)>>, InputError> {
+    check_finite(w)?;
     expect_shape(
-        path,
+        &w.name,
         &w.shape,
         &[Some(v as u64), Some(j as u64)],
         &format!("(V = {v}, J = {j})"),

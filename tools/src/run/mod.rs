@@ -6,6 +6,7 @@ pub mod capacity;
 pub mod demo;
 pub mod figure;
 pub mod image;
+pub mod info;
 pub mod palette_bench;
 pub mod profile;
 pub mod reference;

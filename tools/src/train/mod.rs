@@ -75,6 +75,40 @@ pub enum Method {
     Both,
 }
 
+impl Method {
+    /// Every method, as `--reduction` (and the Python package's `reduction`) names them.
+    pub const ALL: [(Method, &'static str); 5] = [
+        (Method::Auto, "auto"),
+        (Method::JointBlend, "joint-blend"),
+        (Method::Paper, "paper"),
+        (Method::DeltaMush, "delta-mush"),
+        (Method::Both, "both"),
+    ];
+
+    pub fn name(self) -> &'static str {
+        let named = Method::ALL.iter().find(|(m, _)| *m == self);
+        named.map_or("auto", |(_, name)| name)
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Method, String> {
+        let named = Method::ALL.iter().find(|(_, name)| *name == text);
+        named.map(|(m, _)| *m).ok_or_else(|| {
+            let names: Vec<&str> = Method::ALL.iter().map(|(_, name)| *name).collect();
+            format!("'{text}': expected one of {}", names.join(", "))
+        })
+    }
+}
+
 /// Every training default, in one place.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainOptions {
@@ -118,6 +152,9 @@ pub struct TrainOptions {
     /// Also price every joint-blend structure candidate (each built once more on all training
     /// poses), so that the accuracy/cost front has them (`rrskin eval`'s `pareto`).
     pub front: bool,
+    /// Told of each stage, and may stop training there (the Python package's `progress`
+    /// and Ctrl-C); the terminal's progress is `quiet`'s.
+    pub observer: crate::progress::Observer,
     /// No progress output (for `--json`).
     pub quiet: bool,
 }
@@ -139,6 +176,7 @@ impl Default for TrainOptions {
             delta_mush: true,
             budget: CostBudget::default(),
             front: false,
+            observer: crate::progress::Observer::default(),
             quiet: false,
         }
     }
@@ -166,6 +204,14 @@ pub enum TrainError {
     Smoothing { problem: String },
     /// The runtime refused the trained model (a bug if it happens: training makes valid models).
     Model { source: rrskin::Error },
+    /// The caller's observer ([`TrainOptions::observer`]) stopped training between stages.
+    Interrupted,
+}
+
+impl From<crate::progress::Interrupted> for TrainError {
+    fn from(_: crate::progress::Interrupted) -> TrainError {
+        TrainError::Interrupted
+    }
 }
 
 impl fmt::Display for TrainError {
@@ -190,6 +236,7 @@ impl fmt::Display for TrainError {
             TrainError::Poisson { problem } => write!(f, "Poisson system: {problem}"),
             TrainError::Smoothing { problem } => write!(f, "delta-mush proxies: {problem}"),
             TrainError::Model { source } => write!(f, "the trained model is invalid: {source}"),
+            TrainError::Interrupted => write!(f, "training was interrupted"),
         }
     }
 }
@@ -337,13 +384,14 @@ pub fn run(set: &ExampleSet, options: &TrainOptions) -> Result<Trained, TrainErr
         + usize::from(options.proxies > 0 && options.correctives > 0)
         + usize::from(options.proxies > 0 && options.proxy_correctives)
         + usize::from(options.proxies > 0 && options.offers_delta_mush());
-    let progress = Progress::new("training", steps, options.quiet);
+    let progress =
+        Progress::new("training", steps, options.quiet).observed(options.observer.clone());
     let mut clock = Clock {
         last: Instant::now(),
         seconds: Vec::new(),
     };
 
-    progress.stage("SSD");
+    progress.stage("SSD")?;
     let rigid_errors = crate::skinning::lbs::rigid_errors(set, &train);
     let rigid = Skinning::rigid(&crate::skinning::lbs::rigid_bones(&rigid_errors));
     let ssd = ssd::fit(set, &train, &rigid_errors, k);
@@ -423,15 +471,15 @@ impl Stages<'_> {
     /// selection of its settings, and the Poisson fit.
     fn fit_full(&self, clock: &mut Clock) -> Result<Full, TrainError> {
         let (set, train, options, progress) = (self.set, self.train, self.options, self.progress);
-        progress.stage("gradients");
+        progress.stage("gradients")?;
         let prep = Prepared::new(set, self.feats.to_vec());
         clock.lap("gradients");
-        progress.stage("cross-validation");
+        progress.stage("cross-validation")?;
         let k = options.influences;
         let selection =
             selection::choose(set, &prep, train, self.rigid, k, options.folds, progress)?;
         clock.lap("cross-validation");
-        progress.stage("full model");
+        progress.stage("full model")?;
         let model = full_model::fit(set, &prep, train, self.ssd, &selection)?;
         clock.lap("full model");
         progress.step();
@@ -489,7 +537,7 @@ impl Stages<'_> {
         if !self.options.offers_delta_mush() {
             return Ok((None, None));
         }
-        self.progress.stage("delta-mush proxies");
+        self.progress.stage("delta-mush proxies")?;
         let inputs = delta_mush::Inputs {
             set: self.set,
             train: self.train,
@@ -528,14 +576,14 @@ impl Stages<'_> {
             proxies,
             influences: options.influences,
         };
-        progress.stage("reduction");
+        progress.stage("reduction")?;
         let full_parts = full.map(|f| (&f.prep, &f.model));
         let (mut reduced, mut fitted) =
             structure::build(set, feats, ssd, full_parts, &first, options, None);
         clock.lap("reduction");
         let chosen = match (options.method, &fitted) {
             (Method::Auto, Some(f)) => {
-                progress.stage("structure");
+                progress.stage("structure")?;
                 let (candidates, ridges) = (structure::candidates(options, pool), f.ridges());
                 let c = structure::choose(set, feats, self.rigid, &candidates, ridges, options);
                 if c.structure != first {
@@ -659,7 +707,7 @@ impl Stages<'_> {
         if !self.options.proxy_correctives {
             return Ok((model, None));
         }
-        self.progress.stage("proxy correctives");
+        self.progress.stage("proxy correctives")?;
         let (set, feats, train) = (self.set, self.feats, self.train);
         let mut fit = searched.unwrap_or_else(|| {
             proxy_corrective::fit(
@@ -701,7 +749,7 @@ impl Stages<'_> {
         if options.correctives == 0 {
             return Ok((model, None));
         }
-        self.progress.stage("correctives");
+        self.progress.stage("correctives")?;
         let residuals = corrective::Residuals::of(self.set, self.feats, &model, self.train)?;
         let mut fit = corrective::fit(
             self.set,
