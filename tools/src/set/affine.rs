@@ -31,12 +31,12 @@ impl Affine {
 
     /// The 3x4 row-major form the runtime takes.
     pub fn to_runtime(&self) -> rrskin::predict::Affine {
-        let (q, d) = (self.q, self.d);
-        [
-            q.x_axis.x, q.y_axis.x, q.z_axis.x, d.x, q.x_axis.y, q.y_axis.y, q.z_axis.y, d.y,
-            q.x_axis.z, q.y_axis.z, q.z_axis.z, d.z,
-        ]
-        .map(|x| x as f32)
+        self.to_rows().map(|x| x as f32)
+    }
+
+    /// `[Q | d]` as 3 rows of 4, row-major (the layout of `pose_transforms.npy`).
+    pub fn to_rows(&self) -> [f64; 12] {
+        std::array::from_fn(|i| self.row(i / 4)[i % 4])
     }
 }
 
