@@ -2,6 +2,7 @@
 #![allow(dead_code)] // each test binary uses a different subset
 
 pub mod abi;
+pub mod artifacts;
 pub mod engine;
 pub mod scratch;
 
@@ -11,8 +12,7 @@ use rrskin::Model;
 #[allow(unused_imports)] // each test binary uses a different subset
 pub use rrskin_render::synthetic::with_mush_keys;
 pub use rrskin_render::synthetic::{random_poses, Spec};
-use std::path::{Path, PathBuf};
-use std::process::Command;
+pub use artifacts::suite_artifacts;
 
 pub fn random_model(spec: Spec, seed: u64) -> Model {
     rrskin_render::synthetic::random_model(spec, seed).expect("the generator makes valid models")
@@ -229,37 +229,6 @@ fn dist(a: &[f32; 3], b: &[f32; 3]) -> f32 {
 
 fn norm(a: &[f32; 3]) -> f32 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
-/// Builds the workspace's libraries, binaries and examples (the static library `librrskin.a`,
-/// the crowd sample) as `cargo test --workspace` builds them, and returns `target/<profile>`.
-/// `cargo test` alone may not have built them (when one test runs), and a narrower build (`-p
-/// rrskin --lib`) resolves features and shares build-script dependencies differently, so in a
-/// fresh clone it rebuilt naga and rrskin for minutes. Under `cargo test --workspace` this one
-/// is a no-op.
-pub fn suite_artifacts() -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable path");
-    let profile_dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps")
-        .to_path_buf();
-    let target_dir = profile_dir.parent().expect("target/<profile>");
-    let release = profile_dir.file_name().is_some_and(|n| n == "release");
-    let mut cargo = Command::new(env!("CARGO"));
-    cargo
-        .args(["build", "--workspace", "--lib", "--bins", "--examples"])
-        .args(["--profile", if release { "release" } else { "test" }])
-        .arg("--target-dir")
-        .arg(target_dir)
-        .current_dir(env!("CARGO_MANIFEST_DIR"));
-    let out = cargo.output().expect("run cargo");
-    assert!(
-        out.status.success(),
-        "cargo build of the suite's artifacts failed:\n{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    profile_dir
 }
 
 /// `model` with [C1 | C2] cut to the pattern of a joint-blend proxy: proxy e's rows keep the 3
