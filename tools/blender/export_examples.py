@@ -24,8 +24,9 @@ axis, times a twist of up to +-twist degrees about it; numpy Generator seeded by
 then, with --test-action NAME, every frame of that action as held-out poses (split 1).
 
 How many: --poses auto exports in rounds. It starts from 40 random poses (or --budget, if
-fewer), asks `rrskin train --learning-curve` (the binary of --rrskin, default `rrskin` on PATH)
-whether more would help (docs/method.md §22), and exports again with the count it advises, at
+fewer), asks training's learning curve (the rrskin Python package where Blender's Python has it,
+else `rrskin train --learning-curve` of the binary --rrskin, default `rrskin` on PATH) whether
+more would help (docs/method.md §22), and exports again with the count it advises, at
 most twice the last and at most --budget (320), until the curve is saturated, advises no more,
 or the budget is reached. The random poses of a count are the first of every larger count of
 the same seed, so each round extends the last. The learning curve measures held-out error on
@@ -306,6 +307,15 @@ def bone_worlds(context, arm, bones):
     return posed, rest
 
 
+def pose_transforms(context, arm, bones):
+    """(J, 3, 4): each bone's transform relative to its rest, in glTF's Y-up frame (what
+    pose_transforms.npy holds)."""
+    posed, rest = bone_worlds(context, arm, bones)
+    to_y = np.eye(4)
+    to_y[:3, :3] = Y_UP
+    return (to_y @ posed @ np.linalg.inv(rest) @ np.linalg.inv(to_y))[:, :3, :]
+
+
 def skin_weights(mesh_obj, bones, parents, vertex_count):
     """(V, J) vertex-group weights of the deform bones, rows normalised; None if unavailable."""
     me = mesh_obj.data
@@ -436,11 +446,6 @@ def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0
         v = len(rest_co)
         if v == 0 or len(faces) == 0:
             raise UserError(f"mesh {mesh_obj.name!r} evaluates to no vertices or no triangles")
-        _, rest_world = bone_worlds(context, arm, bones)
-        rest_inv = np.linalg.inv(rest_world)
-        to_y = np.eye(4)
-        to_y[:3, :3] = Y_UP
-        from_y = np.linalg.inv(to_y)
         transforms = np.empty((n, len(bones), 3, 4))
         vertices = np.empty((n, v, 3))
         for i, set_pose in enumerate(setters):
@@ -453,9 +458,7 @@ def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0
                 raise UserError(f"mesh {mesh_obj.name!r} has {v} evaluated vertices in the rest "
                                 f"pose but {len(co)} in pose {i}: {where}; the vertex count must "
                                 "not depend on the pose")
-            posed_world, _ = bone_worlds(context, arm, bones)
-            q = to_y @ posed_world @ rest_inv @ from_y
-            transforms[i] = q[:, :3, :]
+            transforms[i] = pose_transforms(context, arm, bones)
             vertices[i] = co @ Y_UP.T
         say(log, f"evaluated {n} poses of {v} vertices in {time.time() - t0:.1f} s")
     finally:
@@ -495,17 +498,46 @@ def export_examples(context, out, poses=40, seed=0, test_action=None, swing=40.0
 AUTO_START = 40
 
 
+def package():
+    """The rrskin Python package, where Blender's Python has it (`pip install ./python`), or None."""
+    try:
+        import rrskin
+    except ImportError:
+        return None
+    return rrskin
+
+
+def train_in_process(out, learning_curve=False, progress=None):
+    """The model `rrskin.train` makes of the set in `out`, in this Python. Raises UserError."""
+    rrskin = package()
+    if rrskin is None:
+        raise UserError("the rrskin Python package is not in Blender's Python: install it with "
+                        "Blender's own pip (`BLENDER_PYTHON -m pip install ./python` from a "
+                        "clone of rrskin)")
+    try:
+        return rrskin.train(rrskin.load_set(out), learning_curve=learning_curve, progress=progress)
+    except rrskin.Error as e:
+        raise UserError(f"training {out}: {e}")
+
+
 def learning_curve(rrskin, out):
-    """`rrskin train OUT --learning-curve --json`'s curve and advice (the model is discarded)."""
+    """The learning curve and advice of training the set in `out` (the model is discarded): by
+    the rrskin package in this Python where `rrskin` (a binary) is None and the package is here,
+    else by `rrskin train OUT --learning-curve --json` of that binary (default `rrskin`)."""
     import subprocess
     import tempfile
 
+    if rrskin is None and package() is not None:
+        report = train_in_process(out, learning_curve=True).report
+        return report["learning_curve"], report["learning_curve_advice"]
+    rrskin = rrskin or "rrskin"
     with tempfile.TemporaryDirectory() as scratch:
         try:
             run = subprocess.run([rrskin, "train", out, "-o", os.path.join(scratch, "m.rrs"),
                                   "--learning-curve", "--json"], capture_output=True, text=True)
         except OSError as e:
-            raise UserError(f"--rrskin {rrskin}: cannot run it ({e.strerror})")
+            raise UserError(f"--rrskin {rrskin}: cannot run it ({e.strerror}); or install the "
+                            "rrskin Python package in Blender's Python")
     if run.returncode != 0:
         lines = run.stderr.strip().splitlines() or ["no message"]
         raise UserError(f"rrskin train {out} failed: {lines[-1]}")
@@ -528,7 +560,7 @@ def next_count(poses, advice, budget):
     return min(advised, 2 * poses, budget), None
 
 
-def export_auto(context, out, budget=320, rrskin="rrskin", log=print, **options):
+def export_auto(context, out, budget=320, rrskin=None, log=print, **options):
     """Rounds of export_examples until the learning curve stops them; returns the last summary."""
     if budget < 1:
         raise UserError(f"--budget {budget}: must be at least 1")
@@ -589,7 +621,8 @@ def parse_args(argv):
     p.add_argument("--poses", default="40",
                    help="random range-of-motion poses (40), or auto: rounds the learning curve advises")
     p.add_argument("--budget", type=int, default=320, help="--poses auto: at most this many (320)")
-    p.add_argument("--rrskin", default="rrskin", help="--poses auto: the rrskin binary (on PATH)")
+    p.add_argument("--rrskin", help="--poses auto: train with this rrskin binary (default: the "
+                   "rrskin Python package where Blender's Python has it, else rrskin on PATH)")
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--test-action", help="append this action's frames as held-out poses")
     p.add_argument("--swing", type=float, default=40.0, help="largest swing, degrees (40)")
@@ -659,8 +692,180 @@ class EXPORT_OT_rrskin_examples(bpy.types.Operator):
         except UserError as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
+        context.scene["rrskin_set"] = bpy.path.abspath(self.directory)
         self.report({'INFO'}, summary)
         return {'FINISHED'}
+
+
+# ---------------------------------------------------------------------------------------------
+# Train and Preview: the rrskin package in Blender's Python
+
+
+def trained_summary(model):
+    """The held-out error against SSD's, and the learning curve's advice."""
+    r = model.report
+    line = f"rrskin: {model.info['proxies']} proxies, held-out EE {r['rr_reduced']['test']:.2f} % " \
+           f"(SSD {r['ssd']['test']:.2f} %), {model.info['cost']['targets']['transformed_normals']['ratio']:.2f} x the engine's skinning"
+    advice = r.get("learning_curve_advice")
+    return line + (f"; {advice['sentence']}" if advice else "")
+
+
+class RRSKIN_OT_train(bpy.types.Operator):
+    """Train an rrskin model from the example set exported last, in Blender's Python"""
+    bl_idname = "rrskin.train"
+    bl_label = "Train rrskin model"
+    bl_options = {'REGISTER'}
+
+    directory: bpy.props.StringProperty(name="Example set", subtype='DIR_PATH',
+                                        description="Default: the set exported last")
+    learning_curve: bpy.props.BoolProperty(name="Learning curve", default=True,
+                                           description="Also say whether more poses would help")
+
+    def folder(self, context):
+        folder = bpy.path.abspath(self.directory) if self.directory else context.scene.get("rrskin_set")
+        if not folder:
+            raise UserError("no example set: export one first (File > Export > rrskin example set)")
+        return folder
+
+    def finish(self, context, folder, model):
+        path = os.path.join(folder, "model.rrs")
+        model.save(path)
+        context.scene["rrskin_model"] = path
+        summary = trained_summary(model)
+        context.scene["rrskin_summary"] = summary
+        self.report({'INFO'}, f"{summary}; wrote {path}")
+        return {'FINISHED'}
+
+    def execute(self, context):
+        """Trains before returning (scripts, headless)."""
+        try:
+            folder = self.folder(context)
+            model = train_in_process(folder, self.learning_curve)
+        except UserError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        return self.finish(context, folder, model)
+
+    def invoke(self, context, event):
+        """Trains on a thread (training releases the GIL), its stage in the status bar; Esc
+        stops it at the next stage."""
+        import threading
+
+        try:
+            self._folder = self.folder(context)
+        except UserError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        self._stage, self._result, self._stop = "starting", None, False
+
+        def progress(label, stage, done, total):
+            if self._stop:
+                raise UserError("stopped")
+            self._stage = f"{label}: {stage} ({done}/{total})"
+
+        def work():
+            try:
+                self._result = train_in_process(self._folder, self.learning_curve, progress)
+            except UserError as e:
+                self._result = e
+
+        self._thread = threading.Thread(target=work, daemon=True)
+        self._thread.start()
+        self._timer = context.window_manager.event_timer_add(0.25, window=context.window)
+        context.window_manager.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        if event.type == 'ESC':
+            self._stop = True
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}
+        if self._thread.is_alive():
+            context.workspace.status_text_set(f"rrskin: {self._stage} (Esc stops)")
+            return {'PASS_THROUGH'}
+        context.window_manager.event_timer_remove(self._timer)
+        context.workspace.status_text_set(None)
+        if isinstance(self._result, UserError):
+            self.report({'ERROR'}, str(self._result))
+            return {'CANCELLED'}
+        return self.finish(context, self._folder, self._result)
+
+
+PREVIEWS = {}
+
+
+def preview_frame(scene, *args):
+    """Every preview's mesh in the current pose of its armature."""
+    for name, (model, arm_name, bones) in list(PREVIEWS.items()):
+        obj, arm = bpy.data.objects.get(name), bpy.data.objects.get(arm_name)
+        if obj is None or arm is None:
+            del PREVIEWS[name]
+            continue
+        q = pose_transforms(bpy.context, arm, [arm.data.bones[b] for b in bones])
+        world = model.deform(q).astype(np.float64) @ Y_UP
+        obj.data.vertices.foreach_set("co", (world - np.array(obj.location)).ravel())
+        obj.data.update()
+
+
+class RRSKIN_OT_preview(bpy.types.Operator):
+    """Play the trained rrskin model on a copy of the mesh beside the rig, over the current
+    action, so that its errors show against the rig"""
+    bl_idname = "rrskin.preview"
+    bl_label = "Preview rrskin model"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    model: bpy.props.StringProperty(name="Model", subtype='FILE_PATH',
+                                    description="Default: the model trained last")
+
+    def execute(self, context):
+        rrskin = package()
+        path = bpy.path.abspath(self.model) if self.model else context.scene.get("rrskin_model")
+        if rrskin is None or not path:
+            self.report({'ERROR'}, "train a model first (the rrskin package in Blender's Python)")
+            return {'CANCELLED'}
+        try:
+            names_file = os.path.join(os.path.dirname(path), "bone_names.json")
+            with open(names_file) as f:
+                bones = json.load(f)
+            arm, mesh_obj = choose_rig(context, None, None)
+            missing = [b for b in bones if b not in arm.data.bones]
+            if missing:
+                raise UserError(f"armature {arm.name!r} has no bone {missing[0]!r} of {names_file}")
+            model = rrskin.Model.load(path)
+        except (UserError, OSError, rrskin.Error) as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        skin = model.skin
+        mesh = bpy.data.meshes.new(f"{mesh_obj.name} (rrskin)")
+        mesh.from_pydata((skin["rest_positions"] @ Y_UP).tolist(), [], skin["triangles"].tolist())
+        obj = bpy.data.objects.new(mesh.name, mesh)
+        context.collection.objects.link(obj)
+        size = np.ptp(skin["rest_positions"], axis=0).max()
+        obj.location = (1.2 * size, 0.0, 0.0)
+        PREVIEWS[obj.name] = (model, arm.name, bones)
+        if preview_frame not in bpy.app.handlers.frame_change_post:
+            bpy.app.handlers.frame_change_post.append(preview_frame)
+        preview_frame(context.scene)
+        self.report({'INFO'}, f"previewing {path} on {obj.name!r}")
+        return {'FINISHED'}
+
+
+class VIEW3D_PT_rrskin(bpy.types.Panel):
+    bl_label = "rrskin"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "rrskin"
+
+    def draw(self, context):
+        col = self.layout.column()
+        col.operator(EXPORT_OT_rrskin_examples.bl_idname, text="Export example set")
+        col.operator(RRSKIN_OT_train.bl_idname, text="Train")
+        col.operator(RRSKIN_OT_preview.bl_idname, text="Preview")
+        if "rrskin_summary" in context.scene:
+            col.label(text=context.scene["rrskin_summary"])
+
+
+CLASSES = (EXPORT_OT_rrskin_examples, RRSKIN_OT_train, RRSKIN_OT_preview, VIEW3D_PT_rrskin)
 
 
 def menu_func_export(self, context):
@@ -668,13 +873,18 @@ def menu_func_export(self, context):
 
 
 def register():
-    bpy.utils.register_class(EXPORT_OT_rrskin_examples)
+    for c in CLASSES:
+        bpy.utils.register_class(c)
     bpy.types.TOPBAR_MT_file_export.append(menu_func_export)
 
 
 def unregister():
     bpy.types.TOPBAR_MT_file_export.remove(menu_func_export)
-    bpy.utils.unregister_class(EXPORT_OT_rrskin_examples)
+    if preview_frame in bpy.app.handlers.frame_change_post:
+        bpy.app.handlers.frame_change_post.remove(preview_frame)
+    PREVIEWS.clear()
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
 
 
 if __name__ == "__main__":
