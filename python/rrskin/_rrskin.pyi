@@ -2,7 +2,9 @@
 
 from collections.abc import Callable, Sequence
 from os import PathLike
-from typing import Any, Literal, overload
+from typing import Any, Literal, TypedDict, overload
+
+from typing_extensions import Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -14,6 +16,24 @@ _Floats = npt.NDArray[np.float32] | npt.NDArray[np.float64]
 _Ints = npt.NDArray[np.int32] | npt.NDArray[np.int64]
 _Progress = Callable[[str, str, int, int], object]
 _Reduction = Literal["auto", "joint-blend", "paper", "delta-mush", "both"]
+
+class TrainOptions(TypedDict, total=False):
+    """The CLI's training flags by name (`--palette-budget` is `palette_budget`; each `--no-…`
+    flag a boolean of the positive name); absent: the CLI's default, given here."""
+
+    proxies: int  # 60
+    influences: int  # 4
+    reduction: _Reduction  # "auto"
+    epsilon: float | None  # None
+    correctives: int  # 0
+    proxy_correctives: bool  # True
+    proxy_kernels: bool  # False
+    up: tuple[float, float, float] | None  # (0, 1, 0); None: no gravity
+    delta_mush: bool  # True
+    budget: float | None  # 1.25; None: no limit
+    palette_budget: float | None  # None
+    folds: int  # 4
+    gentle_poses: bool  # True
 
 class Error(Exception):
     """Bad input, a failed training or an unreadable file: the message names the argument or
@@ -104,19 +124,7 @@ def train(
     *,
     progress: _Progress | None = None,
     learning_curve: bool = False,
-    proxies: int = 60,
-    influences: int = 4,
-    reduction: _Reduction = "auto",
-    epsilon: float | None = None,
-    correctives: int = 0,
-    proxy_correctives: bool = True,
-    proxy_kernels: bool = False,
-    up: tuple[float, float, float] | None = (0.0, 1.0, 0.0),
-    delta_mush: bool = True,
-    budget: float | None = 1.25,
-    palette_budget: float | None = None,
-    folds: int = 4,
-    gentle_poses: bool = True,
+    **options: Unpack[TrainOptions],
 ) -> Model: ...
 def evaluate(
     example_set: ExampleSet,
@@ -125,17 +133,5 @@ def evaluate(
     loocv: bool = False,
     diagnose: bool = False,
     learning_curve: bool = True,
-    proxies: int = 60,
-    influences: int = 4,
-    reduction: _Reduction = "auto",
-    epsilon: float | None = None,
-    correctives: int = 0,
-    proxy_correctives: bool = True,
-    proxy_kernels: bool = False,
-    up: tuple[float, float, float] | None = (0.0, 1.0, 0.0),
-    delta_mush: bool = True,
-    budget: float | None = 1.25,
-    palette_budget: float | None = None,
-    folds: int = 4,
-    gentle_poses: bool = True,
+    **options: Unpack[TrainOptions],
 ) -> dict[str, Any]: ...

@@ -23,46 +23,40 @@ fn type_name(what: &Bound<'_, PyAny>) -> String {
 }
 
 /// `array` read in C order, whatever its strides.
-fn read<T: numpy::Element + Copy, U>(
-    array: &Bound<'_, PyArrayDyn<T>>,
-    name: &str,
-    into: impl Fn(T) -> U,
-) -> Named<U> {
+fn read<T: numpy::Element + Copy + Into<U>, U>(array: &Bound<'_, PyArrayDyn<T>>, name: &str) -> Named<U> {
     let view = array.readonly();
     let view = view.as_array();
     Named {
         name: PathBuf::from(name),
         shape: view.shape().iter().map(|&n| n as u64).collect(),
-        data: view.iter().map(|&x| into(x)).collect(),
+        data: view.iter().map(|&x| x.into()).collect(),
     }
+}
+
+/// Argument `name`: an array of dtype `Wide` or `Narrow` (`kinds` in words), read as `Wide`.
+fn either<Wide, Narrow>(what: &Bound<'_, PyAny>, name: &str, kinds: &str) -> PyResult<Named<Wide>>
+where
+    Wide: numpy::Element + Copy,
+    Narrow: numpy::Element + Copy + Into<Wide>,
+{
+    if let Ok(a) = what.cast::<PyArrayDyn<Wide>>() {
+        return Ok(read(a, name));
+    }
+    if let Ok(a) = what.cast::<PyArrayDyn<Narrow>>() {
+        return Ok(read(a, name));
+    }
+    let found = dtype_of(what);
+    Err(crate::error(format!("{name}: {found}, expected {kinds} NumPy array")))
 }
 
 /// Argument `name`: a float32 or float64 array.
 pub fn floats(what: &Bound<'_, PyAny>, name: &str) -> PyResult<Named<f64>> {
-    if let Ok(a) = what.cast::<PyArrayDyn<f64>>() {
-        return Ok(read(a, name, |x| x));
-    }
-    if let Ok(a) = what.cast::<PyArrayDyn<f32>>() {
-        return Ok(read(a, name, f64::from));
-    }
-    let found = dtype_of(what);
-    Err(crate::error(format!(
-        "{name}: {found}, expected a float32 or float64 NumPy array"
-    )))
+    either::<f64, f32>(what, name, "a float32 or float64")
 }
 
 /// Argument `name`: an int32 or int64 array.
 pub fn ints(what: &Bound<'_, PyAny>, name: &str) -> PyResult<Named<i64>> {
-    if let Ok(a) = what.cast::<PyArrayDyn<i64>>() {
-        return Ok(read(a, name, |x| x));
-    }
-    if let Ok(a) = what.cast::<PyArrayDyn<i32>>() {
-        return Ok(read(a, name, i64::from));
-    }
-    let found = dtype_of(what);
-    Err(crate::error(format!(
-        "{name}: {found}, expected an int32 or int64 NumPy array"
-    )))
+    either::<i64, i32>(what, name, "an int32 or int64")
 }
 
 /// Argument `name`: a sequence of strings.

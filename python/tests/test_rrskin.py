@@ -168,11 +168,12 @@ def test_the_stub_names_what_the_module_has():
     stub = ast.parse(open(os.path.join(os.path.dirname(rrskin.__file__), "_rrskin.pyi")).read())
     named = {n.name for n in stub.body if isinstance(n, (ast.ClassDef, ast.FunctionDef))}
     public = {name for name in dir(rrskin._rrskin) if not name.startswith("_")}
-    assert named == public
-    # Every option the stub gives train and evaluate is one the module takes: a value of the
-    # wrong kind is refused naming it, not as an unknown option.
-    train = next(n for n in stub.body if isinstance(n, ast.FunctionDef) and n.name == "train")
-    options = [a.arg for a in train.args.kwonlyargs if a.arg not in ("progress", "learning_curve")]
+    assert named - {"TrainOptions"} == public
+    # Every option the stub names is one the module takes: a value of the wrong kind is refused
+    # naming it, not as an unknown option.
+    typed = next(n for n in stub.body if isinstance(n, ast.ClassDef) and n.name == "TrainOptions")
+    options = [a.target.id for a in typed.body if isinstance(a, ast.AnnAssign)]
+    assert len(options) == 13
     cesium = rrskin.load_set(os.path.join(DATA, "cesiumman"))
     for name in options:
         with pytest.raises(rrskin.Error) as refused:
