@@ -23,7 +23,10 @@ fn type_name(what: &Bound<'_, PyAny>) -> String {
 }
 
 /// `array` read in C order, whatever its strides.
-fn read<T: numpy::Element + Copy + Into<U>, U>(array: &Bound<'_, PyArrayDyn<T>>, name: &str) -> Named<U> {
+fn read<T: numpy::Element + Copy + Into<U>, U>(
+    array: &Bound<'_, PyArrayDyn<T>>,
+    name: &str,
+) -> Named<U> {
     let view = array.readonly();
     let view = view.as_array();
     Named {
@@ -46,7 +49,9 @@ where
         return Ok(read(a, name));
     }
     let found = dtype_of(what);
-    Err(crate::error(format!("{name}: {found}, expected {kinds} NumPy array")))
+    Err(crate::error(format!(
+        "{name}: {found}, expected {kinds} NumPy array"
+    )))
 }
 
 /// Argument `name`: a float32 or float64 array.

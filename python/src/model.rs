@@ -63,9 +63,8 @@ impl Model {
     /// The model in the file at `path` (`rrskin train -o`'s .rrs).
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Model> {
-        let model = rrskin::Model::load(&path).map_err(|e| {
-            crate::error(format!("{}: {e}", path.display()))
-        })?;
+        let model = rrskin::Model::load(&path)
+            .map_err(|e| crate::error(format!("{}: {e}", path.display())))?;
         Model::new(model, None)
     }
 
@@ -84,7 +83,10 @@ impl Model {
     /// choices made, the cost, the learning curve where asked); None for a loaded model.
     #[getter]
     fn report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        self.report.as_ref().map(|r| crate::to_python(py, r)).transpose()
+        self.report
+            .as_ref()
+            .map(|r| crate::to_python(py, r))
+            .transpose()
     }
 
     /// The mesh in pose `bones`, by the CPU reference evaluator (what the GPU runtime is
@@ -154,10 +156,16 @@ impl Model {
         dict.set_item("influences", k)?;
         dict.set_item("indices", owned(py, &[v, k], s.indices.to_vec())?)?;
         dict.set_item("weights", owned(py, &[v, k], s.weights.to_vec())?)?;
-        dict.set_item("rest_positions", owned(py, &[v, 3], flat3(s.rest_positions))?)?;
+        dict.set_item(
+            "rest_positions",
+            owned(py, &[v, 3], flat3(s.rest_positions))?,
+        )?;
         dict.set_item("rest_normals", owned(py, &[v, 3], flat3(s.rest_normals))?)?;
         let tangents: Vec<f32> = s.rest_tangents.iter().flatten().copied().collect();
-        dict.set_item("rest_tangents", owned(py, &[s.rest_tangents.len(), 4], tangents)?)?;
+        dict.set_item(
+            "rest_tangents",
+            owned(py, &[s.rest_tangents.len(), 4], tangents)?,
+        )?;
         let triangles: Vec<u32> = s.triangles.iter().flatten().copied().collect();
         dict.set_item("triangles", owned(py, &[s.triangles.len(), 3], triangles)?)?;
         let targets = owned(py, &[s.correctives, v, 3], flat3(s.corrective_targets))?;

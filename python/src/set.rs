@@ -58,7 +58,9 @@ impl ExampleSet {
             transforms: floats(pose_transforms, "pose_transforms")?,
             vertices: floats(pose_vertices, "pose_vertices")?,
             split: split.map(|s| ints(s, "split")).transpose()?,
-            weights: skin_weights.map(|w| floats(w, "skin_weights")).transpose()?,
+            weights: skin_weights
+                .map(|w| floats(w, "skin_weights"))
+                .transpose()?,
             bone_names: bone_names.map(|n| strings(n, "bone_names")).transpose()?,
         };
         let set = rrskin_tools::set::ExampleSet::from_arrays(&arrays, FIX).map_err(crate::error)?;

@@ -49,7 +49,9 @@ fn train_options(options: &Bound<'_, PyDict>) -> PyResult<TrainOptions> {
             "influences" => o.influences = value.extract().map_err(bad)?,
             "reduction" => {
                 let text: String = value.extract().map_err(bad)?;
-                o.method = text.parse().map_err(|e| crate::error(format!("{name}: {e}")))?;
+                o.method = text
+                    .parse()
+                    .map_err(|e| crate::error(format!("{name}: {e}")))?;
             }
             "epsilon" => o.epsilon = positive(value.extract().map_err(bad)?)?,
             "correctives" => o.correctives = value.extract().map_err(bad)?,
@@ -83,7 +85,9 @@ fn unit(name: &str, up: Option<[f64; 3]>) -> PyResult<Option<[f64; 3]>> {
     let Some(u) = up else { return Ok(None) };
     let length = u.iter().map(|x| x * x).sum::<f64>().sqrt();
     if !(length.is_finite() && length > 1e-9) {
-        return Err(crate::error(format!("{name}: {u:?}, expected a non-zero vector")));
+        return Err(crate::error(format!(
+            "{name}: {u:?}, expected a non-zero vector"
+        )));
     }
     Ok(Some(u.map(|x| x / length)))
 }
@@ -116,7 +120,11 @@ impl Watch {
     /// `result`'s error as Python's: the watcher's exception where it stopped training.
     fn raise<T>(self, result: rrskin_tools::Result<T>) -> PyResult<T> {
         result.map_err(|e| {
-            let stopped = self.stopped.lock().unwrap_or_else(|p| p.into_inner()).take();
+            let stopped = self
+                .stopped
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .take();
             match (&e, stopped) {
                 (
                     rrskin_tools::Error::Train {
@@ -179,7 +187,9 @@ pub fn train(
     let set = example_set.get();
     let report = run(py, set, options.unwrap_or(&empty), progress, eval)?;
     let json = report.to_json();
-    let model = report.model.ok_or_else(|| crate::error("training produced no model"))?;
+    let model = report
+        .model
+        .ok_or_else(|| crate::error("training produced no model"))?;
     Model::new(model, Some(json))
 }
 
@@ -205,6 +215,12 @@ pub fn evaluate<'py>(
         learning_curve,
         ..Default::default()
     };
-    let report = run(py, example_set.get(), options.unwrap_or(&empty), progress, eval)?;
+    let report = run(
+        py,
+        example_set.get(),
+        options.unwrap_or(&empty),
+        progress,
+        eval,
+    )?;
     crate::to_python(py, &report.to_json())
 }

@@ -6,13 +6,14 @@ pub mod artifacts;
 pub mod engine;
 pub mod scratch;
 
+#[allow(unused_imports)] // each test binary uses a different subset
+pub use artifacts::suite_artifacts;
 use glam::DVec3;
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
 #[allow(unused_imports)] // each test binary uses a different subset
 pub use rrskin_render::synthetic::with_mush_keys;
 pub use rrskin_render::synthetic::{random_poses, Spec};
-pub use artifacts::suite_artifacts;
 
 pub fn random_model(spec: Spec, seed: u64) -> Model {
     rrskin_render::synthetic::random_model(spec, seed).expect("the generator makes valid models")

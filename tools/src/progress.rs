@@ -23,7 +23,10 @@ pub struct Update<'a> {
 /// Watches long work from the same process: called at each stage and step; returning false
 /// stops the work at its next stage ([`Interrupted`]). None: no one watches.
 #[derive(Clone, Default)]
-pub struct Observer(Option<Arc<dyn Fn(Update) -> bool + Send + Sync>>);
+pub struct Observer(Option<Arc<Watch>>);
+
+/// What an [`Observer`] calls: true to go on.
+type Watch = dyn Fn(Update) -> bool + Send + Sync;
 
 impl Observer {
     pub fn new(watch: impl Fn(Update) -> bool + Send + Sync + 'static) -> Observer {
@@ -37,7 +40,11 @@ impl Observer {
 
 impl fmt::Debug for Observer {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(if self.0.is_some() { "Observer(watched)" } else { "Observer(none)" })
+        f.write_str(if self.0.is_some() {
+            "Observer(watched)"
+        } else {
+            "Observer(none)"
+        })
     }
 }
 

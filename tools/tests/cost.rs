@@ -212,3 +212,71 @@ fn a_budget_is_a_positive_number_or_none() {
         );
     }
 }
+
+/// `Cost::floor` is a floor: below what every model of its vertices, influences and delta-mush
+/// keys is priced, on every target, whatever else the model has (proxies beside the keys,
+/// sparse or dense products, more bones a key).
+#[test]
+fn the_floor_is_below_every_model_of_its_keys() {
+    for (grid, proxies, keys, seed) in [
+        (8, 6, 6, 1),
+        (24, 24, 8, 2),
+        (24, 24, 24, 3),
+        (40, 60, 30, 4),
+    ] {
+        let spec = Spec {
+            grid,
+            bones: 8,
+            proxies,
+            influences: 4,
+        };
+        let model = random_model(spec, seed).expect("a valid model");
+        let mushed = with_mush_keys(&model, keys, seed).expect("delta-mush keys");
+        for target in Target::ALL {
+            let floor = Cost::floor(mushed.vertex_count(), 4, keys, target, &LAVAPIPE);
+            let cost = Cost::of(&mushed, target, &LAVAPIPE);
+            assert!(
+                floor.ns <= cost.ns,
+                "{target:?} {keys} keys: {} > {}",
+                floor.ns,
+                cost.ns
+            );
+            assert!(floor.ns > 0.0);
+            if let (Some(f), Some(c)) = (floor.ratio(), cost.ratio()) {
+                assert!(f <= c, "{target:?}: {f} against {c}");
+            }
+            if target == Target::Transformed {
+                // The engine's own pass and the keys' fits: more than the engine's alone.
+                assert!(floor.ratio().is_some_and(|f| f > 1.0));
+            }
+        }
+    }
+}
+
+/// A count of delta-mush proxies no model of can be within the budget is refused by its floor,
+/// not fitted (`rrskin train --proxies 100000` answered at once), and training still ships a
+/// model within the budget.
+#[test]
+fn an_impossible_count_is_refused_without_fitting_it() {
+    let options = TrainOptions {
+        proxies: 100_000,
+        full_model: false,
+        quiet: true,
+        ..TrainOptions::default()
+    };
+    let trained = train::run(&chain(), &options).expect("training");
+    let unfitted: Vec<_> = trained.refused.iter().filter(|r| r.floor).collect();
+    // The largest count (the P asked, capped by the mesh) is the first met, and not fitted.
+    let first = (trained.refused.iter())
+        .find(|r| r.candidate.ends_with(" delta-mush proxies"))
+        .expect("a delta-mush count refused");
+    assert!(first.floor, "{:?}", trained.refused);
+    assert!(unfitted.iter().all(|r| r.load > 1.0 && r.ee.is_none()));
+    // The joint-blend proxies over the budget are named by the count built, not the P asked.
+    assert!(trained
+        .refused
+        .iter()
+        .all(|r| !r.candidate.contains("100000")));
+    let priced = trained.priced.expect("a runtime model");
+    assert!(priced.frame <= 1.25, "{priced:?}");
+}

@@ -81,7 +81,10 @@ fn bundled_rig() -> PathBuf {
 
 #[test]
 fn the_package_passes_its_tests_in_debians_python() {
-    pytest(&repo().join("python/tests/venv/bin/python"), "python-debian");
+    pytest(
+        &repo().join("python/tests/venv/bin/python"),
+        "python-debian",
+    );
 }
 
 #[test]
@@ -97,16 +100,29 @@ fn blender_trains_and_previews_the_model_in_process() {
     let dir = scratch::temp_dir("python-preview");
     let set = dir.join("set");
     let script = repo().join("tools/tests/blender/train_preview.py");
-    let args = [script, "--".into(), bundled_rig(), set, "30".into(), "Anim_0".into()];
+    let args = [
+        script,
+        "--".into(),
+        bundled_rig(),
+        set,
+        "30".into(),
+        "Anim_0".into(),
+    ];
     let stdout = run(&blender_python(), &dir, &args.map(OsString::from));
-    let line = stdout.lines().rfind(|l| l.starts_with('{')).expect("the JSON line");
+    let line = stdout
+        .lines()
+        .rfind(|l| l.starts_with('{'))
+        .expect("the JSON line");
     let figures: serde_json::Value = serde_json::from_str(line).expect("JSON");
     let number = |key: &str| figures[key].as_f64().expect(key);
     assert_eq!(figures["frames"], 12, "{stdout}");
     assert!(number("to_model") < 1e-5, "{stdout}");
     assert!(number("to_rig") < 1e-3, "{stdout}");
     let summary = figures["summary"].as_str().expect("the summary");
-    assert!(summary.contains("held-out EE") && summary.contains("SSD"), "{stdout}");
+    assert!(
+        summary.contains("held-out EE") && summary.contains("SSD"),
+        "{stdout}"
+    );
 }
 
 /// `export_examples.py --poses auto` in Blender 4.5's Python with the package and no binary

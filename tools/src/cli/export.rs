@@ -32,13 +32,16 @@ pub struct ExportArgs {
 pub fn run(args: &ExportArgs) -> Outcome {
     check_writable(args.output.parent().unwrap_or(Path::new("")))?;
     let model = rrskin::Model::load(&args.model)?;
-    let e = rrskin_tools::export::run(model, &rrskin_tools::export::Options {
-        output: args.output.clone(),
-        rig: args.rig.clone(),
-        clips: args.clips.clone(),
-        fps: args.fps,
-        tolerance: args.tolerance,
-    })?;
+    let e = rrskin_tools::export::run(
+        model,
+        &rrskin_tools::export::Options {
+            output: args.output.clone(),
+            rig: args.rig.clone(),
+            clips: args.clips.clone(),
+            fps: args.fps,
+            tolerance: args.tolerance,
+        },
+    )?;
     for line in &e.notes {
         note(format_args!("note: {}: {line}", shown(&e.output)));
     }

@@ -333,7 +333,11 @@ impl ExampleSet {
         let n = a.transforms.shape[0] as usize;
         let is_test = split(a.split.as_ref(), n)?;
         let bone_names = bone_names(a.bone_names.as_ref(), j)?;
-        let rig_weights = a.weights.as_ref().map(|w| rig_weights(w, v, j)).transpose()?;
+        let rig_weights = a
+            .weights
+            .as_ref()
+            .map(|w| rig_weights(w, v, j))
+            .transpose()?;
         let parts = SetParts {
             rest,
             faces,
@@ -344,7 +348,8 @@ impl ExampleSet {
             rig_weights,
         };
         let name = |n: Option<&PathBuf>, default: &str| {
-            n.cloned().unwrap_or_else(|| a.rest.name.with_file_name(default))
+            n.cloned()
+                .unwrap_or_else(|| a.rest.name.with_file_name(default))
         };
         let weights = name(a.weights.as_ref().map(|w| &w.name), "skin_weights.npy");
         let files = SetFiles {

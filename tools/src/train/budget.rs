@@ -105,7 +105,10 @@ impl Refused {
             None => "not scored".to_string(),
         };
         let least = if self.floor { "at least " } else { "" };
-        format!("{}: {gain}, {least}{:.2} x the budget", self.candidate, self.load)
+        format!(
+            "{}: {gain}, {least}{:.2} x the budget",
+            self.candidate, self.load
+        )
     }
 }
 

@@ -434,7 +434,9 @@ fn first_within_budget(
         Ok((Priced::of(&model.to_runtime(set, k)?), proxies))
     };
     let counts: Vec<&Groups> = std::iter::once(groups).chain(fewer).collect();
-    let (last, named) = (fewer.len(), |g: &Groups| format!("{} delta-mush proxies", g.adjacency.len()));
+    let (last, named) = (fewer.len(), |g: &Groups| {
+        format!("{} delta-mush proxies", g.adjacency.len())
+    });
     let mut fitted: Option<(usize, f64)> = None;
     for (i, g) in counts[..last].iter().enumerate() {
         let count = g.adjacency.len();
@@ -458,7 +460,9 @@ fn first_within_budget(
     // The cheapest count ships even over the budget, noted.
     let (priced, proxies) = price(counts[last])?;
     if !budget.admits(&priced) {
-        inputs.ledger.refuse(budget, named(counts[last]), priced, None);
+        inputs
+            .ledger
+            .refuse(budget, named(counts[last]), priced, None);
     }
     Ok((last.checked_sub(1), proxies))
 }

@@ -663,7 +663,8 @@ impl Stages<'_> {
         loop {
             let k = chosen.structure.influences;
             let priced = Priced::of(&reduced.to_runtime(set, k)?);
-            let p = chosen.structure.proxies;
+            // The proxies built, which a pool smaller than the P asked caps.
+            let p = reduced.proxies.min(chosen.structure.proxies);
             if budget.admits(&priced) || p <= 1 {
                 return Ok((reduced, fitted, chosen));
             }
