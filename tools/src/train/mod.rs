@@ -604,6 +604,7 @@ impl Stages<'_> {
                 folds: 0,
                 why: structure::Why::Asked,
                 relative: Vec::new(),
+                built: Default::default(),
             },
         };
         Ok((reduced, fitted, chosen))

@@ -30,6 +30,47 @@ use crate::train::reduce::{self, joint_blend, vertex::Stop, Reduction};
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd;
 use crate::train::{augment, pose_scale, Method, TrainOptions};
+use std::fmt;
+use std::sync::{Arc, Mutex};
+
+/// What [`choose`]'s folds built, for a later stage's folds over the same split (the kinds'
+/// comparison in [`crate::train::delta_mush`]) to reuse instead of fitting again: per fold
+/// (by index), the SSD of its inner poses and every candidate built on them with `ridges`.
+#[derive(Default)]
+pub struct FoldModels {
+    ridges: Option<Ridges>,
+    folds: Vec<Option<(Skinning, Vec<(Structure, Reduced)>)>>,
+}
+
+impl FoldModels {
+    /// Fold `fold`'s SSD of its inner poses, where its cross-validation ran.
+    pub fn ssd(&self, fold: usize) -> Option<&Skinning> {
+        self.folds.get(fold)?.as_ref().map(|(ssd, _)| ssd)
+    }
+
+    /// `structure` as fold `fold` built it, where it did with `ridges`.
+    pub fn model(&self, fold: usize, structure: &Structure, ridges: Ridges) -> Option<&Reduced> {
+        let (_, models) = self.folds.get(fold)?.as_ref()?;
+        let found = models.iter().find(|(s, _)| s == structure);
+        found
+            .filter(|_| self.ridges == Some(ridges))
+            .map(|(_, r)| r)
+    }
+}
+
+impl fmt::Debug for FoldModels {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let built = self.folds.iter().filter(|f| f.is_some()).count();
+        write!(f, "FoldModels({built} folds)")
+    }
+}
+
+/// What the folds built is a cache of the choice, not part of it.
+impl PartialEq for FoldModels {
+    fn eq(&self, _: &FoldModels) -> bool {
+        true
+    }
+}
 
 /// One runtime model structure. `method` is never [`Method::Auto`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -58,6 +99,8 @@ pub struct Chosen {
     /// Candidates x training poses: each held-out pose's relative error (empty where not
     /// cross-validated), for the rule again over fewer candidates (the cost budget's).
     pub relative: Vec<Vec<f64>>,
+    /// What the folds built (empty where not cross-validated).
+    pub built: Arc<FoldModels>,
 }
 
 /// How the structure came to be.
@@ -228,9 +271,11 @@ pub fn choose(
                 false => Why::TooFewPoses,
             },
             relative: Vec::new(),
+            built: Arc::default(),
         };
     };
     let normaliser = pose_scale::rigid_pose_errors(set, &train, rigid);
+    let built: Vec<Mutex<Option<_>>> = (0..split.count()).map(|_| Mutex::new(None)).collect();
     let validated = cross_validate(&split, &normaliser, candidates.len(), TOLERANCE, |fold| {
         let (_, held) = fold.poses(&train);
         let inner_set = set.holding_out(&held);
@@ -243,7 +288,8 @@ pub fn choose(
         );
         // The candidates differ only in how many of the pool's proxies they keep.
         let pool = joint_blend::Pool::new(&inner_set, feats, &inner, &ssd, options.influences);
-        (candidates.iter())
+        let mut models = Vec::new();
+        let rows = (candidates.iter())
             .map(|structure| {
                 let (reduced, _) = build_joint_blend(
                     &inner_set,
@@ -254,14 +300,26 @@ pub fn choose(
                     options,
                     Some(ridges),
                 );
-                (held.iter())
+                let row = (held.iter())
                     .map(|&i| {
                         let y = reduced.predict(set, &feats[i], &set.poses[i].bones);
                         squared_error(set, &[i], &[y])
                     })
-                    .collect()
+                    .collect();
+                models.push((*structure, reduced));
+                row
             })
-            .collect()
+            .collect();
+        let mut slot = built[fold.index].lock().unwrap_or_else(|e| e.into_inner());
+        *slot = Some((ssd, models));
+        rows
+    });
+    let folds_built = (built.into_iter())
+        .map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner()))
+        .collect();
+    let built = Arc::new(FoldModels {
+        ridges: Some(ridges),
+        folds: folds_built,
     });
     Chosen {
         structure: candidates[validated.chosen],
@@ -275,6 +333,7 @@ pub fn choose(
         folds,
         why: Why::CrossValidated,
         relative: validated.relative,
+        built,
     }
 }
 
