@@ -181,3 +181,21 @@ def test_the_stub_names_what_the_module_has():
         assert str(refused.value).startswith(f"{name}: ") and "not an option" not in str(refused.value)
     for function in [rrskin.train, rrskin.evaluate, rrskin.ExampleSet, rrskin.Model.deform]:
         assert inspect.getdoc(function)
+
+
+def test_a_rig_and_its_cache_train_and_export_over_the_files_vertices(tmp_path):
+    rig = os.path.join(DATA, "cesiumman_gltf", "CesiumMan_examples.glb")
+    cache = os.path.join(DATA, "cesiumman_gltf", "CesiumMan_examples.pc2")
+    examples = rrskin.load_set(rig, clip="examples", cache=cache, fps=24, test_frames=(41, 60))
+    assert len(examples.test_poses) == 20
+    # The NumPy folder of the same rig is its welded form: the same figures, to float32.
+    folder = rrskin.load_set(os.path.join(DATA, "cesiumman"))
+    assert examples.vertex_count == folder.vertex_count
+    model = rrskin.train(examples, proxies=20, delta_mush=False, proxy_correctives=False)
+    on_file = examples.for_file(model)
+    assert on_file.info["vertices"] >= model.info["vertices"]
+    report = on_file.export_gltf(tmp_path / "m.glb", rig=rig, clips=["examples"])
+    assert [c["name"] for c in report["clips"]] == ["examples"]
+    assert report["clips"][0]["worst_at_samples"] < 1e-3
+    with pytest.raises(rrskin.Error, match="a rig needs --clip"):
+        rrskin.load_set(rig)
