@@ -10,17 +10,11 @@ import sys
 
 import bpy
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "..", "blender"))
-import export_examples  # noqa: E402
+from headless import arguments, export_examples, setup
 
-glb, out, poses, action = sys.argv[sys.argv.index("--") + 1:][:4]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-export_examples.register()
+glb, out, poses, action = arguments(4)
 try:
-    bpy.ops.import_scene.gltf(filepath=os.path.abspath(glb))
-    arm = next(o for o in bpy.data.objects if o.type == 'ARMATURE')
-    bpy.context.view_layer.objects.active = arm
+    setup(glb)
     result = bpy.ops.export_scene.rrskin_examples(directory=os.path.abspath(out) + os.sep,
                                                   poses=int(poses), test_action=action)
     print(f"addon: {result}", flush=True)

@@ -8,23 +8,15 @@ action, the preview with the model's own deformation and with the rig.
 
 import json
 import os
-import sys
 
 import bpy
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, os.path.join(HERE, "..", "..", "blender"))
-import export_examples  # noqa: E402
+from headless import arguments, export_examples, setup
 
-glb, out, poses, action = sys.argv[sys.argv.index("--") + 1:][:4]
-bpy.ops.wm.read_factory_settings(use_empty=True)
-export_examples.register()
+glb, out, poses, action = arguments(4)
 try:
-    bpy.ops.import_scene.gltf(filepath=os.path.abspath(glb))
-    arm = next(o for o in bpy.data.objects if o.type == 'ARMATURE')
-    mesh = next(o for o in bpy.data.objects if o.type == 'MESH')
-    bpy.context.view_layer.objects.active = arm
+    arm, mesh = setup(glb)
     assert "FINISHED" in bpy.ops.export_scene.rrskin_examples(
         directory=os.path.abspath(out) + os.sep, poses=int(poses), test_action=action)
     assert "FINISHED" in bpy.ops.rrskin.train(learning_curve=False)
