@@ -702,10 +702,14 @@ class EXPORT_OT_rrskin_examples(bpy.types.Operator):
 
 
 def trained_summary(model):
-    """The held-out error against SSD's, and the learning curve's advice."""
+    """The held-out error against SSD's (the training error where the set holds no test poses),
+    the predicted cost, and the learning curve's advice."""
     r = model.report
-    line = f"rrskin: {model.info['proxies']} proxies, held-out EE {r['rr_reduced']['test']:.2f} % " \
-           f"(SSD {r['ssd']['test']:.2f} %), {model.info['cost']['targets']['transformed_normals']['ratio']:.2f} x the engine's skinning"
+    split = "test" if r["rr_reduced"]["test"] is not None else "train"
+    which = "held-out" if split == "test" else "training (no test poses: export a test action)"
+    ratio = model.info["cost"]["targets"]["transformed_normals"]["ratio"]
+    line = (f"rrskin: {model.info['proxies']} proxies, {which} EE {r['rr_reduced'][split]:.2f} % "
+            f"(SSD {r['ssd'][split]:.2f} %), {ratio:.2f} x the engine's skinning")
     advice = r.get("learning_curve_advice")
     return line + (f"; {advice['sentence']}" if advice else "")
 

@@ -4,7 +4,8 @@
 //! (python/tests/venv) and Blender 4.5's `bpy` Python with NumPy 1.26
 //! (tools/tests/blender45/venv). Each fails, never skips, when its Python is missing. In the
 //! latter, the Blender add-on's Train and Preview run headless, and the exporter's `--poses
-//! auto` trains through the package with no `rrskin` binary on PATH.
+//! auto` trains through the package with no `rrskin` binary on PATH; in a Blender window
+//! (Debian's 3.4 under Xvfb), Train runs on its thread as when clicked.
 
 #[path = "../../tests/common/artifacts.rs"]
 mod artifacts;
@@ -123,6 +124,35 @@ fn blender_trains_and_previews_the_model_in_process() {
         summary.contains("held-out EE") && summary.contains("SSD"),
         "{stdout}"
     );
+}
+
+/// Train as clicked in a Blender window (Debian's Blender 3.4 under Xvfb, its Python the
+/// system's with the package staged): the operator trains on a thread while the window's event
+/// loop runs, and reports when done.
+#[test]
+fn blenders_window_trains_on_a_thread() {
+    let dir = scratch::temp_dir("python-window");
+    let script = repo().join("tools/tests/blender/train_modal.py");
+    // A Blender window that never quits would hold the suite: at most two minutes.
+    let out = Command::new("timeout")
+        .args(["120", "xvfb-run", "-a", "blender", "--factory-startup", "--python"])
+        .arg(&script)
+        .arg("--")
+        .arg(bundled_rig())
+        .arg(dir.join("set"))
+        .env("PYTHONPATH", stage(&dir))
+        .env("PYTHONDONTWRITEBYTECODE", "1")
+        .output()
+        .expect("run xvfb-run blender (.ci/install-deps installs both)");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let trained = stdout.lines().find(|l| l.starts_with("trained: rrskin: "));
+    assert!(
+        out.status.success() && trained.is_some_and(|l| l.contains("SSD")),
+        "{}\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(dir.join("set/model.rrs").is_file());
 }
 
 /// `export_examples.py --poses auto` in Blender 4.5's Python with the package and no binary
