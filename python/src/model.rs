@@ -43,9 +43,7 @@ impl Model {
                 )))
             }
         };
-        if let Some(i) = b.data.iter().position(|x| !x.is_finite()) {
-            return Err(crate::error(format!("bones: element {i} is not finite")));
-        }
+        b.check_finite().map_err(crate::error)?;
         let affines = (b.data.chunks_exact(12))
             .map(|t| std::array::from_fn(|i| t[i] as f32))
             .collect();
@@ -176,8 +174,8 @@ impl Model {
     /// Writes the model as a skinned glTF (.glb) at `path`: with `rig` (the glTF it was
     /// trained from) its mesh, materials, joint names and `clips` (default every clip) baked;
     /// without, the model's own mesh and a clip at `fps`. Each clip follows the model to within
-    /// `tolerance` of the mesh's size. Returns `rrskin export --json`'s clips: each clip's
-    /// name, keys, samples and worst distances.
+    /// `tolerance` of the mesh's size. Returns `rrskin export --json`'s object (each clip's
+    /// name, keys, samples and worst distances), with the export's `notes`.
     #[pyo3(signature = (path, rig=None, clips=None, fps=30.0, tolerance=rrskin_tools::export::TOLERANCE))]
     fn export_gltf<'py>(
         &self,
@@ -199,14 +197,8 @@ impl Model {
         let exported = py
             .detach(|| rrskin_tools::export::run(model, &options))
             .map_err(crate::error)?;
-        let clips: Vec<serde_json::Value> = (exported.clips.iter())
-            .map(|c| {
-                serde_json::json!({"name": c.name, "keys": c.keys, "samples": c.samples,
-                    "worst_at_samples": c.worst_at_samples, "worst_between": c.worst_between})
-            })
-            .collect();
-        let json = serde_json::json!({"vertices": exported.vertices, "joints": exported.joints,
-            "clips": clips, "notes": exported.notes});
+        let mut json = exported.to_json();
+        json["notes"] = serde_json::json!(exported.notes);
         crate::to_python(py, &json)
     }
 

@@ -216,12 +216,11 @@ pub fn load_set(
         .map_err(crate::error)?;
     Ok(match loaded {
         Loaded::Folder(set) => ExampleSet::of(set),
-        Loaded::Rig(mut imported) => {
+        Loaded::Rig(imported) => {
             let notes = imported.notes.iter();
             let notes = notes.map(|(file, line)| format!("{}: {line}", file.display()));
             let mut set = imported.set.clone();
             set.warnings.extend(notes);
-            imported.set.warnings.clear();
             ExampleSet {
                 set,
                 imported: Some(imported),

@@ -7,7 +7,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rrskin_tools::eval::{Options, Report};
 use rrskin_tools::progress::{Observer, Update};
-use rrskin_tools::train::{TrainError, TrainOptions};
+use rrskin_tools::train::budget::is_limit;
+use rrskin_tools::train::{unit_up, TrainError, TrainOptions};
 use std::sync::{Arc, Mutex};
 
 /// The option names `train` and `evaluate` take: the CLI's flags (`--palette-budget` is
@@ -39,7 +40,7 @@ fn train_options(options: &Bound<'_, PyDict>) -> PyResult<TrainOptions> {
         let name: String = key.extract()?;
         let bad = |e: PyErr| crate::error(format!("{name}: {e}"));
         let positive = |v: Option<f64>| match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => Err(crate::error(format!(
+            Some(x) if !is_limit(x) => Err(crate::error(format!(
                 "{name}: {x}, expected a positive number (or None: no limit)"
             ))),
             _ => Ok(v),
@@ -83,13 +84,9 @@ fn train_options(options: &Bound<'_, PyDict>) -> PyResult<TrainOptions> {
 /// `up` normalised (None: no gravity); a zero or non-finite vector refused.
 fn unit(name: &str, up: Option<[f64; 3]>) -> PyResult<Option<[f64; 3]>> {
     let Some(u) = up else { return Ok(None) };
-    let length = u.iter().map(|x| x * x).sum::<f64>().sqrt();
-    if !(length.is_finite() && length > 1e-9) {
-        return Err(crate::error(format!(
-            "{name}: {u:?}, expected a non-zero vector"
-        )));
-    }
-    Ok(Some(u.map(|x| x / length)))
+    let unit = unit_up(u)
+        .ok_or_else(|| crate::error(format!("{name}: {u:?}, expected a non-zero vector")))?;
+    Ok(Some(unit))
 }
 
 /// The caller's `progress(label, stage, done, total)` and Ctrl-C, watching training: the first

@@ -135,7 +135,14 @@ fn blenders_window_trains_on_a_thread() {
     let script = repo().join("tools/tests/blender/train_modal.py");
     // A Blender window that never quits would hold the suite: at most two minutes.
     let out = Command::new("timeout")
-        .args(["120", "xvfb-run", "-a", "blender", "--factory-startup", "--python"])
+        .args([
+            "120",
+            "xvfb-run",
+            "-a",
+            "blender",
+            "--factory-startup",
+            "--python",
+        ])
         .arg(&script)
         .arg("--")
         .arg(bundled_rig())

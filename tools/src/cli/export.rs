@@ -46,19 +46,7 @@ pub fn run(args: &ExportArgs) -> Outcome {
         note(format_args!("note: {}: {line}", shown(&e.output)));
     }
     if args.json {
-        let clips: Vec<_> = e
-            .clips
-            .iter()
-            .map(|c| {
-                serde_json::json!({"name": c.name, "keys": c.keys, "samples": c.samples,
-                    "worst_at_samples": c.worst_at_samples, "worst_between": c.worst_between})
-            })
-            .collect();
-        out!(
-            "{}",
-            serde_json::json!({"output": shown(&e.output), "vertices": e.vertices,
-                "joints": e.joints, "clips": clips})
-        );
+        out!("{}", e.to_json());
         return Ok(());
     }
     out!(

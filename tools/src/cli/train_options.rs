@@ -95,7 +95,7 @@ fn parse_budget(text: &str) -> Result<FrameBudget, String> {
 
 fn parse_positive(text: &str) -> Result<f64, String> {
     (text.trim().parse::<f64>().ok())
-        .filter(|v| v.is_finite() && *v > 0.0)
+        .filter(|v| rrskin_tools::train::budget::is_limit(*v))
         .ok_or_else(|| format!("'{text}': expected a positive number"))
 }
 
@@ -213,11 +213,7 @@ fn parse_up(text: &str) -> Result<[f64; 3], String> {
             .filter(|v| v.is_finite())
             .ok_or_else(|| format!("'{text}': '{part}' is not a number"))?;
     }
-    let length = up.iter().map(|v| v * v).sum::<f64>().sqrt();
-    if length < 1e-9 {
-        return Err(format!("'{text}': the up vector is zero"));
-    }
-    Ok(up.map(|v| v / length))
+    rrskin_tools::train::unit_up(up).ok_or_else(|| format!("'{text}': the up vector is zero"))
 }
 
 /// "A..B" (inclusive) as a frame range.

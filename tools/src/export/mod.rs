@@ -60,6 +60,21 @@ pub struct Exported {
     pub notes: Vec<String>,
 }
 
+impl Exported {
+    /// `rrskin export --json`'s object (docs/cli.md): the output as shown, the vertices,
+    /// joints and each clip's report.
+    pub fn to_json(&self) -> serde_json::Value {
+        let clips: Vec<_> = (self.clips.iter())
+            .map(|c| {
+                serde_json::json!({"name": c.name, "keys": c.keys, "samples": c.samples,
+                    "worst_at_samples": c.worst_at_samples, "worst_between": c.worst_between})
+            })
+            .collect();
+        serde_json::json!({"output": crate::output::shown(&self.output),
+            "vertices": self.vertices, "joints": self.joints, "clips": clips})
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct ClipReport {
     pub name: String,

@@ -88,23 +88,22 @@ fn read_floats(path: &Path) -> Result<Named<f64>, InputError> {
     read_array::<f64, f32, f64>(path, "a float32/float64")
 }
 
-/// The first element of `array` that is not a number, refused.
-fn check_finite(array: &Named<f64>) -> Result<(), InputError> {
-    match array.data.iter().position(|x| !x.is_finite()) {
-        Some(i) => Err(bad(
-            &array.name,
-            format!(
-                "element {i} ({}) is not finite",
-                index_text(&array.shape, i)
-            ),
-        )),
-        None => Ok(()),
+impl Named<f64> {
+    /// The first element that is not a number, refused with its index.
+    pub fn check_finite(&self) -> Result<(), InputError> {
+        match self.data.iter().position(|x| !x.is_finite()) {
+            Some(i) => Err(bad(
+                &self.name,
+                format!("element {i} ({}) is not finite", index_text(&self.shape, i)),
+            )),
+            None => Ok(()),
+        }
     }
 }
 
 /// `rest_vertices`: V > 0 points.
 fn rest(rest: &Named<f64>) -> Result<Vec<DVec3>, InputError> {
-    check_finite(rest)?;
+    rest.check_finite()?;
     expect_shape(&rest.name, &rest.shape, &[None, Some(3)], "(V, 3)")?;
     if rest.shape[0] == 0 {
         return Err(bad(&rest.name, "no vertices"));
@@ -162,7 +161,7 @@ fn check_pose_arrays(
     j: usize,
     v: usize,
 ) -> Result<(), InputError> {
-    check_finite(transforms)?;
+    transforms.check_finite()?;
     expect_shape(
         &transforms.name,
         &transforms.shape,
@@ -173,7 +172,7 @@ fn check_pose_arrays(
     if n == 0 {
         return Err(bad(&transforms.name, "no poses"));
     }
-    check_finite(vertices)?;
+    vertices.check_finite()?;
     expect_shape(
         &vertices.name,
         &vertices.shape,
@@ -443,7 +442,7 @@ impl ExampleSet {
 /// `skin_weights`: (V, J), as each vertex's non-zero weights ([`ExampleSet::new`] checks
 /// them).
 fn rig_weights(w: &Named<f64>, v: usize, j: usize) -> Result<Vec<Vec<(usize, f64)>>, InputError> {
-    check_finite(w)?;
+    w.check_finite()?;
     expect_shape(
         &w.name,
         &w.shape,

@@ -32,6 +32,12 @@ impl Default for CostBudget {
     }
 }
 
+/// Whether `x` may be a limit of the budget (`--budget`, `--palette-budget`): a positive
+/// number.
+pub fn is_limit(x: f64) -> bool {
+    x.is_finite() && x > 0.0
+}
+
 impl CostBudget {
     /// No limit: every choice by its error alone.
     pub const NONE: CostBudget = CostBudget {

@@ -76,18 +76,24 @@ pub enum Method {
 }
 
 impl Method {
-    /// Every method, as `--reduction` (and the Python package's `reduction`) names them.
-    pub const ALL: [(Method, &'static str); 5] = [
-        (Method::Auto, "auto"),
-        (Method::JointBlend, "joint-blend"),
-        (Method::Paper, "paper"),
-        (Method::DeltaMush, "delta-mush"),
-        (Method::Both, "both"),
+    /// Every method, in `--reduction`'s order.
+    pub const ALL: [Method; 5] = [
+        Method::Auto,
+        Method::JointBlend,
+        Method::Paper,
+        Method::DeltaMush,
+        Method::Both,
     ];
 
+    /// As `--reduction` (and the Python package's `reduction`) names it.
     pub fn name(self) -> &'static str {
-        let named = Method::ALL.iter().find(|(m, _)| *m == self);
-        named.map_or("auto", |(_, name)| name)
+        match self {
+            Method::Auto => "auto",
+            Method::JointBlend => "joint-blend",
+            Method::Paper => "paper",
+            Method::DeltaMush => "delta-mush",
+            Method::Both => "both",
+        }
     }
 }
 
@@ -101,12 +107,19 @@ impl std::str::FromStr for Method {
     type Err = String;
 
     fn from_str(text: &str) -> Result<Method, String> {
-        let named = Method::ALL.iter().find(|(_, name)| *name == text);
-        named.map(|(m, _)| *m).ok_or_else(|| {
-            let names: Vec<&str> = Method::ALL.iter().map(|(_, name)| *name).collect();
+        let named = Method::ALL.into_iter().find(|m| m.name() == text);
+        named.ok_or_else(|| {
+            let names: Vec<&str> = Method::ALL.map(Method::name).into();
             format!("'{text}': expected one of {}", names.join(", "))
         })
     }
+}
+
+/// `up` as [`TrainOptions::up`] holds it, a unit vector; None where it has no direction (zero,
+/// or not a number).
+pub fn unit_up(up: [f64; 3]) -> Option<[f64; 3]> {
+    let length = up.iter().map(|v| v * v).sum::<f64>().sqrt();
+    (length.is_finite() && length >= 1e-9).then(|| up.map(|v| v / length))
 }
 
 /// Every training default, in one place.

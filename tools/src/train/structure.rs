@@ -39,19 +39,25 @@ use std::sync::{Arc, Mutex};
 #[derive(Default)]
 pub struct FoldModels {
     ridges: Option<Ridges>,
-    folds: Vec<Option<(Skinning, Vec<(Structure, Reduced)>)>>,
+    folds: Vec<Option<FoldModel>>,
+}
+
+/// One fold's: the SSD of its inner poses, and each candidate built on them.
+struct FoldModel {
+    ssd: Skinning,
+    models: Vec<(Structure, Reduced)>,
 }
 
 impl FoldModels {
     /// Fold `fold`'s SSD of its inner poses, where its cross-validation ran.
     pub fn ssd(&self, fold: usize) -> Option<&Skinning> {
-        self.folds.get(fold)?.as_ref().map(|(ssd, _)| ssd)
+        self.folds.get(fold)?.as_ref().map(|f| &f.ssd)
     }
 
     /// `structure` as fold `fold` built it, where it did with `ridges`.
     pub fn model(&self, fold: usize, structure: &Structure, ridges: Ridges) -> Option<&Reduced> {
-        let (_, models) = self.folds.get(fold)?.as_ref()?;
-        let found = models.iter().find(|(s, _)| s == structure);
+        let built = self.folds.get(fold)?.as_ref()?;
+        let found = built.models.iter().find(|(s, _)| s == structure);
         found
             .filter(|_| self.ridges == Some(ridges))
             .map(|(_, r)| r)
@@ -311,7 +317,7 @@ pub fn choose(
             })
             .collect();
         let mut slot = built[fold.index].lock().unwrap_or_else(|e| e.into_inner());
-        *slot = Some((ssd, models));
+        *slot = Some(FoldModel { ssd, models });
         rows
     });
     let folds_built = (built.into_iter())
