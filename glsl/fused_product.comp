@@ -2,9 +2,9 @@
 // Passes 1 and 2 in one, for a block-sparse [C1 | C2] whose proxies each read the columns of at
 // most one key (GpuModel::new checks: the joint-blend models, where proxy e reads key e and its
 // parent bone): sparse_product.comp's T with the entries of B = [d; q] computed where they are
-// used, key l's D_l(q) by predictor.glsl (as pass 1 does) and a bone's from the input, so B is
+// used, key l's D_l(q) by key.glsl (as pass 1 does) and a bone's from the input, so B is
 // neither written nor read and pass 1 does not run. One invocation per (character, proxy); the
-// invocations of a workgroup share the proxy, hence its predictor and its column loop; rows
+// invocations of a workgroup share the proxy, hence its key and its column loop; rows
 // e >= P of workgroups copy bone e - P into the skinning palette [t; q].
 // Built with CORRECTIVES for a model with proxy correctives: a corrected proxy's invocation
 // applies T (I + E) before it stores T (proxy_correction.glsl, one character), so the frame
@@ -13,14 +13,14 @@
 // the drivers in ProxyTopology.
 layout(local_size_x = 64) in;
 
-#include "predictor_types.glsl"
+#include "affine.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer ProductOffsets { uint offsets[]; };  // P + 1
 layout(std430, set = 0, binding = 1) readonly buffer ProductColumns { uint columns[]; };  // stored
 layout(std430, set = 0, binding = 2) readonly buffer ProductValues { vec4 vals[]; };      // stored
 layout(std430, set = 0, binding = 3) readonly buffer Bones { Affine bones[]; };         // chars x J
-layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J, keys
-layout(std430, set = 0, binding = 5) readonly buffer Predictors { Predictor preds[]; }; // P
+layout(std430, set = 0, binding = 4) readonly buffer Parents { int parents[]; };        // J
+layout(std430, set = 0, binding = 5) readonly buffer Keys { uint keys[]; };             // key_words
 layout(std430, set = 0, binding = 6) buffer Palette { vec4 proxies[]; };  // chars x (P + J) x 3 rows
 #ifdef CORRECTIVES
 layout(std430, set = 0, binding = 7) readonly buffer ProxyTopology { uint topology[]; };    // E, E + 1, sum D_i, P
@@ -33,10 +33,8 @@ layout(push_constant) uniform Push { uint P; uint J; uint chars; uint E; uint C;
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 #endif
 
-#ifdef MUSH
 #include "polar.glsl"
-#endif
-#include "predictor.glsl"
+#include "key.glsl"
 #ifdef CORRECTIVES
 #include "joint_features.glsl"
 #include "proxy_correction.glsl"

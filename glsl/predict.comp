@@ -1,26 +1,24 @@
 #version 450
-// Pass 1: key predictors D_l(q) (predictor.glsl), written with the bone transforms into
+// Pass 1: key gradients D_l(q) of every kind (key.glsl), written with the bone transforms into
 // B = [d; q], the right-hand side of pass 2's product:
 // B[(3l + j), 3ch + c] = D_l[c][j] and B[3P + 4b + j, 3ch + c] = Q_b[c][j], row-major.
-// One invocation per (l = x < P + J, character = y): l < P evaluates predictor l, otherwise
-// copies bone l - P, into B and into the skinning palette [t; q] (Palette, entry P + b). Models whose product evaluates its predictors itself
+// One invocation per (l = x < P + J, character = y): l < P evaluates key l, otherwise
+// copies bone l - P, into B and into the skinning palette [t; q] (Palette, entry P + b). Models whose product evaluates its keys itself
 // (fused_product.comp) do not run this pass.
 layout(local_size_x = 64) in;
 
-#include "predictor_types.glsl"
+#include "affine.glsl"
 
 layout(std430, set = 0, binding = 0) readonly buffer Bones { Affine bones[]; };           // chars x J
-layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };          // J, keys
-layout(std430, set = 0, binding = 2) readonly buffer Predictors { Predictor preds[]; };   // P
+layout(std430, set = 0, binding = 1) readonly buffer Parents { int parents[]; };          // J
+layout(std430, set = 0, binding = 2) readonly buffer Keys { uint keys[]; };               // key_words
 layout(std430, set = 0, binding = 3) buffer Rhs { float bmat[]; };      // (3P + 4J) x 3 chars
 layout(std430, set = 0, binding = 4) buffer Palette { Affine palette[]; };   // chars x (P + J)
 
 layout(push_constant) uniform Push { uint P; uint J; uint chars; } pc;
 
-#ifdef MUSH
 #include "polar.glsl"
-#endif
-#include "predictor.glsl"
+#include "key.glsl"
 
 void main() {
     uint l = gl_GlobalInvocationID.x;

@@ -269,9 +269,9 @@ typedef struct rrskin_model_info {
   // 2 x vertices for a closed mesh): what `rrskin_model_get_info` reports, needed for
   // `rrskin_query_memory`'s model bytes.
   uint32_t normal_fan_entries;
-  // The delta-mush keys' terms, all keys together (0 without delta-mush keys): what
-  // `rrskin_model_get_info` reports, needed for `rrskin_query_memory`'s model bytes.
-  uint32_t mush_terms;
+  // The words of the P keys' records, all keys together: what `rrskin_model_get_info`
+  // reports, needed for `rrskin_query_memory`'s model bytes.
+  uint32_t key_words;
 } rrskin_model_info;
 
 // How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses

@@ -21,7 +21,7 @@
 //! delta-mush keys, key s reading n_s bones), nnz the stored columns of `[C1 | C2]`, N
 //! pose-space corrective targets of D drivers, E corrected proxies.
 
-use crate::model::{BlockSparse, Model};
+use crate::model::{BlockSparse, Key, Model};
 use std::ops::{Add, AddAssign, Mul};
 
 /// Where a model's frame runs.
@@ -220,18 +220,18 @@ impl Cost {
     }
 
     /// The least any model of `vertices` vertices, at most `influences` influences and
-    /// `mush_keys` delta-mush keys costs on `target` of `device`: the skinning pass and each
+    /// `delta_mush_keys` delta-mush keys costs on `target` of `device`: the skinning pass and each
     /// key's rotation fit over one bone, which every such model runs (its other work grows with
     /// what training fits). Training prices a count by it before fitting one: a count whose
     /// floor is over the budget is over.
     pub fn floor(
         vertices: usize,
         influences: usize,
-        mush_keys: usize,
+        delta_mush_keys: usize,
         target: Target,
         device: &Device,
     ) -> Cost {
-        let (v, k, s) = (vertices as f64, influences as f64, mush_keys as f64);
+        let (v, k, s) = (vertices as f64, influences as f64, delta_mush_keys as f64);
         let (passes, rates) = match target {
             Target::Palette => {
                 let lanes = (s / 8.0).ceil() * 8.0;
@@ -245,7 +245,7 @@ impl Cost {
             _ => {
                 let keys = PassWork {
                     pass: "predict",
-                    work: mush_key(1.0) * s,
+                    work: delta_mush_key(1.0) * s,
                 };
                 let skin = PassWork {
                     pass: "skinning",
@@ -314,12 +314,12 @@ impl Dims {
     }
 }
 
-/// One joint's rotation relative to its parent and its log (predictor.glsl `joint_rotation`).
+/// One joint's rotation relative to its parent and its log (key.glsl `joint_rotation`).
 const JOINT_ROTATION: Work = Work {
     gathers: 2.0,
     ..Work::new(100.0, 7.0, 35.0, 3.0)
 };
-/// exp of a scaled axis (predictor.glsl `exp_rotation`).
+/// exp of a scaled axis (key.glsl `exp_rotation`).
 const EXP: Work = Work::new(0.0, 0.0, 50.0, 5.0);
 /// The rotation fit of a delta-mush key: the Gram-Schmidt guess (35 multiply-adds, 3 roots
 /// and 6 divisions) and 2 Newton steps of 130 multiply-adds and 2 divisions each
@@ -332,7 +332,7 @@ const POLAR: Work = Work::new(0.0, 0.0, 295.0, 13.0);
 const PALETTE_POLAR_LANES: f64 = 2.0;
 
 /// A predictor key on the GPU: its record (340 bytes), its bones' two rotations, exp and the
-/// scale/shear `H x` (predictor.glsl `predict_key`); a second bone adds one more of each.
+/// scale/shear `H x` (key.glsl `predictor_gradient`); a second bone adds one more of each.
 fn predictor_key(second: bool) -> Work {
     let one = JOINT_ROTATION * 2.0 + EXP + Work::new(340.0 + 36.0, 25.0, 129.0, 0.0);
     match second {
@@ -342,21 +342,15 @@ fn predictor_key(second: bool) -> Work {
 }
 
 /// A delta-mush key of n bones on the GPU: its covariance (13 words and a bone each) and fit.
-fn mush_key(n: f64) -> Work {
+fn delta_mush_key(n: f64) -> Work {
     Work::new(100.0 * n + 44.0, 8.0 * n + 5.0, 36.0 * n, 0.0) + Work::gathers(n) + POLAR
 }
 
 /// Key ℓ's work on the GPU.
 fn key(model: &Model, l: usize) -> Work {
-    let predictors = &model.parts().predictors;
-    match predictors.get(l) {
-        Some(k) => predictor_key(k.second.is_some()),
-        None => {
-            let keys = model
-                .mush_keys()
-                .map(|m| m.key(l - predictors.len()).0.len());
-            mush_key(keys.unwrap_or(0) as f64)
-        }
+    match &model.keys()[l] {
+        Key::Predictor(k) => predictor_key(k.second.is_some()),
+        Key::DeltaMush(k) => delta_mush_key(k.terms.len() as f64),
     }
 }
 
@@ -506,7 +500,7 @@ fn proxy_corrections(model: &Model, sharing: f64) -> Work {
 
 /// The CPU palette's stages ([`crate::palette::Palette::compute`]).
 fn palette_passes(model: &Model, d: &Dims) -> Vec<PassWork> {
-    let predictors = &model.parts().predictors;
+    let predictors: Vec<_> = model.keys().iter().filter_map(Key::predictor).collect();
     let seconds = predictors.iter().filter(|k| k.second.is_some()).count() as f64;
     let rotations = crate::palette::rotation_bones(model).len() as f64;
     let exp = Work::new(0.0, 0.0, 18.0, 5.0);
@@ -518,11 +512,12 @@ fn palette_passes(model: &Model, d: &Dims) -> Vec<PassWork> {
         pass: "predictors",
         work: Work::groups(1.0) + keys,
     }];
-    if let Some(m) = model.mush_keys() {
-        let lanes = (m.count() as f64 / 8.0).ceil() * 8.0;
+    let delta_mush: Vec<_> = model.keys().iter().filter_map(Key::delta_mush).collect();
+    if !delta_mush.is_empty() {
+        let lanes = (delta_mush.len() as f64 / 8.0).ceil() * 8.0;
         let fits = POLAR * (lanes / PALETTE_POLAR_LANES);
-        let covariance =
-            (Work::new(100.0, 8.0, 36.0, 0.0) + Work::gathers(1.0)) * m.bones.len() as f64;
+        let terms: usize = delta_mush.iter().map(|k| k.terms.len()).sum();
+        let covariance = (Work::new(100.0, 8.0, 36.0, 0.0) + Work::gathers(1.0)) * terms as f64;
         out.push(PassWork {
             pass: "delta-mush keys",
             work: covariance + fits,

@@ -165,9 +165,9 @@ pub enum ModelProblem {
         index: usize,
         reason: &'static str,
     },
-    /// Delta-mush key `key` (counted among the delta-mush keys) breaks an invariant, which
-    /// `reason` names.
-    BadMushKey { key: usize, reason: &'static str },
+    /// Key `key` (of the P) breaks an invariant of its record or its kind, which `reason`
+    /// names.
+    BadKey { key: usize, reason: &'static str },
     /// A rest tangent's xyz is not a unit vector or its handedness w is not ±1.
     BadTangent {
         vertex: usize,
@@ -226,7 +226,7 @@ impl fmt::Display for ModelProblem {
                 f,
                 "proxy correctives: proxy {proxy}'s drivers[{index}] = bone {bone} {reason}"
             ),
-            BadMushKey { key, reason } => write!(f, "delta-mush key {key} {reason}"),
+            BadKey { key, reason } => write!(f, "key {key} {reason}"),
             BadProxyCorrective { what, index, reason } => {
                 write!(f, "proxy correctives: {what}[{index}] {reason}")
             }

@@ -3,9 +3,9 @@
 //! (Wang, Pulli, Popović, SIGGRAPH 2007.) A trained [`Model`] turns per-frame bone transforms
 //! into deformed vertex positions and normals through six passes, for many characters at once:
 //!
-//! 1. keys `d(q)`: P key deformation gradients per character, from key predictors (paper §3,
-//!    Eq. 3–4) or, for delta-mush keys ([`MushKeys`], docs/method.md §23), the rotation nearest
-//!    to a weighted sum of a few bones' transforms; and,
+//! 1. keys `d(q)`: P key deformation gradients per character, each by its kind ([`Key`]):
+//!    a key predictor (paper §3, Eq. 3–4) or a delta-mush key (docs/method.md §23), the
+//!    rotation nearest to a weighted sum of a few bones' transforms; and,
 //!    for a model with pose-space correctives (paper §8), their N weights `w = map · φ(q)`,
 //!    linear in the driver joints' rotations relative to their parents;
 //! 2. proxy transforms `t = C1 d + C2 q`: one matrix product over all characters (Eq. 5),
@@ -173,7 +173,7 @@ pub mod vk;
 
 pub use error::{Error, ModelProblem, Result};
 pub use model::{
-    Correctives, FeatureRange, KeyPredictor, Model, ModelParts, MushKeys, ProxyCorrectives,
-    SecondBone,
+    Correctives, DeltaMushKey, DeltaMushTerm, FeatureRange, Key, KeyKind, KeyPredictor, Model,
+    ModelParts, ProxyCorrectives, SecondBone,
 };
 pub use normals::NormalMode;

@@ -35,10 +35,9 @@
 
 use crate::cpu::characters;
 use crate::error::{Error, Result};
-use crate::model::MushKeys;
-use crate::model::{BlockSparse, FeatureRange, Model, ProxyCorrectives};
+use crate::model::{BlockSparse, FeatureRange, Key, KeyPredictor, Model, ProxyCorrectives};
 use crate::polar::nearest_rotations_f32;
-use crate::predict::{check_character_ups, mush_covariance_f32, Affine};
+use crate::predict::{check_character_ups, delta_mush_covariance_f32, Affine};
 use crate::predict::{exp_rotation_f32 as exp_rotation, log_rotation_f32 as log_rotation};
 use glam::{Mat3, Vec3};
 use std::cell::RefCell;
@@ -50,7 +49,10 @@ pub const REST: Affine = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
 #[derive(Debug, Clone)]
 pub struct Palette {
     model: Model,
-    keys: Vec<Key>,
+    /// The predictors' keys, compiled.
+    predictors: Vec<CompiledPredictor>,
+    /// The delta-mush keys (their indices ℓ), fitted [`DELTA_MUSH_LANES`] at a time.
+    delta_mush: Vec<usize>,
     /// Bones whose joint rotation some key reads.
     rotations: Vec<u32>,
     /// `[C1 | C2]` by proxy, zero columns left out.
@@ -100,7 +102,9 @@ struct ProxyTerms {
 /// One key predictor, compiled: `D = Q_parent exp(uW θ~_bone) [exp(u₂W₂ θ~_second)] S`, with
 /// `vec(S) = H [θ~_bone; θ~_parent; 1]` (paper Eq. 3–4).
 #[derive(Debug, Clone)]
-struct Key {
+struct CompiledPredictor {
+    /// ℓ, the key it predicts.
+    key: usize,
     bone: usize,
     parent: Option<usize>,
     uw: Mat3,
@@ -161,25 +165,17 @@ thread_local! {
 }
 
 impl Palette {
-    /// Compiles `model`'s predictors and stores `[C1 | C2]` by proxy, zero columns left out
-    /// (the product then costs what the model's sparsity allows: joint-blend proxies read a
-    /// few columns each).
+    /// Compiles `model`'s keys and stores `[C1 | C2]` by proxy, zero columns left out (the
+    /// product then costs what the model's sparsity allows: joint-blend proxies read a few
+    /// columns each).
     pub fn new(model: Model) -> Result<Palette> {
-        let keys: Vec<Key> = model
-            .parts()
-            .predictors
-            .iter()
-            .map(|k| Key {
-                bone: k.bone as usize,
-                parent: model.parent(k.bone as usize),
-                uw: mat3(&k.w) * k.u,
-                second: k
-                    .second
-                    .as_ref()
-                    .map(|s| (s.bone as usize, mat3(&s.w) * s.u)),
-                h: k.h,
-            })
-            .collect();
+        let (mut predictors, mut delta_mush) = (Vec::new(), Vec::new());
+        for (l, key) in model.keys().iter().enumerate() {
+            match key {
+                Key::Predictor(k) => predictors.push(CompiledPredictor::new(&model, l, k)),
+                Key::DeltaMush(_) => delta_mush.push(l),
+            }
+        }
         let rotations = rotation_bones(&model);
         let blocks = BlockSparse::of(&model);
         let rest_normals = model.rest_normals();
@@ -191,7 +187,8 @@ impl Palette {
             .map_or_else(ProxyTerms::default, |c| ProxyTerms::new(&model, c));
         Ok(Palette {
             model,
-            keys,
+            predictors,
+            delta_mush,
             rotations,
             blocks,
             rest_normals,
@@ -411,14 +408,11 @@ impl Palette {
                 None => log_rotation(rotation(b)),
             };
         }
-        let predicted = (self.keys.iter()).map(|key| key.gradient(&scratch.theta, rotation));
-        for (l, d) in predicted.enumerate() {
-            scratch.rhs[3 * l..3 * l + 3].copy_from_slice(&[d.x_axis, d.y_axis, d.z_axis]);
+        for k in &self.predictors {
+            let d = k.gradient(&scratch.theta, rotation);
+            scratch.rhs[3 * k.key..3 * k.key + 3].copy_from_slice(&[d.x_axis, d.y_axis, d.z_axis]);
         }
-        if let Some(keys) = self.model.mush_keys() {
-            let first = 3 * self.keys.len();
-            mush_gradients(keys, q, &mut scratch.rhs[first..first + 3 * keys.count()]);
-        }
+        self.delta_mush_gradients(q, &mut scratch.rhs);
         for (b, t) in q.iter().enumerate() {
             for k in 0..4 {
                 scratch.rhs[3 * p + 4 * b + k] = Vec3::new(t[k], t[4 + k], t[8 + k]);
@@ -445,7 +439,7 @@ impl Palette {
 /// key's bone, its parent and its second bone, ascending.
 pub(crate) fn rotation_bones(model: &Model) -> Vec<u32> {
     let mut read = vec![false; model.bone_count()];
-    for k in &model.parts().predictors {
+    for k in model.keys().iter().filter_map(Key::predictor) {
         let (bone, second) = (k.bone as usize, k.second.as_ref().map(|s| s.bone as usize));
         for b in [Some(bone), model.parent(bone), second]
             .into_iter()
@@ -459,24 +453,25 @@ pub(crate) fn rotation_bones(model: &Model) -> Vec<u32> {
         .collect()
 }
 
-/// Every delta-mush key's gradient `D_s = fit(A_s)` for one character's bones `q`, as three
-/// columns each into `out` (3 S), [`MUSH_LANES`] keys at a time: one key's rotation fit is a
-/// chain of dependent steps, which lanes pay once for all of them ([`nearest_rotations_f32`]).
-fn mush_gradients(keys: &MushKeys, q: &[Affine], out: &mut [Vec3]) {
-    for (chunk, out) in out.chunks_mut(3 * MUSH_LANES).enumerate() {
-        let first = chunk * MUSH_LANES;
-        // The last chunk's unused lanes fit A = 0 (the identity), and are dropped.
-        let a: [[[f32; 3]; 3]; MUSH_LANES] =
-            std::array::from_fn(|i| match first + i < keys.count() {
-                true => mush_covariance_f32(keys, first + i, q),
-                false => [[0.0; 3]; 3],
+impl Palette {
+    /// Every delta-mush key's gradient `D_ℓ = fit(A_ℓ)` for one character's bones `q`, as
+    /// three columns each into `rhs` (at 3ℓ), [`DELTA_MUSH_LANES`] keys at a time: one key's
+    /// rotation fit is a chain of dependent steps, which lanes pay once for all of them
+    /// ([`nearest_rotations_f32`]).
+    fn delta_mush_gradients(&self, q: &[Affine], rhs: &mut [Vec3]) {
+        let keys = self.model.keys();
+        for chunk in self.delta_mush.chunks(DELTA_MUSH_LANES) {
+            // The last chunk's unused lanes fit A = 0 (the identity), and are dropped.
+            let a: [[[f32; 3]; 3]; DELTA_MUSH_LANES] = std::array::from_fn(|i| {
+                match chunk.get(i).and_then(|&l| keys[l].delta_mush()) {
+                    Some(key) => delta_mush_covariance_f32(key, q),
+                    None => [[0.0; 3]; 3],
+                }
             });
-        for (r, d) in nearest_rotations_f32(&a)
-            .iter()
-            .zip(out.chunks_exact_mut(3))
-        {
-            for (c, column) in d.iter_mut().enumerate() {
-                *column = Vec3::new(r[0][c], r[1][c], r[2][c]);
+            for (r, &l) in nearest_rotations_f32(&a).iter().zip(chunk) {
+                for (c, column) in rhs[3 * l..3 * l + 3].iter_mut().enumerate() {
+                    *column = Vec3::new(r[0][c], r[1][c], r[2][c]);
+                }
             }
         }
     }
@@ -484,7 +479,7 @@ fn mush_gradients(keys: &MushKeys, q: &[Affine], out: &mut [Vec3]) {
 
 /// How many delta-mush keys the CPU palette fits side by side: 8 `f32` lanes fill two SSE
 /// registers or one AVX register per value.
-const MUSH_LANES: usize = 8;
+const DELTA_MUSH_LANES: usize = 8;
 
 /// The features `φ = vec(R − I)`, `R = rot(Q_p)ᵀ rot(Q_b)`, row-major, of both correctives in
 /// `f32` ([`crate::predict::rotation_features`] in f64): `R[r][c] = Σ_k Q_p[k][r] Q_b[k][c]`
@@ -623,8 +618,19 @@ fn corrected(t: &Affine, e: &Affine) -> Affine {
     })
 }
 
-impl Key {
-    /// `D_ℓ(q) = R(q) S(q)`, mirroring [`crate::predict::key_gradient`] in `f32`.
+impl CompiledPredictor {
+    fn new(model: &Model, key: usize, k: &KeyPredictor) -> CompiledPredictor {
+        CompiledPredictor {
+            key,
+            bone: k.bone as usize,
+            parent: model.parent(k.bone as usize),
+            uw: mat3(&k.w) * k.u,
+            second: (k.second.as_ref()).map(|s| (s.bone as usize, mat3(&s.w) * s.u)),
+            h: k.h,
+        }
+    }
+
+    /// `D_ℓ(q) = R(q) S(q)`, mirroring [`crate::predict::predictor_gradient`] in `f32`.
     fn gradient(&self, theta: &[Vec3], rotation: impl Fn(usize) -> Mat3) -> Mat3 {
         let t = theta[self.bone];
         let (q_parent, t_parent) = match self.parent {

@@ -1,18 +1,18 @@
 //! Key-predictor evaluation `D_ℓ(q)` (paper §3, Eq. 3–4; docs/method.md §2–3) and the rotation
-//! math it needs, in `f64`. `glsl/predictor.glsl` mirrors these functions line for line in `f32`
+//! math it needs, in `f64`. `glsl/key.glsl` mirrors these functions line for line in `f32`
 //! (same branch thresholds), so the two agree away from the rotation log's branch cut at π.
 
 use crate::error::{Error, Result};
-use crate::model::{KeyPredictor, Mat3Rows, Model, MushKeys};
+use crate::model::{DeltaMushKey, Key, KeyPredictor, Mat3Rows, Model};
 use glam::{DMat3, DVec3, Mat3, Vec3};
 
 /// A bone transform relative to the rest pose, 3x4 row-major: `x ↦ Q x + d`.
 pub type Affine = [f32; 12];
 
 /// Below this `sin θ` with `cos θ < 0`, `log` takes the axis from the symmetric part of R
-/// (the antisymmetric part vanishes at π). Shared with `glsl/predictor.glsl`.
+/// (the antisymmetric part vanishes at π). Shared with `glsl/key.glsl`.
 pub const NEAR_PI_SIN: f64 = 1e-2;
-/// Below this angle, `log` and `exp` use Taylor series. Shared with `glsl/predictor.glsl`.
+/// Below this angle, `log` and `exp` use Taylor series. Shared with `glsl/key.glsl`.
 pub const SMALL_ANGLE: f64 = 1e-4;
 
 /// The rotation part Q of a bone transform.
@@ -30,7 +30,7 @@ pub fn mat3_of_rows(w: &Mat3Rows) -> DMat3 {
 }
 
 /// `log: SO(3) → R³` in one body for `f64` (the CPU reference, training) and `f32` (the CPU
-/// palette), with the branches and thresholds of `glsl/predictor.glsl`.
+/// palette), with the branches and thresholds of `glsl/key.glsl`.
 macro_rules! rotation_log {
     ($log:ident, $mat:ident, $vec:ident, $f:ty) => {
         /// `log: SO(3) → R³`, the axis-angle vector with angle in [0, π].
@@ -319,37 +319,37 @@ pub fn corrected(t: &[f64; 12], e: &[f64; 12]) -> [f64; 12] {
     out
 }
 
-/// Every key gradient `D_ℓ(q)` of `model` (P) for one character's J bone transforms: the
-/// predictors' keys ([`key_gradient`]), then the delta-mush keys ([`mush_gradient`]).
+/// Every key gradient `D_ℓ(q)` of `model` (P) for one character's J bone transforms
+/// ([`key_gradient`]).
 pub fn key_gradients(model: &Model, bones: &[Affine], out: &mut [DMat3]) {
-    let parts = model.parts();
-    let (predicted, mushed) = out.split_at_mut(parts.predictors.len());
-    for (g, pred) in predicted.iter_mut().zip(&parts.predictors) {
-        *g = key_gradient(model, pred, bones);
-    }
-    if let Some(keys) = model.mush_keys() {
-        for (s, g) in mushed.iter_mut().enumerate() {
-            *g = mush_gradient(keys, s, bones);
-        }
+    for (g, key) in out.iter_mut().zip(model.keys()) {
+        *g = key_gradient(model, key, bones);
     }
 }
 
-/// A delta-mush key's rigid fit's covariance in one body for `f64` (the CPU reference) and `f32`
-/// (the CPU palette), with the order of operations of `glsl/predictor.glsl`.
-macro_rules! mush_covariance {
+/// `D_ℓ(q)` of one key for one character's J bone transforms: the one dispatch on its kind.
+pub fn key_gradient(model: &Model, key: &Key, bones: &[Affine]) -> DMat3 {
+    match key {
+        Key::Predictor(k) => predictor_gradient(model, k, bones),
+        Key::DeltaMush(k) => delta_mush_gradient(k, bones),
+    }
+}
+
+/// A delta-mush key's rigid fit's covariance in one body for `f64` (the CPU reference, training)
+/// and `f32` (the CPU palette), with the order of operations of `glsl/key.glsl`.
+macro_rules! delta_mush_covariance {
     ($name:ident, $f:ty) => {
-        /// `A_s(q) = Σ_i [Q_{b_i} | d_{b_i}] Ω_i` (row-major 3x3) of delta-mush key s
-        /// ([`crate::MushKeys`]) for one character's J bone transforms: its gradient is
-        /// `fit(A_s)` ([`crate::polar::nearest_rotation`]).
-        pub fn $name(keys: &MushKeys, s: usize, bones: &[Affine]) -> [[$f; 3]; 3] {
-            let (ids, terms) = keys.key(s);
+        /// `A(q) = Σ_i [Q_{b_i} | d_{b_i}] Ω_i` (row-major 3x3) of a delta-mush key
+        /// ([`crate::DeltaMushKey`]) for one character's J bone transforms: its gradient is
+        /// `fit(A)` ([`crate::polar::nearest_rotation`]).
+        pub fn $name(key: &DeltaMushKey, bones: &[Affine]) -> [[$f; 3]; 3] {
             let mut a = [[0.0 as $f; 3]; 3];
-            for (&b, omega) in ids.iter().zip(terms) {
-                let m = &bones[b as usize];
+            for t in &key.terms {
+                let m = &bones[t.bone as usize];
                 for (r, row) in a.iter_mut().enumerate() {
                     for (c, x) in row.iter_mut().enumerate() {
                         *x += (0..4)
-                            .map(|k| <$f>::from(m[4 * r + k]) * <$f>::from(omega[3 * k + c]))
+                            .map(|k| <$f>::from(m[4 * r + k]) * <$f>::from(t.omega[3 * k + c]))
                             .sum::<$f>();
                     }
                 }
@@ -359,19 +359,19 @@ macro_rules! mush_covariance {
     };
 }
 
-mush_covariance!(mush_covariance, f64);
-mush_covariance!(mush_covariance_f32, f32);
+delta_mush_covariance!(delta_mush_covariance, f64);
+delta_mush_covariance!(delta_mush_covariance_f32, f32);
 
-/// `D_s(q) = fit(A_s(q))` of delta-mush key s ([`mush_covariance`]) for one character's J
+/// `D(q) = fit(A(q))` of a delta-mush key ([`delta_mush_covariance`]) for one character's J
 /// bone transforms.
-pub fn mush_gradient(keys: &MushKeys, s: usize, bones: &[Affine]) -> DMat3 {
-    let r = crate::polar::nearest_rotation(mush_covariance(keys, s, bones));
+pub fn delta_mush_gradient(key: &DeltaMushKey, bones: &[Affine]) -> DMat3 {
+    let r = crate::polar::nearest_rotation(delta_mush_covariance(key, bones));
     // Rows as columns, transposed.
     DMat3::from_cols_array_2d(&r).transpose()
 }
 
 /// `D_ℓ(q) = R(q) S(q)` for one predictor and one character's J bone transforms.
-pub fn key_gradient(model: &Model, pred: &KeyPredictor, bones: &[Affine]) -> DMat3 {
+pub fn predictor_gradient(model: &Model, pred: &KeyPredictor, bones: &[Affine]) -> DMat3 {
     let b = pred.bone as usize;
     let theta_b = joint_rotation(model, bones, b);
     let (q_parent, theta_parent) = match model.parent(b) {

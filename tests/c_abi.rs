@@ -6,7 +6,7 @@
 mod common;
 
 use common::{
-    joint_blend_pattern, random_model, random_poses, with_correctives, with_mush_keys,
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_delta_mush_keys,
     with_proxy_correctives_seeing, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
@@ -285,7 +285,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         9,
     );
     let model = with_proxy_correctives_seeing(
-        &with_correctives(&with_mush_keys(&keys, 2, 9).expect("delta-mush keys"), 4, 2),
+        &with_correctives(&with_delta_mush_keys(&keys, 2, 9).expect("delta-mush keys"), 4, 2),
         true,
         Some([0.0, 1.0, 0.0]),
         2,
@@ -482,7 +482,7 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         proxy_corrective_gravity: 1,
         up: [0.0, 1.0, 0.0],
         normal_fan_entries: model.normal_fans().entries.len() as u32,
-        mush_terms: rrskin::vk::ModelSizes::of(&model).mush_terms as u32,
+        key_words: rrskin::model::key_words(model.keys()).len() as u32,
     };
     let mut reported = RrskinModelInfo::default();
     // SAFETY: `out` points to a live value.
@@ -497,8 +497,8 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         (info.blend_columns, 1, 4, 3)
     );
     assert_eq!(reported.normal_fan_entries, info.normal_fan_entries);
-    assert!(info.mush_terms >= 2);
-    assert_eq!(reported.mush_terms, info.mush_terms);
+    assert!(info.key_words as usize > model.proxy_count() + 1);
+    assert_eq!(reported.key_words, info.key_words);
     assert_eq!(
         (
             reported.proxy_correctives,

@@ -61,7 +61,7 @@ fn one_vertex_and_one_driver_match_the_formula() {
         influences: 4,
         skin_indices: vec![0, 0, 0, 0],
         skin_weights: vec![1.0, 0.0, 0.0, 0.0],
-        predictors: Vec::new(),
+        keys: Vec::new(),
         c1: Vec::new(),
         c2: Vec::new(),
         normal_groups: Vec::new(),
@@ -75,7 +75,6 @@ fn one_vertex_and_one_driver_match_the_formula() {
             targets: vec![target],
         }),
         proxy_correctives: None,
-        mush_keys: None,
     };
     let model = Model::new(parts).expect("valid");
     // Q_0: 90° about z, d_0 = (1, 0, 0); Q_1 (world): α about x.

@@ -5,7 +5,7 @@ mod common;
 
 use proptest::prelude::*;
 use rrskin::model::{FORMAT_VERSION, MAGIC};
-use rrskin::{Error, Model, ModelProblem};
+use rrskin::{DeltaMushKey, DeltaMushTerm, Error, Key, KeyKind, Model, ModelProblem};
 use rrskin_render::synthetic::{random_model, Spec};
 
 fn model(proxies: usize, influences: u32) -> Model {
@@ -47,6 +47,88 @@ fn reseal(bytes: &mut [u8]) {
 
 fn put_u32(bytes: &mut [u8], at: usize, value: u32) {
     bytes[at..at + 4].copy_from_slice(&value.to_le_bytes());
+}
+
+fn le_u32(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"))
+}
+
+/// Byte offset of word `w` of key `l`'s record in the KEYS section, after its kind's tag.
+fn key_word(bytes: &[u8], l: usize, w: usize) -> usize {
+    let keys = section(bytes, b"KEYS");
+    keys + 4 * (le_u32(bytes, keys + 4 * l) as usize + 1 + w)
+}
+
+/// Every section of a file, tag and payload, in table order.
+fn sections(bytes: &[u8]) -> Vec<([u8; 4], Vec<u8>)> {
+    let count = le_u32(bytes, 12) as usize;
+    (0..count)
+        .map(|i| {
+            let e = 24 + 24 * i;
+            let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().expect("8"));
+            let (offset, length) = (word(e + 8) as usize, word(e + 16) as usize);
+            (bytes[e..e + 4].try_into().expect("4"), bytes[offset..offset + length].to_vec())
+        })
+        .collect()
+}
+
+/// A file of `version` holding `sections`, laid out as the format documents.
+fn file_of(version: u32, sections: &[([u8; 4], Vec<u8>)]) -> Vec<u8> {
+    let align8 = |n: usize| n.div_ceil(8) * 8;
+    let mut out = MAGIC.to_vec();
+    out.extend(version.to_le_bytes());
+    out.extend((sections.len() as u32).to_le_bytes());
+    out.extend([0; 8]);
+    let mut offset = align8(24 + 24 * sections.len());
+    for (tag, payload) in sections {
+        out.extend(tag);
+        out.extend([0; 4]);
+        out.extend((offset as u64).to_le_bytes());
+        out.extend((payload.len() as u64).to_le_bytes());
+        offset = align8(offset + payload.len());
+    }
+    for (_, payload) in sections {
+        out.resize(align8(out.len()), 0);
+        out.extend(payload);
+    }
+    let total = (out.len() + 4) as u64;
+    out[16..24].copy_from_slice(&total.to_le_bytes());
+    out.extend([0; 4]);
+    reseal(&mut out);
+    out
+}
+
+/// `m` as a file of `version` (before 8) held it: its keys (predictors first) as PRED, the
+/// predictors' records, and MUSH, the delta-mush keys' CSR, where it has some.
+fn legacy_file(m: &Model, version: u32) -> Vec<u8> {
+    let words = |ws: &[u32]| ws.iter().flat_map(|w| w.to_le_bytes()).collect::<Vec<u8>>();
+    let (mut pred, mut offsets, mut bones, mut terms) = (vec![], vec![0], vec![], vec![]);
+    for key in m.keys() {
+        match key {
+            rrskin::Key::Predictor(k) => {
+                assert!(offsets.len() == 1, "predictors come first in a legacy file");
+                pred.extend(rrskin::model::predictor_words(k));
+            }
+            rrskin::Key::DeltaMush(k) => {
+                bones.extend(k.terms.iter().map(|t| t.bone));
+                terms.extend(k.terms.iter().flat_map(|t| t.omega.map(f32::to_bits)));
+                offsets.push(bones.len() as u32);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (tag, payload) in sections(&m.to_bytes()) {
+        match &tag {
+            b"KEYS" => out.push((*b"PRED", words(&pred))),
+            _ => out.push((tag, payload)),
+        }
+    }
+    if offsets.len() > 1 {
+        let head = [offsets.len() as u32 - 1, bones.len() as u32];
+        let all: Vec<u32> = [&head[..], &offsets, &bones, &terms].concat();
+        out.push((*b"MUSH", words(&all)));
+    }
+    file_of(version, &out)
 }
 
 #[test]
@@ -165,7 +247,7 @@ fn nan_and_infinity_are_refused_where_they_are() {
         );
     }
     let mut bytes = good.clone();
-    let at = section(&bytes, b"PRED") + 4 * (85 + 30); // predictor 1, an element of H
+    let at = key_word(&bytes, 1, 30); // predictor 1, an element of H
     bytes[at..at + 4].copy_from_slice(&f32::INFINITY.to_le_bytes());
     reseal(&mut bytes);
     assert_eq!(
@@ -182,15 +264,14 @@ fn out_of_range_indices_are_refused_with_the_bound() {
     let m = model(3, 4);
     let (v, j, p) = (m.vertex_count(), m.bone_count(), m.proxy_count());
     let good = m.to_bytes();
-    let cases: [(&[u8; 4], usize, u32, &str, usize); 4] = [
-        (b"TRIS", 4, v as u32, "triangles", v),
-        (b"SKIX", 6, (p + j) as u32, "skin indices", p + j),
-        (b"PRNT", 2, j as u32, "bone parents", j),
-        (b"PRED", 85, j as u32, "predictor bone", j),
+    let cases: [(usize, u32, &str, usize); 4] = [
+        (section(&good, b"TRIS") + 16, v as u32, "triangles", v),
+        (section(&good, b"SKIX") + 24, (p + j) as u32, "skin indices", p + j),
+        (section(&good, b"PRNT") + 8, j as u32, "bone parents", j),
+        (key_word(&good, 1, 0), j as u32, "predictor bone", j),
     ];
-    for (tag, word, value, what, bound) in cases {
+    for (at, value, what, bound) in cases {
         let mut bytes = good.clone();
-        let at = section(&bytes, tag) + 4 * word;
         put_u32(&mut bytes, at, value);
         reseal(&mut bytes);
         let p = problem(Model::from_bytes(&bytes));
@@ -222,7 +303,7 @@ fn inconsistent_content_is_refused() {
     ));
     // A W that is not a rotation.
     let mut bytes = good.clone();
-    let at = section(&bytes, b"PRED") + 4 * 4;
+    let at = key_word(&bytes, 0, 4);
     bytes[at..at + 4].copy_from_slice(&2.0f32.to_le_bytes());
     reseal(&mut bytes);
     assert!(matches!(
@@ -549,9 +630,7 @@ fn correctives_round_trip_and_version_1_files_still_load() {
     }
     // A version-1 file (no CORR: what this format was before correctives) loads as it did.
     let m = model(3, 4);
-    let mut v1 = m.to_bytes();
-    put_u32(&mut v1, 8, 1);
-    reseal(&mut v1);
+    let v1 = legacy_file(&m, 1);
     let back = Model::from_bytes(&v1).expect("a version-1 file");
     assert_eq!(back, m);
     assert!(back.correctives().is_none() && back.corrective_count() == 0);
@@ -795,9 +874,7 @@ fn proxy_correctives_round_trip_and_version_2_files_still_load() {
     // A version-2 file (no PCOR: what this format was before proxy correctives, with its
     // pose-space correctives) loads as it did.
     let m = common::with_correctives(&model(3, 4), 2, 4);
-    let mut v2 = m.to_bytes();
-    put_u32(&mut v2, 8, 2);
-    reseal(&mut v2);
+    let v2 = legacy_file(&m, 2);
     let back = Model::from_bytes(&v2).expect("a version-2 file");
     assert_eq!(back, m);
     assert!(back.proxy_correctives().is_none() && back.proxy_corrective_count() == 0);
@@ -1016,7 +1093,7 @@ fn inconsistent_proxy_correctives_are_refused_by_validation() {
     );
     // A plain LBS model has no proxies to correct.
     let mut lbs = parts.clone();
-    (lbs.predictors, lbs.c1, lbs.c2) = (Vec::new(), Vec::new(), Vec::new());
+    (lbs.keys, lbs.c1, lbs.c2) = (Vec::new(), Vec::new(), Vec::new());
     lbs.skin_indices.iter_mut().for_each(|i| *i %= 4);
     assert_eq!(
         dimension(problem(Model::new(lbs))),
@@ -1120,36 +1197,53 @@ proptest! {
     }
 }
 
-/// A model of the tests' shape (J = 4, P = 5) whose last 3 keys are delta-mush keys.
+/// A model of the tests' shape (J = 4, P = 5) whose keys 0, 1 and 3 are delta-mush keys.
 fn mushed(influences: u32) -> Model {
-    let m = common::with_mush_keys(&model(5, influences), 3, 5).expect("3 of 5 keys");
-    assert_eq!((m.proxy_count(), m.parts().predictors.len()), (5, 2));
+    let m = common::with_delta_mush_keys(&model(5, influences), 3, 5).expect("3 of 5 keys");
+    let kinds: Vec<KeyKind> = m.keys().iter().map(Key::kind).collect();
+    use KeyKind::{DeltaMush, Predictor};
+    assert_eq!(kinds, [DeltaMush, DeltaMush, Predictor, DeltaMush, Predictor]);
     m
 }
 
+/// [`mushed`]'s delta-mush keys after two predictors, as files before version 8 order them.
+fn mushed_last(influences: u32) -> Model {
+    let mut parts = model(5, influences).into_parts();
+    parts.keys.truncate(2);
+    parts.keys.extend(mushed(influences).keys().iter().filter(|k| k.delta_mush().is_some()).cloned());
+    Model::new(parts).expect("valid")
+}
+
 #[test]
-fn delta_mush_keys_round_trip_and_version_3_files_still_load() {
+fn keys_of_both_kinds_round_trip_in_any_order() {
     for k in [4, 8] {
         let m = mushed(k);
-        let bytes = m.to_bytes();
-        let back = Model::from_bytes(&bytes).expect("round trip");
-        assert_eq!(back, m);
-        assert_eq!(back.to_bytes(), bytes, "encoding is deterministic");
-        // MUSH: S, N, S + 1 offsets, N bones, 12 N terms; PRED: the 2 predictors' records.
-        let n = m.mush_keys().expect("delta-mush keys").bones.len() as u64;
-        assert_eq!(table_entry(&bytes, b"MUSH").1, 4 * (2 + 4 + 13 * n));
-        assert_eq!(table_entry(&bytes, b"PRED").1, 4 * 2 * 85);
+        let bytes = round_trip(&m);
+        // KEYS: P + 1 offsets, then per key its tag and its words (85, or 13 a term).
+        let terms: usize = m.keys().iter().filter_map(Key::delta_mush).map(|k| k.terms.len()).sum();
+        let words = 6 + 5 + 2 * 85 + 13 * terms;
+        assert_eq!(table_entry(&bytes, b"KEYS").1, 4 * words as u64);
+        for tag in [b"PRED", b"MUSH"] {
+            assert!(sections(&bytes).iter().all(|(t, _)| t != tag), "no {tag:?}");
+        }
     }
     // Beside both correctives.
     let all =
         common::with_proxy_correctives(&common::with_correctives(&mushed(4), 2, 1), true, 1, 2);
-    assert_eq!(Model::from_bytes(&all.to_bytes()).expect("round trip"), all);
+    round_trip(&all);
     // A version-3 file (no MUSH: what this format was before delta-mush keys) loads as it did.
     let m = proxy_corrected(true, 2, 4);
-    let mut v3 = m.to_bytes();
-    put_u32(&mut v3, 8, 3);
-    reseal(&mut v3);
-    assert_eq!(Model::from_bytes(&v3).expect("a version-3 file"), m);
+    assert_eq!(Model::from_bytes(&legacy_file(&m, 3)).expect("a version-3 file"), m);
+}
+
+#[test]
+fn version_7_files_load_as_the_same_model() {
+    let m = mushed_last(4);
+    let v7 = legacy_file(&m, 7);
+    assert!(sections(&v7).iter().any(|(t, _)| t == b"MUSH"));
+    let loaded = Model::from_bytes(&v7).expect("a version-7 file");
+    assert_eq!(loaded, m);
+    assert_ne!(loaded.to_bytes(), v7, "saved again, it is a version-8 file");
 }
 
 /// The exact rotation nearest to `a` (det > 0, row-major): Newton's iteration on matrices,
@@ -1162,17 +1256,8 @@ fn exact_polar(a: [[f64; 3]; 3]) -> glam::DMat3 {
 #[test]
 fn version_6_delta_mush_keys_load_into_their_frames_as_the_same_model() {
     // Files before version 7 stored the keys' terms unturned, for the exact polar rotation.
-    let m = mushed(4);
-    let mut v6 = m.to_bytes();
-    put_u32(&mut v6, 8, 6);
-    reseal(&mut v6);
-    let loaded = Model::from_bytes(&v6).expect("a version-6 file");
-    let (old, new) = (
-        m.mush_keys().expect("keys"),
-        loaded.mush_keys().expect("keys"),
-    );
-    let (turned, frames) = old.in_principal_frames();
-    assert_eq!(new, &turned);
+    let m = mushed_last(4);
+    let loaded = Model::from_bytes(&legacy_file(&m, 6)).expect("a version-6 file");
     assert_ne!(loaded.parts().c1, m.parts().c1, "C1 turned with the keys");
     // Every key's D, read as C1 reads it (the fit turned out of its frame), is the exact polar
     // rotation the version-6 model was trained for, to the fit's accuracy: random keys under
@@ -1180,10 +1265,16 @@ fn version_6_delta_mush_keys_load_into_their_frames_as_the_same_model() {
     let mut worst: f64 = 0.0;
     for pose in 0..8 {
         let bones = rrskin_render::synthetic::random_poses(&m, 1, pose);
-        for (s, frame) in frames.iter().enumerate() {
-            let exact = exact_polar(rrskin::predict::mush_covariance(old, s, &bones));
-            let frame = glam::DMat3::from_cols_array_2d(frame).transpose();
-            let d = rrskin::predict::mush_gradient(new, s, &bones) * frame.transpose();
+        for (old, new) in m.keys().iter().zip(loaded.keys()) {
+            let (Some(old), Some(new)) = (old.delta_mush(), new.delta_mush()) else {
+                assert_eq!(old, new, "a predictor stays as it is");
+                continue;
+            };
+            let (turned, frame) = old.in_principal_frame();
+            assert_eq!(new, &turned);
+            let exact = exact_polar(rrskin::predict::delta_mush_covariance(old, &bones));
+            let frame = glam::DMat3::from_cols_array_2d(&frame).transpose();
+            let d = rrskin::predict::delta_mush_gradient(new, &bones) * frame.transpose();
             worst = worst.max(
                 (d - exact)
                     .to_cols_array()
@@ -1193,14 +1284,14 @@ fn version_6_delta_mush_keys_load_into_their_frames_as_the_same_model() {
         }
     }
     assert!(worst < 1e-4, "{worst}");
-    // Saved again, it is a version-7 file, and loads unturned a second time.
+    // Saved again, it is a version-8 file, and loads unturned a second time.
     let back = Model::from_bytes(&loaded.to_bytes()).expect("round trip");
     assert_eq!(back, loaded);
 }
 
 #[test]
-fn malformed_delta_mush_sections_are_refused() {
-    let bytes = mushed(4).to_bytes();
+fn malformed_delta_mush_sections_of_version_7_are_refused() {
+    let bytes = legacy_file(&mushed_last(4), 7);
     let at = section(&bytes, b"MUSH");
     let edit = |f: &dyn Fn(&mut Vec<u8>)| {
         let mut bad = bytes.clone();
@@ -1217,21 +1308,43 @@ fn malformed_delta_mush_sections_are_refused() {
         );
     }
     // More delta-mush keys than DIMS's P = 5 keys, the section's length kept: S = 16 and one
-    // bone fewer take as many words (13 a bone).
-    let n = u32::from_le_bytes(bytes[at + 4..at + 8].try_into().expect("4"));
+    // bone fewer take as many words (13 a bone); offsets that run backwards.
+    let n = le_u32(&bytes, at + 4);
     let p = edit(&|b| {
         put_u32(b, at, 16);
         put_u32(b, at + 4, n - 1);
+        (0..17).for_each(|i| put_u32(b, at + 8 + 4 * i, (i as u32).min(n - 1)));
     });
     assert!(
-        matches!(
-            p,
-            ModelProblem::Dimension {
-                what: "the MUSH section's key count",
-                value: 16,
-                ..
-            }
-        ),
+        matches!(p, ModelProblem::Dimension { what: "the MUSH section's key count", value: 16, .. }),
+        "{p:?}"
+    );
+    let p = edit(&|b| put_u32(b, at + 12, n + 1));
+    assert!(
+        matches!(p, ModelProblem::Dimension { what: "the MUSH section's offsets", .. }),
+        "{p:?}"
+    );
+}
+
+#[test]
+fn malformed_key_records_are_refused() {
+    let bytes = mushed(4).to_bytes();
+    let edit = |at: usize, value: u32| {
+        let mut bad = bytes.clone();
+        put_u32(&mut bad, at, value);
+        reseal(&mut bad);
+        problem(Model::from_bytes(&bad))
+    };
+    let keys = section(&bytes, b"KEYS");
+    // A kind this build does not know (key 2's tag, the word before its record).
+    let p = edit(key_word(&bytes, 2, 0) - 4, 7);
+    assert_eq!(p, ModelProblem::BadKey { key: 2, reason: "has a kind this build does not know" });
+    // Key 2, a predictor, a word short (key 1 a word longer: not whole terms).
+    let p = edit(keys + 8, le_u32(&bytes, keys + 8) + 1);
+    assert!(matches!(p, ModelProblem::BadKey { key: 1, .. }), "{p:?}");
+    let p = edit(keys, 7);
+    assert!(
+        matches!(p, ModelProblem::Dimension { what: "the KEYS section's offsets", .. }),
         "{p:?}"
     );
 }
@@ -1239,74 +1352,33 @@ fn malformed_delta_mush_sections_are_refused() {
 #[test]
 fn inconsistent_delta_mush_keys_are_refused_by_validation() {
     let parts = mushed(4).into_parts();
-    let with = |f: &dyn Fn(&mut rrskin::MushKeys)| {
+    // Key 1, a delta-mush key, edited.
+    let with = |f: &dyn Fn(&mut DeltaMushKey)| {
         let mut p = parts.clone();
-        f(p.mush_keys.as_mut().expect("delta-mush keys"));
+        match &mut p.keys[1] {
+            Key::DeltaMush(k) => f(k),
+            Key::Predictor(_) => unreachable!("key 1 is a delta-mush key"),
+        }
         problem(Model::new(p))
     };
     let bad = |p: ModelProblem| match p {
-        ModelProblem::BadMushKey { key, reason } => (key, reason),
-        p => panic!("not a BadMushKey: {p:?}"),
+        ModelProblem::BadKey { key, reason } => (key, reason),
+        p => panic!("not a BadKey: {p:?}"),
     };
-    // No keys at all: a model without them has no MUSH section.
-    let mut none = model(5, 4).into_parts();
-    none.mush_keys = Some(rrskin::MushKeys {
-        offsets: vec![0],
-        bones: Vec::new(),
-        terms: Vec::new(),
-    });
-    let p = problem(Model::new(none));
-    assert!(
-        matches!(
-            p,
-            ModelProblem::Dimension {
-                what: "delta-mush key count (S)",
-                ..
-            }
-        ),
-        "{p:?}"
-    );
-    assert_eq!(bad(with(&|k| k.offsets[0] = 1)).0, 0);
-    let empty = with(&|k| k.offsets[2] = k.offsets[1]);
-    assert_eq!(bad(empty), (1, "has no bone (offsets must increase)"));
-    let twice = with(&|k| {
-        let first = k.offsets[0] as usize;
-        k.offsets = vec![0, 2, 3, 4];
-        k.bones = vec![1, 1, 2, 3];
-        k.terms = vec![k.terms[first]; 4];
-    });
-    assert_eq!(bad(twice), (0, "lists a bone twice"));
-    let many = with(&|k| {
-        k.offsets = vec![0, 257, 258, 259];
-        k.bones = (0..259).map(|b| b % 4).collect();
-        k.terms = vec![[0.0; 12]; 259];
-    });
+    let empty = with(&|k| k.terms.clear());
+    assert_eq!(bad(empty), (1, "is a delta-mush key without a bone"));
+    let term = |bone| DeltaMushTerm { bone, omega: [0.5; 12] };
+    assert_eq!(bad(with(&|k| k.terms = vec![term(1), term(2), term(1)])), (1, "lists a bone twice"));
+    let many = with(&|k| k.terms = (0..257).map(|b| term(b % 4)).collect());
     assert!(bad(many).1.contains("256"));
-    let p = with(&|k| k.bones[0] = 4);
+    let p = with(&|k| k.terms[0].bone = 4);
     assert!(
         matches!(
             p,
-            ModelProblem::IndexOutOfRange {
-                what: "delta-mush bones",
-                bound: 4,
-                ..
-            }
+            ModelProblem::IndexOutOfRange { what: "delta-mush key bone", index: 1, bound: 4, .. }
         ),
         "{p:?}"
     );
-    let p = with(&|k| k.terms[1][5] = f32::NAN);
-    assert!(
-        matches!(
-            p,
-            ModelProblem::NonFinite {
-                what: "delta-mush terms",
-                index: 17
-            }
-        ),
-        "{p:?}"
-    );
-    let p = with(&|k| {
-        k.terms.pop();
-    });
-    assert!(matches!(p, ModelProblem::Length { .. }), "{p:?}");
+    let p = with(&|k| k.terms[0].omega[5] = f32::NAN);
+    assert_eq!(p, ModelProblem::NonFinite { what: "delta-mush key terms", index: 1 });
 }

@@ -7,7 +7,7 @@
 mod common;
 
 use common::{
-    joint_blend_pattern, random_model, random_poses, with_correctives, with_mush_keys,
+    joint_blend_pattern, random_model, random_poses, with_correctives, with_delta_mush_keys,
     with_proxy_correctives, Spec,
 };
 use rrskin::cpu::CpuEvaluator;
@@ -48,7 +48,7 @@ fn models() -> Vec<(&'static str, Model)> {
 
 /// `model` with its last `keys` keys delta-mush keys.
 fn mushed(model: Model, keys: usize) -> Model {
-    with_mush_keys(&model, keys, 3).expect("no more delta-mush keys than keys")
+    with_delta_mush_keys(&model, keys, 3).expect("no more delta-mush keys than keys")
 }
 
 /// Positions skinned from the palette within the tolerance of the reference's, and the

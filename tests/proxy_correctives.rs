@@ -17,7 +17,7 @@ use common::{
 use glam::{DMat4, DVec4};
 use rrskin::palette::{Palette, REST};
 use rrskin::predict::{apply_proxy_correctives, kernel_feature, rotation_features};
-use rrskin::{Error, FeatureRange, KeyPredictor, Model, ModelParts, ProxyCorrectives};
+use rrskin::{Error, FeatureRange, Key, KeyPredictor, Model, ModelParts, ProxyCorrectives};
 
 const SPEC: Spec = Spec {
     grid: 8,
@@ -93,13 +93,13 @@ fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
         influences: 4,
         skin_indices: vec![0, 0, 0, 0],
         skin_weights: vec![1.0, 0.0, 0.0, 0.0],
-        predictors: vec![KeyPredictor {
+        keys: vec![Key::Predictor(KeyPredictor {
             bone: 0,
             u: 0.0,
             w: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
             second: None,
             h: [0.0; 63],
-        }],
+        })],
         c1: vec![0.0; 4 * 3],
         c2,
         normal_groups: Vec::new(),
@@ -119,7 +119,6 @@ fn one_vertex_one_proxy_and_one_driver_match_the_formula() {
             drivers: vec![1],
             maps,
         }),
-        mush_keys: None,
     };
     let model = Model::new(parts).expect("valid");
     assert_eq!(model.proxy_corrective_count(), 1);

@@ -1294,7 +1294,7 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
 fn delta_mush_keys_match_cpu_in_every_product() {
     let ctx = validated_context();
     let mushed = |spec, keys, seed| {
-        with_mush_keys(&random_model(spec, seed), keys, seed).expect("delta-mush keys")
+        with_delta_mush_keys(&random_model(spec, seed), keys, seed).expect("delta-mush keys")
     };
     let wide = Spec {
         proxies: 20,
@@ -1336,7 +1336,7 @@ fn proxy_correctives_after_each_product(in_product: bool) {
     };
     let sparse =
         |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
-    let mushed = with_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 12, 66)
+    let mushed = with_delta_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 12, 66)
         .expect("delta-mush keys");
     let models = [
         with_proxy_correctives(&random_model(k8, 61), true, 0, 1),
@@ -1473,7 +1473,7 @@ fn proxy_correctives_seeing_gravity_match_cpu_for_tilted_characters() {
     let ctx = validated_context();
     let up = Some([0.0, 0.6, 0.8]);
     let sparse = joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 71), 1);
-    let mushed = with_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 72), 12, 72)
+    let mushed = with_delta_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 72), 12, 72)
         .expect("delta-mush keys");
     let models = [
         with_proxy_correctives_seeing(&random_model(RR, 70), true, up, 0, 1),

@@ -96,7 +96,7 @@ pub unsafe extern "C" fn rrskin_model_get_info(
             proxy_corrective_gravity: u32::from(sizes.proxy_corrective_gravity),
             up: m.up().unwrap_or_default(),
             normal_fan_entries: sizes.normal_fans as u32,
-            mush_terms: sizes.mush_terms as u32,
+            key_words: sizes.key_words as u32,
         };
         // SAFETY: `out` as the function's contract requires.
         unsafe { put(out, info, "out") }

@@ -112,7 +112,7 @@ pub unsafe extern "C" fn rrskin_query_memory(
             proxy_corrective_linear: i.proxy_corrective_linear != 0,
             proxy_corrective_gravity: i.proxy_corrective_gravity != 0,
             normal_fans: i.normal_fan_entries as usize,
-            mush_terms: i.mush_terms as usize,
+            key_words: i.key_words as usize,
         };
         let options = if options.is_null() {
             CrowdOptions::default()

@@ -95,9 +95,9 @@ pub struct RrskinModelInfo {
     /// 2 x vertices for a closed mesh): what `rrskin_model_get_info` reports, needed for
     /// `rrskin_query_memory`'s model bytes.
     pub normal_fan_entries: u32,
-    /// The delta-mush keys' terms, all keys together (0 without delta-mush keys): what
-    /// `rrskin_model_get_info` reports, needed for `rrskin_query_memory`'s model bytes.
-    pub mush_terms: u32,
+    /// The words of the P keys' records, all keys together: what `rrskin_model_get_info`
+    /// reports, needed for `rrskin_query_memory`'s model bytes.
+    pub key_words: u32,
 }
 
 /// How a crowd is made (`rrskin_crowd_create_with_options`); `rrskin_crowd_create` uses

@@ -3,10 +3,11 @@
 //! ```text
 //! offset  size       field
 //! 0       8          magic  89 'R' 'R' 'S' 0D 0A 1A 0A   (PNG-style: catches text-mode mangling)
-//! 8       4          format version (u32) = FORMAT_VERSION (7; versions 1, without CORR,
+//! 8       4          format version (u32) = FORMAT_VERSION (8; versions 1, without CORR,
 //!                    PCOR and MUSH, 2, without PCOR and MUSH, 3, without MUSH, 4,
-//!                    without PCOR's gravity, 5, without PCOR's ranges, and 6, with MUSH's
-//!                    terms out of the keys' frames, read too)
+//!                    without PCOR's gravity, 5, without PCOR's ranges, 6, with MUSH's
+//!                    terms out of the keys' frames, and 7, with PRED and MUSH for KEYS,
+//!                    read too)
 //! 12      4          section count S (u32)
 //! 16      8          total file length in bytes (u64): truncation is reported as such
 //! 24      24 S       section table: tag [u8; 4], reserved u32 (0), offset u64, length u64
@@ -24,7 +25,8 @@
 //! | PRNT | J i32 (-1: root)                                     |
 //! | SKIX | V x K u32 palette indices                            |
 //! | SKIW | V x K f32 weights                                    |
-//! | PRED | P − S records (S: MUSH's key count, else 0) of 85 words: bone u32, second bone u32 (0xFFFFFFFF: none), u f32, u2 f32, W 9 f32, W2 9 f32, H 63 f32 |
+//! | KEYS | version 8: the P keys' words, `key::key_words`: P + 1 u32 offsets, then per key its kind u32 and its record (a predictor: bone u32, second bone u32 (0xFFFFFFFF: none), u f32, u2 f32, W 9 f32, W2 9 f32, H 63 f32; a delta-mush key: per term, bone u32 and Ω 12 f32, in the key's principal frame) |
+//! | PRED | before version 8: the predictors, the first P − S keys, 85 words each as in KEYS |
 //! | C1   | 4P x 3P f32 (row-major)                              |
 //! | C2   | 4P x 4J f32 (row-major)                              |
 //! | NGRP | optional: V u32 normal groups (absent: no groups)    |
@@ -34,28 +36,27 @@
 //! | TANG | optional: V x 4 f32 rest tangents (xyz, handedness w) |
 //! | CORR | optional (version 2): pose-space correctives: N u32, D u32, drivers D u32, map N x 9D f32 (row-major), targets N x V x 3 f32 (target-major) |
 //! | PCOR | optional (version 3): proxy correctives: E u32, C u32, features u32 (bit 0 linear; bit 1 gravity, version 5; bit 2 ranges, version 6), D u32 (all drivers), proxies E u32, driver offsets E + 1 u32, drivers D u32, centres C x J x 9 f32, widths J f32 (none when C = 0), up 3 f32 (with gravity only), ranges J x (12 lower, 12 upper) f32 (with ranges only), maps 12 D (9 linear + 3 gravity + C) f32 |
-//! | MUSH | optional (version 4): delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 (from version 7 in each key's principal frame, C1 turned to match; earlier files are turned as they load, `ModelParts::in_key_frames`) |
+//! | MUSH | optional, versions 4 to 7: delta-mush keys, the last S of the P keys: S u32, N u32 (all their bones), offsets S + 1 u32, bones N u32, terms N x 12 f32 (version 7 in each key's principal frame, C1 turned to match; earlier files are turned as they load, `ModelParts::in_key_frames`) |
 //!
 //! Decoding checks structure only (bounds, lengths, checksum); the content invariants are
 //! checked by `validate` for files and in-memory parts alike.
 
-use super::{
-    Correctives, FeatureRange, KeyPredictor, ModelParts, MushKeys, ProxyCorrectives, SecondBone,
-};
+use super::key::{key_words, keys_of_words, predictor_of_words, PREDICTOR_WORDS};
+use super::{Correctives, DeltaMushKey, DeltaMushTerm, FeatureRange, Key, ModelParts};
+use super::ProxyCorrectives;
 use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
 /// The version this build writes; it reads every version from 1 to this one.
-pub const FORMAT_VERSION: u32 = 7;
+pub const FORMAT_VERSION: u32 = 8;
 /// The first version whose delta-mush keys are in their principal frames.
 pub const KEY_FRAMES_VERSION: u32 = 7;
 
 const HEADER_BYTES: usize = 24;
 const TABLE_ENTRY_BYTES: usize = 24;
 const CHECKSUM_BYTES: usize = 4;
-pub const PREDICTOR_WORDS: usize = 85;
-const NO_BONE: u32 = u32::MAX;
-const IDENTITY: [f32; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+/// The first version with one KEYS section for PRED and MUSH.
+const KEYS_VERSION: u32 = 8;
 
 const DIMS: [u8; 4] = *b"DIMS";
 const REST: [u8; 4] = *b"REST";
@@ -63,6 +64,7 @@ const TRIS: [u8; 4] = *b"TRIS";
 const PRNT: [u8; 4] = *b"PRNT";
 const SKIX: [u8; 4] = *b"SKIX";
 const SKIW: [u8; 4] = *b"SKIW";
+const KEYS: [u8; 4] = *b"KEYS";
 const PRED: [u8; 4] = *b"PRED";
 const C1: [u8; 4] = *b"C1\0\0";
 const C2: [u8; 4] = *b"C2\0\0";
@@ -109,10 +111,6 @@ fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
         m.bone_parents.len(),
         m.key_count(),
     );
-    let mut pred = Vec::with_capacity(m.predictors.len() * PREDICTOR_WORDS * 4);
-    for k in &m.predictors {
-        push_u32s(&mut pred, &predictor_words(k));
-    }
     let mut parents = Vec::new();
     m.bone_parents
         .iter()
@@ -125,7 +123,7 @@ fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
         (PRNT, parents),
         (SKIX, u32_bytes(&m.skin_indices)),
         (SKIW, f32_bytes(&m.skin_weights)),
-        (PRED, pred),
+        (KEYS, u32_bytes(&key_words(&m.keys))),
         (C1, f32_bytes(&m.c1)),
         (C2, f32_bytes(&m.c2)),
     ];
@@ -148,20 +146,7 @@ fn sections(m: &ModelParts) -> Vec<([u8; 4], Vec<u8>)> {
     if let Some(c) = &m.proxy_correctives {
         sections.push((PCOR, proxy_correctives_bytes(c, j)));
     }
-    if let Some(keys) = &m.mush_keys {
-        sections.push((MUSH, mush_keys_bytes(keys)));
-    }
     sections
-}
-
-/// The MUSH payload: S, N, then the offsets, bones and terms.
-fn mush_keys_bytes(keys: &MushKeys) -> Vec<u8> {
-    let mut mush = Vec::new();
-    push_u32s(&mut mush, &[keys.count() as u32, keys.bones.len() as u32]);
-    push_u32s(&mut mush, &keys.offsets);
-    push_u32s(&mut mush, &keys.bones);
-    push_f32s(&mut mush, keys.terms.as_flattened());
-    mush
 }
 
 /// The CORR payload: N, D, the drivers, the map, the targets.
@@ -205,24 +190,6 @@ fn proxy_correctives_bytes(c: &ProxyCorrectives, j: usize) -> Vec<u8> {
     pcor
 }
 
-/// A predictor as the 85 words of its PRED record; `glsl/predict.comp` reads the same layout.
-pub fn predictor_words(k: &KeyPredictor) -> [u32; PREDICTOR_WORDS] {
-    let (b2, u2, w2) = match &k.second {
-        Some(s) => (s.bone, s.u, s.w),
-        None => (NO_BONE, 0.0, IDENTITY),
-    };
-    let mut words = [0u32; PREDICTOR_WORDS];
-    let head = [k.u, u2];
-    let floats = head.iter().chain(&k.w).chain(&w2).chain(&k.h);
-    words[0] = k.bone;
-    words[1] = b2;
-    words[2..]
-        .iter_mut()
-        .zip(floats)
-        .for_each(|(w, f)| *w = f.to_bits());
-    words
-}
-
 pub fn decode(bytes: &[u8]) -> Result<(ModelParts, u32), ModelProblem> {
     let body = checked_body(bytes)?;
     let version = le_u32(bytes, 8);
@@ -237,19 +204,7 @@ pub fn decode(bytes: &[u8]) -> Result<(ModelParts, u32), ModelProblem> {
     let prnt = table.section(body, PRNT, words(&[j]))?;
     let skix = table.section(body, SKIX, words(&[v, k]))?;
     let skiw = table.section(body, SKIW, words(&[v, k]))?;
-    let mush_keys = match table.entry(MUSH) {
-        Some(length) => Some(mush_keys(&table, body, length)?),
-        None => None,
-    };
-    let mush_count = mush_keys.as_ref().map_or(0, |m| m.count() as u64);
-    if mush_count > p {
-        return Err(ModelProblem::Dimension {
-            what: "the MUSH section's key count",
-            value: mush_count,
-            reason: "must not exceed DIMS's P",
-        });
-    }
-    let pred = table.section(body, PRED, words(&[p - mush_count, PREDICTOR_WORDS as u64]))?;
+    let keys = keys(&table, body, version, p)?;
     let c1 = table.section(body, C1, words(&[4, p, 3, p]))?;
     let c2 = table.section(body, C2, words(&[4, p, 4, j]))?;
     let normal_groups = match table.has(NGRP) {
@@ -293,10 +248,7 @@ pub fn decode(bytes: &[u8]) -> Result<(ModelParts, u32), ModelProblem> {
         influences: k as u32,
         skin_indices: u32s(skix),
         skin_weights: f32s(skiw),
-        predictors: pred
-            .chunks_exact(PREDICTOR_WORDS * 4)
-            .map(predictor)
-            .collect(),
+        keys,
         c1: f32s(c1),
         c2: f32s(c2),
         normal_groups,
@@ -306,13 +258,54 @@ pub fn decode(bytes: &[u8]) -> Result<(ModelParts, u32), ModelProblem> {
         rest_tangents,
         correctives,
         proxy_correctives,
-        mush_keys,
     };
     Ok((parts, version))
 }
 
-/// The MUSH section: S and N, then the lengths they give (checked before anything else is read).
-fn mush_keys(table: &SectionTable, body: &[u8], length: u64) -> Result<MushKeys, ModelProblem> {
+/// The P keys: the KEYS section, or before version 8 the PRED section's predictors then the
+/// MUSH section's delta-mush keys.
+fn keys(table: &SectionTable, body: &[u8], version: u32, p: u64) -> Result<Vec<Key>, ModelProblem> {
+    if version < KEYS_VERSION {
+        return legacy_keys(table, body, p);
+    }
+    let length = (table.entry(KEYS)).ok_or(ModelProblem::MissingSection { tag: "KEYS".into() })?;
+    let whole = length / 4 * 4;
+    let words = u32s(table.section(body, KEYS, whole).map_err(|_| ModelProblem::SectionLength {
+        tag: "KEYS".into(),
+        expected: whole,
+        actual: length,
+    })?);
+    keys_of_words(&words, p as usize)
+}
+
+/// The keys of a file before version 8: the PRED predictors, then the MUSH delta-mush keys.
+fn legacy_keys(table: &SectionTable, body: &[u8], p: u64) -> Result<Vec<Key>, ModelProblem> {
+    let mush = match table.entry(MUSH) {
+        Some(length) => mush_keys(table, body, length)?,
+        None => Vec::new(),
+    };
+    let mush_count = mush.len() as u64;
+    if mush_count > p {
+        return Err(ModelProblem::Dimension {
+            what: "the MUSH section's key count",
+            value: mush_count,
+            reason: "must not exceed DIMS's P",
+        });
+    }
+    let expected = (p - mush_count).saturating_mul(4 * PREDICTOR_WORDS as u64);
+    let pred = u32s(table.section(body, PRED, expected)?);
+    let predictors = (pred.chunks_exact(PREDICTOR_WORDS))
+        .map(|record| Key::Predictor(predictor_of_words(&array(record))));
+    Ok(predictors.chain(mush.into_iter().map(Key::DeltaMush)).collect())
+}
+
+/// The MUSH section (versions 4 to 7): S and N, then the lengths they give (checked before
+/// anything else is read), then the keys of its CSR offsets.
+fn mush_keys(
+    table: &SectionTable,
+    body: &[u8],
+    length: u64,
+) -> Result<Vec<DeltaMushKey>, ModelProblem> {
     const HEAD: u64 = 8;
     if length < HEAD {
         return Err(ModelProblem::SectionLength {
@@ -326,22 +319,27 @@ fn mush_keys(table: &SectionTable, body: &[u8], length: u64) -> Result<MushKeys,
     let words = [2, s + 1, n, n.saturating_mul(12)]
         .into_iter()
         .fold(0u64, u64::saturating_add);
-    let mush = table.section(body, MUSH, words.saturating_mul(4))?;
+    let mush = u32s(table.section(body, MUSH, words.saturating_mul(4))?);
     let (s, n) = (s as usize, n as usize);
-    let mut at = 8;
-    let mut take = |count: usize| {
-        let slice = &mush[at..at + 4 * count];
-        at += 4 * count;
-        slice
+    let (offsets, rest) = mush[2..].split_at(s + 1);
+    let (bones, terms) = rest.split_at(n);
+    let in_order = offsets.first() == Some(&0) && offsets.last() == Some(&(n as u32));
+    if !in_order || offsets.windows(2).any(|w| w[1] < w[0]) {
+        return Err(ModelProblem::Dimension {
+            what: "the MUSH section's offsets",
+            value: u64::from(offsets[0]),
+            reason: "must run from 0 to the bone count without decreasing",
+        });
+    }
+    let term = |i: usize| DeltaMushTerm {
+        bone: bones[i],
+        omega: std::array::from_fn(|k| f32::from_bits(terms[12 * i + k])),
     };
-    let offsets = u32s(take(s + 1));
-    let bones = u32s(take(n));
-    let terms = f32s(take(12 * n)).chunks_exact(12).map(array).collect();
-    Ok(MushKeys {
-        offsets,
-        bones,
-        terms,
-    })
+    Ok((offsets.windows(2))
+        .map(|w| DeltaMushKey {
+            terms: (w[0] as usize..w[1] as usize).map(term).collect(),
+        })
+        .collect())
 }
 
 /// The file less its checksum, once the magic, the version, the length field and the checksum
@@ -410,23 +408,6 @@ fn animation(table: &SectionTable, body: &[u8]) -> Result<Vec<[f32; 12]>, ModelP
             actual: length,
         }),
         None => Ok(Vec::new()),
-    }
-}
-
-/// A predictor from the 85 words of its PRED record (`predictor_words` in reverse).
-fn predictor(record: &[u8]) -> KeyPredictor {
-    let f = f32s(record);
-    let second_bone = le_u32(record, 4);
-    KeyPredictor {
-        bone: le_u32(record, 0),
-        u: f[2],
-        w: array(&f[4..13]),
-        second: (second_bone != NO_BONE).then(|| SecondBone {
-            bone: second_bone,
-            u: f[3],
-            w: array(&f[13..22]),
-        }),
-        h: array(&f[22..85]),
     }
 }
 

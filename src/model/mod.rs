@@ -1,6 +1,6 @@
 //! The trained runtime model, as data, and its invariants.
 //!
-//! Letters: V vertices, T triangles, J bones, P key predictors (= proxy bones), K influences.
+//! Letters: V vertices, T triangles, J bones, P keys (= proxy bones), K influences.
 //! All matrices are stored row-major in `f32`.
 //!
 //! | field              | shape            | meaning                                              |
@@ -10,7 +10,7 @@
 //! | `bone_parents`     | J                | parent bone, -1 for a root                           |
 //! | `skin_indices`     | V x K            | palette entries: `< P` a proxy bone, `P + b` bone b  |
 //! | `skin_weights`     | V x K            | blend weights, >= 0, summing to 1 per vertex          |
-//! | `predictors`       | P                | key predictors d_ℓ(q) (docs/method.md §2–3, paper §3) |
+//! | `keys`             | P                | keys, each of one kind ([`Key`]): D_ℓ(q) (docs/method.md §2–3, §23) |
 //! | `c1`               | 4P x 3P          | t_c = C1 d_c + C2 q_c (docs/method.md §8, paper Eq. 5) |
 //! | `c2`               | 4P x 4J          |                                                      |
 //! | `normal_groups`    | V or empty       | vertices sharing a normal (welded seams)             |
@@ -29,18 +29,14 @@
 //! | `  .drivers`       | Σ D_i            | driver joints of each corrected proxy                  |
 //! | `  .up`            | 3 or none        | the model's up u, where the features see gravity       |
 //! | `  .maps`          | Σ F_i x 12       | G_ef per feature f (F_i = D_i (9·linear + 3·gravity + C)) |
-//! | `mush_keys`        | optional         | delta-mush keys (docs/method.md §23): keys R..P, R = predictors |
-//! | `  .offsets`       | S + 1            | CSR offsets into `bones`/`terms`                       |
-//! | `  .bones`         | Σ n_s            | the bones of each key's rigid fit                      |
-//! | `  .terms`         | Σ n_s x 12       | Ω_si, 4x3 row-major, per (key, bone)                   |
 //!
 //! Index conventions of the separable reconstruction (one identical system per row c = x, y, z):
 //! `t_c[4b + j] = T_b[c][j]` (proxy transform b, 3x4), `q_c[4b + j] = Q_b[c][j]` (bone
 //! transform b, 3x4), `d_c[3ℓ + j] = D_ℓ[c][j]` (key gradient ℓ, 3x3).
 //! A model with P = 0 is plain linear blend skinning: every index points at a bone.
 //!
-//! Keys: the first R = `predictors.len()` are key predictors (paper §3), the other S are
-//! delta-mush keys ([`MushKeys`]); P = R + S.
+//! Keys: each a key predictor (paper §3) or a delta-mush key (docs/method.md §23), in any
+//! order ([`Key`]): proxy e reads whichever keys its C1 rows do.
 //!
 //! Pose-space correctives (paper §8, docs/method.md §20): for driver i, bone d = `drivers[i]`
 //! with parent p, `R_i = rot(Q_p)ᵀ rot(Q_d)` (rot: the 3x3 of the bone transform, as
@@ -58,42 +54,17 @@
 
 mod block_sparse;
 mod file;
+mod key;
 mod validate;
 
 pub(crate) use block_sparse::BlockSparse;
-pub use file::{predictor_words, FORMAT_VERSION, MAGIC, PREDICTOR_WORDS};
+pub use file::{FORMAT_VERSION, MAGIC};
+pub use key::{
+    c1_in_key_frames, key_words, predictor_words, DeltaMushKey, DeltaMushTerm, Key, KeyKind,
+    KeyPredictor, Mat3Rows, SecondBone, MAX_DELTA_MUSH_BONES, PREDICTOR_WORDS,
+};
 
 use crate::error::{Error, Result};
-
-/// Rows of a 3x3 matrix, row-major.
-pub type Mat3Rows = [f32; 9];
-
-/// A key predictor (paper §3): `D(q) = R(q) S(q)`.
-///
-/// Rotation (paper Eq. 3, docs/method.md §2), with p = parent(`bone`) and joint rotations
-/// `θ~_b = log(Q_p(b)ᵀ Q_b)` (roots: `log Q_b`):
-/// `R₁(q) = Q_p(q) · exp(u W θ~_bone(q))`, and with a second bone
-/// `R(q) = R₁(q) · exp(u₂ W₂ θ~_second(q))`.
-///
-/// Scale/shear (paper Eq. 4, docs/method.md §3): `vec(S) = H x`, `x = [θ~_bone; θ~_p; 1]`
-/// (θ~_p = 0 when `bone` is a root), vec stacking the rows of S.
-#[derive(Debug, Clone, PartialEq)]
-pub struct KeyPredictor {
-    pub bone: u32,
-    pub u: f32,
-    pub w: Mat3Rows,
-    pub second: Option<SecondBone>,
-    /// H: 9 x 7, row-major.
-    pub h: [f32; 63],
-}
-
-/// The optional second bone of a rotation predictor (paper §3.2, last paragraph).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SecondBone {
-    pub bone: u32,
-    pub u: f32,
-    pub w: Mat3Rows,
-}
 
 /// The most corrective targets a model may carry (N).
 pub const MAX_CORRECTIVES: usize = 64;
@@ -234,101 +205,6 @@ impl ProxyCorrectives {
     }
 }
 
-/// The most bones one delta-mush key's fit may read (n_s): the GPU passes loop over them.
-pub const MAX_MUSH_BONES: usize = 256;
-
-/// Delta-mush keys (docs/method.md §23): keys whose gradient is the rotation of a rigid fit of
-/// several bones' motions, Direct Delta Mush's fit for one group of vertices. Key R + s (R =
-/// `predictors.len()`) is delta-mush key s, with bones b_i and terms Ω_i (i in its CSR range):
-///
-/// `D(q) = fit(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)`
-///
-/// where `[Q | d]` is the bone's 3x4 transform, Ω_i is 4x3 (row-major, 12 floats) and
-/// `fit(A)` is the rotation [`crate::polar::nearest_rotation`] gives: Newton steps toward the
-/// rotation nearest to A (the R maximising tr(Rᵀ A)) from a guess that is exact for a rigid
-/// motion where the terms are in the key's principal frame, as training writes them
-/// ([`MushKeys::in_principal_frames`]); the identity for A = 0. The key's proxy takes its
-/// translation from C1 and C2 as any proxy does (for a group's fit, `t = Σ_i M_i ω_i − D p`),
-/// and C1 turns D back out of the key's frame.
-///
-/// Limits: S ≥ 1 keys, each with 1 to [`MAX_MUSH_BONES`] distinct bones.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MushKeys {
-    /// S + 1 offsets into `bones` and `terms` (CSR), starting at 0, increasing.
-    pub offsets: Vec<u32>,
-    /// The bones of each key (< J, distinct within a key).
-    pub bones: Vec<u32>,
-    /// Ω_i per bone entry: 4x3 row-major.
-    pub terms: Vec<[f32; 12]>,
-}
-
-impl MushKeys {
-    /// S
-    pub fn count(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
-    }
-
-    /// Key s's bones and terms.
-    pub fn key(&self, s: usize) -> (&[u32], &[[f32; 12]]) {
-        let range = self.offsets[s] as usize..self.offsets[s + 1] as usize;
-        (&self.bones[range.clone()], &self.terms[range])
-    }
-
-    /// Key s's rest covariance `C_s = Σ_i Ω_i[0..3]` (row-major): its A when every bone is
-    /// at rest.
-    pub fn rest_covariance(&self, s: usize) -> [[f64; 3]; 3] {
-        let mut c = [[0.0; 3]; 3];
-        for omega in self.key(s).1 {
-            for (k, row) in c.iter_mut().enumerate() {
-                row.iter_mut()
-                    .enumerate()
-                    .for_each(|(m, x)| *x += f64::from(omega[3 * k + m]));
-            }
-        }
-        c
-    }
-
-    /// These keys with each key's terms in its principal frame, `Ω_i P_s / λ_s`
-    /// ([`crate::polar::principal_frame`] of [`MushKeys::rest_covariance`]), and the frames
-    /// P_s (row-major rotations): the fit of the new terms is the key's rotation in its frame,
-    /// `D_s P_s`, so a proxy reading the key reads `D_s P_sᵀ` ([`ModelParts::in_key_frames`]).
-    /// A rigid motion of the key's vertices then makes the fit's guess exact.
-    pub fn in_principal_frames(&self) -> (MushKeys, Vec<[[f64; 3]; 3]>) {
-        let mut keys = self.clone();
-        let frames = (0..self.count())
-            .map(|s| {
-                let (p, scale) = crate::polar::principal_frame(self.rest_covariance(s));
-                let range = self.offsets[s] as usize..self.offsets[s + 1] as usize;
-                for omega in &mut keys.terms[range] {
-                    let o = omega.map(f64::from);
-                    *omega = std::array::from_fn(|i| {
-                        let (k, m) = (i / 3, i % 3);
-                        let turned: f64 = (0..3).map(|c| o[3 * k + c] * p[c][m]).sum();
-                        (turned / scale) as f32
-                    });
-                }
-                p
-            })
-            .collect();
-        (keys, frames)
-    }
-}
-
-/// The model's 4P x 3P C1 (row-major) for delta-mush keys whose fit gives `D_s P_s` (the
-/// first `first` keys are predictors'): each key's three columns times its frame P_s
-/// (row-major), so that every proxy still reads `D_s = (D_s P_s) P_sᵀ`.
-pub fn c1_in_key_frames(c1: &mut [f32], p: usize, first: usize, frames: &[[[f64; 3]; 3]]) {
-    for row in c1.chunks_exact_mut(3 * p) {
-        for (s, frame) in frames.iter().enumerate() {
-            let at = 3 * (first + s);
-            let old = [0, 1, 2].map(|c| f64::from(row[at + c]));
-            for m in 0..3 {
-                row[at + m] = (0..3).map(|c| old[c] * frame[c][m]).sum::<f64>() as f32;
-            }
-        }
-    }
-}
-
 /// Everything a model holds, unchecked. Turn it into a [`Model`] with [`Model::new`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelParts {
@@ -339,7 +215,8 @@ pub struct ModelParts {
     pub influences: u32,
     pub skin_indices: Vec<u32>,
     pub skin_weights: Vec<f32>,
-    pub predictors: Vec<KeyPredictor>,
+    /// The P keys, each of one kind.
+    pub keys: Vec<Key>,
     pub c1: Vec<f32>,
     pub c2: Vec<f32>,
     /// Empty, or V group ids (< V): vertices of one group share their normal, summed over the
@@ -363,28 +240,30 @@ pub struct ModelParts {
     /// Proxy correctives (docs/method.md §21): affine corrections of some proxies' transforms,
     /// from the rotations of their driver joints, applied before skinning. None: no correction.
     pub proxy_correctives: Option<ProxyCorrectives>,
-    /// Delta-mush keys (docs/method.md §23), after the predictors' keys. None: every key is a
-    /// predictor.
-    pub mush_keys: Option<MushKeys>,
 }
 
 impl ModelParts {
-    /// P: the predictors' keys, then the delta-mush keys.
+    /// P
     pub fn key_count(&self) -> usize {
-        self.predictors.len() + self.mush_keys.as_ref().map_or(0, MushKeys::count)
+        self.keys.len()
     }
 
     /// These parts with their delta-mush keys in their principal frames
-    /// ([`MushKeys::in_principal_frames`]) and C1 turned to match ([`c1_in_key_frames`]): the
-    /// same model, whose keys' fits start from an exact guess for rigid motions. Files before
-    /// version 7 stored the keys' terms unturned, for an exact polar rotation.
+    /// ([`DeltaMushKey::in_principal_frame`]) and C1 turned to match ([`c1_in_key_frames`]):
+    /// the same model, whose keys' fits start from an exact guess for rigid motions. Files
+    /// before version 7 stored the keys' terms unturned, for an exact polar rotation.
     pub fn in_key_frames(mut self) -> ModelParts {
-        if let Some(keys) = &self.mush_keys {
-            let (turned, frames) = keys.in_principal_frames();
-            let p = self.key_count();
-            c1_in_key_frames(&mut self.c1, p, self.predictors.len(), &frames);
-            self.mush_keys = Some(turned);
-        }
+        let frames: Vec<_> = (self.keys.iter_mut())
+            .map(|key| match key {
+                Key::DeltaMush(k) => {
+                    let (turned, frame) = k.in_principal_frame();
+                    *k = turned;
+                    Some(frame)
+                }
+                Key::Predictor(_) => None,
+            })
+            .collect();
+        c1_in_key_frames(&mut self.c1, &frames);
         self
     }
 }
@@ -469,7 +348,7 @@ impl Model {
             problem,
         })?;
         let model = Self::with_origin(parts, origin)?;
-        match version < file::KEY_FRAMES_VERSION && model.mush_keys().is_some() {
+        match version < file::KEY_FRAMES_VERSION && model.keys_of(KeyKind::DeltaMush) > 0 {
             // Valid, so every key's range is in bounds; turning it keeps it valid.
             true => Self::with_origin(model.into_parts().in_key_frames(), origin),
             false => Ok(model),
@@ -512,14 +391,19 @@ impl Model {
         self.parts.bone_parents.len()
     }
 
-    /// P (0: plain linear blend skinning): R predictors' keys, then S delta-mush keys.
+    /// P (0: plain linear blend skinning).
     pub fn proxy_count(&self) -> usize {
         self.parts.key_count()
     }
 
-    /// The model's delta-mush keys, if it has any.
-    pub fn mush_keys(&self) -> Option<&MushKeys> {
-        self.parts.mush_keys.as_ref()
+    /// The P keys.
+    pub fn keys(&self) -> &[Key] {
+        &self.parts.keys
+    }
+
+    /// How many keys are of kind `kind`.
+    pub fn keys_of(&self, kind: KeyKind) -> usize {
+        self.parts.keys.iter().filter(|k| k.kind() == kind).count()
     }
 
     /// K
@@ -628,14 +512,13 @@ impl Model {
         let parts = ModelParts {
             skin_indices: self.parts.baseline_indices.clone(),
             skin_weights: self.parts.baseline_weights.clone(),
-            predictors: Vec::new(),
+            keys: Vec::new(),
             c1: Vec::new(),
             c2: Vec::new(),
             baseline_indices: Vec::new(),
             baseline_weights: Vec::new(),
             correctives: None,
             proxy_correctives: None,
-            mush_keys: None,
             ..self.parts.clone()
         };
         Model::new(parts).ok()

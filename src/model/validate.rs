@@ -2,8 +2,9 @@
 //! After `check` succeeds, every index the GPU passes read is in range and every number is finite.
 
 use super::{
-    Correctives, FeatureRange, KeyPredictor, Mat3Rows, ModelParts, MushKeys, ProxyCorrectives,
-    MAX_CORRECTIVES, MAX_MUSH_BONES, MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS, SUPPORTED_INFLUENCES,
+    Correctives, DeltaMushKey, FeatureRange, Key, KeyPredictor, Mat3Rows, ModelParts,
+    ProxyCorrectives, MAX_CORRECTIVES, MAX_DELTA_MUSH_BONES, MAX_PROXY_DRIVERS, MAX_PROXY_KERNELS,
+    SUPPORTED_INFLUENCES,
 };
 use crate::error::ModelProblem;
 
@@ -29,11 +30,11 @@ pub fn check(m: &ModelParts) -> Check {
     finite("C2", m.c2.iter())?;
     indices(m, v, j, p)?;
     weights(&m.skin_weights, k)?;
-    for (l, pred) in m.predictors.iter().enumerate() {
-        predictor(l, pred, j)?;
-    }
-    if let Some(keys) = &m.mush_keys {
-        mush_keys(keys, j)?;
+    for (l, key) in m.keys.iter().enumerate() {
+        match key {
+            Key::Predictor(k) => predictor(l, k, j)?,
+            Key::DeltaMush(k) => delta_mush_key(l, k, j)?,
+        }
     }
     if !m.baseline_indices.is_empty() || !m.baseline_weights.is_empty() {
         baseline(m, v, j, k)?;
@@ -63,7 +64,7 @@ fn sizes(m: &ModelParts) -> Check {
     dimension("vertex count", v, 1)?;
     dimension("bone count", j, 1)?;
     dimension("triangle count", m.triangles.len(), 0)?;
-    dimension("predictor count", p, 0)?;
+    dimension("key count", p, 0)?;
     if !SUPPORTED_INFLUENCES.contains(&m.influences) {
         return Err(ModelProblem::Dimension {
             what: "influences per vertex (K)",
@@ -459,40 +460,25 @@ fn predictor(l: usize, pred: &KeyPredictor, j: usize) -> Check {
     Ok(())
 }
 
-/// S ≥ 1 keys of 1 to MAX_MUSH_BONES distinct bones each, in range, with finite terms.
-fn mush_keys(keys: &MushKeys, j: usize) -> Check {
-    let bad = |key: usize, reason: &'static str| ModelProblem::BadMushKey { key, reason };
-    if keys.count() == 0 {
-        return Err(ModelProblem::Dimension {
-            what: "delta-mush key count (S)",
-            value: 0,
-            reason: "must be at least 1 (a model without them has no MUSH section)",
-        });
+/// Key l, a delta-mush key: 1 to MAX_DELTA_MUSH_BONES terms of distinct bones, in range,
+/// finite.
+fn delta_mush_key(l: usize, key: &DeltaMushKey, j: usize) -> Check {
+    let bad = |reason: &'static str| ModelProblem::BadKey { key: l, reason };
+    let bones: Vec<u32> = key.terms.iter().map(|t| t.bone).collect();
+    if bones.is_empty() {
+        return Err(bad("is a delta-mush key without a bone"));
     }
-    if keys.offsets[0] != 0 {
-        return Err(bad(0, "its first offset is not 0"));
+    if bones.len() > MAX_DELTA_MUSH_BONES {
+        return Err(bad("has more than 256 bones (MAX_DELTA_MUSH_BONES)"));
     }
-    for (s, w) in keys.offsets.windows(2).enumerate() {
-        if w[1] <= w[0] {
-            return Err(bad(s, "has no bone (offsets must increase)"));
-        }
-        if (w[1] - w[0]) as usize > MAX_MUSH_BONES {
-            return Err(bad(s, "has more than 256 bones (MAX_MUSH_BONES)"));
-        }
+    if let Some(&b) = bones.iter().find(|&&b| b as usize >= j) {
+        return Err(out_of_range("delta-mush key bone", l, b as i64, j));
     }
-    let last = keys.offsets[keys.count()] as usize;
-    length("delta-mush bones (the last offset)", last, keys.bones.len())?;
-    length("delta-mush terms (one per bone)", last, keys.terms.len())?;
-    if let Some(i) = keys.bones.iter().position(|&b| b as usize >= j) {
-        return Err(out_of_range("delta-mush bones", i, keys.bones[i] as i64, j));
+    if (1..bones.len()).any(|i| bones[..i].contains(&bones[i])) {
+        return Err(bad("lists a bone twice"));
     }
-    for s in 0..keys.count() {
-        let (bones, _) = keys.key(s);
-        if (1..bones.len()).any(|i| bones[..i].contains(&bones[i])) {
-            return Err(bad(s, "lists a bone twice"));
-        }
-    }
-    finite("delta-mush terms", keys.terms.iter().flatten())
+    finite("delta-mush terms", key.terms.iter().flat_map(|t| &t.omega))
+        .map_err(|_| nonfinite("delta-mush key terms", l))
 }
 
 fn dimension(what: &'static str, value: usize, min: usize) -> Check {

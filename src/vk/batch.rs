@@ -32,14 +32,12 @@ use std::sync::Arc;
 /// The frame: phases in order, each a set of passes without dependencies among them (one
 /// timestamp per phase, reported by [`PassTimings`]).
 pub(super) const SCHEDULE: [&[Pass]; 6] = [
-    &[Pass::Predict, Pass::PredictMush, Pass::CorrectiveWeights],
+    &[Pass::Predict, Pass::CorrectiveWeights],
     &[
         Pass::DenseProduct,
         Pass::SparseProduct,
         Pass::FusedProduct,
         Pass::FusedCorrectedProduct,
-        Pass::FusedMushProduct,
-        Pass::FusedCorrectedMushProduct,
     ],
     &[Pass::ProxyCorrectives, Pass::ProxyCorrectivesGravity],
     &[

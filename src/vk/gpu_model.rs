@@ -7,7 +7,7 @@ use super::memory::{model_buffer_bytes, ModelSizes};
 use super::pass::{Dims, ModelBuffer};
 use super::passes::Pass;
 use crate::error::Result;
-use crate::model::{predictor_words, BlockSparse, FeatureRange, Model, PREDICTOR_WORDS};
+use crate::model::{key_words, BlockSparse, FeatureRange, Model};
 use crate::normals::{Fans, NormalMode, FAN_PIVOT};
 use ash::vk;
 use std::sync::Arc;
@@ -32,10 +32,8 @@ pub(crate) struct Inner {
 /// What `GpuModel::new` uploads, borrowed from or computed from the model once.
 struct UploadData<'m> {
     model: &'m Model,
-    /// The J bone parents, then the keys' delta-mush terms ([`key_words`]).
-    parents: Vec<i32>,
-    /// P records: the predictors', then zeros for the delta-mush keys (not read).
-    predictors: Vec<u32>,
+    /// The P keys' records ([`key_words`]).
+    keys: Vec<u32>,
     /// [C1 | C2] row-major where the model stays dense, else empty.
     dense: Vec<f32>,
     /// The rest positions, the corrective targets, then the rest normals: (2 + N) x V x 3.
@@ -63,11 +61,8 @@ impl UploadData<'_> {
             ),
             ModelBuffer::SkinIndex => ("skin indices", bytemuck::cast_slice(&parts.skin_indices)),
             ModelBuffer::SkinWeight => ("skin weights", floats(&parts.skin_weights)),
-            ModelBuffer::Parents => (
-                "bone parents and delta-mush keys",
-                bytemuck::cast_slice(&self.parents),
-            ),
-            ModelBuffer::Predictors => ("predictors", bytemuck::cast_slice(&self.predictors)),
+            ModelBuffer::Parents => ("bone parents", bytemuck::cast_slice(&parts.bone_parents)),
+            ModelBuffer::Keys => ("keys", bytemuck::cast_slice(&self.keys)),
             ModelBuffer::ProductMatrix => ("C1|C2", floats(&self.dense)),
             ModelBuffer::ProductOffsets => {
                 ("C1|C2 offsets", bytemuck::cast_slice(&self.blocks.offsets))
@@ -153,17 +148,9 @@ impl GpuModel {
         .flatten()
         .copied()
         .collect();
-        let mut predictors: Vec<u32> = (parts.predictors.iter())
-            .flat_map(predictor_words)
-            .collect();
-        predictors.resize(PREDICTOR_WORDS * model.proxy_count(), 0);
-        let parents = (parts.bone_parents.iter().copied())
-            .chain(key_words(model).into_iter().map(|w| w as i32))
-            .collect();
         let data = UploadData {
             model,
-            parents,
-            predictors,
+            keys: key_words(model.keys()),
             dense: match sparse {
                 Some(_) => Vec::new(),
                 None => model.c1_c2(),
@@ -324,7 +311,6 @@ fn model_dims(model: &Model, sparse: Option<&BlockSparse>, in_product: bool) -> 
             .map_or(0, |c| c.kernel_count(model.bone_count()) as u32),
         linear_features: model.proxy_correctives().is_some_and(|c| c.linear),
         gravity: model.up().is_some(),
-        mush: model.mush_keys().is_some(),
     }
 }
 
@@ -360,26 +346,4 @@ fn proxy_topology(model: &Model) -> Vec<u32> {
         .flatten()
         .copied()
         .collect()
-}
-
-/// The keys' words of `glsl/predictor.glsl`'s `mush()`, read after the J bone parents: P + 1
-/// offsets into these words (key ℓ's terms are words `offsets[ℓ]..offsets[ℓ + 1]`, none for a
-/// predictor's key), then per delta-mush term 13 words: its bone, then its Ω (4x3 row-major) as
-/// `f32` bits.
-fn key_words(model: &Model) -> Vec<u32> {
-    let p = model.proxy_count();
-    let r = model.parts().predictors.len();
-    // Every offset starts at the first term: the predictors' keys have none.
-    let mut words = vec![(p + 1) as u32; p + 1];
-    if let Some(keys) = model.mush_keys() {
-        for s in 0..keys.count() {
-            let (bones, terms) = keys.key(s);
-            for (&b, omega) in bones.iter().zip(terms) {
-                words.push(b);
-                words.extend(omega.map(f32::to_bits));
-            }
-            words[r + s + 1] = words.len() as u32;
-        }
-    }
-    words
 }

@@ -10,7 +10,7 @@
 use super::crowd::{CrowdOptions, BOUNDS_STRIDE, TANGENT_STRIDE};
 use super::pass::{CrowdBuffer, Dims, ModelBuffer};
 use crate::error::{Error, Result};
-use crate::model::{Model, PREDICTOR_WORDS};
+use crate::model::Model;
 
 /// Vulkan forbids zero-sized buffers; empty arrays (P = 0, T = 0) get this many bytes, unread.
 pub(crate) const MIN_BUFFER_BYTES: u64 = 16;
@@ -51,8 +51,8 @@ pub struct ModelSizes {
     /// Whether they have the 3 gravity features per driver ([`Model::up`]; crowds then keep
     /// each character's up vector).
     pub proxy_corrective_gravity: bool,
-    /// The delta-mush keys' terms, all keys together (0 without them).
-    pub mush_terms: usize,
+    /// The words of the keys' records, all keys together ([`crate::model::key_words`]).
+    pub key_words: usize,
 }
 
 impl ModelSizes {
@@ -81,7 +81,7 @@ impl ModelSizes {
                 .map_or(0, |c| c.kernel_count(model.bone_count())),
             proxy_corrective_linear: model.proxy_correctives().is_some_and(|c| c.linear),
             proxy_corrective_gravity: model.up().is_some(),
-            mush_terms: model.mush_keys().map_or(0, |k| k.bones.len()),
+            key_words: crate::model::key_words(model.keys()).len(),
         }
     }
 
@@ -112,7 +112,6 @@ impl ModelSizes {
             kernels: word("proxy corrective kernels", self.proxy_corrective_kernels)?,
             linear_features: self.proxy_corrective_linear,
             gravity: self.proxy_corrective_gravity,
-            mush: self.mush_terms > 0,
         })
     }
 }
@@ -140,9 +139,8 @@ pub(crate) fn model_buffer_bytes(s: &ModelSizes, b: ModelBuffer) -> u64 {
         // The rest positions, the N corrective targets, then the rest normals.
         ModelBuffer::Rest => 3 * v * (2 + corr),
         ModelBuffer::SkinIndex | ModelBuffer::SkinWeight => k * v,
-        // The parents, then P + 1 key offsets and 13 words per delta-mush term.
-        ModelBuffer::Parents => j + p + 1 + 13 * s.mush_terms as u64,
-        ModelBuffer::Predictors => PREDICTOR_WORDS as u64 * p,
+        ModelBuffer::Parents => j,
+        ModelBuffer::Keys => s.key_words as u64,
         ModelBuffer::ProductMatrix if sparse => 0,
         ModelBuffer::ProductMatrix => 4 * p * (3 * p + 4 * j),
         ModelBuffer::ProductOffsets if sparse => p + 1,

@@ -52,9 +52,6 @@ pub struct Dims {
     /// Whether they include the 3 gravity features γ_b per driver, from each character's up
     /// (their own pass applies them then, never a fused product, which has no binding left).
     pub gravity: bool,
-    /// Whether some key is a delta-mush key (its predictors are built with them; a model
-    /// without pays nothing for them).
-    pub mush: bool,
 }
 
 /// An enum whose variants index arrays: `ALL` lists them in declaration order
@@ -82,11 +79,10 @@ indexed_enum! {
         Rest,
         SkinIndex,
         SkinWeight,
-        /// J i32 bone parents, then the keys' words: P + 1 offsets and 13 words per
-        /// delta-mush term (`gpu_model::key_words`; one buffer, so that no pass binds more)
+        /// J i32 bone parents
         Parents,
-        /// P records of `PREDICTOR_WORDS` (zeros for the delta-mush keys)
-        Predictors,
+        /// u32, the P keys' records, each its kind's tag and words (`model::key_words`)
+        Keys,
         /// [C1 | C2] dense: 4P x (3P + 4J) f32, row-major (empty where block-sparse)
         ProductMatrix,
         /// P + 1 u32: proxy e's stored columns are entries offsets[e] .. offsets[e + 1]
@@ -436,7 +432,6 @@ mod tests {
         kernels: 0,
         linear_features: false,
         gravity: false,
-        mush: false,
     };
 
     #[test]

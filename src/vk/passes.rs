@@ -28,13 +28,10 @@ indexed_enum! {
     /// (`crowd.rs`; the contract's table row, `contract.rs`).
     pub enum Pass {
         Predict,
-        PredictMush,
         DenseProduct,
         SparseProduct,
         FusedProduct,
         FusedCorrectedProduct,
-        FusedMushProduct,
-        FusedCorrectedMushProduct,
         SkinK4,
         SkinK8,
         SkinNormalsK4,
@@ -55,13 +52,10 @@ impl Pass {
     pub fn desc(self) -> &'static PassDesc {
         match self {
             Pass::Predict => &PREDICT,
-            Pass::PredictMush => &PREDICT_MUSH,
             Pass::DenseProduct => &DENSE_PRODUCT,
             Pass::SparseProduct => &SPARSE_PRODUCT,
             Pass::FusedProduct => &FUSED_PRODUCT,
             Pass::FusedCorrectedProduct => &FUSED_CORRECTED_PRODUCT,
-            Pass::FusedMushProduct => &FUSED_MUSH_PRODUCT,
-            Pass::FusedCorrectedMushProduct => &FUSED_CORRECTED_MUSH_PRODUCT,
             Pass::SkinK4 => &SKIN_K4,
             Pass::SkinK8 => &SKIN_K8,
             Pass::SkinNormalsK4 => &SKIN_NORMALS_K4,
@@ -99,21 +93,9 @@ impl Pass {
 /// a block-sparse [C1 | C2], the latter with or without its predictors fused in, for each K,
 /// with and without bounds, with and without tangents, with and without correctives, and (of
 /// reduced models) with and without proxy correctives (seeing gravity or not), applied in a
-/// fused product or not, and with and without delta-mush keys.
+/// fused product or not. (A key's kind changes no pass: each reads the keys' records.)
 #[cfg(test)]
 pub fn model_kinds() -> impl Iterator<Item = Dims> {
-    corrected_model_kinds().flat_map(|d| {
-        let mush: &[bool] = if d.proxies > 0 {
-            &[false, true]
-        } else {
-            &[false]
-        };
-        mush.iter().map(move |&mush| Dims { mush, ..d })
-    })
-}
-
-#[cfg(test)]
-fn corrected_model_kinds() -> impl Iterator<Item = Dims> {
     let corrected = plain_model_kinds().flat_map(|d| {
         [(0, 0), (3, 2)].map(|(correctives, drivers)| Dims {
             correctives,
@@ -175,7 +157,6 @@ fn plain_model_kinds() -> impl Iterator<Item = Dims> {
                     kernels: 0,
                     linear_features: false,
                     gravity: false,
-                    mush: false,
                 })
         })
 }
@@ -188,22 +169,14 @@ const PREDICT: PassDesc = PassDesc {
     bindings: &[
         Reads(Crowd::Bones),
         Model(M::Parents),
-        Model(M::Predictors),
+        Model(M::Keys),
         Writes(Crowd::Rhs),
         Writes(Crowd::Palette),
     ],
     push: &[W::Proxies, W::Bones, W::Characters],
     // local_size_x = 64 over predictors then bones, one row of groups per character.
     groups: [over(PredictorsAndBones, 64), over(Characters, 1), ONE],
-    runs: |d| d.proxies > 0 && !d.fused && !d.mush,
-};
-
-/// The same for a model with delta-mush keys (`Dims::mush`): the shader's `MUSH` build, with
-/// their branch and the rotation fit (docs/method.md §23) that other models do not pay for.
-const PREDICT_MUSH: PassDesc = PassDesc {
-    shader: shaders::PREDICT_MUSH,
-    runs: |d| d.proxies > 0 && !d.fused && d.mush,
-    ..PREDICT
+    runs: |d| d.proxies > 0 && !d.fused,
 };
 
 /// Proxy transforms T (4P x 3C) = [C1 | C2] (4P x (3P + 4J)) · B ((3P + 4J) x 3C) for all
@@ -247,7 +220,7 @@ const FUSED_PRODUCT: PassDesc = PassDesc {
     push: &[W::Proxies, W::Bones, W::Characters],
     // As the sparse product's, and a row per bone (copied into the palette).
     groups: [over(Characters, 64), over(PredictorsAndBones, 1), ONE],
-    runs: |d| d.proxies > 0 && d.fused && !d.mush && !fused_corrects(d),
+    runs: |d| d.proxies > 0 && d.fused && !fused_corrects(d),
 };
 
 /// Whether a fused product applies the proxy correctives itself (never those that see gravity:
@@ -263,22 +236,8 @@ const FUSED_CORRECTED_PRODUCT: PassDesc = PassDesc {
     shader: shaders::FUSED_CORRECTED_PRODUCT,
     bindings: &extended::<7, 10>(FUSED_BINDINGS, &PROXY_CORRECTIVE_DATA),
     push: &PROXY_CORRECTIVE_PUSH,
-    runs: |d| d.proxies > 0 && d.fused && !d.mush && fused_corrects(d),
+    runs: |d| d.proxies > 0 && d.fused && fused_corrects(d),
     ..FUSED_PRODUCT
-};
-
-/// [`FUSED_PRODUCT`] for a model with delta-mush keys (as [`PREDICT_MUSH`]).
-const FUSED_MUSH_PRODUCT: PassDesc = PassDesc {
-    shader: shaders::FUSED_MUSH_PRODUCT,
-    runs: |d| d.proxies > 0 && d.fused && d.mush && !fused_corrects(d),
-    ..FUSED_PRODUCT
-};
-
-/// [`FUSED_CORRECTED_PRODUCT`] for a model with delta-mush keys (as [`PREDICT_MUSH`]).
-const FUSED_CORRECTED_MUSH_PRODUCT: PassDesc = PassDesc {
-    shader: shaders::FUSED_CORRECTED_MUSH_PRODUCT,
-    runs: |d| d.proxies > 0 && d.fused && d.mush && fused_corrects(d),
-    ..FUSED_CORRECTED_PRODUCT
 };
 
 /// Pose-space corrective weights w = map · φ(q) for every (target, character), from the
@@ -445,7 +404,7 @@ const FUSED_BINDINGS: [Binding; 7] = [
     Model(M::ProductValues),
     Reads(Crowd::Bones),
     Model(M::Parents),
-    Model(M::Predictors),
+    Model(M::Keys),
     Writes(Crowd::Palette),
 ];
 
@@ -545,7 +504,7 @@ mod tests {
                 M::SkinIndex => "SkinIndex",
                 M::SkinWeight => "SkinWeight",
                 M::Parents => "Parents",
-                M::Predictors => "Predictors",
+                M::Keys => "Keys",
                 M::ProductMatrix => "ProductMatrix",
                 M::ProductOffsets => "ProductOffsets",
                 M::ProductColumns => "ProductColumns",
@@ -749,7 +708,6 @@ mod tests {
             kernels: 0,
             linear_features: false,
             gravity: false,
-            mush: false,
         };
         // skin (7 buffers) and normals (4)
         assert_eq!(Pass::descriptors_per_chunk(&lbs), (2, 11));
@@ -813,20 +771,5 @@ mod tests {
         };
         // skinning with normals and tangents (10) instead of skin (7), normals (4), tangents (7)
         assert_eq!(Pass::descriptors_per_chunk(&transformed), (5, 31));
-        // Delta-mush keys: the predictors' other build, the same bindings.
-        for d in [separate, proxy_corrected] {
-            let mush = Dims { mush: true, ..d };
-            assert_eq!(
-                Pass::descriptors_per_chunk(&mush),
-                Pass::descriptors_per_chunk(&d)
-            );
-            let runs = |d: &Dims, p: Pass| Pass::of_model(d).any(|q| q == p);
-            let (plain, with_mush) = match d.fused {
-                false => (Pass::Predict, Pass::PredictMush),
-                true => (Pass::FusedCorrectedProduct, Pass::FusedCorrectedMushProduct),
-            };
-            assert!(runs(&d, plain) && !runs(&d, with_mush));
-            assert!(runs(&mush, with_mush) && !runs(&mush, plain));
-        }
     }
 }

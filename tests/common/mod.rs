@@ -12,7 +12,7 @@ use glam::DVec3;
 use rrskin::vk::{Context, ContextDesc};
 use rrskin::Model;
 #[allow(unused_imports)] // each test binary uses a different subset
-pub use rrskin_render::synthetic::with_mush_keys;
+pub use rrskin_render::synthetic::with_delta_mush_keys;
 pub use rrskin_render::synthetic::{random_poses, Spec};
 
 pub fn random_model(spec: Spec, seed: u64) -> Model {

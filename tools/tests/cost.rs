@@ -7,7 +7,7 @@ mod scratch;
 
 use rrskin::cost::{Cost, Target, LAVAPIPE};
 use rrskin::Model;
-use rrskin_render::synthetic::{random_model, with_mush_keys, Spec};
+use rrskin_render::synthetic::{random_model, with_delta_mush_keys, Spec};
 use rrskin_tools::cylinder_chain::Chain;
 use rrskin_tools::train::budget::{CostBudget, Priced};
 use rrskin_tools::train::{self, TrainOptions};
@@ -54,8 +54,8 @@ fn proxies_and_delta_mush_keys_cost_more_on_every_target() {
     assert!(us(&many) > us(&few) && us(&few) > 0.0);
     // A delta-mush key (a rigid fit over its bones) costs about what a predictor key does:
     // the model's keys' share of the frame within a factor 2 either way.
-    let some = with_mush_keys(&many, 8, 1).expect("delta-mush keys");
-    let all = with_mush_keys(&many, 24, 1).expect("delta-mush keys");
+    let some = with_delta_mush_keys(&many, 8, 1).expect("delta-mush keys");
+    let all = with_delta_mush_keys(&many, 24, 1).expect("delta-mush keys");
     for target in Target::ALL {
         let ns = |m: &Model| Cost::of(m, target, &LAVAPIPE).ns;
         let keys = |m: &Model| ns(m) - ns(&model(0));
@@ -109,7 +109,7 @@ fn info_reports_the_cost_of_every_target() {
 fn bench_measures_the_palette_of_any_model() {
     let dir = temp_dir("cost-palette");
     let path = dir.join("m.rrs");
-    with_mush_keys(&model(12), 4, 2)
+    with_delta_mush_keys(&model(12), 4, 2)
         .expect("delta-mush keys")
         .save(&path)
         .expect("written");
@@ -231,7 +231,7 @@ fn the_floor_is_below_every_model_of_its_keys() {
             influences: 4,
         };
         let model = random_model(spec, seed).expect("a valid model");
-        let mushed = with_mush_keys(&model, keys, seed).expect("delta-mush keys");
+        let mushed = with_delta_mush_keys(&model, keys, seed).expect("delta-mush keys");
         for target in Target::ALL {
             let floor = Cost::floor(mushed.vertex_count(), 4, keys, target, &LAVAPIPE);
             let cost = Cost::of(&mushed, target, &LAVAPIPE);

@@ -8,6 +8,7 @@
 //! one palette.
 
 use glam::DVec3;
+use rrskin::KeyKind;
 use rrskin_tools::cylinder_chain::Chain;
 use rrskin_tools::set::{ExampleSet, Pose, SetFiles, SetParts};
 use rrskin_tools::skinning::ddm::{Ddm, Params};
@@ -116,8 +117,7 @@ fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
         fit.scores
     );
     let model = trained.model.as_ref().expect("a runtime model");
-    let keys = model.mush_keys().expect("a model of delta-mush keys");
-    assert_eq!(keys.count(), fit.proxies());
+    assert_eq!(model.keys_of(KeyKind::DeltaMush), fit.proxies());
     let test = set.test();
     let shipped = runtime_meshes(&set, model, &test);
     let (mush, blend) = (
@@ -146,7 +146,7 @@ fn a_rig_that_does_not_smooth_keeps_joint_blend_proxies() {
         fit.scores
     );
     let model = trained.model.as_ref().expect("a runtime model");
-    assert!(model.mush_keys().is_none());
+    assert_eq!(model.keys_of(KeyKind::DeltaMush), 0);
     let off = TrainOptions {
         delta_mush: false,
         ..options()
@@ -176,10 +176,9 @@ fn asked_for_delta_mush_proxies_are_kept_without_cross_validation() {
         .expect("the delta-mush stage ran");
     assert!(fit.kept == Kept::DeltaMush && fit.scores.is_empty());
     let model = trained.model.as_ref().expect("a runtime model");
-    let keys = model.mush_keys().expect("a model of delta-mush keys");
-    assert_eq!(keys.count(), options().proxies);
+    assert_eq!(model.keys_of(KeyKind::DeltaMush), options().proxies);
     let reduced = trained.reduced.as_ref().expect("the shipped model in f64");
-    assert!(reduced.predictors.is_empty() && reduced.mush.is_some());
+    assert!(reduced.predictors.is_empty() && reduced.delta_mush.is_some());
     assert!(model.proxy_correctives().is_none());
     // The runtime's CPU reference deforms every pose as the proxies do, to f32 round-off.
     let test = set.test();
@@ -206,8 +205,7 @@ fn asked_for_both_kinds_are_kept_without_cross_validation() {
     let both = trained.reduced.as_ref().expect("the shipped model in f64");
     assert!(fit.scores.is_empty() && !both.predictors.is_empty());
     let model = trained.model.as_ref().expect("a runtime model");
-    let keys = model.mush_keys().expect("delta-mush keys");
-    assert_eq!(keys.count(), options().proxies);
+    assert_eq!(model.keys_of(KeyKind::DeltaMush), options().proxies);
     assert_eq!(
         model.proxy_count(),
         both.predictors.len() + options().proxies
@@ -237,8 +235,7 @@ fn a_rig_that_smooths_in_part_gets_both_kinds_in_one_palette() {
     );
     let both = trained.reduced.as_ref().expect("the shipped model in f64");
     let model = trained.model.as_ref().expect("a runtime model");
-    let keys = model.mush_keys().expect("delta-mush keys");
-    assert_eq!(keys.count(), fit.proxies());
+    assert_eq!(model.keys_of(KeyKind::DeltaMush), fit.proxies());
     assert_eq!(model.proxy_count(), both.predictors.len() + fit.proxies());
     assert!(!both.predictors.is_empty());
     let test = set.test();
@@ -294,8 +291,7 @@ fn delta_mush_proxies_are_doubled_where_the_folds_say_it_pays() {
     let margin = (1.0 + MORE_KEYS_MARGIN).powf(2.0 * doublings);
     assert!(fit.counts[kept].1 * margin <= fit.counts[0].1);
     let model = trained.model.as_ref().expect("a runtime model");
-    let keys = model.mush_keys().expect("delta-mush keys");
-    assert_eq!(keys.count(), fit.proxies());
+    assert_eq!(model.keys_of(KeyKind::DeltaMush), fit.proxies());
     let test = set.test();
     let asked = TrainOptions {
         method: match fit.kept {
@@ -306,7 +302,7 @@ fn delta_mush_proxies_are_doubled_where_the_folds_say_it_pays() {
     };
     let at_p = train::run(&set, &asked).expect("training");
     let at_p = at_p.model.as_ref().expect("a runtime model");
-    assert_eq!(at_p.mush_keys().map(|k| k.count()), Some(3));
+    assert_eq!(at_p.keys_of(KeyKind::DeltaMush), 3);
     let ee = |model| {
         let meshes = runtime_meshes(&set, model, &test);
         enveloping_error(&set, &test, &meshes, &trained.rigid)

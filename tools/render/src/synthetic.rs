@@ -12,7 +12,8 @@
 
 use glam::{DMat3, DVec3};
 use rrskin::predict::{exp_rotation, Affine};
-use rrskin::{Error, KeyPredictor, Model, ModelParts, ModelProblem, Result, SecondBone};
+use rrskin::{DeltaMushKey, DeltaMushTerm, Key, KeyPredictor, SecondBone};
+use rrskin::{Error, Model, ModelParts, ModelProblem, Result};
 
 /// xorshift64*: deterministic, no dependency.
 pub struct Rng(u64);
@@ -151,7 +152,9 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
             }
         }
     }
-    let predictors = (0..p).map(|_| random_predictor(&mut rng, j)).collect();
+    let keys = (0..p)
+        .map(|_| Key::Predictor(random_predictor(&mut rng, j)))
+        .collect();
     let mut c1 = vec![0.0f32; 4 * p * 3 * p];
     for x in c1.iter_mut() {
         *x = rng.range(-0.05, 0.05) as f32;
@@ -170,7 +173,7 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         influences: spec.influences,
         skin_indices,
         skin_weights,
-        predictors,
+        keys,
         c1,
         c2,
         normal_groups: Vec::new(),
@@ -180,7 +183,6 @@ pub fn random_model(spec: Spec, seed: u64) -> Result<Model> {
         rest_tangents,
         correctives: None,
         proxy_correctives: None,
-        mush_keys: None,
     };
     Model::new(parts)
 }
@@ -209,30 +211,28 @@ fn random_predictor(rng: &mut Rng, j: usize) -> KeyPredictor {
     }
 }
 
-/// `model` with its last `keys` keys made delta-mush keys ([`rrskin::MushKeys`]): each a rigid
-/// fit of 1 to 6 distinct random bones, bone i's term `Ω_i = w_i [I + N_i; c_iᵀ]` (4x3, rows)
-/// with a weight w_i in [0.1, 1], a small random N_i and a random centre c_i, as a group's
-/// smoothed weights give. Errors if `keys` exceeds the model's predictors.
-pub fn with_mush_keys(model: &Model, keys: usize, seed: u64) -> Result<Model> {
+/// `model` with `keys` of its P keys made delta-mush keys ([`rrskin::DeltaMushKey`]), spread
+/// among the predictors (keys ⌊i P / keys⌋, so that the kinds interleave): each a rigid fit of
+/// 1 to 6 distinct random bones, bone i's term `Ω_i = w_i [I + N_i; c_iᵀ]` (4x3, rows) with a
+/// weight w_i in [0.1, 1], a small random N_i and a random centre c_i, as a group's smoothed
+/// weights give. Errors if `keys` exceeds P.
+pub fn with_delta_mush_keys(model: &Model, keys: usize, seed: u64) -> Result<Model> {
     let mut parts = model.parts().clone();
-    let r = parts
-        .predictors
-        .len()
-        .checked_sub(keys)
-        .ok_or(Error::OutOfRange {
-            what: "delta-mush keys (more than the model's predictors)",
+    let p = parts.keys.len();
+    if keys > p {
+        return Err(Error::OutOfRange {
+            what: "delta-mush keys (more than the model's keys)",
             index: keys,
-            count: parts.predictors.len(),
-        })?;
-    parts.predictors.truncate(r);
+            count: p,
+        });
+    }
     let mut rng = Rng::new(seed ^ 0x00D0_3A54);
     let j = model.bone_count();
-    let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
-    for _ in 0..keys {
-        let first = bones.len();
+    for i in 0..keys {
+        let mut terms: Vec<DeltaMushTerm> = Vec::new();
         for _ in 0..1 + rng.below(6.min(j)) {
-            let b = rng.below(j) as u32;
-            if bones[first..].contains(&b) {
+            let bone = rng.below(j) as u32;
+            if terms.iter().any(|t| t.bone == bone) {
                 continue;
             }
             let w = rng.range(0.1, 1.0);
@@ -242,22 +242,15 @@ pub fn with_mush_keys(model: &Model, keys: usize, seed: u64) -> Result<Model> {
                 rng.vec3(0.5),
             );
             let t = rows(n);
-            bones.push(b);
-            terms.push(
-                [
-                    t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], c.x as f32, c.y as f32,
-                    c.z as f32,
-                ]
-                .map(|x| x * w as f32),
-            );
+            let omega = [
+                t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], c.x as f32, c.y as f32,
+                c.z as f32,
+            ]
+            .map(|x| x * w as f32);
+            terms.push(DeltaMushTerm { bone, omega });
         }
-        offsets.push(bones.len() as u32);
+        parts.keys[i * p / keys] = Key::DeltaMush(DeltaMushKey { terms });
     }
-    parts.mush_keys = (keys > 0).then_some(rrskin::MushKeys {
-        offsets,
-        bones,
-        terms,
-    });
     Model::new(parts)
 }
 
@@ -330,14 +323,16 @@ pub fn renumber_bones(model: &Model, new_index: &[usize]) -> Result<Model> {
     for i in parts.baseline_indices.iter_mut() {
         *i = bone(*i);
     }
-    for pred in parts.predictors.iter_mut() {
-        pred.bone = bone(pred.bone);
-        if let Some(second) = pred.second.as_mut() {
-            second.bone = bone(second.bone);
+    for key in parts.keys.iter_mut() {
+        match key {
+            Key::Predictor(pred) => {
+                pred.bone = bone(pred.bone);
+                if let Some(second) = pred.second.as_mut() {
+                    second.bone = bone(second.bone);
+                }
+            }
+            Key::DeltaMush(k) => k.terms.iter_mut().for_each(|t| t.bone = bone(t.bone)),
         }
-    }
-    if let Some(keys) = parts.mush_keys.as_mut() {
-        keys.bones.iter_mut().for_each(|b| *b = bone(*b));
     }
     // C2: 4P x 4J, columns 4b..4b+4 belong to bone b.
     for (row, old) in parts

@@ -27,7 +27,7 @@ pub fn run(args: &InfoArgs) -> Outcome {
             m.triangle_count(),
             m.bone_count(),
             m.proxy_count(),
-            m.mush_keys().map_or(0, |k| k.count()),
+            m.keys_of(rrskin::KeyKind::DeltaMush),
             m.influences(),
             if m.proxy_count() == 0 { " (plain linear blend skinning)" } else { "" },
             if m.has_tangents() { "rest tangents" } else { "no rest tangents" },

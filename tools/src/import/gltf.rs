@@ -221,7 +221,7 @@ impl Imported {
                 .iter()
                 .flat_map(|&w| parts.skin_weights[w * k..(w + 1) * k].to_vec())
                 .collect(),
-            predictors: parts.predictors.clone(),
+            keys: parts.keys.clone(),
             c1: parts.c1.clone(),
             c2: parts.c2.clone(),
             normal_groups: normal_groups(&self.weld)
@@ -244,7 +244,6 @@ impl Imported {
                     ..c.clone()
                 }),
             proxy_correctives: parts.proxy_correctives.clone(),
-            mush_keys: parts.mush_keys.clone(),
         })
     }
 }
@@ -299,7 +298,7 @@ impl Imported {
                 .iter()
                 .flat_map(|&g| parts.skin_weights[g * k..(g + 1) * k].to_vec())
                 .collect(),
-            predictors: parts.predictors.clone(),
+            keys: parts.keys.clone(),
             c1: parts.c1.clone(),
             c2: parts.c2.clone(),
             normal_groups: Vec::new(),
@@ -321,7 +320,6 @@ impl Imported {
                     ..c.clone()
                 }),
             proxy_correctives: parts.proxy_correctives.clone(),
-            mush_keys: parts.mush_keys.clone(),
         })
     }
 }

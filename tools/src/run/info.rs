@@ -13,7 +13,7 @@ pub fn to_json(m: &Model) -> serde_json::Value {
         "bones": m.bone_count(), "proxies": m.proxy_count(), "influences": m.influences(),
         "tangents": m.has_tangents(), "correctives": m.corrective_count(),
         "proxy_correctives": m.proxy_corrective_count(),
-        "mush_keys": m.mush_keys().map_or(0, |k| k.count()), "up": m.up(),
+        "delta_mush_keys": m.keys_of(rrskin::KeyKind::DeltaMush), "up": m.up(),
         "clamped": clamped, "cost": crate::eval::cost::to_json(m),
     })
 }

@@ -43,7 +43,7 @@ pub struct Params {
 }
 
 /// An entry's rigid fit ([`Ddm::motions`]) in linear form, what the runtime's delta-mush keys
-/// carry ([`rrskin::MushKeys`]): with M_j = [Q_j | d_j] (3x4) the bone transforms,
+/// carry ([`rrskin::DeltaMushKey`]): with M_j = [Q_j | d_j] (3x4) the bone transforms,
 /// `R = polar(Σ_j M_j A_j)` and `t = Σ_j M_j ω_j − R p`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearFit {

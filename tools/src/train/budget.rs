@@ -73,10 +73,10 @@ impl Priced {
     }
 
     /// The least any model of `vertices` vertices, at most `influences` influences and
-    /// `mush_keys` delta-mush keys is priced ([`Cost::floor`]): a count it puts over the budget
+    /// `delta_mush_keys` delta-mush keys is priced ([`Cost::floor`]): a count it puts over the budget
     /// is over before it is fitted.
-    pub fn floor(vertices: usize, influences: usize, mush_keys: usize) -> Priced {
-        Priced::from(|target| Cost::floor(vertices, influences, mush_keys, target, &LAVAPIPE))
+    pub fn floor(vertices: usize, influences: usize, delta_mush_keys: usize) -> Priced {
+        Priced::from(|target| Cost::floor(vertices, influences, delta_mush_keys, target, &LAVAPIPE))
     }
 
     fn from(cost: impl Fn(Target) -> Cost) -> Priced {

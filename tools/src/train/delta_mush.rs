@@ -355,7 +355,7 @@ fn admit(
 /// The front's point of `r` (as [`describe`] names it), scored `ee` by the comparison `stage`,
 /// priced `priced`.
 fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
-    let mush = r.mush.as_ref().map_or(0, Keys::count);
+    let mush = r.delta_mush.as_ref().map_or(0, Keys::count);
     let kind = match (r.proxies - mush, mush) {
         (_, 0) => "joint-blend",
         (0, _) => "delta-mush",
@@ -373,7 +373,7 @@ fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
 /// A reduced model's keys, as the report names a candidate: "54 joint-blend proxies", "60
 /// delta-mush proxies", "54 joint-blend and 60 delta-mush proxies".
 fn describe(r: &Reduced) -> String {
-    let mush = r.mush.as_ref().map_or(0, Keys::count);
+    let mush = r.delta_mush.as_ref().map_or(0, Keys::count);
     match (r.proxies - mush, mush) {
         (jb, 0) => format!("{jb} joint-blend proxies"),
         (0, mush) => format!("{mush} delta-mush proxies"),

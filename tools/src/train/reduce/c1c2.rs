@@ -35,10 +35,11 @@ pub struct Reduced {
     pub c1: Vec<f64>,
     /// 4P x 4J, row-major.
     pub c2: Vec<f64>,
-    /// The keys, as the runtime orders them (P in all): the predictors' (paper §3), then the
-    /// delta-mush keys' (docs/method.md §23), Direct Delta Mush's fits of their groups.
+    /// The keys (P in all): the predictors' (paper §3), then the delta-mush keys'
+    /// (docs/method.md §23), Direct Delta Mush's fits of their groups; the runtime model holds
+    /// them as one list of [`rrskin::Key`]s ([`Reduced::to_runtime`]).
     pub predictors: Vec<TrainedPredictor>,
-    pub mush: Option<Keys>,
+    pub delta_mush: Option<Keys>,
     /// Per vertex: (palette entry, weight); entries < P are proxies, P + b bone b.
     pub skin: Vec<Vec<(usize, f64)>>,
     /// Per vertex: SSD's (bone, weight), the baseline the runtime model carries.
@@ -77,7 +78,7 @@ pub fn assemble(
         c1,
         c2,
         predictors,
-        mush: None,
+        delta_mush: None,
         skin,
         baseline: ssd.influences.clone(),
     }
@@ -287,7 +288,7 @@ impl Reduced {
         let mut d: Vec<DMat3> = (self.predictors.iter())
             .map(|k| k.predict(f, &set.parents))
             .collect();
-        if let Some(mush) = &self.mush {
+        if let Some(mush) = &self.delta_mush {
             d.extend(mush.motions(bones).into_iter().map(|m| m.q));
         }
         self.proxy_transforms(&d, bones)
@@ -409,9 +410,7 @@ impl Reduced {
     pub fn to_runtime(&self, set: &ExampleSet, influences: usize) -> rrskin::Result<rrskin::Model> {
         let root = set.parents.iter().position(|p| p.is_none()).unwrap_or(0);
         let rows = |m: DMat3| m.transpose().to_cols_array().map(|x| x as f32);
-        let predictors = self
-            .predictors
-            .iter()
+        let predictors = (self.predictors.iter())
             .map(|k| match &k.rotation {
                 Some(r) => rrskin::KeyPredictor {
                     bone: r.first.bone as u32,
@@ -433,17 +432,20 @@ impl Reduced {
                     h: crate::train::scale_shear::identity().map(|x| x as f32),
                 },
             })
+            .map(rrskin::Key::Predictor);
+        let delta_mush = self.delta_mush.as_ref().map_or(&[][..], |k| &k.runtime);
+        let keys = predictors
+            .chain(delta_mush.iter().cloned().map(rrskin::Key::DeltaMush))
+            .collect();
+        let frames: Vec<_> = (self.predictors.iter().map(|_| None))
+            .chain(self.delta_mush.iter().flat_map(|k| k.frames().iter().copied().map(Some)))
             .collect();
         let mut c1: Vec<f32> = self.c1.iter().map(|&x| x as f32).collect();
-        if let Some(keys) = &self.mush {
-            let first = self.predictors.len();
-            rrskin::model::c1_in_key_frames(&mut c1, self.proxies, first, keys.frames());
-        }
+        rrskin::model::c1_in_key_frames(&mut c1, &frames);
         rrskin::Model::new(rrskin::ModelParts {
-            predictors,
+            keys,
             c1,
             c2: self.c2.iter().map(|&x| x as f32).collect(),
-            mush_keys: self.mush.as_ref().map(|keys| keys.runtime.clone()),
             ..runtime_parts(set, influences, &self.skin, &self.baseline)
         })
     }
@@ -470,7 +472,7 @@ pub fn runtime_parts(
         influences: influences as u32,
         skin_indices,
         skin_weights,
-        predictors: Vec::new(),
+        keys: Vec::new(),
         c1: Vec::new(),
         c2: Vec::new(),
         normal_groups: Vec::new(),
@@ -480,7 +482,6 @@ pub fn runtime_parts(
         rest_tangents: Vec::new(),
         correctives: None,
         proxy_correctives: None,
-        mush_keys: None,
     }
 }
 

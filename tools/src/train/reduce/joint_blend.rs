@@ -290,7 +290,7 @@ fn assemble(
         c1,
         c2,
         predictors,
-        mush: None,
+        delta_mush: None,
         skin,
         baseline: ssd.influences.clone(),
     }

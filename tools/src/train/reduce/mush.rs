@@ -1,6 +1,6 @@
 //! Delta-mush proxies (docs/method.md §23): P proxy bones whose transforms are Direct Delta
 //! Mush's rigid fits ([`crate::skinning::ddm`]) for whole groups of vertices, and K-influence
-//! palette skinning over them; a reduced model of delta-mush keys ([`rrskin::MushKeys`],
+//! palette skinning over them; a reduced model of delta-mush keys ([`rrskin::DeltaMushKey`],
 //! [`MushProxies::reduced`]), alone or after a joint-blend model's proxies ([`join`]), where
 //! [`crate::train::delta_mush`] keeps them.
 //!
@@ -84,7 +84,7 @@ impl MushProxies {
         influences: usize,
     ) -> MushProxies {
         let (shares, adjacency) = (&groups.shares, &groups.adjacency);
-        let cap = rrskin::model::MAX_MUSH_BONES;
+        let cap = rrskin::model::MAX_DELTA_MUSH_BONES;
         let groups = Keys::of(&vertex_ddm.grouped(shares, adjacency.len(), FLOOR, cap));
         let p = adjacency.len();
         let motions: Vec<Vec<Affine>> = (train.iter())
@@ -114,7 +114,7 @@ impl MushProxies {
             c1,
             c2,
             predictors: Vec::new(),
-            mush: Some(self.proxies.clone()),
+            delta_mush: Some(self.proxies.clone()),
             skin: self.weights.clone(),
             baseline: baseline.to_vec(),
         }
@@ -190,7 +190,7 @@ pub fn join(
         c1,
         c2: [base.c2.as_slice(), &mush_c2].concat(),
         predictors: base.predictors.clone(),
-        mush: Some(mush.proxies.clone()),
+        delta_mush: Some(mush.proxies.clone()),
         skin,
         baseline: base.baseline.clone(),
     }
@@ -310,7 +310,7 @@ mod tests {
         let model = (mush.reduced(4, &skin.influences))
             .to_runtime(&set, 4)
             .expect("a valid model");
-        assert_eq!(model.mush_keys().map(|k| k.count()), Some(8));
+        assert_eq!(model.keys().iter().filter_map(rrskin::Key::delta_mush).count(), 8);
         let mut cpu = rrskin::cpu::CpuEvaluator::new(&model);
         let v = set.vertex_count();
         let (mut got, mut normals) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);

@@ -1,7 +1,8 @@
 //! Delta-mush keys as the runtime evaluates them (docs/method.md §23): per group of
-//! [`Ddm::grouped`], the runtime's key ([`rrskin::MushKeys`], its terms in the key's principal
-//! frame) and what its proxy adds to it. Training fits the proxies' weights to the function that
-//! ships, `D = fit(A') Pᵀ` by [`rrskin::predict::mush_gradient`] (Newton steps from a guess,
+//! [`Ddm::grouped`], the runtime's key ([`rrskin::DeltaMushKey`], its terms in the key's
+//! principal frame) and what its proxy adds to it. Training fits the proxies' weights to the
+//! function that ships, `D = fit(A') Pᵀ` by [`rrskin::predict::delta_mush_gradient`] (Newton
+//! steps from a guess,
 //! `rrskin::polar`), not to an exact polar decomposition.
 
 use crate::set::Affine;
@@ -12,8 +13,8 @@ use glam::{DMat3, DVec3};
 #[derive(Clone)]
 pub struct Keys {
     /// The runtime's keys, each in its principal frame P_s
-    /// ([`rrskin::MushKeys::in_principal_frames`]).
-    pub runtime: rrskin::MushKeys,
+    /// ([`rrskin::DeltaMushKey::in_principal_frame`]).
+    pub runtime: Vec<rrskin::DeltaMushKey>,
     /// Per key, P_s (row-major): the runtime's fit gives `D_s P_s`.
     frames: Vec<[[f64; 3]; 3]>,
     /// Per key, its group's rigid fit in linear form (the translation's ω_j and centre p);
@@ -28,28 +29,22 @@ impl Keys {
         let fits: Vec<Option<LinearFit>> = (0..groups.entries())
             .map(|g| groups.linear_fit(g))
             .collect();
-        let (mut offsets, mut bones, mut terms) = (vec![0u32], Vec::new(), Vec::new());
-        for fit in &fits {
-            match fit {
-                Some(fit) => {
-                    for (b, a, _) in &fit.terms {
-                        bones.push(*b as u32);
-                        terms.push(std::array::from_fn(|i| a[i / 3][i % 3] as f32));
-                    }
-                }
-                None => {
-                    bones.push(0);
-                    terms.push([0.0; 12]);
-                }
-            }
-            offsets.push(bones.len() as u32);
-        }
-        let unturned = rrskin::MushKeys {
-            offsets,
-            bones,
-            terms,
+        let term = |&(b, a, _): &(usize, [[f64; 3]; 4], [f64; 4])| rrskin::DeltaMushTerm {
+            bone: b as u32,
+            omega: std::array::from_fn(|i| a[i / 3][i % 3] as f32),
         };
-        let (runtime, frames) = unturned.in_principal_frames();
+        let (runtime, frames) = (fits.iter())
+            .map(|fit| {
+                let terms = match fit {
+                    Some(fit) => fit.terms.iter().map(term).collect(),
+                    None => vec![rrskin::DeltaMushTerm {
+                        bone: 0,
+                        omega: [0.0; 12],
+                    }],
+                };
+                rrskin::DeltaMushKey { terms }.in_principal_frame()
+            })
+            .unzip();
         Keys {
             runtime,
             frames,
@@ -64,7 +59,8 @@ impl Keys {
 
     /// The mean bones per key: the run-time cost of the keys.
     pub fn mean_bones(&self) -> f64 {
-        self.runtime.bones.len() as f64 / self.count().max(1) as f64
+        let terms: usize = self.runtime.iter().map(|k| k.terms.len()).sum();
+        terms as f64 / self.count().max(1) as f64
     }
 
     /// The frames P_s (row-major) that C1 turns the keys' fits by
@@ -85,7 +81,7 @@ impl Keys {
                         d: DVec3::ZERO,
                     };
                 };
-                let turned = rrskin::predict::mush_gradient(&self.runtime, s, &runtime_bones);
+                let turned = rrskin::predict::delta_mush_gradient(&self.runtime[s], &runtime_bones);
                 let frame = DMat3::from_cols_array_2d(&self.frames[s]).transpose();
                 let q = turned * frame.transpose();
                 let moved: DVec3 = (fit.terms.iter())
