@@ -462,12 +462,11 @@ impl Palette {
         let keys = self.model.keys();
         for chunk in self.delta_mush.chunks(DELTA_MUSH_LANES) {
             // The last chunk's unused lanes fit A = 0 (the identity), and are dropped.
-            let a: [[[f32; 3]; 3]; DELTA_MUSH_LANES] = std::array::from_fn(|i| {
-                match chunk.get(i).and_then(|&l| keys[l].delta_mush()) {
+            let a: [[[f32; 3]; 3]; DELTA_MUSH_LANES] =
+                std::array::from_fn(|i| match chunk.get(i).and_then(|&l| keys[l].delta_mush()) {
                     Some(key) => delta_mush_covariance_f32(key, q),
                     None => [[0.0; 3]; 3],
-                }
-            });
+                });
             for (r, &l) in nearest_rotations_f32(&a).iter().zip(chunk) {
                 for (c, column) in rhs[3 * l..3 * l + 3].iter_mut().enumerate() {
                     *column = Vec3::new(r[0][c], r[1][c], r[2][c]);

@@ -1,4 +1,4 @@
-//! The rotation of a delta-mush key's rigid fit ([`crate::model::MushKeys`]): for a 3x3 matrix
+//! The rotation of a delta-mush key's rigid fit ([`crate::model::DeltaMushKey`]): for a 3x3 matrix
 //! A, the proper rotation R maximising tr(Rᵀ A), the rotational part of A's polar decomposition
 //! where det A > 0. [`fit_rotation`] is the function every evaluator ships (the `f64`
 //! reference, the `f32` palette, `glsl/polar.glsl`) and training fits the model to.

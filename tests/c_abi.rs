@@ -285,7 +285,11 @@ fn the_headless_path_through_the_abi_matches_the_cpu_evaluator() {
         9,
     );
     let model = with_proxy_correctives_seeing(
-        &with_correctives(&with_delta_mush_keys(&keys, 2, 9).expect("delta-mush keys"), 4, 2),
+        &with_correctives(
+            &with_delta_mush_keys(&keys, 2, 9).expect("delta-mush keys"),
+            4,
+            2,
+        ),
         true,
         Some([0.0, 1.0, 0.0]),
         2,

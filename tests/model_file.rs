@@ -67,7 +67,10 @@ fn sections(bytes: &[u8]) -> Vec<([u8; 4], Vec<u8>)> {
             let e = 24 + 24 * i;
             let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().expect("8"));
             let (offset, length) = (word(e + 8) as usize, word(e + 16) as usize);
-            (bytes[e..e + 4].try_into().expect("4"), bytes[offset..offset + length].to_vec())
+            (
+                bytes[e..e + 4].try_into().expect("4"),
+                bytes[offset..offset + length].to_vec(),
+            )
         })
         .collect()
 }
@@ -266,7 +269,12 @@ fn out_of_range_indices_are_refused_with_the_bound() {
     let good = m.to_bytes();
     let cases: [(usize, u32, &str, usize); 4] = [
         (section(&good, b"TRIS") + 16, v as u32, "triangles", v),
-        (section(&good, b"SKIX") + 24, (p + j) as u32, "skin indices", p + j),
+        (
+            section(&good, b"SKIX") + 24,
+            (p + j) as u32,
+            "skin indices",
+            p + j,
+        ),
         (section(&good, b"PRNT") + 8, j as u32, "bone parents", j),
         (key_word(&good, 1, 0), j as u32, "predictor bone", j),
     ];
@@ -1198,29 +1206,43 @@ proptest! {
 }
 
 /// A model of the tests' shape (J = 4, P = 5) whose keys 0, 1 and 3 are delta-mush keys.
-fn mushed(influences: u32) -> Model {
+fn with_delta_mush(influences: u32) -> Model {
     let m = common::with_delta_mush_keys(&model(5, influences), 3, 5).expect("3 of 5 keys");
     let kinds: Vec<KeyKind> = m.keys().iter().map(Key::kind).collect();
     use KeyKind::{DeltaMush, Predictor};
-    assert_eq!(kinds, [DeltaMush, DeltaMush, Predictor, DeltaMush, Predictor]);
+    assert_eq!(
+        kinds,
+        [DeltaMush, DeltaMush, Predictor, DeltaMush, Predictor]
+    );
     m
 }
 
-/// [`mushed`]'s delta-mush keys after two predictors, as files before version 8 order them.
-fn mushed_last(influences: u32) -> Model {
+/// [`with_delta_mush`]'s delta-mush keys after two predictors, as files before version 8 order them.
+fn with_delta_mush_last(influences: u32) -> Model {
     let mut parts = model(5, influences).into_parts();
     parts.keys.truncate(2);
-    parts.keys.extend(mushed(influences).keys().iter().filter(|k| k.delta_mush().is_some()).cloned());
+    parts.keys.extend(
+        with_delta_mush(influences)
+            .keys()
+            .iter()
+            .filter(|k| k.delta_mush().is_some())
+            .cloned(),
+    );
     Model::new(parts).expect("valid")
 }
 
 #[test]
 fn keys_of_both_kinds_round_trip_in_any_order() {
     for k in [4, 8] {
-        let m = mushed(k);
+        let m = with_delta_mush(k);
         let bytes = round_trip(&m);
         // KEYS: P + 1 offsets, then per key its tag and its words (85, or 13 a term).
-        let terms: usize = m.keys().iter().filter_map(Key::delta_mush).map(|k| k.terms.len()).sum();
+        let terms: usize = m
+            .keys()
+            .iter()
+            .filter_map(Key::delta_mush)
+            .map(|k| k.terms.len())
+            .sum();
         let words = 6 + 5 + 2 * 85 + 13 * terms;
         assert_eq!(table_entry(&bytes, b"KEYS").1, 4 * words as u64);
         for tag in [b"PRED", b"MUSH"] {
@@ -1228,17 +1250,24 @@ fn keys_of_both_kinds_round_trip_in_any_order() {
         }
     }
     // Beside both correctives.
-    let all =
-        common::with_proxy_correctives(&common::with_correctives(&mushed(4), 2, 1), true, 1, 2);
+    let all = common::with_proxy_correctives(
+        &common::with_correctives(&with_delta_mush(4), 2, 1),
+        true,
+        1,
+        2,
+    );
     round_trip(&all);
     // A version-3 file (no MUSH: what this format was before delta-mush keys) loads as it did.
     let m = proxy_corrected(true, 2, 4);
-    assert_eq!(Model::from_bytes(&legacy_file(&m, 3)).expect("a version-3 file"), m);
+    assert_eq!(
+        Model::from_bytes(&legacy_file(&m, 3)).expect("a version-3 file"),
+        m
+    );
 }
 
 #[test]
 fn version_7_files_load_as_the_same_model() {
-    let m = mushed_last(4);
+    let m = with_delta_mush_last(4);
     let v7 = legacy_file(&m, 7);
     assert!(sections(&v7).iter().any(|(t, _)| t == b"MUSH"));
     let loaded = Model::from_bytes(&v7).expect("a version-7 file");
@@ -1256,7 +1285,7 @@ fn exact_polar(a: [[f64; 3]; 3]) -> glam::DMat3 {
 #[test]
 fn version_6_delta_mush_keys_load_into_their_frames_as_the_same_model() {
     // Files before version 7 stored the keys' terms unturned, for the exact polar rotation.
-    let m = mushed_last(4);
+    let m = with_delta_mush_last(4);
     let loaded = Model::from_bytes(&legacy_file(&m, 6)).expect("a version-6 file");
     assert_ne!(loaded.parts().c1, m.parts().c1, "C1 turned with the keys");
     // Every key's D, read as C1 reads it (the fit turned out of its frame), is the exact polar
@@ -1291,7 +1320,7 @@ fn version_6_delta_mush_keys_load_into_their_frames_as_the_same_model() {
 
 #[test]
 fn malformed_delta_mush_sections_of_version_7_are_refused() {
-    let bytes = legacy_file(&mushed_last(4), 7);
+    let bytes = legacy_file(&with_delta_mush_last(4), 7);
     let at = section(&bytes, b"MUSH");
     let edit = |f: &dyn Fn(&mut Vec<u8>)| {
         let mut bad = bytes.clone();
@@ -1316,19 +1345,32 @@ fn malformed_delta_mush_sections_of_version_7_are_refused() {
         (0..17).for_each(|i| put_u32(b, at + 8 + 4 * i, (i as u32).min(n - 1)));
     });
     assert!(
-        matches!(p, ModelProblem::Dimension { what: "the MUSH section's key count", value: 16, .. }),
+        matches!(
+            p,
+            ModelProblem::Dimension {
+                what: "the MUSH section's key count",
+                value: 16,
+                ..
+            }
+        ),
         "{p:?}"
     );
     let p = edit(&|b| put_u32(b, at + 12, n + 1));
     assert!(
-        matches!(p, ModelProblem::Dimension { what: "the MUSH section's offsets", .. }),
+        matches!(
+            p,
+            ModelProblem::Dimension {
+                what: "the MUSH section's offsets",
+                ..
+            }
+        ),
         "{p:?}"
     );
 }
 
 #[test]
 fn malformed_key_records_are_refused() {
-    let bytes = mushed(4).to_bytes();
+    let bytes = with_delta_mush(4).to_bytes();
     let edit = |at: usize, value: u32| {
         let mut bad = bytes.clone();
         put_u32(&mut bad, at, value);
@@ -1338,20 +1380,32 @@ fn malformed_key_records_are_refused() {
     let keys = section(&bytes, b"KEYS");
     // A kind this build does not know (key 2's tag, the word before its record).
     let p = edit(key_word(&bytes, 2, 0) - 4, 7);
-    assert_eq!(p, ModelProblem::BadKey { key: 2, reason: "has a kind this build does not know" });
+    assert_eq!(
+        p,
+        ModelProblem::BadKey {
+            key: 2,
+            reason: "has a kind this build does not know"
+        }
+    );
     // Key 2, a predictor, a word short (key 1 a word longer: not whole terms).
     let p = edit(keys + 8, le_u32(&bytes, keys + 8) + 1);
     assert!(matches!(p, ModelProblem::BadKey { key: 1, .. }), "{p:?}");
     let p = edit(keys, 7);
     assert!(
-        matches!(p, ModelProblem::Dimension { what: "the KEYS section's offsets", .. }),
+        matches!(
+            p,
+            ModelProblem::Dimension {
+                what: "the KEYS section's offsets",
+                ..
+            }
+        ),
         "{p:?}"
     );
 }
 
 #[test]
 fn inconsistent_delta_mush_keys_are_refused_by_validation() {
-    let parts = mushed(4).into_parts();
+    let parts = with_delta_mush(4).into_parts();
     // Key 1, a delta-mush key, edited.
     let with = |f: &dyn Fn(&mut DeltaMushKey)| {
         let mut p = parts.clone();
@@ -1367,18 +1421,35 @@ fn inconsistent_delta_mush_keys_are_refused_by_validation() {
     };
     let empty = with(&|k| k.terms.clear());
     assert_eq!(bad(empty), (1, "is a delta-mush key without a bone"));
-    let term = |bone| DeltaMushTerm { bone, omega: [0.5; 12] };
-    assert_eq!(bad(with(&|k| k.terms = vec![term(1), term(2), term(1)])), (1, "lists a bone twice"));
+    let term = |bone| DeltaMushTerm {
+        bone,
+        omega: [0.5; 12],
+    };
+    assert_eq!(
+        bad(with(&|k| k.terms = vec![term(1), term(2), term(1)])),
+        (1, "lists a bone twice")
+    );
     let many = with(&|k| k.terms = (0..257).map(|b| term(b % 4)).collect());
     assert!(bad(many).1.contains("256"));
     let p = with(&|k| k.terms[0].bone = 4);
     assert!(
         matches!(
             p,
-            ModelProblem::IndexOutOfRange { what: "delta-mush key bone", index: 1, bound: 4, .. }
+            ModelProblem::IndexOutOfRange {
+                what: "delta-mush key bone",
+                index: 1,
+                bound: 4,
+                ..
+            }
         ),
         "{p:?}"
     );
     let p = with(&|k| k.terms[0].omega[5] = f32::NAN);
-    assert_eq!(p, ModelProblem::NonFinite { what: "delta-mush key terms", index: 1 });
+    assert_eq!(
+        p,
+        ModelProblem::NonFinite {
+            what: "delta-mush key terms",
+            index: 1
+        }
+    );
 }

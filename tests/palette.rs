@@ -37,17 +37,17 @@ fn models() -> Vec<(&'static str, Model)> {
         ),
         (
             "delta-mush keys after predictors' keys",
-            mushed(random_model(spec(9, 7, 8, 4), 6), 5),
+            with_delta_mush(random_model(spec(9, 7, 8, 4), 6), 5),
         ),
         (
             "delta-mush keys only, one per proxy",
-            joint_blend_pattern(&mushed(random_model(spec(9, 7, 12, 8), 7), 12), 1),
+            joint_blend_pattern(&with_delta_mush(random_model(spec(9, 7, 12, 8), 7), 12), 1),
         ),
     ]
 }
 
 /// `model` with its last `keys` keys delta-mush keys.
-fn mushed(model: Model, keys: usize) -> Model {
+fn with_delta_mush(model: Model, keys: usize) -> Model {
     with_delta_mush_keys(&model, keys, 3).expect("no more delta-mush keys than keys")
 }
 

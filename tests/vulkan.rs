@@ -1293,7 +1293,7 @@ fn correctives_beside_a_plain_model_in_one_batch_match_cpu() {
 #[test]
 fn delta_mush_keys_match_cpu_in_every_product() {
     let ctx = validated_context();
-    let mushed = |spec, keys, seed| {
+    let with_delta_mush = |spec, keys, seed| {
         with_delta_mush_keys(&random_model(spec, seed), keys, seed).expect("delta-mush keys")
     };
     let wide = Spec {
@@ -1301,12 +1301,12 @@ fn delta_mush_keys_match_cpu_in_every_product() {
         influences: 8,
         ..RR
     };
-    let fused = joint_blend_pattern(&mushed(wide, 20, 72), 1);
+    let fused = joint_blend_pattern(&with_delta_mush(wide, 20, 72), 1);
     let reversed: Vec<usize> = (0..fused.bone_count()).rev().collect();
     let models = [
-        mushed(RR, 3, 71),
+        with_delta_mush(RR, 3, 71),
         fused.clone(),
-        joint_blend_pattern(&mushed(Spec { proxies: 20, ..RR }, 20, 73), 2),
+        joint_blend_pattern(&with_delta_mush(Spec { proxies: 20, ..RR }, 20, 73), 2),
         renumber_bones(&fused, &reversed).expect("a permutation"),
     ];
     for (i, model) in models.iter().enumerate() {
@@ -1336,8 +1336,9 @@ fn proxy_correctives_after_each_product(in_product: bool) {
     };
     let sparse =
         |keys, seed| joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, seed), keys);
-    let mushed = with_delta_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 12, 66)
-        .expect("delta-mush keys");
+    let with_delta_mush =
+        with_delta_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 66), 12, 66)
+            .expect("delta-mush keys");
     let models = [
         with_proxy_correctives(&random_model(k8, 61), true, 0, 1),
         with_proxy_correctives(&sparse(2, 62), false, 3, 2),
@@ -1346,7 +1347,7 @@ fn proxy_correctives_after_each_product(in_product: bool) {
         random_model(LBS, 65),
         // Delta-mush keys after predictors: the fused product's MUSH builds, with and without
         // the correction.
-        with_proxy_correctives(&joint_blend_pattern(&mushed, 1), true, 2, 3),
+        with_proxy_correctives(&joint_blend_pattern(&with_delta_mush, 1), true, 2, 3),
         // Without feature ranges (files before version 6): the shaders clamp to ±f32::MAX.
         with_ranges(
             &with_proxy_correctives(&random_model(k8, 68), true, 2, 4),
@@ -1473,12 +1474,13 @@ fn proxy_correctives_seeing_gravity_match_cpu_for_tilted_characters() {
     let ctx = validated_context();
     let up = Some([0.0, 0.6, 0.8]);
     let sparse = joint_blend_pattern(&random_model(Spec { proxies: 20, ..RR }, 71), 1);
-    let mushed = with_delta_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 72), 12, 72)
-        .expect("delta-mush keys");
+    let with_delta_mush =
+        with_delta_mush_keys(&random_model(Spec { proxies: 20, ..RR }, 72), 12, 72)
+            .expect("delta-mush keys");
     let models = [
         with_proxy_correctives_seeing(&random_model(RR, 70), true, up, 0, 1),
         with_proxy_correctives_seeing(&sparse, false, up, 2, 2),
-        with_proxy_correctives_seeing(&joint_blend_pattern(&mushed, 1), true, up, 2, 3),
+        with_proxy_correctives_seeing(&joint_blend_pattern(&with_delta_mush, 1), true, up, 2, 3),
     ];
     let settings = GpuModelDebugSettings {
         correctives_in_product: Some(true),

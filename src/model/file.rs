@@ -42,8 +42,8 @@
 //! checked by `validate` for files and in-memory parts alike.
 
 use super::key::{key_words, keys_of_words, predictor_of_words, PREDICTOR_WORDS};
-use super::{Correctives, DeltaMushKey, DeltaMushTerm, FeatureRange, Key, ModelParts};
 use super::ProxyCorrectives;
+use super::{Correctives, DeltaMushKey, DeltaMushTerm, FeatureRange, Key, ModelParts};
 use crate::error::ModelProblem;
 
 pub const MAGIC: [u8; 8] = [0x89, b'R', b'R', b'S', 0x0D, 0x0A, 0x1A, 0x0A];
@@ -270,38 +270,45 @@ fn keys(table: &SectionTable, body: &[u8], version: u32, p: u64) -> Result<Vec<K
     }
     let length = (table.entry(KEYS)).ok_or(ModelProblem::MissingSection { tag: "KEYS".into() })?;
     let whole = length / 4 * 4;
-    let words = u32s(table.section(body, KEYS, whole).map_err(|_| ModelProblem::SectionLength {
-        tag: "KEYS".into(),
-        expected: whole,
-        actual: length,
-    })?);
+    let words =
+        u32s(
+            table
+                .section(body, KEYS, whole)
+                .map_err(|_| ModelProblem::SectionLength {
+                    tag: "KEYS".into(),
+                    expected: whole,
+                    actual: length,
+                })?,
+        );
     keys_of_words(&words, p as usize)
 }
 
 /// The keys of a file before version 8: the PRED predictors, then the MUSH delta-mush keys.
 fn legacy_keys(table: &SectionTable, body: &[u8], p: u64) -> Result<Vec<Key>, ModelProblem> {
-    let mush = match table.entry(MUSH) {
-        Some(length) => mush_keys(table, body, length)?,
+    let delta_mush = match table.entry(MUSH) {
+        Some(length) => delta_mush_keys(table, body, length)?,
         None => Vec::new(),
     };
-    let mush_count = mush.len() as u64;
-    if mush_count > p {
+    let delta_mush_count = delta_mush.len() as u64;
+    if delta_mush_count > p {
         return Err(ModelProblem::Dimension {
             what: "the MUSH section's key count",
-            value: mush_count,
+            value: delta_mush_count,
             reason: "must not exceed DIMS's P",
         });
     }
-    let expected = (p - mush_count).saturating_mul(4 * PREDICTOR_WORDS as u64);
+    let expected = (p - delta_mush_count).saturating_mul(4 * PREDICTOR_WORDS as u64);
     let pred = u32s(table.section(body, PRED, expected)?);
     let predictors = (pred.chunks_exact(PREDICTOR_WORDS))
         .map(|record| Key::Predictor(predictor_of_words(&array(record))));
-    Ok(predictors.chain(mush.into_iter().map(Key::DeltaMush)).collect())
+    Ok(predictors
+        .chain(delta_mush.into_iter().map(Key::DeltaMush))
+        .collect())
 }
 
 /// The MUSH section (versions 4 to 7): S and N, then the lengths they give (checked before
 /// anything else is read), then the keys of its CSR offsets.
-fn mush_keys(
+fn delta_mush_keys(
     table: &SectionTable,
     body: &[u8],
     length: u64,
@@ -319,9 +326,9 @@ fn mush_keys(
     let words = [2, s + 1, n, n.saturating_mul(12)]
         .into_iter()
         .fold(0u64, u64::saturating_add);
-    let mush = u32s(table.section(body, MUSH, words.saturating_mul(4))?);
+    let delta_mush = u32s(table.section(body, MUSH, words.saturating_mul(4))?);
     let (s, n) = (s as usize, n as usize);
-    let (offsets, rest) = mush[2..].split_at(s + 1);
+    let (offsets, rest) = delta_mush[2..].split_at(s + 1);
     let (bones, terms) = rest.split_at(n);
     let in_order = offsets.first() == Some(&0) && offsets.last() == Some(&(n as u32));
     if !in_order || offsets.windows(2).any(|w| w[1] < w[0]) {

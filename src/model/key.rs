@@ -13,6 +13,9 @@ use crate::error::ModelProblem;
 pub type Mat3Rows = [f32; 9];
 
 /// One key: how its gradient `D_ℓ(q)` follows from a character's J bone transforms.
+// A predictor is held inline (344 bytes): a model's keys are one Vec built once, and a box per
+// predictor would cost every evaluation an indirection.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Key {
     /// `D(q) = R(q) S(q)`, predicted from one or two joints' rotations (paper §3).
@@ -82,7 +85,7 @@ pub struct SecondBone {
 pub const MAX_DELTA_MUSH_BONES: usize = 256;
 
 /// A delta-mush key (docs/method.md §23): its gradient is the rotation of a rigid fit of several
-/// bones' motions, Direct Delta Mush's fit for one group of vertices:
+/// bones' motions, Direct Delta DeltaMushReport's fit for one group of vertices:
 ///
 /// `D(q) = fit(Σ_i [Q_{b_i} | d_{b_i}] Ω_i)`
 ///
@@ -323,7 +326,7 @@ mod tests {
             }),
             h: std::array::from_fn(|i| i as f32),
         };
-        let mush = DeltaMushKey {
+        let delta_mush = DeltaMushKey {
             terms: vec![
                 DeltaMushTerm {
                     bone: 0,
@@ -335,12 +338,16 @@ mod tests {
                 },
             ],
         };
-        vec![Key::DeltaMush(mush), Key::Predictor(predictor.clone()), {
-            Key::Predictor(KeyPredictor {
-                second: None,
-                ..predictor
-            })
-        }]
+        vec![
+            Key::DeltaMush(delta_mush),
+            Key::Predictor(predictor.clone()),
+            {
+                Key::Predictor(KeyPredictor {
+                    second: None,
+                    ..predictor
+                })
+            },
+        ]
     }
 
     #[test]
@@ -349,14 +356,14 @@ mod tests {
         let words = key_words(&keys);
         assert_eq!(words[0], 4);
         assert_eq!(words.len(), 4 + 1 + 26 + 2 * (1 + PREDICTOR_WORDS));
-        assert_eq!(keys_of_words(&words, 3).unwrap(), keys);
-        assert_eq!(keys_of_words(&key_words(&[]), 0).unwrap(), []);
+        assert_eq!(keys_of_words(&words, 3).expect("whole"), keys);
+        assert_eq!(keys_of_words(&key_words(&[]), 0).expect("none"), []);
     }
 
     #[test]
     fn a_broken_record_is_named() {
         let words = key_words(&keys());
-        let problem = |words: &[u32]| keys_of_words(words, 3).unwrap_err().to_string();
+        let problem = |words: &[u32]| keys_of_words(words, 3).expect_err("broken").to_string();
         let mut unknown = words.clone();
         unknown[words[1] as usize] = 9;
         assert!(problem(&unknown).contains("key 1 has a kind this build does not know"));

@@ -336,7 +336,7 @@ fn eval_on_cesiumman_meets_the_reference_figures() {
         "normal_error",
         "learning_curve",
         "learning_curve_advice",
-        "mush",
+        "delta_mush",
         "cost",
         "budget",
         "pareto",

@@ -59,8 +59,8 @@ fn proxies_and_delta_mush_keys_cost_more_on_every_target() {
     for target in Target::ALL {
         let ns = |m: &Model| Cost::of(m, target, &LAVAPIPE).ns;
         let keys = |m: &Model| ns(m) - ns(&model(0));
-        for mushed in [&some, &all] {
-            let share = keys(mushed) / keys(&many);
+        for with_delta_mush in [&some, &all] {
+            let share = keys(with_delta_mush) / keys(&many);
             assert!((0.5..2.0).contains(&share), "{target:?}: {share}");
         }
     }
@@ -231,10 +231,10 @@ fn the_floor_is_below_every_model_of_its_keys() {
             influences: 4,
         };
         let model = random_model(spec, seed).expect("a valid model");
-        let mushed = with_delta_mush_keys(&model, keys, seed).expect("delta-mush keys");
+        let with_delta_mush = with_delta_mush_keys(&model, keys, seed).expect("delta-mush keys");
         for target in Target::ALL {
-            let floor = Cost::floor(mushed.vertex_count(), 4, keys, target, &LAVAPIPE);
-            let cost = Cost::of(&mushed, target, &LAVAPIPE);
+            let floor = Cost::floor(with_delta_mush.vertex_count(), 4, keys, target, &LAVAPIPE);
+            let cost = Cost::of(&with_delta_mush, target, &LAVAPIPE);
             assert!(
                 floor.ns <= cost.ns,
                 "{target:?} {keys} keys: {} > {}",

@@ -1,5 +1,5 @@
 //! Training chooses delta-mush proxies where the rig smooths (docs/method.md §23): a cylinder
-//! chain deformed by a smoothing black box (Direct Delta Mush of rigid weights: every vertex
+//! chain deformed by a smoothing black box (Direct Delta DeltaMushReport of rigid weights: every vertex
 //! follows one bone, the smoothing reaches the others) gets a runtime model of delta-mush keys,
 //! which the runtime's CPU reference evaluates as the training proxies deform, and which beats
 //! the joint-blend model on the held-out poses; the chain's own black box (each joint's rotation
@@ -11,7 +11,7 @@ use glam::DVec3;
 use rrskin::KeyKind;
 use rrskin_tools::cylinder_chain::Chain;
 use rrskin_tools::set::{ExampleSet, Pose, SetFiles, SetParts};
-use rrskin_tools::skinning::ddm::{Ddm, Params};
+use rrskin_tools::skinning::direct_delta_mush::{DirectDeltaMush, Params};
 use rrskin_tools::skinning::error::enveloping_error;
 use rrskin_tools::skinning::lbs::Skinning;
 use rrskin_tools::train::budget::CostBudget;
@@ -37,7 +37,7 @@ fn options() -> TrainOptions {
     }
 }
 
-/// The chain's poses, deformed instead by Direct Delta Mush of rigid weights (each vertex on
+/// The chain's poses, deformed instead by Direct Delta DeltaMushReport of rigid weights (each vertex on
 /// the bone under it), 16 smoothing steps.
 fn smoothed_chain() -> ExampleSet {
     smoothed_from(0.0)
@@ -56,7 +56,8 @@ fn smoothed_from(from: f64) -> ExampleSet {
         kappa: 1.0,
         alpha: 0.5,
     };
-    let rig = Ddm::new(&set.rest, &set.faces, &rigid, CHAIN.bones, &params).expect("smoothing");
+    let rig = DirectDeltaMush::new(&set.rest, &set.faces, &rigid, CHAIN.bones, &params)
+        .expect("smoothing");
     let test = set.test();
     let poses = (set.poses.iter())
         .map(|p| Pose {
@@ -120,14 +121,14 @@ fn a_smoothing_rig_gets_delta_mush_proxies_that_beat_joint_blend_held_out() {
     assert_eq!(model.keys_of(KeyKind::DeltaMush), fit.proxies());
     let test = set.test();
     let shipped = runtime_meshes(&set, model, &test);
-    let (mush, blend) = (
+    let (delta_mush, blend) = (
         enveloping_error(&set, &test, &shipped, &trained.rigid),
         joint_blend_error(&set, &test, &trained.rigid, &options()),
     );
-    eprintln!("held out EE: shipped {mush:.2}, joint-blend {blend:.2}");
+    eprintln!("held out EE: shipped {delta_mush:.2}, joint-blend {blend:.2}");
     assert!(
-        mush < blend,
-        "held out: shipped {mush}, joint-blend {blend}"
+        delta_mush < blend,
+        "held out: shipped {delta_mush}, joint-blend {blend}"
     );
 }
 
@@ -256,13 +257,16 @@ fn a_rig_that_smooths_in_part_gets_both_kinds_in_one_palette() {
     let alone: Vec<Vec<DVec3>> = (test.iter())
         .map(|&i| fit.proxies.deform(&set.rest, &set.poses[i].bones))
         .collect();
-    let (shipped, mush, blend) = (
+    let (shipped, delta_mush, blend) = (
         ee(&shipped),
         ee(&alone),
         joint_blend_error(&set, &test, &trained.rigid, &uncorrected),
     );
-    eprintln!("held out EE: both {shipped:.2}, delta-mush {mush:.2}, joint-blend {blend:.2}");
-    assert!(shipped < mush.min(blend), "{shipped} {mush} {blend}");
+    eprintln!("held out EE: both {shipped:.2}, delta-mush {delta_mush:.2}, joint-blend {blend:.2}");
+    assert!(
+        shipped < delta_mush.min(blend),
+        "{shipped} {delta_mush} {blend}"
+    );
 }
 
 /// Too few delta-mush proxies for the smoothing: the counts offered are P, 2P and 4P in the

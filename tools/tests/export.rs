@@ -12,7 +12,9 @@ use blender::{blender_script, repo, rrskin};
 use rrskin::cpu::CpuEvaluator;
 use rrskin::predict::Affine;
 use rrskin::{Model, ModelParts};
-use rrskin_render::synthetic::{palette_error, random_model, random_poses, with_delta_mush_keys, Spec};
+use rrskin_render::synthetic::{
+    palette_error, random_model, random_poses, with_delta_mush_keys, Spec,
+};
 use rrskin_tools::export::animation_pose;
 use rrskin_tools::import::rig::Rig;
 use scratch::temp_dir;
@@ -112,12 +114,13 @@ fn every_kind_of_model_exports_to_a_valid_gltf() {
         proxies,
         influences,
     };
-    let mushed = with_delta_mush_keys(&animated(spec(6, 7, 4), 4, 6), 7, 4).expect("7 of 7 keys");
+    let with_delta_mush =
+        with_delta_mush_keys(&animated(spec(6, 7, 4), 4, 6), 7, 4).expect("7 of 7 keys");
     for (name, model) in [
         ("k4", animated(spec(6, 5, 4), 3, 6)),
         ("k8", animated(spec(7, 9, 8), 3, 6)),
         ("lbs", animated(spec(5, 0, 4), 3, 6)),
-        ("delta-mush keys", mushed),
+        ("delta-mush keys", with_delta_mush),
     ] {
         let (m, glb) = (
             dir.join(format!("{name}.rrs")),

@@ -214,7 +214,10 @@ fn eval_reports_centres_of_rotation_and_direct_delta_mush() {
         report.cor.and_then(|e| e.test).expect("a test pose"),
     );
     assert!(cor < 0.5 * ssd, "CoR test EE {cor} vs SSD {ssd}");
-    assert!(report.ddm.and_then(|e| e.test).is_some_and(f64::is_finite));
+    assert!(report
+        .direct_delta_mush
+        .and_then(|e| e.test)
+        .is_some_and(f64::is_finite));
     let stages: Vec<&str> = report.stages.iter().map(|s| s.0).collect();
     assert!(
         stages.contains(&"cor") && stages.contains(&"ddm"),

@@ -52,7 +52,7 @@ pub struct TrainArgs {
     pub no_gravity: bool,
     /// No delta-mush proxies (offered against the joint-blend model and kept where the
     /// cross-validation over the training poses prefers them: smoothing rigs, such as Delta
-    /// Mush or Corrective Smooth; they cost training a mesh merging and a cross-validation).
+    /// DeltaMushReport or Corrective Smooth; they cost training a mesh merging and a cross-validation).
     #[arg(long)]
     pub no_delta_mush: bool,
     /// What the runtime model's frame may cost, as a multiple of the engine baseline (SSD's

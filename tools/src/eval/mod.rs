@@ -7,15 +7,15 @@
 //! rigid predictor (one bone per vertex, chosen on the training poses).
 
 pub mod cost;
+pub mod delta_mush;
 pub mod diagnose;
 pub mod learning_curve;
-pub mod mush;
 pub mod normals;
 
 use crate::set::ExampleSet;
 use crate::skinning::error::{deform_all, enveloping_error, squared_error};
 use crate::skinning::lbs::Skinning;
-use crate::skinning::{cor, ddm, dqs};
+use crate::skinning::{cor, direct_delta_mush, dqs};
 use crate::train::budget::{CostBudget, Point, Priced, Refused};
 use crate::train::proxy_corrective;
 use crate::train::selection::Choice;
@@ -67,12 +67,12 @@ pub struct Report {
     pub ssd: Errors,
     /// Dual quaternion skinning with SSD's weights.
     pub dqs: Errors,
-    /// Skinning with optimized centres of rotation ([`cor`]) and direct delta mush ([`ddm`],
-    /// with `ddm_params`, chosen on the training poses), both with SSD's weights (None with
+    /// Skinning with optimized centres of rotation ([`cor`]) and direct delta mush ([`direct_delta_mush`],
+    /// with `direct_delta_mush_params`, chosen on the training poses), both with SSD's weights (None with
     /// [`Options::skip_baselines`]).
     pub cor: Option<Errors>,
-    pub ddm: Option<Errors>,
-    pub ddm_params: Option<ddm::Params>,
+    pub direct_delta_mush: Option<Errors>,
+    pub direct_delta_mush_params: Option<direct_delta_mush::Params>,
     /// Linear blend, dual quaternion and centres-of-rotation skinning with the rig's own
     /// weights, when the set has them.
     pub rig_lbs: Option<Errors>,
@@ -84,9 +84,9 @@ pub struct Report {
     pub rr_reduced: Option<Errors>,
     pub reduced_proxies: Option<usize>,
     /// Delta-mush proxies beside the runtime model, and the cross-validation between them
-    /// ([`mush`]; None where training did not offer them, `TrainOptions::offers_delta_mush`,
+    /// ([`delta_mush`]; None where training did not offer them, `TrainOptions::offers_delta_mush`,
     /// or trained no runtime model: P = 0 or [`Options::model`]).
-    pub mush: Option<mush::Mush>,
+    pub delta_mush: Option<delta_mush::DeltaMushReport>,
     /// The trained runtime model's structure (proxies, P, K) and how it was chosen.
     pub structure: Option<Chosen>,
     pub budget: Option<Budget>,
@@ -146,15 +146,15 @@ impl Report {
             "vertices": self.vertices, "triangles": self.triangles, "bones": self.bones,
             "train_poses": self.train_poses, "test_poses": self.test_poses, "proxies": self.reduced_proxies,
             "rigid": errors(&self.rigid), "ssd": errors(&self.ssd), "dqs": errors(&self.dqs),
-            "cor": self.cor.as_ref().map(errors), "ddm": self.ddm.as_ref().map(errors),
-            "ddm_params": self.ddm_params.map(|d| serde_json::json!({
+            "cor": self.cor.as_ref().map(errors), "ddm": self.direct_delta_mush.as_ref().map(errors),
+            "ddm_params": self.direct_delta_mush_params.map(|d| serde_json::json!({
                 "iterations": d.iterations, "lambda": d.lambda, "kappa": d.kappa, "alpha": d.alpha,
             })),
             "rig_lbs": self.rig_lbs.as_ref().map(errors), "rig_dqs": self.rig_dqs.as_ref().map(errors),
             "rig_cor": self.rig_cor.as_ref().map(errors),
             "rr_full": self.rr_full.as_ref().map(errors),
             "rr_reduced": self.rr_reduced.as_ref().map(errors),
-            "mush": self.mush.as_ref().map(|m| serde_json::json!({
+            "delta_mush": self.delta_mush.as_ref().map(|m| serde_json::json!({
                 "proxies": m.proxies, "influences": m.influences, "mean_bones": m.mean_bones,
                 "smoothing": {"iterations": m.smoothing.iterations, "alpha": m.smoothing.alpha},
                 "errors": errors(&m.errors), "chosen": m.chosen,
@@ -313,9 +313,9 @@ impl Report {
         row(&mut s, "rigid", &self.rigid);
         row(&mut s, "SSD (LBS, fitted weights)", &self.ssd);
         row(&mut s, "DQS (SSD's weights)", &self.dqs);
-        if let (Some(cor), Some(ddm)) = (&self.cor, &self.ddm) {
+        if let (Some(cor), Some(direct_delta_mush)) = (&self.cor, &self.direct_delta_mush) {
             row(&mut s, "CoR (SSD's weights)", cor);
-            row(&mut s, "DDM (SSD's weights)", ddm);
+            row(&mut s, "DDM (SSD's weights)", direct_delta_mush);
         }
         if let (Some(lbs), Some(dqs)) = (&self.rig_lbs, &self.rig_dqs) {
             row(&mut s, "LBS (the rig's weights)", lbs);
@@ -338,10 +338,10 @@ impl Report {
             s += &structure_line(c);
         }
         s += &self.budget_lines();
-        if let Some(m) = &self.mush {
+        if let Some(m) = &self.delta_mush {
             let label = format!("delta-mush proxies, P = {}", m.proxies);
             row(&mut s, &label, &m.errors);
-            s += &mush_line(m);
+            s += &delta_mush_line(m);
         }
         if let Some(b) = &self.budget {
             s += "error budget (oracle ceilings, then what the training poses support):\n";
@@ -408,7 +408,7 @@ impl Report {
                 _ => format!("proxy correctives: none ({chosen})\n"),
             };
         }
-        if let Some(d) = &self.ddm_params {
+        if let Some(d) = &self.direct_delta_mush_params {
             s += &format!(
                 "direct delta mush: p = {}, λ = {}, κ = {}, α = {} (p and α chosen on the training poses)\n",
                 d.iterations, d.lambda, d.kappa, d.alpha
@@ -485,7 +485,7 @@ fn structure_line(c: &Chosen) -> String {
 }
 
 /// The cross-validation's verdict between the delta-mush proxies and the runtime model.
-fn mush_line(m: &mush::Mush) -> String {
+fn delta_mush_line(m: &delta_mush::DeltaMushReport) -> String {
     let mut s = String::new();
     let ee = |(score, se): (f64, f64)| {
         let e = 100.0 * score.sqrt();
@@ -553,8 +553,8 @@ fn cor_all(
 struct Baselines {
     cor: Vec<DVec3>,
     rig_cor: Option<Vec<DVec3>>,
-    ddm: ddm::Ddm,
-    ddm_params: ddm::Params,
+    direct_delta_mush: direct_delta_mush::DirectDeltaMush,
+    direct_delta_mush_params: direct_delta_mush::Params,
 }
 
 impl Baselines {
@@ -573,9 +573,9 @@ impl Baselines {
         let cor = cor::centres(&set.rest, &set.faces, ssd_weights);
         lap("cor");
         // Training chose DDM's smoothing already where it offered delta-mush proxies.
-        let (ddm_params, ddm) = match &trained.delta_mush {
-            Some(m) => (m.params, m.ddm.clone()),
-            None => ddm::choose(set, &set.train(), ssd_weights)?,
+        let (direct_delta_mush_params, direct_delta_mush) = match &trained.delta_mush {
+            Some(m) => (m.params, m.direct_delta_mush.clone()),
+            None => direct_delta_mush::choose(set, &set.train(), ssd_weights)?,
         };
         lap("ddm");
         let rig_cor = set.rig_weights.as_ref().map(|w| {
@@ -586,8 +586,8 @@ impl Baselines {
         Ok(Baselines {
             cor,
             rig_cor,
-            ddm,
-            ddm_params,
+            direct_delta_mush,
+            direct_delta_mush_params,
         })
     }
 }
@@ -646,14 +646,14 @@ pub fn run(set: &ExampleSet, options: &Options) -> Result<Report> {
     };
     report.normal_error = normals::held_out(set, &trained.ssd, runtime, &scorer.test)?;
     stages.push(("evaluation", start.elapsed().as_secs_f64()));
-    report.mush = trained.delta_mush.as_ref().map(|m| {
+    report.delta_mush = trained.delta_mush.as_ref().map(|m| {
         let proxies = &m.proxies;
         let errors = scorer.errors(&|p| {
             (p.iter())
                 .map(|&i| proxies.deform(&set.rest, &set.poses[i].bones))
                 .collect()
         });
-        mush::Mush::of(m, errors)
+        delta_mush::DeltaMushReport::of(m, errors)
     });
     if options.loocv {
         let start = std::time::Instant::now();
@@ -732,8 +732,9 @@ fn score(
         ssd: scorer.errors(&|p| deform_all(set, &trained.ssd, p)),
         dqs: scorer.errors(&|p| dqs_all(set, ssd_weights, p)),
         cor: baselines.map(|b| scorer.errors(&|p| cor_all(set, ssd_weights, &b.cor, p))),
-        ddm: baselines.map(|b| scorer.errors(&|p| b.ddm.deform_poses(set, p))),
-        ddm_params: baselines.map(|b| b.ddm_params),
+        direct_delta_mush: baselines
+            .map(|b| scorer.errors(&|p| b.direct_delta_mush.deform_poses(set, p))),
+        direct_delta_mush_params: baselines.map(|b| b.direct_delta_mush_params),
         rig_lbs: with_rig(&|s| scorer.errors(&|p| deform_all(set, s, p))),
         rig_dqs: with_rig(&|s| scorer.errors(&|p| dqs_all(set, &s.influences, p))),
         rig_cor: rig_skin
@@ -745,7 +746,7 @@ fn score(
             .map(|m| runtime_errors(set, m, &scorer.train, &scorer.test, scorer.rigid))
             .transpose()?,
         reduced_proxies: runtime.map(|m| m.proxy_count()),
-        mush: None,
+        delta_mush: None,
         structure: trained.structure.clone(),
         budget: None,
         normal_error: Vec::new(),
@@ -818,12 +819,12 @@ impl Report {
         }
         // Leave-one-out retrains SSD and the full model only: the reduced row and the
         // baselines precomputed from SSD's weights have no such figure.
-        let mush = self.mush.as_mut().map(|m| &mut m.errors);
+        let delta_mush = self.delta_mush.as_mut().map(|m| &mut m.errors);
         for e in [
             self.rr_reduced.as_mut(),
             self.cor.as_mut(),
-            self.ddm.as_mut(),
-            mush,
+            self.direct_delta_mush.as_mut(),
+            delta_mush,
         ]
         .into_iter()
         .flatten()

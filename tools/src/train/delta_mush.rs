@@ -1,13 +1,13 @@
 //! Delta-mush proxies in the runtime model (beyond the paper; docs/method.md §23): fitted to the
-//! training poses ([`crate::train::reduce::mush`]), alone or after the joint-blend model's
+//! training poses ([`crate::train::reduce::delta_mush`]), alone or after the joint-blend model's
 //! proxies in one palette ([`join`]), and kept in place of the joint-blend model where the
 //! k-fold cross-validation over the training poses prefers them (§18's folds, pose-relative
 //! score and one-standard-error rule with its tolerance; the joint-blend structure first, then
 //! the delta-mush proxies alone, then both, so that the simpler stays unless the richer wins
 //! clearly).
 //!
-//! Direct Delta Mush's smoothing (p, α) is chosen on all training poses, with SSD's weights
-//! ([`ddm::choose`]); the proxies' groups are merged once, on all training poses, and fixed
+//! Direct Delta DeltaMushReport's smoothing (p, α) is chosen on all training poses, with SSD's weights
+//! ([`direct_delta_mush::choose`]); the proxies' groups are merged once, on all training poses, and fixed
 //! inside the folds, as the joint-blend model's ridges are there (the merging is most of the
 //! cost); SSD, Ω and the weights are fitted per fold. The joint-blend side of each fold is its
 //! structure as chosen. Where the runtime model takes proxy correctives, every side is compared
@@ -17,15 +17,15 @@
 //! fits the poses better uncorrected may leave less to correct.
 
 use crate::set::ExampleSet;
-use crate::skinning::ddm::{self, Ddm};
+use crate::skinning::direct_delta_mush::{self, DirectDeltaMush};
 use crate::skinning::error::squared_error;
 use crate::skinning::lbs::{rigid_errors, Skinning};
 use crate::train::budget::{ee_of_score, Ledger, Point, Priced};
 use crate::train::cross_validate::{try_cross_validate, Fold, Folds, Validated};
 use crate::train::proxy_corrective::Candidate;
 use crate::train::reduce::c1c2::Reduced;
-use crate::train::reduce::mush::{join, Groups, MushProxies};
-use crate::train::reduce::mush_keys::Keys;
+use crate::train::reduce::delta_mush::{join, DeltaMushProxies, Groups};
+use crate::train::reduce::delta_mush_keys::Keys;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::structure::{self, Chosen, JointBlendFit, TOLERANCE};
 use crate::train::{corrective, proxy_corrective};
@@ -48,16 +48,16 @@ pub const COUNT_FACTORS: [usize; 3] = [1, 2, 4];
 
 /// What the stage fitted and chose.
 pub struct Fit {
-    /// Direct Delta Mush's Ω for SSD's weights, and its smoothing chosen on the training poses
+    /// Direct Delta DeltaMushReport's Ω for SSD's weights, and its smoothing chosen on the training poses
     /// (evaluation's DDM baseline too).
-    pub ddm: Ddm,
-    pub params: ddm::Params,
+    pub direct_delta_mush: DirectDeltaMush,
+    pub params: direct_delta_mush::Params,
     /// The proxies' smoothing: `params`, or none (p = 0) where that fits the training poses
     /// better.
-    pub proxy_params: ddm::Params,
+    pub proxy_params: direct_delta_mush::Params,
     /// The delta-mush proxies fitted to all training poses (K of the runtime model, and the
     /// count kept).
-    pub proxies: MushProxies,
+    pub proxies: DeltaMushProxies,
     /// (proxies, score, standard error) of each count of [`COUNT_FACTORS`] over the training
     /// folds, in the kind kept (alone or after the joint-blend proxies), each with its proxy
     /// correctives; empty where the counts were not compared (no delta-mush proxies kept, P or
@@ -143,16 +143,21 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
     let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
     // The merging runs on one thread: beside DDM's choice, which is parallel.
     let (chosen, mut ladder) = rayon::join(
-        || ddm::choose(set, train, &inputs.ssd.influences),
+        || direct_delta_mush::choose(set, train, &inputs.ssd.influences),
         || Groups::merge_at(set, train, &counts),
     );
-    let (params, vertex_ddm) = chosen.map_err(smoothing)?;
+    let (params, vertex_direct_delta_mush) = chosen.map_err(smoothing)?;
     let mut fewer_groups = ladder.split_off(offered.len());
     let mut smoothed = None;
     let mut below = 0;
     if steps_down(options) {
-        let (at, fitted) =
-            first_within_budget(inputs, options, &vertex_ddm, &ladder[0], &fewer_groups)?;
+        let (at, fitted) = first_within_budget(
+            inputs,
+            options,
+            &vertex_direct_delta_mush,
+            &ladder[0],
+            &fewer_groups,
+        )?;
         if let Some(at) = at {
             // Fewer than P: the larger counts cost more still.
             offered = vec![fewer[at]];
@@ -161,9 +166,15 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         smoothed = Some(fitted);
         below = fewer.len() - fewer_groups.len();
     }
-    let (proxy_params, plain, fitted) =
-        proxy_smoothing(inputs, k, params, &vertex_ddm, &ladder[0], smoothed)?;
-    let proxy_ddm = plain.as_ref().unwrap_or(&vertex_ddm);
+    let (proxy_params, plain, fitted) = proxy_smoothing(
+        inputs,
+        k,
+        params,
+        &vertex_direct_delta_mush,
+        &ladder[0],
+        smoothed,
+    )?;
+    let proxy_direct_delta_mush = plain.as_ref().unwrap_or(&vertex_direct_delta_mush);
     let split = Folds::new(train.len(), options.folds);
     let first = Side {
         groups: &ladder[0],
@@ -181,7 +192,14 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         let lower = Side {
             groups,
             params: &proxy_params,
-            proxies: MushProxies::fit(set, train, proxy_ddm, &inputs.ssd.influences, groups, k),
+            proxies: DeltaMushProxies::fit(
+                set,
+                train,
+                proxy_direct_delta_mush,
+                &inputs.ssd.influences,
+                groups,
+                k,
+            ),
         };
         let lower_kinds = choose_kind(inputs, options, split.as_ref(), &lower)?;
         if lower_kinds.kept == Kept::JointBlend || lower_kinds.score() >= kinds.score() {
@@ -198,7 +216,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
                 kind: kinds.kept,
                 offered: &offered,
                 groups: &ladder,
-                ddm: proxy_ddm,
+                direct_delta_mush: proxy_direct_delta_mush,
                 params: &proxy_params,
             };
             let count = choose_count(inputs, options, split, &larger, first_row)?;
@@ -209,7 +227,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         }
     }
     let out = Fit {
-        ddm: vertex_ddm,
+        direct_delta_mush: vertex_direct_delta_mush,
         params,
         proxy_params,
         proxies,
@@ -223,7 +241,7 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         let after = (out.kept == Kept::Both).then_some(inputs.reduced);
         let (ssd, feats) = (inputs.ssd, inputs.feats);
         (out.kept != Kept::JointBlend)
-            .then(|| mush_model(&out.proxies, (set, train), ssd, after, feats, k))
+            .then(|| delta_mush_model(&out.proxies, (set, train), ssd, after, feats, k))
     });
     Ok((out, shipped))
 }
@@ -232,8 +250,8 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
 /// training poses.
 struct Side<'a> {
     groups: &'a Groups,
-    params: &'a ddm::Params,
-    proxies: MushProxies,
+    params: &'a direct_delta_mush::Params,
+    proxies: DeltaMushProxies,
 }
 
 /// What [`choose_kind`] found.
@@ -282,10 +300,10 @@ fn choose_kind(
     // Both kinds add P proxies to the joint-blend model's: where P is asked for
     // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
     let (ssd, feats) = (inputs.ssd, inputs.feats);
-    let alone = mush_model(&side.proxies, (set, train), ssd, None, feats, k);
+    let alone = delta_mush_model(&side.proxies, (set, train), ssd, None, feats, k);
     let union = (options.method == Method::Auto).then(|| {
         let after = Some(inputs.reduced);
-        mush_model(&side.proxies, (set, train), ssd, after, feats, k)
+        delta_mush_model(&side.proxies, (set, train), ssd, after, feats, k)
     });
     let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
     let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
@@ -355,8 +373,8 @@ fn admit(
 /// The front's point of `r` (as [`describe`] names it), scored `ee` by the comparison `stage`,
 /// priced `priced`.
 fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
-    let mush = r.delta_mush.as_ref().map_or(0, Keys::count);
-    let kind = match (r.proxies - mush, mush) {
+    let delta_mush = r.delta_mush.as_ref().map_or(0, Keys::count);
+    let kind = match (r.proxies - delta_mush, delta_mush) {
         (_, 0) => "joint-blend",
         (0, _) => "delta-mush",
         _ => "both",
@@ -373,11 +391,11 @@ fn point(stage: &'static str, r: &Reduced, ee: f64, priced: Priced) -> Point {
 /// A reduced model's keys, as the report names a candidate: "54 joint-blend proxies", "60
 /// delta-mush proxies", "54 joint-blend and 60 delta-mush proxies".
 fn describe(r: &Reduced) -> String {
-    let mush = r.delta_mush.as_ref().map_or(0, Keys::count);
-    match (r.proxies - mush, mush) {
+    let delta_mush = r.delta_mush.as_ref().map_or(0, Keys::count);
+    match (r.proxies - delta_mush, delta_mush) {
         (jb, 0) => format!("{jb} joint-blend proxies"),
-        (0, mush) => format!("{mush} delta-mush proxies"),
-        (jb, mush) => format!("{jb} joint-blend and {mush} delta-mush proxies"),
+        (0, delta_mush) => format!("{delta_mush} delta-mush proxies"),
+        (jb, delta_mush) => format!("{jb} joint-blend and {delta_mush} delta-mush proxies"),
     }
 }
 
@@ -417,24 +435,31 @@ fn steps_down(options: &TrainOptions) -> bool {
     !asked && options.budget != crate::train::budget::CostBudget::NONE
 }
 
-/// Where the delta-mush proxies alone at P (`groups`, smoothed by `vertex_ddm`) are over the
+/// Where the delta-mush proxies alone at P (`groups`, smoothed by `vertex_direct_delta_mush`) are over the
 /// cost budget (noted), the index in `fewer` (P/2, P/4, …) of the largest count within it
 /// (the cheapest where none is; None where P is within it, or is the cheapest), with the
-/// proxies of that count (the fit [`proxy_smoothing`] would make with `vertex_ddm`). A count
+/// proxies of that count (the fit [`proxy_smoothing`] would make with `vertex_direct_delta_mush`). A count
 /// is fitted only where neither its floor ([`Priced::floor`]) nor the last fitted count's load
 /// scaled down to it puts it over: an impossible request is answered without fitting it.
 fn first_within_budget(
     inputs: &Inputs,
     options: &TrainOptions,
-    vertex_ddm: &Ddm,
+    vertex_direct_delta_mush: &DirectDeltaMush,
     groups: &Groups,
     fewer: &[Groups],
-) -> Result<(Option<usize>, MushProxies), TrainError> {
+) -> Result<(Option<usize>, DeltaMushProxies), TrainError> {
     let budget = &options.budget;
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
-    let price = |groups: &Groups| -> Result<(Priced, MushProxies), TrainError> {
-        let proxies = MushProxies::fit(set, train, vertex_ddm, &inputs.ssd.influences, groups, k);
-        let model = mush_model(&proxies, (set, train), inputs.ssd, None, inputs.feats, k);
+    let price = |groups: &Groups| -> Result<(Priced, DeltaMushProxies), TrainError> {
+        let proxies = DeltaMushProxies::fit(
+            set,
+            train,
+            vertex_direct_delta_mush,
+            &inputs.ssd.influences,
+            groups,
+            k,
+        );
+        let model = delta_mush_model(&proxies, (set, train), inputs.ssd, None, inputs.feats, k);
         Ok((Priced::of(&model.to_runtime(set, k)?), proxies))
     };
     let counts: Vec<&Groups> = std::iter::once(groups).chain(fewer).collect();
@@ -471,35 +496,42 @@ fn first_within_budget(
     Ok((last.checked_sub(1), proxies))
 }
 
-/// The proxies' smoothing on `groups`: DDM's `params` (Ω `vertex_ddm`), or none (p = 0: each
+/// The proxies' smoothing on `groups`: DDM's `params` (Ω `vertex_direct_delta_mush`), or none (p = 0: each
 /// group's rigid fit of its LBS motion), whichever fits the training poses better (the same
 /// models, so no cross-validation). The smoothing kept, its Ω where it is none (else
-/// `vertex_ddm`'s), and the proxies fitted with it. `smoothed`: the proxies of `groups` with
-/// `vertex_ddm` where the budget's count search fitted them already.
+/// `vertex_direct_delta_mush`'s), and the proxies fitted with it. `smoothed`: the proxies of `groups` with
+/// `vertex_direct_delta_mush` where the budget's count search fitted them already.
 fn proxy_smoothing(
     inputs: &Inputs,
     k: usize,
-    params: ddm::Params,
-    vertex_ddm: &Ddm,
+    params: direct_delta_mush::Params,
+    vertex_direct_delta_mush: &DirectDeltaMush,
     groups: &Groups,
-    smoothed: Option<MushProxies>,
-) -> Result<(ddm::Params, Option<Ddm>, MushProxies), TrainError> {
+    smoothed: Option<DeltaMushProxies>,
+) -> Result<
+    (
+        direct_delta_mush::Params,
+        Option<DirectDeltaMush>,
+        DeltaMushProxies,
+    ),
+    TrainError,
+> {
     let (set, train, ssd_weights) = (inputs.set, inputs.train, &inputs.ssd.influences);
-    let unsmoothed = ddm::Params {
+    let unsmoothed = direct_delta_mush::Params {
         iterations: 0,
         ..params
     };
     let bones = set.bone_count();
-    let plain =
-        Ddm::new(&set.rest, &set.faces, ssd_weights, bones, &unsmoothed).map_err(smoothing)?;
-    let fit = |d: &Ddm| MushProxies::fit(set, train, d, ssd_weights, groups, k);
-    let scored = |m: MushProxies| {
+    let plain = DirectDeltaMush::new(&set.rest, &set.faces, ssd_weights, bones, &unsmoothed)
+        .map_err(smoothing)?;
+    let fit = |d: &DirectDeltaMush| DeltaMushProxies::fit(set, train, d, ssd_weights, groups, k);
+    let scored = |m: DeltaMushProxies| {
         let meshes: Vec<Vec<DVec3>> = (train.iter())
             .map(|&i| m.deform(&set.rest, &set.poses[i].bones))
             .collect();
         (squared_error(set, train, &meshes), m)
     };
-    let smoothed = smoothed.unwrap_or_else(|| fit(vertex_ddm));
+    let smoothed = smoothed.unwrap_or_else(|| fit(vertex_direct_delta_mush));
     let ((smoothed_error, smoothed), (plain_error, unsmoothed_fit)) =
         (scored(smoothed), scored(fit(&plain)));
     Ok(match plain_error < smoothed_error {
@@ -514,14 +546,14 @@ struct Ladder<'a> {
     kind: Kept,
     offered: &'a [usize],
     groups: &'a [Groups],
-    ddm: &'a Ddm,
-    params: &'a ddm::Params,
+    direct_delta_mush: &'a DirectDeltaMush,
+    params: &'a direct_delta_mush::Params,
 }
 
 /// The delta-mush `proxies`' model as it ships, fitted to `poses` of a set with SSD `ssd`:
 /// after `joint_blend`'s proxies (both kinds in one palette), or alone.
-fn mush_model(
-    proxies: &MushProxies,
+fn delta_mush_model(
+    proxies: &DeltaMushProxies,
     (set, poses): (&ExampleSet, &[usize]),
     ssd: &Skinning,
     joint_blend: Option<&Reduced>,
@@ -539,7 +571,11 @@ struct Count {
     /// (proxies, score, standard error) of each count offered.
     scores: Vec<(usize, f64, f64)>,
     /// A larger count kept: its proxies, their correctives' search and the reduced model.
-    kept: Option<(MushProxies, Option<proxy_corrective::Fit>, Option<Reduced>)>,
+    kept: Option<(
+        DeltaMushProxies,
+        Option<proxy_corrective::Fit>,
+        Option<Reduced>,
+    )>,
 }
 
 /// Cross-validates the delta-mush proxies of each larger count of `ladder` as they ship, each
@@ -557,10 +593,12 @@ fn choose_count(
     let (ssd_weights, bones) = (&inputs.ssd.influences, set.bone_count());
     let larger = &ladder.groups[1..];
     let after = (ladder.kind == Kept::Both).then_some(inputs.reduced);
-    let mut fitted: Vec<(MushProxies, Reduced)> = (larger.iter())
+    let mut fitted: Vec<(DeltaMushProxies, Reduced)> = (larger.iter())
         .map(|groups| {
-            let proxies = MushProxies::fit(set, train, ladder.ddm, ssd_weights, groups, k);
-            let reduced = mush_model(&proxies, (set, train), inputs.ssd, after, inputs.feats, k);
+            let proxies =
+                DeltaMushProxies::fit(set, train, ladder.direct_delta_mush, ssd_weights, groups, k);
+            let reduced =
+                delta_mush_model(&proxies, (set, train), inputs.ssd, after, inputs.feats, k);
             (proxies, reduced)
         })
         .collect();
@@ -581,7 +619,7 @@ fn choose_count(
     let normaliser = pose_scale::rigid_pose_errors(set, train, inputs.rigid);
     let held_out = try_cross_validate(split, &normaliser, larger.len(), TOLERANCE, |fold| {
         let f = FoldFit::new(inputs, k, fold);
-        let fold_ddm = Ddm::new(
+        let fold_direct_delta_mush = DirectDeltaMush::new(
             &set.rest,
             &set.faces,
             &f.ssd.influences,
@@ -594,9 +632,16 @@ fn choose_count(
             (larger.iter().zip(&choices))
                 .map(|(groups, choice)| {
                     let influences = &f.ssd.influences;
-                    let mush = MushProxies::fit(&f.set, &f.inner, &fold_ddm, influences, groups, k);
-                    let model = mush_model(
-                        &mush,
+                    let delta_mush = DeltaMushProxies::fit(
+                        &f.set,
+                        &f.inner,
+                        &fold_direct_delta_mush,
+                        influences,
+                        groups,
+                        k,
+                    );
+                    let model = delta_mush_model(
+                        &delta_mush,
                         (&f.set, &f.inner),
                         &f.ssd,
                         joint_blend.as_ref(),
@@ -637,7 +682,7 @@ fn choose_count(
 fn counts_within_budget(
     inputs: &Inputs,
     options: &TrainOptions,
-    fitted: &[(MushProxies, Reduced)],
+    fitted: &[(DeltaMushProxies, Reduced)],
 ) -> Result<usize, TrainError> {
     let (budget, k) = (&options.budget, options.influences);
     let mut within = fitted.len();
@@ -777,13 +822,21 @@ fn cross_validate(
         let reduced = fold_joint_blend(inputs, options, &f);
         let bones = set.bone_count();
         let influences = &f.ssd.influences;
-        let fold_ddm = Ddm::new(&set.rest, &set.faces, influences, bones, side.params)?;
-        let mush = MushProxies::fit(&f.set, &f.inner, &fold_ddm, influences, side.groups, k);
+        let fold_direct_delta_mush =
+            DirectDeltaMush::new(&set.rest, &set.faces, influences, bones, side.params)?;
+        let delta_mush = DeltaMushProxies::fit(
+            &f.set,
+            &f.inner,
+            &fold_direct_delta_mush,
+            influences,
+            side.groups,
+            k,
+        );
         // Each kind's held-out errors, as it ships: corrected as its candidate says.
         let held_error =
             |model: &Reduced, candidate| f.held_errors(inputs, options, model, candidate);
         let (poses, feats) = ((&f.set, &f.inner[..]), inputs.feats);
-        let shipped = |after| mush_model(&mush, poses, &f.ssd, after, feats, k);
+        let shipped = |after| delta_mush_model(&delta_mush, poses, &f.ssd, after, feats, k);
         let c = correctives;
         let mut rows = vec![
             held_error(&reduced, &c[0]),

@@ -19,7 +19,7 @@
 //! | their keys' pose-driven stretch | [`reduce::stretch`] | beyond the paper |
 //! | and their local end-to-end refit of C1/C2 | [`reduce::refit`] | beyond the paper |
 //! | how many joint-blend proxies: chosen per set | [`structure`] | beyond the paper |
-//! | or delta-mush proxies, alone or after the joint-blend ones, where cross-validation prefers them | [`delta_mush`], [`reduce::mush`] | beyond the paper |
+//! | or delta-mush proxies, alone or after the joint-blend ones, where cross-validation prefers them | [`delta_mush`], [`reduce::delta_mush`] | beyond the paper |
 //! | pose-space correctives on the runtime model | [`corrective`] | §8 (suggested there) |
 //! | what the runtime model may cost: every choice within it | [`budget`] | beyond the paper |
 //!
@@ -71,7 +71,7 @@ pub enum Method {
     /// cross-validation against the joint-blend model (trained still, for evaluation).
     DeltaMush,
     /// Joint-blend proxies with P, then P delta-mush proxies in one palette
-    /// ([`reduce::mush::join`]; beyond the paper), without the cross-validation.
+    /// ([`reduce::delta_mush::join`]; beyond the paper), without the cross-validation.
     Both,
 }
 
@@ -157,7 +157,7 @@ pub struct TrainOptions {
     /// where cross-validation finds they pay; None: not offered.
     pub up: Option<[f64; 3]>,
     /// Offer delta-mush proxies ([`delta_mush`], docs/method.md §23) against the joint-blend
-    /// model, kept where cross-validation prefers them (smoothing rigs: Delta Mush, Corrective
+    /// model, kept where cross-validation prefers them (smoothing rigs: Delta DeltaMushReport, Corrective
     /// Smooth). Off: the joint-blend model always.
     pub delta_mush: bool,
     /// What the runtime model may cost ([`budget`]): every choice the best within it.
@@ -212,7 +212,7 @@ pub enum TrainError {
     TooManyProxies { proxies: usize, triangles: usize },
     /// The Poisson system cannot be factored (a component without a fixed vertex).
     Poisson { problem: String },
-    /// Direct Delta Mush's smoothing could not be precomputed (its system not positive
+    /// Direct Delta DeltaMushReport's smoothing could not be precomputed (its system not positive
     /// definite: a bug if it happens, the system is by construction).
     Smoothing { problem: String },
     /// The runtime refused the trained model (a bug if it happens: training makes valid models).

@@ -18,7 +18,7 @@
 use crate::linalg::DenseCholesky;
 use crate::set::{Affine, ExampleSet, Pose};
 use crate::skinning::lbs::Skinning;
-use crate::train::reduce::mush_keys::Keys;
+use crate::train::reduce::delta_mush_keys::Keys;
 use crate::train::reduce::predictor::{KeySequences, TrainedPredictor};
 use crate::train::reduce::vertex::Proxies;
 use crate::train::rotreg::PoseFeatures;
@@ -36,7 +36,7 @@ pub struct Reduced {
     /// 4P x 4J, row-major.
     pub c2: Vec<f64>,
     /// The keys (P in all): the predictors' (paper §3), then the delta-mush keys'
-    /// (docs/method.md §23), Direct Delta Mush's fits of their groups; the runtime model holds
+    /// (docs/method.md §23), Direct Delta DeltaMushReport's fits of their groups; the runtime model holds
     /// them as one list of [`rrskin::Key`]s ([`Reduced::to_runtime`]).
     pub predictors: Vec<TrainedPredictor>,
     pub delta_mush: Option<Keys>,
@@ -288,8 +288,8 @@ impl Reduced {
         let mut d: Vec<DMat3> = (self.predictors.iter())
             .map(|k| k.predict(f, &set.parents))
             .collect();
-        if let Some(mush) = &self.delta_mush {
-            d.extend(mush.motions(bones).into_iter().map(|m| m.q));
+        if let Some(delta_mush) = &self.delta_mush {
+            d.extend(delta_mush.motions(bones).into_iter().map(|m| m.q));
         }
         self.proxy_transforms(&d, bones)
     }
@@ -438,7 +438,11 @@ impl Reduced {
             .chain(delta_mush.iter().cloned().map(rrskin::Key::DeltaMush))
             .collect();
         let frames: Vec<_> = (self.predictors.iter().map(|_| None))
-            .chain(self.delta_mush.iter().flat_map(|k| k.frames().iter().copied().map(Some)))
+            .chain(
+                self.delta_mush
+                    .iter()
+                    .flat_map(|k| k.frames().iter().copied().map(Some)),
+            )
             .collect();
         let mut c1: Vec<f32> = self.c1.iter().map(|&x| x as f32).collect();
         rrskin::model::c1_in_key_frames(&mut c1, &frames);

@@ -2,9 +2,9 @@
 //! (§5.2), and the C1/C2 matrices mapping key gradients and bones to proxy transforms (§4.3).
 
 pub mod c1c2;
+pub mod delta_mush;
+pub mod delta_mush_keys;
 pub mod joint_blend;
-pub mod mush;
-pub mod mush_keys;
 pub mod predictor;
 pub mod refit;
 pub mod stretch;

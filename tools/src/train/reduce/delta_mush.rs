@@ -1,12 +1,12 @@
 //! Delta-mush proxies (docs/method.md §23): P proxy bones whose transforms are Direct Delta
-//! Mush's rigid fits ([`crate::skinning::ddm`]) for whole groups of vertices, and K-influence
+//! DeltaMushReport's rigid fits ([`crate::skinning::direct_delta_mush`]) for whole groups of vertices, and K-influence
 //! palette skinning over them; a reduced model of delta-mush keys ([`rrskin::DeltaMushKey`],
-//! [`MushProxies::reduced`]), alone or after a joint-blend model's proxies ([`join`]), where
+//! [`DeltaMushProxies::reduced`]), alone or after a joint-blend model's proxies ([`join`]), where
 //! [`crate::train::delta_mush`] keeps them.
 //!
-//! A smoothing rig (Blender's Corrective Smooth, Delta Mush) moves a vertex by a rigid fit of
+//! A smoothing rig (Blender's Corrective Smooth, Delta DeltaMushReport) moves a vertex by a rigid fit of
 //! the bone motions of a whole neighbourhood of the mesh: on the Fox, about 11 bones reach each
-//! vertex, and Direct Delta Mush with Ω cut to a vertex's 4 heaviest bones loses 6 EE points
+//! vertex, and Direct Delta DeltaMushReport with Ω cut to a vertex's 4 heaviest bones loses 6 EE points
 //! held out. Joint-blend proxies turn about one joint each, and a vertex blends at most K of
 //! them. Here each proxy is itself the rigid fit over every bone its group's Ω holds:
 //!
@@ -28,9 +28,9 @@
 //! 3x3 rotation fit a proxy, once per character), then the palette skinning of any model.
 
 use crate::set::{Affine, ExampleSet};
-use crate::skinning::ddm::Ddm;
+use crate::skinning::direct_delta_mush::DirectDeltaMush;
 use crate::train::reduce::c1c2::Reduced;
-use crate::train::reduce::mush_keys::Keys;
+use crate::train::reduce::delta_mush_keys::Keys;
 use crate::train::reduce::vertex::merge_groups_at;
 use crate::train::rotreg::PoseFeatures;
 use crate::train::ssd::fit_weights_best_subset;
@@ -41,7 +41,7 @@ use rayon::prelude::*;
 pub const FLOOR: f64 = 1e-3;
 
 /// P delta-mush proxies and the vertices' weights over them.
-pub struct MushProxies {
+pub struct DeltaMushProxies {
     /// P groups' keys.
     pub proxies: Keys,
     /// Per vertex (V): (palette entry, weight), at most K, summing to 1 (empty: a vertex on no
@@ -71,21 +71,22 @@ impl Groups {
     }
 }
 
-impl MushProxies {
+impl DeltaMushProxies {
     /// Fits K = `influences` weights on the poses `train` of `set` for the proxies of `groups`,
-    /// from the per-vertex Ω `vertex_ddm` (V entries: Direct Delta Mush with SSD's weights) and
+    /// from the per-vertex Ω `vertex_direct_delta_mush` (V entries: Direct Delta DeltaMushReport with SSD's weights) and
     /// SSD's (bone, weight) lists `bones` (V), whose bones are each vertex's candidates too.
     pub fn fit(
         set: &ExampleSet,
         train: &[usize],
-        vertex_ddm: &Ddm,
+        vertex_direct_delta_mush: &DirectDeltaMush,
         bones: &[Vec<(usize, f64)>],
         groups: &Groups,
         influences: usize,
-    ) -> MushProxies {
+    ) -> DeltaMushProxies {
         let (shares, adjacency) = (&groups.shares, &groups.adjacency);
         let cap = rrskin::model::MAX_DELTA_MUSH_BONES;
-        let groups = Keys::of(&vertex_ddm.grouped(shares, adjacency.len(), FLOOR, cap));
+        let groups =
+            Keys::of(&vertex_direct_delta_mush.grouped(shares, adjacency.len(), FLOOR, cap));
         let p = adjacency.len();
         let motions: Vec<Vec<Affine>> = (train.iter())
             .map(|&i| palette(&groups, &set.poses[i].bones))
@@ -98,7 +99,7 @@ impl MushProxies {
                 vertex_weights(set, train, &motions, a, candidates, influences)
             })
             .collect();
-        MushProxies {
+        DeltaMushProxies {
             proxies: groups,
             weights,
         }
@@ -142,34 +143,34 @@ fn groups_near<'a>(
 }
 
 /// Both kinds of proxy in one palette (docs/method.md §23): `base`'s (its predictors' keys,
-/// no delta-mush key), then `mush`'s; each vertex's K = `influences` weights refitted on the
-/// poses `train` of `set` (`feats`: every pose's features), by NNLS as [`MushProxies::fit`]'s,
+/// no delta-mush key), then `delta_mush`'s; each vertex's K = `influences` weights refitted on the
+/// poses `train` of `set` (`feats`: every pose's features), by NNLS as [`DeltaMushProxies::fit`]'s,
 /// over its entries in either palette and its SSD bones (each kind's own best K, so at most
 /// 2K + K candidates).
 pub fn join(
     base: &Reduced,
-    mush: &MushProxies,
+    delta_mush: &DeltaMushProxies,
     set: &ExampleSet,
     train: &[usize],
     feats: &[PoseFeatures],
     influences: usize,
 ) -> Reduced {
-    let (p1, p2, j) = (base.proxies, mush.proxies.count(), set.bone_count());
+    let (p1, p2, j) = (base.proxies, delta_mush.proxies.count(), set.bone_count());
     let p = p1 + p2;
-    let (mush_c1, mush_c2) = mush.proxies.rows(j);
+    let (delta_mush_c1, delta_mush_c2) = delta_mush.proxies.rows(j);
     let mut c1 = vec![0.0; 12 * p * p];
     for r in 0..4 * p1 {
         c1[r * 3 * p..r * 3 * p + 3 * p1].copy_from_slice(&base.c1[r * 3 * p1..(r + 1) * 3 * p1]);
     }
     for r in 0..4 * p2 {
         let row = (4 * p1 + r) * 3 * p + 3 * p1;
-        c1[row..row + 3 * p2].copy_from_slice(&mush_c1[r * 3 * p2..(r + 1) * 3 * p2]);
+        c1[row..row + 3 * p2].copy_from_slice(&delta_mush_c1[r * 3 * p2..(r + 1) * 3 * p2]);
     }
     let palettes: Vec<Vec<Affine>> = (train.iter())
         .map(|&i| {
             let bones = &set.poses[i].bones;
             let mut out = base.predict_proxies(set, &feats[i], bones);
-            out.extend(palette(&mush.proxies, bones));
+            out.extend(palette(&delta_mush.proxies, bones));
             out
         })
         .collect();
@@ -179,7 +180,7 @@ pub fn join(
             let candidates = (base.skin[a].iter())
                 .map(|&(e, _)| if e < p1 { e } else { e + p2 })
                 // Group g is entry P1 + g, bone P2 + b (in the delta-mush palette) P + b.
-                .chain(mush.weights[a].iter().map(|&(e, _)| p1 + e))
+                .chain(delta_mush.weights[a].iter().map(|&(e, _)| p1 + e))
                 .chain(base.baseline[a].iter().map(|&(b, _)| p + b));
             vertex_weights(set, train, &palettes, a, candidates, influences)
         })
@@ -188,9 +189,9 @@ pub fn join(
         proxies: p,
         bones: j,
         c1,
-        c2: [base.c2.as_slice(), &mush_c2].concat(),
+        c2: [base.c2.as_slice(), &delta_mush_c2].concat(),
         predictors: base.predictors.clone(),
-        delta_mush: Some(mush.proxies.clone()),
+        delta_mush: Some(delta_mush.proxies.clone()),
         skin,
         baseline: base.baseline.clone(),
     }
@@ -248,7 +249,7 @@ fn vertex_shares(set: &ExampleSet, triangle_group: &[usize]) -> Vec<Vec<(usize, 
 mod tests {
     use super::*;
     use crate::cylinder_chain::Chain;
-    use crate::skinning::ddm::Params;
+    use crate::skinning::direct_delta_mush::Params;
     use crate::skinning::lbs::Skinning;
     use crate::train::ssd;
     use glam::DMat3;
@@ -259,7 +260,7 @@ mod tests {
         bones: usize,
         groups: usize,
         iterations: usize,
-    ) -> (ExampleSet, Skinning, MushProxies) {
+    ) -> (ExampleSet, Skinning, DeltaMushProxies) {
         let chain = Chain {
             rings: 12,
             segments: 8,
@@ -276,27 +277,35 @@ mod tests {
             kappa: 1.0,
             alpha: 0.5,
         };
-        let ddm = Ddm::new(&set.rest, &set.faces, &skin.influences, bones, &params)
-            .expect("precomputation");
+        let direct_delta_mush =
+            DirectDeltaMush::new(&set.rest, &set.faces, &skin.influences, bones, &params)
+                .expect("precomputation");
         let groups = Groups::merge_at(&set, &train, &[groups]).swap_remove(0);
-        let mush = MushProxies::fit(&set, &train, &ddm, &skin.influences, &groups, 4);
-        (set, skin, mush)
+        let delta_mush = DeltaMushProxies::fit(
+            &set,
+            &train,
+            &direct_delta_mush,
+            &skin.influences,
+            &groups,
+            4,
+        );
+        (set, skin, delta_mush)
     }
 
     /// Every proxy follows a motion of the whole character exactly, and the weights of every
     /// vertex on a triangle sum to one: the mesh moves rigidly with it.
     #[test]
     fn a_rigid_motion_of_every_bone_moves_the_mesh_rigidly() {
-        let (set, _, mush) = fitted(3, 6, 2);
-        assert_eq!(mush.proxies.count(), 6);
-        for w in &mush.weights {
+        let (set, _, delta_mush) = fitted(3, 6, 2);
+        assert_eq!(delta_mush.proxies.count(), 6);
+        for w in &delta_mush.weights {
             assert!(w.len() <= 4 && (w.iter().map(|x| x.1).sum::<f64>() - 1.0).abs() < 1e-6);
         }
         let turn = Affine {
             q: DMat3::from_rotation_z(0.9) * DMat3::from_rotation_x(-0.4),
             d: DVec3::new(0.5, 1.0, -2.0),
         };
-        let moved = mush.deform(&set.rest, &[turn; 3]);
+        let moved = delta_mush.deform(&set.rest, &[turn; 3]);
         for (y, &x) in moved.iter().zip(&set.rest) {
             assert!((*y - turn.apply(x)).length() < 1e-5, "{y:?}");
         }
@@ -306,11 +315,18 @@ mod tests {
     /// round-off (the mesh is about 1 across).
     #[test]
     fn the_runtime_model_moves_the_mesh_as_the_proxies_do() {
-        let (set, skin, mush) = fitted(4, 8, 4);
-        let model = (mush.reduced(4, &skin.influences))
+        let (set, skin, delta_mush) = fitted(4, 8, 4);
+        let model = (delta_mush.reduced(4, &skin.influences))
             .to_runtime(&set, 4)
             .expect("a valid model");
-        assert_eq!(model.keys().iter().filter_map(rrskin::Key::delta_mush).count(), 8);
+        assert_eq!(
+            model
+                .keys()
+                .iter()
+                .filter_map(rrskin::Key::delta_mush)
+                .count(),
+            8
+        );
         let mut cpu = rrskin::cpu::CpuEvaluator::new(&model);
         let v = set.vertex_count();
         let (mut got, mut normals) = (vec![[0.0f32; 3]; v], vec![[0.0f32; 3]; v]);
@@ -319,7 +335,7 @@ mod tests {
             let bones: Vec<_> = pose.bones.iter().map(Affine::to_runtime).collect();
             cpu.evaluate(&bones, &mut got, &mut normals)
                 .expect("evaluation");
-            let want = mush.deform(&set.rest, &pose.bones);
+            let want = delta_mush.deform(&set.rest, &pose.bones);
             for (g, w) in got.iter().zip(&want) {
                 worst = worst.max((DVec3::from(g.map(f64::from)) - *w).length());
             }

@@ -1,5 +1,5 @@
-//! Direct Delta Mush (Le & Lewis 2019, variant 1), a baseline an engine can run at a small
-//! multiple of LBS cost: Delta Mush's smoothing is folded, once, into one symmetric 4x4 matrix
+//! Direct Delta DeltaMushReport (Le & Lewis 2019, variant 1), a baseline an engine can run at a small
+//! multiple of LBS cost: Delta DeltaMushReport's smoothing is folded, once, into one symmetric 4x4 matrix
 //! Ω_ij per vertex i and bone j, so that a pose needs no smoothing at run time.
 //!
 //! Precomputation, u_k = (x_k, 1) the homogeneous rest position, L̃ = D⁻¹L the normalised
@@ -42,7 +42,7 @@ pub struct Params {
     pub alpha: f64,
 }
 
-/// An entry's rigid fit ([`Ddm::motions`]) in linear form, what the runtime's delta-mush keys
+/// An entry's rigid fit ([`DirectDeltaMush::motions`]) in linear form, what the runtime's delta-mush keys
 /// carry ([`rrskin::DeltaMushKey`]): with M_j = [Q_j | d_j] (3x4) the bone transforms,
 /// `R = polar(Σ_j M_j A_j)` and `t = Σ_j M_j ω_j − R p`.
 #[derive(Debug, Clone, PartialEq)]
@@ -58,7 +58,7 @@ pub struct LinearFit {
 /// [`NEGLIGIBLE`], the upper triangle of the symmetric 4x4 Ω_ij, row by row: (0,0) (0,1) (0,2)
 /// (0,3) (1,1) (1,2) (1,3) (2,2) (2,3) (3,3).
 #[derive(Debug, Clone)]
-pub struct Ddm {
+pub struct DirectDeltaMush {
     /// V + 1 offsets: vertex i's entries are `omega[starts[i]..starts[i + 1]]`.
     starts: Vec<usize>,
     /// (j, Ω_ij).
@@ -86,7 +86,7 @@ fn outer(x: DVec3) -> [f64; 10] {
     o
 }
 
-impl Ddm {
+impl DirectDeltaMush {
     /// Ω for the mesh (`rest`: V, `faces`), its (bone, weight) lists and J = `bones`.
     pub fn new(
         rest: &[DVec3],
@@ -94,7 +94,7 @@ impl Ddm {
         influences: &[Vec<(usize, f64)>],
         bones: usize,
         params: &Params,
-    ) -> Result<Ddm> {
+    ) -> Result<DirectDeltaMush> {
         // Without a step, no step's factorisation either (λ = κ = 0 make the identity).
         let unsmoothed = Params {
             lambda: 0.0,
@@ -115,8 +115,8 @@ impl Ddm {
 
     /// Ω of `count` groups of vertices, Ω_gj = Σ_i s_ig Ω_ij, for `shares[i]` = vertex i's
     /// (group g, share s_ig) list; each group keeps the bones j carrying at least `floor` of its
-    /// Ω's mass Σ_j Ω_gj[3][3] (none dropped for 0), the `cap` heaviest at most. A group's [`Ddm::motions`] entry is then
-    /// the rigid motion Direct Delta Mush gives all its vertices together: a rigid fit of the
+    /// Ω's mass Σ_j Ω_gj[3][3] (none dropped for 0), the `cap` heaviest at most. A group's [`DirectDeltaMush::motions`] entry is then
+    /// the rigid motion Direct Delta DeltaMushReport gives all its vertices together: a rigid fit of the
     /// group's smoothed, weighted bone motions.
     pub fn grouped(
         &self,
@@ -124,7 +124,7 @@ impl Ddm {
         count: usize,
         floor: f64,
         cap: usize,
-    ) -> Ddm {
+    ) -> DirectDeltaMush {
         let mut sums: Vec<HashMap<usize, [f64; 10]>> = vec![HashMap::new(); count];
         for (i, vertex_shares) in shares.iter().enumerate() {
             for &(g, share) in vertex_shares {
@@ -148,10 +148,10 @@ impl Ddm {
             omega.extend(kept);
             starts.push(omega.len());
         }
-        Ddm { starts, omega }
+        DirectDeltaMush { starts, omega }
     }
 
-    /// Per entry (vertex, or group of [`Ddm::grouped`]) its rigid motion under `bones` (J); the
+    /// Per entry (vertex, or group of [`DirectDeltaMush::grouped`]) its rigid motion under `bones` (J); the
     /// identity for an entry without weight.
     pub fn motions(&self, bones: &[Affine]) -> Vec<Affine> {
         (0..self.starts.len() - 1)
@@ -163,7 +163,7 @@ impl Ddm {
             .collect()
     }
 
-    /// Entry i's rigid fit in linear form (the same motion as [`Ddm::motions`]); None for an
+    /// Entry i's rigid fit in linear form (the same motion as [`DirectDeltaMush::motions`]); None for an
     /// entry without weight (which stays at rest).
     pub fn linear_fit(&self, i: usize) -> Option<LinearFit> {
         let omega = &self.omega[self.starts[i]..self.starts[i + 1]];
@@ -191,12 +191,12 @@ impl Ddm {
         })
     }
 
-    /// The entries: vertices, or groups of [`Ddm::grouped`].
+    /// The entries: vertices, or groups of [`DirectDeltaMush::grouped`].
     pub fn entries(&self) -> usize {
         self.starts.len() - 1
     }
 
-    /// The mean number of bones per entry: the run-time cost of [`Ddm::motions`] is about 48
+    /// The mean number of bones per entry: the run-time cost of [`DirectDeltaMush::motions`] is about 48
     /// multiply-adds per entry and bone, and one 3x3 rotation fit per entry.
     pub fn mean_bones(&self) -> f64 {
         self.omega.len() as f64 / (self.starts.len() - 1).max(1) as f64
@@ -264,8 +264,8 @@ pub fn choose(
     set: &ExampleSet,
     poses: &[usize],
     influences: &[Vec<(usize, f64)>],
-) -> Result<(Params, Ddm)> {
-    let error = |d: &Ddm| squared_error(set, poses, &d.deform_poses(set, poses));
+) -> Result<(Params, DirectDeltaMush)> {
+    let error = |d: &DirectDeltaMush| squared_error(set, poses, &d.deform_poses(set, poses));
     let (rest, faces, bones) = (&set.rest, &set.faces, set.bone_count());
     let mut params = Params {
         iterations: 0,
@@ -274,7 +274,7 @@ pub fn choose(
         alpha: 0.0,
     };
     let mut smoothing = Smoothed::new(rest, faces, influences, bones, &params)?;
-    let mut best: Option<(f64, Params, Ddm)> = None;
+    let mut best: Option<(f64, Params, DirectDeltaMush)> = None;
     for iterations in ITERATIONS {
         while params.iterations < iterations {
             smoothing.step();
@@ -282,10 +282,10 @@ pub fn choose(
         }
         let mut improved = false;
         for alpha in ALPHAS {
-            let ddm = smoothing.omega(alpha);
-            let e = error(&ddm);
+            let direct_delta_mush = smoothing.omega(alpha);
+            let e = error(&direct_delta_mush);
             if best.as_ref().is_none_or(|b| e < b.0) {
-                best = Some((e, Params { alpha, ..params }, ddm));
+                best = Some((e, Params { alpha, ..params }, direct_delta_mush));
                 improved = true;
             }
         }
@@ -296,11 +296,11 @@ pub fn choose(
         }
     }
     // None only with no candidates (ITERATIONS or ALPHAS empty).
-    let (_, params, ddm) = best.ok_or_else(|| Error::Baseline {
+    let (_, params, direct_delta_mush) = best.ok_or_else(|| Error::Baseline {
         method: "direct delta mush",
         problem: "no smoothing parameters to choose from".into(),
     })?;
-    Ok((params, ddm))
+    Ok((params, direct_delta_mush))
 }
 
 /// Ψ and w' after some number of smoothing steps, from which Ω follows for any α.
@@ -354,7 +354,7 @@ impl Smoothed {
     }
 
     /// Ω_ij = (1 − α) Ψ_ij + α w'_ij P_i.
-    fn omega(&self, alpha: f64) -> Ddm {
+    fn omega(&self, alpha: f64) -> DirectDeltaMush {
         let (j_count, v) = (self.bones, self.psi.nrows());
         let per_vertex: Vec<Vec<(usize, [f64; 10])>> = (0..v)
             .into_par_iter()
@@ -383,7 +383,7 @@ impl Smoothed {
         for o in &per_vertex {
             starts.push(starts[starts.len() - 1] + o.len());
         }
-        Ddm {
+        DirectDeltaMush {
             starts,
             omega: per_vertex.into_iter().flatten().collect(),
         }
@@ -487,7 +487,7 @@ fn cotangent_weights(rest: &[DVec3], faces: &[[usize; 3]]) -> BTreeMap<(usize, u
 }
 
 #[cfg(test)]
-impl Ddm {
+impl DirectDeltaMush {
     /// Ω_ij's entries (zero where left out).
     fn omega_of(&self, i: usize, j: usize) -> [f64; 10] {
         let entries = &self.omega[self.starts[i]..self.starts[i + 1]];
@@ -568,8 +568,9 @@ mod tests {
                 alpha: 0.8,
             },
         ] {
-            let ddm = Ddm::new(&rest, &faces, &weights, 2, &params).expect("precomputation");
-            let moved = ddm.deform(&rest, &bones());
+            let direct_delta_mush =
+                DirectDeltaMush::new(&rest, &faces, &weights, 2, &params).expect("precomputation");
+            let moved = direct_delta_mush.deform(&rest, &bones());
             for (a, b) in moved.iter().zip(&lbs) {
                 assert!((*a - *b).length() < 1e-9, "{params:?}: {a:?} vs {b:?}");
             }
@@ -581,7 +582,7 @@ mod tests {
             kappa: 1.0,
             alpha: 0.8,
         };
-        let moved = Ddm::new(&rest, &faces, &weights, 2, &smooth)
+        let moved = DirectDeltaMush::new(&rest, &faces, &weights, 2, &smooth)
             .expect("precomputation")
             .deform(&rest, &bones());
         let gap = moved
@@ -603,11 +604,12 @@ mod tests {
             kappa: 1.0,
             alpha: 0.5,
         };
-        let ddm = Ddm::new(&rest, &faces, &weights, 2, &params).expect("precomputation");
+        let direct_delta_mush =
+            DirectDeltaMush::new(&rest, &faces, &weights, 2, &params).expect("precomputation");
         let alone: Vec<Vec<(usize, f64)>> = (0..rest.len()).map(|i| vec![(i, 1.0)]).collect();
-        let singles = ddm.grouped(&alone, rest.len(), 0.0, usize::MAX);
+        let singles = direct_delta_mush.grouped(&alone, rest.len(), 0.0, usize::MAX);
         assert_eq!(singles.entries(), rest.len());
-        let moved = ddm.deform(&rest, &bones());
+        let moved = direct_delta_mush.deform(&rest, &bones());
         for ((m, x), y) in singles.motions(&bones()).iter().zip(&rest).zip(&moved) {
             assert!(
                 (m.apply(*x) - *y).length() < 1e-9,
@@ -620,7 +622,7 @@ mod tests {
             q: DMat3::from_rotation_y(0.7),
             d: DVec3::new(0.1, -0.2, 0.3),
         };
-        for m in ddm
+        for m in direct_delta_mush
             .grouped(&halves, 2, 1e-3, usize::MAX)
             .motions(&[turn, turn])
         {
@@ -678,7 +680,8 @@ mod tests {
         let (c, b) = (power(params.lambda), power(params.kappa));
         let w = |k: usize, bone: usize| weights[k][bone].1;
         let u = |k: usize| [rest[k].x, rest[k].y, rest[k].z, 1.0];
-        let ddm = Ddm::new(&rest, &faces, &weights, j, &params).expect("precomputation");
+        let direct_delta_mush =
+            DirectDeltaMush::new(&rest, &faces, &weights, j, &params).expect("precomputation");
         let expected_moved: Vec<DVec3> = (0..v)
             .map(|i| {
                 let psi = |bone: usize, r: usize, s: usize| {
@@ -696,7 +699,7 @@ mod tests {
                 for bone in 0..j {
                     for r in 0..4 {
                         for s in r..4 {
-                            let got = ddm.omega_of(i, bone)[UPPER[r][s]];
+                            let got = direct_delta_mush.omega_of(i, bone)[UPPER[r][s]];
                             let want = omega(bone, r, s);
                             assert!(
                                 (got - want).abs() < 1e-9 * (1.0 + want.abs()),
@@ -735,7 +738,7 @@ mod tests {
                 rot * rest[i] + qv - rot * pv
             })
             .collect();
-        let moved = ddm.deform(&rest, &bones());
+        let moved = direct_delta_mush.deform(&rest, &bones());
         for (i, (a, e)) in moved.iter().zip(&expected_moved).enumerate() {
             assert!((*a - *e).length() < 1e-9, "vertex {i}: {a:?} vs {e:?}");
         }

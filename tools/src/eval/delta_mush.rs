@@ -6,14 +6,14 @@ use crate::train::delta_mush::Fit;
 
 /// The delta-mush proxies as evaluated.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Mush {
+pub struct DeltaMushReport {
     /// P (the count kept) and K of the delta-mush proxies.
     pub proxies: usize,
     pub influences: usize,
     /// Bones per proxy's rigid fit, mean over the proxies (the run-time cost of the fits).
     pub mean_bones: f64,
     /// The smoothing of the proxies' Ω: DDM's p and α, or p = 0 (none).
-    pub smoothing: crate::skinning::ddm::Params,
+    pub smoothing: crate::skinning::direct_delta_mush::Params,
     pub errors: Errors,
     /// (score, standard error) of the runtime model's joint-blend structure, the delta-mush
     /// proxies alone, then both in one palette; empty with too few poses, or with
@@ -26,10 +26,10 @@ pub struct Mush {
     pub chosen: &'static str,
 }
 
-impl Mush {
+impl DeltaMushReport {
     /// The row of `fit`, whose proxies err by `errors`.
-    pub fn of(fit: &Fit, errors: Errors) -> Mush {
-        Mush {
+    pub fn of(fit: &Fit, errors: Errors) -> DeltaMushReport {
+        DeltaMushReport {
             proxies: fit.proxies(),
             influences: fit.influences,
             mean_bones: fit.mean_bones(),

@@ -1,12 +1,12 @@
 //! Delta-mush keys as the runtime evaluates them (docs/method.md §23): per group of
-//! [`Ddm::grouped`], the runtime's key ([`rrskin::DeltaMushKey`], its terms in the key's
+//! [`DirectDeltaMush::grouped`], the runtime's key ([`rrskin::DeltaMushKey`], its terms in the key's
 //! principal frame) and what its proxy adds to it. Training fits the proxies' weights to the
 //! function that ships, `D = fit(A') Pᵀ` by [`rrskin::predict::delta_mush_gradient`] (Newton
 //! steps from a guess,
 //! `rrskin::polar`), not to an exact polar decomposition.
 
 use crate::set::Affine;
-use crate::skinning::ddm::{Ddm, LinearFit};
+use crate::skinning::direct_delta_mush::{DirectDeltaMush, LinearFit};
 use glam::{DMat3, DVec3};
 
 /// P delta-mush keys.
@@ -25,7 +25,7 @@ pub struct Keys {
 impl Keys {
     /// The keys of the groups of `groups`; a group without weight keeps one zero term, whose
     /// fit is the identity.
-    pub fn of(groups: &Ddm) -> Keys {
+    pub fn of(groups: &DirectDeltaMush) -> Keys {
         let fits: Vec<Option<LinearFit>> = (0..groups.entries())
             .map(|g| groups.linear_fit(g))
             .collect();
