@@ -9,7 +9,8 @@ mod blender;
 #[path = "../../tests/common/scratch.rs"]
 mod scratch;
 
-use blender::{assert_same_figures, bpy_script, count, figure, repo, rrskin};
+use blender::{assert_same_figures, bpy_scenarios, count, figure, rrskin};
+use blender::{eval_with_notes as eval, refuses_broken_copies};
 use scratch::fixture_dir;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -22,22 +23,12 @@ use std::sync::OnceLock;
 /// vertex order, axis, unit or frame tens of points.
 const TOLERANCE: f64 = 0.1;
 
-fn eval(args: &[&str]) -> (serde_json::Value, String) {
-    let out = rrskin(args);
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "rrskin {}:\n{stderr}", args.join(" "));
-    (serde_json::from_slice(&out.stdout).expect("JSON"), stderr)
-}
-
 /// The scenario files, made once per test binary (about 2 s of Blender).
 fn scenarios() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = fixture_dir("blender45-usd");
-        let script = repo().join("tools/tests/blender/usd_scenarios.py");
-        let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
-        let (out, glb) = (dir.to_str().expect("utf-8"), glb.to_str().expect("utf-8"));
-        bpy_script(&script, &["--out", out, "--glb", glb]);
+        bpy_scenarios("usd_scenarios.py", &dir);
         dir
     })
 }
@@ -46,10 +37,16 @@ fn at(file: &str) -> String {
     scenarios().join(file).to_str().expect("utf-8").to_string()
 }
 
+/// The NumPy route's figures, evaluated once per test binary.
+fn numpy_route() -> &'static serde_json::Value {
+    static FIGURES: OnceLock<serde_json::Value> = OnceLock::new();
+    FIGURES.get_or_init(|| eval(&["eval", &at("numpy"), "--proxies", "0", "--json"]).0)
+}
+
 /// `rrskin eval RIG --clip rom --cache CACHE` on the held-out frames, without reduction: its
 /// figures against the NumPy route's, and its notes.
 fn same_as_numpy(rig: &str, cache: &str, notes: &[&str]) {
-    let (reference, _) = eval(&["eval", &at("numpy"), "--proxies", "0", "--json"]);
+    let reference = numpy_route();
     let (rig, cache) = (at(rig), at(cache));
     let args = ["eval", &rig, "--clip", "rom", "--cache", &cache];
     let (e, stderr) = eval(
@@ -66,11 +63,11 @@ fn same_as_numpy(rig: &str, cache: &str, notes: &[&str]) {
         "train_poses",
         "test_poses",
     ] {
-        assert_eq!(count(&e, key), count(&reference, key), "{rig}: {key}");
+        assert_eq!(count(&e, key), count(reference, key), "{rig}: {key}");
     }
     assert_same_figures(
         &e,
-        &reference,
+        reference,
         TOLERANCE,
         &format!("{rig} + {cache} against the NumPy route"),
     );
@@ -160,35 +157,8 @@ fn broken_usd_files_are_refused_naming_the_file() {
     use rrskin_tools::import::point_cache::PointCache;
     use rrskin_tools::import::rig::Rig;
     let dir = scratch::temp_dir("blender45-usd-broken");
-    for (file, load) in [
-        (
-            "cache.usdc",
-            (&|p: &Path| PointCache::load(p, 24.0).map(|_| ())) as &dyn Fn(&Path) -> _,
-        ),
-        ("rig.usd", &|p: &Path| Rig::load(p, "rom").map(|_| ())),
-    ] {
-        let bytes = std::fs::read(scenarios().join(file)).expect(file);
-        let mut x: u64 = 11;
-        let mut next = |n: usize| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (x >> 33) as usize % n
-        };
-        for case in 0..40 {
-            let mut broken = bytes.clone();
-            match case % 2 {
-                0 => broken.truncate(next(bytes.len())),
-                _ => (0..8).for_each(|_| {
-                    let at = next(broken.len());
-                    broken[at] ^= 1 << next(8);
-                }),
-            }
-            let path = dir.join(format!("{case}-{file}"));
-            std::fs::write(&path, &broken).expect("write");
-            if let Err(e) = load(&path) {
-                assert!(e.to_string().contains(&format!("{case}-{file}")), "{e}");
-            }
-        }
-    }
+    let cache = |p: &Path| PointCache::load(p, 24.0).map(|_| ());
+    refuses_broken_copies(&scenarios().join("cache.usdc"), &dir, 11, &cache);
+    let rig = |p: &Path| Rig::load(p, "rom").map(|_| ());
+    refuses_broken_copies(&scenarios().join("rig.usd"), &dir, 11, &rig);
 }

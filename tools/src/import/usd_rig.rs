@@ -156,38 +156,21 @@ impl Joints {
                 paths[j]
             ));
         }
-        let bind: Vec<DMat4> = skeleton
-            .bind_transforms()
-            .map_err(why)?
-            .iter()
-            .map(mat4)
-            .collect();
-        if bind.len() != paths.len() {
-            return Err(format!(
-                "Skeleton {at}: {} bindTransforms for {} joints",
-                bind.len(),
-                paths.len()
-            ));
-        }
-        let mut rest: Vec<DMat4> = skeleton
-            .rest_transforms()
-            .map_err(why)?
-            .iter()
-            .map(mat4)
-            .collect();
-        if rest.is_empty() {
+        let n = paths.len();
+        let bind = per_joint(
+            at,
+            "bindTransforms",
+            skeleton.bind_transforms().map_err(why)?,
+            n,
+        )?;
+        let authored = skeleton.rest_transforms().map_err(why)?;
+        let rest = match authored.is_empty() {
             // Unauthored: the bind pose, in each joint's parent's frame.
-            rest = (0..bind.len())
+            true => (0..n)
                 .map(|j| parents[j].map_or(bind[j], |p| bind[p].inverse() * bind[j]))
-                .collect();
-        }
-        if rest.len() != paths.len() {
-            return Err(format!(
-                "Skeleton {at}: {} restTransforms for {} joints",
-                rest.len(),
-                paths.len()
-            ));
-        }
+                .collect(),
+            false => per_joint(at, "restTransforms", authored, n)?,
+        };
         Ok(Joints {
             names: skeleton.joint_short_names().map_err(why)?,
             bind_inverse: bind.iter().map(|b| b.inverse()).collect(),
@@ -204,6 +187,22 @@ impl Joints {
             out.push(self.parents[j].map_or(*l, |p| out[p] * *l));
         }
         out
+    }
+}
+
+/// A Skeleton's array `name` of a matrix a joint (`joints` of them), in glam's convention.
+fn per_joint(
+    at: &sdf::Path,
+    name: &str,
+    matrices: Vec<openusd::gf::Matrix4d>,
+    joints: usize,
+) -> Result<Vec<DMat4>, String> {
+    match matrices.len() == joints {
+        true => Ok(matrices.iter().map(mat4).collect()),
+        false => Err(format!(
+            "Skeleton {at}: {} {name} for {joints} joints",
+            matrices.len()
+        )),
     }
 }
 

@@ -31,17 +31,8 @@ import scenarios  # noqa: E402
 
 
 def main(argv):
-    import argparse
-    p = argparse.ArgumentParser(prog="usd_scenarios.py")
-    p.add_argument("--out", required=True)
-    p.add_argument("--glb", default=os.path.join(HERE, "..", "..", "..", "data", "cesiumman_gltf",
-                                                 "CesiumMan_examples.glb"))
-    p.add_argument("--poses", type=int, default=30)
-    p.add_argument("--test-poses", type=int, default=8)
-    p.add_argument("--seed", type=int, default=0)
-    args = p.parse_args(argv)
-    out = os.path.abspath(args.out)
-    os.makedirs(out, exist_ok=True)
+    args = scenarios.arguments("usd_scenarios.py", argv)
+    out = args.out
     t0 = time.time()
     arm, mesh, start = scenarios.build_scene(args, "start0")
     scene = bpy.context.scene
