@@ -1,5 +1,5 @@
-//! An example set from a rig (glTF, or FBX through `fbx_rig`) and a point cache (PC2, MDD or
-//! Alembic).
+//! An example set from a rig (glTF, or FBX through `fbx_rig`, or USD through `usd_rig`) and a
+//! point cache (PC2, MDD, Alembic, USD or a mesh sequence).
 //!
 //! glTF splits vertices along UV and normal seams. Vertices at the same rest position whose
 //! cache trajectories agree are welded into one training vertex, so the mesh is connected for
