@@ -191,8 +191,8 @@ impl ExampleSet {
 }
 
 /// The example set at `path`, in any format `rrskin train` reads: a NumPy folder, or a rig
-/// (.glb, .gltf, .fbx) with its `clip` and its point `cache` (.pc2, .mdd, .abc, or a folder of
-/// per-frame .obj/.ply meshes); `fps` the clip's frames a second (24 by default) and
+/// (.glb, .gltf, .fbx, .usd/.usda/.usdc) with its `clip` and its point `cache` (.pc2, .mdd, .abc,
+/// USD, or a folder of per-frame .obj/.ply meshes); `fps` the clip's frames a second (24 by default) and
 /// `test_frames` an inclusive (first, last) range of frames held out. What the import found
 /// and fixed is in the set's `warnings`.
 #[pyfunction]

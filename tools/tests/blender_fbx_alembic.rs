@@ -10,7 +10,8 @@ mod blender;
 #[path = "../../tests/common/scratch.rs"]
 mod scratch;
 
-use blender::{assert_same_figures, bpy_script, count, figure, repo, rrskin};
+use blender::{assert_same_figures, bpy_scenarios, bpy_script, count, figure, repo, rrskin};
+use blender::{eval_with_notes as eval, refuses_broken_copies};
 use scratch::{fixture_dir, temp_dir};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -20,22 +21,12 @@ use std::sync::OnceLock;
 /// (measured: 0.001 EE points). A wrong vertex order, axis, unit or frame is tens of points.
 const TOLERANCE: f64 = 0.1;
 
-fn eval(args: &[&str]) -> (serde_json::Value, String) {
-    let out = rrskin(args);
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "rrskin {}:\n{stderr}", args.join(" "));
-    (serde_json::from_slice(&out.stdout).expect("JSON"), stderr)
-}
-
 /// The scenario files, made once per test binary (about 2 s of Blender).
 fn scenarios() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = fixture_dir("blender45-scenarios");
-        let script = repo().join("tools/tests/blender/scenarios.py");
-        let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
-        let (out, glb) = (dir.to_str().expect("utf-8"), glb.to_str().expect("utf-8"));
-        bpy_script(&script, &["--out", out, "--glb", glb]);
+        bpy_scenarios("scenarios.py", &dir);
         dir
     })
 }
@@ -164,37 +155,10 @@ fn broken_fbx_and_alembic_files_are_refused_naming_the_file() {
     use rrskin_tools::import::point_cache::PointCache;
     use rrskin_tools::import::rig::Rig;
     let dir = temp_dir("blender45-broken");
-    for (file, load) in [
-        (
-            "cache.abc",
-            (&|p: &Path| PointCache::load(p, 24.0).map(|_| ())) as &dyn Fn(&Path) -> _,
-        ),
-        ("rig.fbx", &|p: &Path| Rig::load(p, "rom").map(|_| ())),
-    ] {
-        let bytes = std::fs::read(scenarios().join(file)).expect(file);
-        let mut x: u64 = 7;
-        let mut next = |n: usize| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (x >> 33) as usize % n
-        };
-        for case in 0..40 {
-            let mut broken = bytes.clone();
-            match case % 2 {
-                0 => broken.truncate(next(bytes.len())),
-                _ => (0..8).for_each(|_| {
-                    let at = next(broken.len());
-                    broken[at] ^= 1 << next(8);
-                }),
-            }
-            let path = dir.join(format!("{case}-{file}"));
-            std::fs::write(&path, &broken).expect("write");
-            if let Err(e) = load(&path) {
-                assert!(e.to_string().contains(&format!("{case}-{file}")), "{e}");
-            }
-        }
-    }
+    let cache = |p: &Path| PointCache::load(p, 24.0).map(|_| ());
+    refuses_broken_copies(&scenarios().join("cache.abc"), &dir, 7, &cache);
+    let rig = |p: &Path| Rig::load(p, "rom").map(|_| ());
+    refuses_broken_copies(&scenarios().join("rig.fbx"), &dir, 7, &rig);
 }
 
 /// The other mix: the bundled glTF rig with an Alembic cache of its clip `examples` from

@@ -127,22 +127,23 @@ impl TrainArgs {
     }
 }
 
-/// SET: a NumPy example-set folder, or a rig (.glb/.gltf/.fbx) with a point cache.
+/// SET: a NumPy example-set folder, or a rig (.glb/.gltf/.fbx/.usd) with a point cache.
 #[derive(clap::Args)]
 pub struct SetArgs {
-    /// An example-set folder (NumPy layout) or a rig (.glb / .gltf / .fbx).
+    /// An example-set folder (NumPy layout) or a rig (.glb / .gltf / .fbx, or USD as UsdSkel:
+    /// .usd / .usda / .usdc).
     pub set: PathBuf,
-    /// Rig: the animation (glTF) or animation stack (FBX) that poses the rig at the cache's
-    /// samples.
+    /// Rig: the animation (glTF), animation stack (FBX) or SkelAnimation (USD) that poses the
+    /// rig at the cache's samples.
     #[arg(long)]
     pub clip: Option<String>,
-    /// Rig: the point cache (.pc2, .mdd, Alembic .abc, or a folder of per-frame .obj or .ply
-    /// meshes numbered by their names) of the black-box rig's vertices, in the rig's vertex
+    /// Rig: the point cache (.pc2, .mdd, Alembic .abc, USD with time-sampled mesh points, or a
+    /// folder of per-frame .obj or .ply meshes numbered by their names) of the black-box rig's vertices, in the rig's vertex
     /// order or the DCC's own (mapped), world or object space, Y-up or Z-up (detected).
     #[arg(long)]
     pub cache: Option<PathBuf>,
     /// Rig: the clip's frames per second (glTF key time x fps = the DCC's frame number;
-    /// PC2 and mesh-sequence frames become times with it, MDD and Alembic times frames).
+    /// PC2 and mesh-sequence frames become times with it, MDD, Alembic and USD times frames).
     #[arg(long, default_value_t = 24.0)]
     pub fps: f64,
     /// Rig: frames held out as test poses, e.g. 41..60 (inclusive; the DCC's frame

@@ -255,8 +255,9 @@ fn rig_source(
     model: &Model,
     buffer: &mut Buffer,
 ) -> Result<(Geometry, Vec<Clip>)> {
-    if crate::import::SetFormat::of(path) == crate::import::SetFormat::Fbx {
-        return Err(input(path, "--rig takes the glTF of the rig (its materials and UVs come from there; FBX rigs are read for training only): export the rig as glTF from the DCC (Blender: File > Export > glTF 2.0) and train from that glb, or export without --rig (docs/export.md)"));
+    use crate::import::SetFormat;
+    if matches!(SetFormat::of(path), SetFormat::Fbx | SetFormat::Usd) {
+        return Err(input(path, "--rig takes the glTF of the rig (its materials and UVs come from there; FBX and USD rigs are read for training only): export the rig as glTF from the DCC (Blender: File > Export > glTF 2.0) and train from that glb, or export without --rig (docs/export.md)"));
     }
     let bytes = std::fs::read(path).map_err(|e| input(path, format!("cannot read: {e}")))?;
     let gltf = gltf::Gltf::from_slice(&bytes)

@@ -37,14 +37,7 @@ struct PolyMesh {
 /// Reads `path`; errors are messages about the file. A fault of the reader on a malformed file
 /// (ogawa-rs panics on some, as on the allocation of a corrupt size) is an error too.
 pub fn read(path: &Path) -> Result<Cache, String> {
-    std::panic::catch_unwind(|| read_file(path)).unwrap_or_else(|panic| {
-        let why = (panic.downcast_ref::<String>().cloned())
-            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-            .unwrap_or_default();
-        Err(format!(
-            "a malformed Alembic file (the reader failed: {why})"
-        ))
-    })
+    crate::import::guarded("Alembic", || read_file(path))
 }
 
 fn read_file(path: &Path) -> Result<Cache, String> {

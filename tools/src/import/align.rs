@@ -23,7 +23,7 @@
 
 use crate::import::point_cache::{Format, PointCache};
 use crate::import::preflight::RigFit;
-use crate::import::rig::{Rig, TIME_SLACK};
+use crate::import::rig::{at_bind_pose, Rig, TIME_SLACK};
 use crate::import::vertex_map::{self, tree};
 use crate::set::{bounds, diagonal};
 use crate::set::{Affine, InputError};
@@ -41,9 +41,6 @@ const SAME_PLACEMENT: f64 = 1e-5;
 /// Samples and skinned vertices the hypotheses are scored on.
 const SCORED_SAMPLES: usize = 16;
 const SCORED_VERTICES: usize = 128;
-/// A sample is at the bind pose when every bone's transform is the identity to this (rotation
-/// elements; translation relative to the mesh size).
-const AT_BIND: f64 = 1e-4;
 
 /// The cache lined up with the rig.
 #[derive(Debug, Clone)]
@@ -253,10 +250,7 @@ fn lined_up(
     let bones: Vec<Vec<Affine>> = times.iter().map(|&t| rig.bones_at(t)).collect();
     let skin: Vec<Vec<DVec3>> = bones.iter().map(|b| rig.skin(b)).collect();
     let size = diagonal(&rig.rest);
-    let at_bind = bones.iter().position(|b| {
-        b.iter()
-            .all(|x| x.q.abs_diff_eq(DMat3::IDENTITY, AT_BIND) && x.d.length() <= AT_BIND * size)
-    });
+    let at_bind = bones.iter().position(|b| at_bind_pose(b, size));
     let (rest, triangles, primitives) = (&rig.rest, &rig.triangles, &rig.primitives);
     let map = vertex_map::map(rest, triangles, primitives, &skin, &world, at_bind)?;
     notes.extend(map.note);
@@ -372,7 +366,7 @@ fn shift_note(cache: &PointCache, first: f64, offset: f64) -> String {
         cache.frames[0],
         match cache.format {
             Format::Mdd => " (MDD times start at 0, whatever the scene's first frame)",
-            Format::Pc2 | Format::Alembic | Format::Meshes => "",
+            Format::Pc2 | Format::Alembic | Format::Usd | Format::Meshes => "",
         },
         offset,
         if offset.abs() == 1.0 { "" } else { "s" }
@@ -460,8 +454,8 @@ fn off_the_keys(rig_path: &Path, cache: &PointCache, keys: &[f64], clip: &str, f
         .filter(|r| (r - r.round()).abs() < 1e-3)
         .map(f64::round);
     let hint = match (cache.format, key_fps, cache.sample_rate()) {
-        (Format::Mdd | Format::Alembic, Some(k), Some(c)) if (c - k).abs() > 1e-3 * k => format!(
-            "; the cache was sampled at {c:.3} fps (its samples are 1/{c:.3} s apart) and the clip's keys are 1/{k} s apart: bake the cache at the clip's {k} fps (MDD and Alembic store seconds: --fps only numbers their frames)"
+        (Format::Mdd | Format::Alembic | Format::Usd, Some(k), Some(c)) if (c - k).abs() > 1e-3 * k => format!(
+            "; the cache was sampled at {c:.3} fps (its samples are 1/{c:.3} s apart) and the clip's keys are 1/{k} s apart: bake the cache at the clip's {k} fps (MDD, Alembic and USD store seconds: --fps only numbers their frames)"
         ),
         (Format::Pc2 | Format::Meshes, Some(k), _) if k != fps => format!("; the keys are 1/{k} s apart: is it --fps {k}?"),
         _ => "; no whole-frame shift of the cache fits either: bake the cache at the clip's keys".into(),

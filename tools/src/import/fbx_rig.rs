@@ -72,6 +72,7 @@ pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
         uvs: None,
         tangents: None,
         bind: None,
+        base_mesh: false,
         mesh_world: Some(to_world).filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
         notes,
         motion: Arc::new(motion),

@@ -1,5 +1,5 @@
-//! An example set from a rig (glTF, or FBX through `fbx_rig`) and a point cache (PC2, MDD or
-//! Alembic).
+//! An example set from a rig (glTF, or FBX through `fbx_rig`, or USD through `usd_rig`) and a
+//! point cache (PC2, MDD, Alembic, USD or a mesh sequence).
 //!
 //! glTF splits vertices along UV and normal seams. Vertices at the same rest position whose
 //! cache trajectories agree are welded into one training vertex, so the mesh is connected for
@@ -7,13 +7,13 @@
 //! can be expanded back to the file's own vertex order and count, with the file's rest tangents
 //! (TANGENT, or MikkTSpace from TEXCOORD_0: `import::tangents`).
 
-use crate::import::align::align;
+use crate::import::align::{align, Aligned};
 use crate::import::point_cache::PointCache;
 use crate::import::preflight;
-use crate::import::rig::Rig;
+use crate::import::rig::{at_bind_pose, Rig};
 use crate::import::tangents::{rest_tangents, Source};
 use crate::import::weld::weld;
-use crate::set::{Affine, ExampleSet, InputError, Pose, SetFiles, SetParts};
+use crate::set::{diagonal, Affine, ExampleSet, InputError, Pose, SetFiles, SetParts};
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 
@@ -51,7 +51,7 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
             message: format!("--fps {} must be positive", options.fps),
         });
     }
-    let rig = Rig::load(rig_path, &options.clip)?;
+    let mut rig = Rig::load(rig_path, &options.clip)?;
     let cache = PointCache::load(&options.cache, options.fps)?;
     let aligned = align(
         &rig,
@@ -62,6 +62,9 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         options.fps,
     )?;
     check_test_frames(options, &aligned.frames)?;
+    if rig.base_mesh {
+        rest_at_bind_sample(&mut rig, &aligned);
+    }
     let weld = weld(&rig.rest, &aligned.positions);
     let is_test: Vec<bool> = aligned
         .frames
@@ -106,6 +109,27 @@ pub fn import(rig_path: &Path, options: &Options) -> Result<Imported, InputError
         triangles: rig.triangles,
         tangents,
     })
+}
+
+/// A rig whose rest is its base mesh ([`Rig::base_mesh`]) rests where the cache's first sample
+/// at the bind pose has it: the base mesh as the DCC's deformers leave it there, what every
+/// pose's motion starts from (a NumPy set's rest, from the DCC's evaluation). A note says so,
+/// and how far that is from the file's mesh.
+fn rest_at_bind_sample(rig: &mut Rig, aligned: &Aligned) {
+    let size = diagonal(&rig.rest);
+    let Some(k) = (aligned.bones.iter()).position(|b| at_bind_pose(b, size)) else {
+        return;
+    };
+    let sample = &aligned.positions[k];
+    let moved = (rig.rest.iter().zip(sample))
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f64::max);
+    rig.notes.push(format!(
+        "the rest mesh is the cache's sample {k} (frame {}, at the bind pose): the file's is the mesh before the DCC's deformers, up to {:.3} % of the mesh size from it",
+        aligned.frames[k],
+        100.0 * moved / size
+    ));
+    rig.rest = sample.clone();
 }
 
 /// The example set over the training vertices: each welded group of glTF vertices taken at

@@ -78,6 +78,7 @@ pub(crate) fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
     notes.dedup();
     Ok(Rig {
         bind: common_bind(&skeleton.joint_matrices),
+        base_mesh: false,
         mesh_world: Some(tree.world_default[skinned[0].index()])
             .filter(|m| !m.abs_diff_eq(DMat4::IDENTITY, 1e-9)),
         primitives: mesh.primitives,

@@ -14,6 +14,8 @@ pub mod point_cache;
 pub mod preflight;
 pub mod rig;
 pub mod tangents;
+pub mod usd;
+pub mod usd_rig;
 pub mod vertex_map;
 pub mod weld;
 
@@ -22,10 +24,11 @@ use rig::Rig;
 use std::path::{Path, PathBuf};
 
 impl Rig {
-    /// Loads the rig at `path` (glTF or FBX, by [`SetFormat`]) and its animation `clip`.
+    /// Loads the rig at `path` (glTF, FBX or USD, by [`SetFormat`]) and its animation `clip`.
     pub fn load(path: &Path, clip: &str) -> Result<Rig, InputError> {
         match SetFormat::of(path) {
             SetFormat::Fbx => fbx_rig::load(path, clip),
+            SetFormat::Usd => usd_rig::load(path, clip),
             _ => gltf_rig::load(path, clip),
         }
     }
@@ -40,6 +43,9 @@ pub enum SetFormat {
     Gltf,
     /// An FBX rig posed by a point cache.
     Fbx,
+    /// A USD rig (UsdSkel) posed by a point cache; as a cache, a USD stage with time-sampled
+    /// mesh points.
+    Usd,
 }
 
 impl SetFormat {
@@ -49,6 +55,7 @@ impl SetFormat {
         match ext.as_deref() {
             Some("glb" | "gltf") => SetFormat::Gltf,
             Some("fbx") => SetFormat::Fbx,
+            Some("usd" | "usda" | "usdc") => SetFormat::Usd,
             _ => SetFormat::NumpyFolder,
         }
     }
@@ -107,12 +114,12 @@ pub fn load(path: &Path, options: &ImportOptions) -> Result<Loaded, InputError> 
     };
     if !SetFormat::of(path).is_rig() {
         if options.clip.is_some() || options.cache.is_some() || options.test_frames.is_some() {
-            return Err(bad("a clip, a cache and test frames (--clip, --cache, --test-frames) apply to a rig (.glb/.gltf/.fbx)"));
+            return Err(bad("a clip, a cache and test frames (--clip, --cache, --test-frames) apply to a rig (.glb/.gltf/.fbx/.usd)"));
         }
         return ExampleSet::load(path).map(Loaded::Folder);
     }
     let (Some(clip), Some(cache)) = (&options.clip, &options.cache) else {
-        return Err(bad("a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc|FOLDER (its animation, and its point cache: a file, or a folder of per-frame .obj or .ply meshes)"));
+        return Err(bad("a rig needs --clip NAME and --cache FILE.pc2|FILE.mdd|FILE.abc|FILE.usd|FOLDER (its animation, and its point cache: a file, or a folder of per-frame .obj or .ply meshes)"));
     };
     let rig_options = gltf::Options {
         clip: clip.clone(),
@@ -121,4 +128,21 @@ pub fn load(path: &Path, options: &ImportOptions) -> Result<Loaded, InputError> 
         test_frames: options.test_frames,
     };
     gltf::import(path, &rig_options).map(|i| Loaded::Rig(Box::new(i)))
+}
+
+/// `read()`, with a panic of the reader (a third-party parser's fault on a malformed file, as
+/// ogawa-rs's allocation of a corrupt size) turned into the error that the `format` file is
+/// malformed: bad input is refused, never a crash.
+pub(crate) fn guarded<T>(
+    format: &str,
+    read: impl FnOnce() -> Result<T, String> + std::panic::UnwindSafe,
+) -> Result<T, String> {
+    std::panic::catch_unwind(read).unwrap_or_else(|panic| {
+        let why = (panic.downcast_ref::<String>().cloned())
+            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_default();
+        Err(format!(
+            "a malformed {format} file (the reader failed: {why})"
+        ))
+    })
 }

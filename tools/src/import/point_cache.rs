@@ -7,6 +7,8 @@
 //!   frames x points x 3 f32.
 //! - Alembic (`.abc`, Ogawa): the one animated PolyMesh's positions in world space, at its time
 //!   sampling's times in seconds ([`crate::import::alembic`]).
+//! - USD (`.usd`, `.usda`, `.usdc`): the stage's one mesh with time-sampled points, in world
+//!   space converted to metres and Y up, at its time codes in seconds ([`crate::import::usd`]).
 //! - A folder of per-frame OBJ or PLY meshes, numbered by their names' last digits
 //!   ([`crate::import::mesh_sequence`]): frames as PC2's.
 //!
@@ -14,6 +16,7 @@
 //! number is that whole frame (MDD's f32 seconds put Blender's frame 59 at 58.99999809), so a
 //! `--test-frames` bound never moves a sample to the other side.
 
+use crate::import::SetFormat;
 use crate::set::InputError;
 use glam::DVec3;
 use std::path::Path;
@@ -26,6 +29,8 @@ pub enum Format {
     Mdd,
     /// Times in seconds per sample, as MDD.
     Alembic,
+    /// Time codes per sample, over the stage's time codes per second: seconds, as MDD.
+    Usd,
     /// Frames in the file names: `--fps` gives their times, as PC2's.
     Meshes,
 }
@@ -63,8 +68,9 @@ fn bad(file: &Path, message: impl Into<String>) -> InputError {
 }
 
 impl PointCache {
-    /// Reads a .pc2, .mdd or .abc file (by extension), or a folder of per-frame meshes; `fps`
-    /// turns PC2 and mesh frames into seconds and MDD and Alembic seconds into frames.
+    /// Reads a .pc2, .mdd, .abc or USD file (by extension; USD's as [`SetFormat`] tells them),
+    /// or a folder of per-frame meshes; `fps` turns PC2 and mesh frames into seconds and MDD,
+    /// Alembic and USD seconds into frames.
     pub fn load(path: &Path, fps: f64) -> Result<PointCache, InputError> {
         let ext = path
             .extension()
@@ -81,12 +87,14 @@ impl PointCache {
                     positions,
                 }
             }),
+            _ if SetFormat::of(path) == SetFormat::Usd => crate::import::usd::read_cache(path)
+                .map(|c| Self::from_seconds(Format::Usd, &c.times, c.positions, fps)),
             "pc2" => bytes().and_then(|b| Self::from_pc2(&b, fps)),
             "mdd" => bytes().and_then(|b| Self::from_mdd(&b, fps)),
             "abc" => crate::import::alembic::read(path)
                 .map(|c| Self::from_seconds(Format::Alembic, &c.times, c.positions, fps)),
             _ => Err(format!(
-                "unknown point cache extension '.{ext}' (expected .pc2, .mdd, .abc, or a folder of per-frame .obj or .ply meshes)"
+                "unknown point cache extension '.{ext}' (expected .pc2, .mdd, .abc, .usd, .usda, .usdc, or a folder of per-frame .obj or .ply meshes)"
             )),
         }
         .map_err(|m| bad(path, m))?;

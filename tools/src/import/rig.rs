@@ -1,14 +1,26 @@
 //! A rig, whatever file it came from: the skinned rest mesh, the bones, the skin's own weights,
 //! what takes a DCC's object space to the world, and the clip ([`Clip`]) that poses the bones.
-//! `gltf_rig` and `fbx_rig` read one; `Rig::load` (in `import`) reads either by the file.
+//! `gltf_rig`, `fbx_rig` and `usd_rig` read one; `Rig::load` (in `import`) reads any by the
+//! file.
 
 use crate::set::Affine;
-use glam::{DMat4, DVec3};
+use glam::{DMat3, DMat4, DVec3};
 use std::sync::Arc;
 
 /// Key times are compared with this slack (seconds): STEP keys at i/24 s stored as f32 must
 /// be hit by frame times computed in f64.
 pub const TIME_SLACK: f64 = 1e-5;
+
+/// A pose is the bind pose when every bone's transform is the identity to this (rotation
+/// elements; translation relative to the mesh size).
+const AT_BIND: f64 = 1e-4;
+
+/// Whether `bones` (a pose's, relative to the rest pose) are at the bind pose, on a mesh of
+/// diagonal `size`.
+pub(crate) fn at_bind_pose(bones: &[Affine], size: f64) -> bool {
+    (bones.iter())
+        .all(|x| x.q.abs_diff_eq(DMat3::IDENTITY, AT_BIND) && x.d.length() <= AT_BIND * size)
+}
 
 #[derive(Debug, Clone)]
 pub struct Rig {
@@ -34,6 +46,12 @@ pub struct Rig {
     /// the same one (the mesh was bound at the default pose): what takes an object-space cache
     /// to the rig's world.
     pub bind: Option<DMat4>,
+    /// Whether `rest` is the mesh before the DCC's deformers (UsdSkel's points: a DCC's shape
+    /// keys are the stage's blend shapes, and what else it ran beside the skin, such as
+    /// Blender's Corrective Smooth, is in no file), not the mesh it evaluates at the bind pose
+    /// (an FBX exported with its modifiers applied): then the cache's sample at the bind pose,
+    /// where it has one, is the rest the rig's motion starts from.
+    pub base_mesh: bool,
     /// The skinned mesh node's world matrix at the default pose (the mesh object's transform in
     /// the DCC), unless it is the identity: what takes the DCC's object space to the world.
     pub mesh_world: Option<DMat4>,

@@ -306,9 +306,11 @@ def numpy_reference(out, scene, arm, mesh, start, end, test_first):
         json.dump([b.name for b in bones], f)
 
 
-def main(argv):
+def arguments(prog, argv):
+    """The scenario scripts' arguments (this one's and usd_scenarios.py's), the paths absolute
+    and the output folder made."""
     import argparse
-    p = argparse.ArgumentParser(prog="scenarios.py")
+    p = argparse.ArgumentParser(prog=prog)
     p.add_argument("--out", required=True)
     p.add_argument("--glb", default=os.path.join(HERE, "..", "..", "..", "data", "cesiumman_gltf",
                                                  "CesiumMan_examples.glb"))
@@ -319,6 +321,11 @@ def main(argv):
     args.glb = os.path.abspath(args.glb)
     args.out = os.path.abspath(args.out)
     os.makedirs(args.out, exist_ok=True)
+    return args
+
+
+def main(argv):
+    args = arguments("scenarios.py", argv)
     manifest = dict(blender=bpy.app.version_string, fps=FPS, poses=args.poses + 1, rigs={},
                     caches=[])
     t0 = time.time()

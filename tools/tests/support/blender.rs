@@ -88,6 +88,60 @@ pub fn rrskin(args: &[&str]) -> Output {
         .expect("run rrskin")
 }
 
+/// Runs `SCRIPT -- --out DIR --glb CesiumMan_examples.glb` in Blender 4.5's `bpy` Python
+/// ([`bpy_script`]): a scenario script of tools/tests/blender/ writing its files of the bundled
+/// rig into `dir`.
+pub fn bpy_scenarios(script: &str, dir: &Path) {
+    let script = repo().join("tools/tests/blender").join(script);
+    let glb = repo().join("data/cesiumman_gltf/CesiumMan_examples.glb");
+    let (out, glb) = (dir.to_str().expect("utf-8"), glb.to_str().expect("utf-8"));
+    bpy_script(&script, &["--out", out, "--glb", glb]);
+}
+
+/// The JSON object `rrskin ARGS` printed, and its stderr (the notes); panics with stderr if
+/// it failed.
+pub fn eval_with_notes(args: &[&str]) -> (serde_json::Value, String) {
+    let out = rrskin(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "rrskin {}:\n{stderr}", args.join(" "));
+    (serde_json::from_slice(&out.stdout).expect("JSON"), stderr)
+}
+
+/// Writes 40 broken copies of `source` into `dir` (`CASE-NAME`: truncated at a random length,
+/// or 8 random bits flipped, alternately; the same ones for one `seed`) and `load`s each: a
+/// refusal must name the copy (a load that succeeds is fine: the damage missed what is read).
+pub fn refuses_broken_copies<E: std::fmt::Display>(
+    source: &Path,
+    dir: &Path,
+    seed: u64,
+    load: &dyn Fn(&Path) -> Result<(), E>,
+) {
+    let name = source.file_name().expect("a file").to_string_lossy();
+    let bytes = std::fs::read(source).expect("the source file");
+    let mut x = seed;
+    let mut next = |n: usize| {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (x >> 33) as usize % n
+    };
+    for case in 0..40 {
+        let mut broken = bytes.clone();
+        match case % 2 {
+            0 => broken.truncate(next(bytes.len())),
+            _ => (0..8).for_each(|_| {
+                let at = next(broken.len());
+                broken[at] ^= 1 << next(8);
+            }),
+        }
+        let path = dir.join(format!("{case}-{name}"));
+        std::fs::write(&path, &broken).expect("write");
+        if let Err(e) = load(&path) {
+            assert!(e.to_string().contains(&format!("{case}-{name}")), "{e}");
+        }
+    }
+}
+
 /// The JSON object `rrskin eval ... --json` printed; panics with stderr if it failed.
 pub fn eval_json(args: &[&str]) -> serde_json::Value {
     let out = rrskin(args);
