@@ -1345,8 +1345,8 @@ fn proxy_correctives_after_each_product(in_product: bool) {
         with_proxy_correctives(&with_correctives(&sparse(1, 63), 4, 3), true, 2, 3),
         random_model(RR, 64),
         random_model(LBS, 65),
-        // Delta-mush keys after predictors: the fused product's MUSH builds, with and without
-        // the correction.
+        // Delta-mush keys among the predictors: the fused product of every kind, with and
+        // without the correction.
         with_proxy_correctives(&joint_blend_pattern(&with_delta_mush, 1), true, 2, 3),
         // Without feature ranges (files before version 6): the shaders clamp to ±f32::MAX.
         with_ranges(

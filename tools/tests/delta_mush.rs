@@ -214,7 +214,7 @@ fn asked_for_both_kinds_are_kept_without_cross_validation() {
 }
 
 /// The chain smooths past its second joint only: each kind of proxy fits one part, and the runtime
-/// model holds both (the joint-blend model's keys, then the delta-mush keys); its CPU reference
+/// model holds both (the joint-blend model's keys and the delta-mush keys); its CPU reference
 /// deforms as the trained model does in f64, and it beats either kind alone held out. Without
 /// proxy correctives: with them, the delta-mush proxies alone come within the union's margin
 /// here, their correctives turning the joints that do not smooth.
