@@ -513,11 +513,14 @@ impl Stages<'_> {
         pool: usize,
         clock: &mut Clock,
     ) -> Result<Runtime, TrainError> {
-        let (reduced, joint_blend, chosen) = self.reduce(full, proxies, pool, clock)?;
+        let (reduced, joint_blend, mut chosen) = self.reduce(full, proxies, pool, clock)?;
         let (mut delta_mush, shipped) = match &joint_blend {
             Some(fit) => self.fit_delta_mush(&chosen, fit, &reduced, clock)?,
             None => (None, None),
         };
+        // The folds' models served the delta-mush stage; nothing after it reads them, and the
+        // trained result does not keep them (a reduced model per fold and candidate).
+        chosen.built = Default::default();
         let reduced = shipped.unwrap_or(reduced);
         let model = reduced.to_runtime(self.set, chosen.structure.influences)?;
         // Whatever kind ships: the correctives' own cross-validation decides (in the delta-mush
