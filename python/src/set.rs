@@ -4,7 +4,6 @@
 use crate::arrays::{floats, ints, owned, strings};
 use numpy::PyArrayDyn;
 use pyo3::prelude::*;
-use rrskin_tools::import::gltf::Imported;
 use rrskin_tools::import::numpy_folder::Arrays;
 use rrskin_tools::import::{ImportOptions, Loaded};
 use std::path::PathBuf;
@@ -16,17 +15,20 @@ const FIX: &str = "pose_vertices is not in the space, units, vertex order or pos
 /// mesh of T triangles, split into training and test poses.
 #[pyclass(module = "rrskin", frozen)]
 pub struct ExampleSet {
-    pub set: rrskin_tools::set::ExampleSet,
-    /// For a rig file: what maps the set's (welded) vertices back to the file's.
-    imported: Option<Box<Imported>>,
+    /// The set, and for a rig file what maps its (welded) vertices back to the file's: the set
+    /// is held once.
+    loaded: Loaded,
 }
 
 impl ExampleSet {
     pub fn of(set: rrskin_tools::set::ExampleSet) -> ExampleSet {
         ExampleSet {
-            set,
-            imported: None,
+            loaded: Loaded::Folder(set),
         }
+    }
+
+    pub fn set(&self) -> &rrskin_tools::set::ExampleSet {
+        self.loaded.set()
     }
 }
 
@@ -70,115 +72,115 @@ impl ExampleSet {
     /// V.
     #[getter]
     fn vertex_count(&self) -> usize {
-        self.set.vertex_count()
+        self.set().vertex_count()
     }
 
     /// J.
     #[getter]
     fn bone_count(&self) -> usize {
-        self.set.bone_count()
+        self.set().bone_count()
     }
 
     /// N.
     #[getter]
     fn pose_count(&self) -> usize {
-        self.set.poses.len()
+        self.set().poses.len()
     }
 
     /// The training poses' indices.
     #[getter]
     fn train_poses(&self) -> Vec<usize> {
-        self.set.train()
+        self.set().train()
     }
 
     /// The test poses' indices (held out of training, for reporting).
     #[getter]
     fn test_poses(&self) -> Vec<usize> {
-        self.set.test()
+        self.set().test()
     }
 
     /// What does not stop training but may be wrong (degenerate triangles, unused bones, what
     /// an importer fixed).
     #[getter]
     fn warnings(&self) -> Vec<String> {
-        self.set.warnings.clone()
+        self.set().warnings.clone()
     }
 
     #[getter]
     fn bone_names(&self) -> Option<Vec<String>> {
-        self.set.bone_names.clone()
+        self.set().bone_names.clone()
     }
 
     /// (V, 3) float64.
     #[getter]
     fn rest_vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let data = self.set.rest.iter().flat_map(|p| p.to_array()).collect();
-        owned(py, &[self.set.vertex_count(), 3], data)
+        let data = self.set().rest.iter().flat_map(|p| p.to_array()).collect();
+        owned(py, &[self.set().vertex_count(), 3], data)
     }
 
     /// (T, 3) int64.
     #[getter]
     fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<i64>>> {
-        let data = self.set.faces.iter().flatten().map(|&a| a as i64).collect();
-        owned(py, &[self.set.faces.len(), 3], data)
+        let data = self.set().faces.iter().flatten().map(|&a| a as i64).collect();
+        owned(py, &[self.set().faces.len(), 3], data)
     }
 
     /// (J,) int64, -1 for a root.
     #[getter]
     fn bone_parents<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<i64>>> {
-        let data = (self.set.parents.iter())
+        let data = (self.set().parents.iter())
             .map(|p| p.map_or(-1, |p| p as i64))
             .collect();
-        owned(py, &[self.set.bone_count()], data)
+        owned(py, &[self.set().bone_count()], data)
     }
 
     /// (N, J, 3, 4) float64: each pose's bone transforms, rows of [Q | d].
     #[getter]
     fn pose_transforms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let data = (self.set.poses.iter())
+        let data = (self.set().poses.iter())
             .flat_map(|p| p.bones.iter().flat_map(|b| b.to_rows()))
             .collect();
-        let (n, j) = (self.set.poses.len(), self.set.bone_count());
+        let (n, j) = (self.set().poses.len(), self.set().bone_count());
         owned(py, &[n, j, 3, 4], data)
     }
 
     /// (N, V, 3) float64: the rig's vertices in each pose.
     #[getter]
     fn pose_vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let data = (self.set.poses.iter())
+        let data = (self.set().poses.iter())
             .flat_map(|p| p.vertices.iter().flat_map(|v| v.to_array()))
             .collect();
-        let (n, v) = (self.set.poses.len(), self.set.vertex_count());
+        let (n, v) = (self.set().poses.len(), self.set().vertex_count());
         owned(py, &[n, v, 3], data)
     }
 
     /// (N,) int64: 0 for a training pose, 1 for a test pose.
     #[getter]
     fn split<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<i64>>> {
-        let data = self.set.is_test.iter().map(|&t| i64::from(t)).collect();
-        owned(py, &[self.set.poses.len()], data)
+        let data = self.set().is_test.iter().map(|&t| i64::from(t)).collect();
+        owned(py, &[self.set().poses.len()], data)
     }
 
     /// Writes the set as a NumPy folder at `path` (what `rrskin train PATH` reads).
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        self.set.save(path).map_err(crate::error)
+        self.set().save(path).map_err(crate::error)
     }
 
     /// `model` (trained on this set) over the rig file's own vertices, in its order and count,
     /// as `rrskin train` writes it for `rrskin export --rig`; for a set made of arrays or a
     /// NumPy folder, the model itself.
     fn for_file(&self, model: &crate::model::Model) -> PyResult<crate::model::Model> {
-        match &self.imported {
-            Some(imported) => {
+        match &self.loaded {
+            Loaded::Rig(imported) => {
                 let expanded = imported.expand(model.model()).map_err(crate::error)?;
                 crate::model::Model::new(expanded, None)
             }
-            None => crate::model::Model::new(model.model().clone(), None),
+            Loaded::Folder(_) => crate::model::Model::new(model.model().clone(), None),
         }
     }
 
     fn __repr__(&self) -> String {
-        let s = &self.set;
+        let s = self.set();
         format!(
             "ExampleSet(V = {}, T = {}, J = {}, {} training poses, {} test poses)",
             s.vertex_count(),
@@ -211,20 +213,14 @@ pub fn load_set(
         fps: fps.unwrap_or(ImportOptions::default().fps),
         test_frames,
     };
-    let loaded = py
+    let mut loaded = py
         .detach(|| rrskin_tools::import::load(&path, &options))
         .map_err(crate::error)?;
-    Ok(match loaded {
-        Loaded::Folder(set) => ExampleSet::of(set),
-        Loaded::Rig(imported) => {
-            let notes = imported.notes.iter();
-            let notes = notes.map(|(file, line)| format!("{}: {line}", file.display()));
-            let mut set = imported.set.clone();
-            set.warnings.extend(notes);
-            ExampleSet {
-                set,
-                imported: Some(imported),
-            }
-        }
-    })
+    if let Loaded::Rig(imported) = &mut loaded {
+        let notes = imported.notes.iter();
+        let notes = notes.map(|(file, line)| format!("{}: {line}", file.display()));
+        let notes: Vec<String> = notes.collect();
+        imported.set.warnings.extend(notes);
+    }
+    Ok(ExampleSet { loaded })
 }

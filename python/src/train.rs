@@ -147,13 +147,14 @@ fn run(
     let (watch, observer) = Watch::observer(progress);
     train.observer = observer;
     train.full_model = train.full_model && !eval.skip_baselines;
-    let warnings = train.check(&set.set).map_err(crate::error)?;
+    let set = set.set();
+    let warnings = train.check(set).map_err(crate::error)?;
     let warn = py.import("warnings")?;
     for w in warnings {
         warn.call_method1("warn", (w,))?;
     }
     let eval = Options { train, ..eval };
-    let result = py.detach(|| rrskin_tools::eval::run(&set.set, &eval));
+    let result = py.detach(|| rrskin_tools::eval::run(set, &eval));
     watch.raise(result)
 }
 
