@@ -31,6 +31,10 @@ and point caches of the deformed mesh (every modifier, shape key and driver):
                                     the glTF file's vertex order, world space, Y-up, header
                                     start frame = the scene's first frame, rate 1
 
+and the studio pairs of the start0 and scaled scenes, each exporter at its defaults: rig.fbx and
+rig_scaled.fbx, and where Blender has Alembic cache.abc and cache_scaled.abc (dcc_exports); and
+numpy/, the NumPy route of the start0 scene (numpy_reference), the reference of both pairs.
+
 The io_export_pc2 operator's range defaults to frames 1..250 (in the UI too: it does not read
 the scene's range), so the range is passed; the MDD operator, called from Python, defaults to
 25 fps and frames 1..250 (only its UI copies the scene's), so fps and range are passed.
@@ -215,8 +219,10 @@ def export_variant(args, variant, manifest):
                            frames=frames, space=space, up=up, vertex_order="blender",
                            vertices=blender_vertices, **kw))
 
+    if variant in ("start0", "scaled"):
+        # The scaled character moves as the plain one does, world space alike: one reference.
+        dcc_exports(out, scene, start, end, suffix, cache, manifest)
     if variant == "start0":
-        dcc_exports(out, scene, start, end, glb, cache, manifest)
         numpy_reference(os.path.join(out, "numpy"), scene, arm, mesh, start, end, test_first)
     if args.point_caches:
         point_caches(out, variant, suffix, start, end, frames, glb, blender_vertices, cache, caches)
@@ -260,17 +266,19 @@ def point_caches(out, variant, suffix, start, end, frames, glb, blender_vertices
         cache(name, "pc2", "object", "Y")
 
 
-def dcc_exports(out, scene, start, end, glb, cache, manifest):
+def dcc_exports(out, scene, start, end, suffix, cache, manifest):
     """The studio pair, each with its exporter's defaults: the rig as FBX (`rig.fbx`: cm, leaf
     bones added, the animation baked and simplified) and, where Blender has Alembic (4.x from
     PyPI; Debian's 3.4 has not), the deformed mesh as an Alembic cache over the scene's range
-    (`cache.abc`: Y-up, world transforms above the mesh, Blender's vertex order)."""
-    bpy.ops.export_scene.fbx(filepath=os.path.join(out, "rig.fbx"))
-    manifest["fbx"] = "rig.fbx"
+    (`cache.abc`: Y-up, world transforms above the mesh, Blender's vertex order); `suffix` names
+    the variant's pair (`rig_scaled.fbx`, `cache_scaled.abc`: the armature object at 0.01)."""
+    fbx, abc = f"rig{suffix}.fbx", f"cache{suffix}.abc"
+    bpy.ops.export_scene.fbx(filepath=os.path.join(out, fbx))
+    manifest.setdefault("fbx", []).append(fbx)
     if bpy.app.build_options.alembic:
         scene.frame_start, scene.frame_end = start, end
-        bpy.ops.wm.alembic_export(filepath=os.path.join(out, "cache.abc"))
-        cache("cache.abc", "abc", "world", "Y", times="seconds")
+        bpy.ops.wm.alembic_export(filepath=os.path.join(out, abc))
+        cache(abc, "abc", "world", "Y", times="seconds")
 
 
 def numpy_reference(out, scene, arm, mesh, start, end, test_first):
