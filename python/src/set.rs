@@ -121,7 +121,13 @@ impl ExampleSet {
     /// (T, 3) int64.
     #[getter]
     fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<i64>>> {
-        let data = self.set().faces.iter().flatten().map(|&a| a as i64).collect();
+        let data = self
+            .set()
+            .faces
+            .iter()
+            .flatten()
+            .map(|&a| a as i64)
+            .collect();
         owned(py, &[self.set().faces.len(), 3], data)
     }
 

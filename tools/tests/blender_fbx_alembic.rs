@@ -39,7 +39,10 @@ fn blenders_default_fbx_and_alembic_give_the_numpy_routes_figures() {
     // The plain character, then the one whose armature object is scaled 0.01 (its bones and
     // mesh 100 times larger: a character in cm, the Fox's node transform): the same motion.
     for suffix in ["", "_scaled"] {
-        let (rig, cache) = (at(&format!("rig{suffix}.fbx")), at(&format!("cache{suffix}.abc")));
+        let (rig, cache) = (
+            at(&format!("rig{suffix}.fbx")),
+            at(&format!("cache{suffix}.abc")),
+        );
         same_figures_as(&reference, &rig, &cache);
     }
     let (rig, cache) = (at("rig.fbx"), at("cache.abc"));
