@@ -45,13 +45,6 @@ impl KeyKind {
         KeyKind::ALL.into_iter().find(|k| k.tag() == tag)
     }
 
-    /// The name reports give the kind.
-    pub fn name(self) -> &'static str {
-        match self {
-            KeyKind::Predictor => "predictor",
-            KeyKind::DeltaMush => "delta mush",
-        }
-    }
 }
 
 /// A key predictor (paper §3): `D(q) = R(q) S(q)`.
