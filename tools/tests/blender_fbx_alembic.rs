@@ -10,7 +10,7 @@ mod blender;
 #[path = "../../tests/common/scratch.rs"]
 mod scratch;
 
-use blender::{assert_same_figures, bpy_scenarios, bpy_script, count, figure, repo, rrskin};
+use blender::{assert_same_route, bpy_scenarios, bpy_script, count, figure, repo, rrskin};
 use blender::{eval_with_notes as eval, refuses_broken_copies};
 use scratch::{fixture_dir, temp_dir};
 use std::path::{Path, PathBuf};
@@ -43,7 +43,8 @@ fn blenders_default_fbx_and_alembic_give_the_numpy_routes_figures() {
             at(&format!("rig{suffix}.fbx")),
             at(&format!("cache{suffix}.abc")),
         );
-        same_figures_as(&reference, &rig, &cache);
+        let notes = ["FBX in centimetres", "leaf bones", "Simplify"];
+        assert_same_route(&reference, &rig, &cache, TOLERANCE, &notes);
     }
     let (rig, cache) = (at("rig.fbx"), at("cache.abc"));
     let args = ["eval", &rig, "--clip", "rom", "--cache", &cache];
@@ -51,42 +52,6 @@ fn blenders_default_fbx_and_alembic_give_the_numpy_routes_figures() {
     let (e, _) = eval(&[&args[..], &["--test-frames", "23..30", "--json"]].concat());
     let (ssd, rr) = (figure(&e, "ssd", "test"), figure(&e, "rr_reduced", "test"));
     assert!(rr < ssd, "runtime model {rr} against SSD {ssd}");
-}
-
-/// `rig` posed by `cache` gives `reference`'s counts and figures (the NumPy route's), with a
-/// note for each conversion FBX needs.
-fn same_figures_as(reference: &serde_json::Value, rig: &str, cache: &str) {
-    let args = ["eval", rig, "--clip", "rom", "--cache", cache];
-    let (e, stderr) = eval(
-        &[
-            &args[..],
-            &["--test-frames", "23..30", "--proxies", "0", "--json"],
-        ]
-        .concat(),
-    );
-    for key in [
-        "vertices",
-        "triangles",
-        "bones",
-        "train_poses",
-        "test_poses",
-    ] {
-        assert_eq!(count(&e, key), count(reference, key), "{rig}: {key}");
-    }
-    assert_same_figures(
-        &e,
-        reference,
-        TOLERANCE,
-        &format!("{rig} + {cache} against the NumPy route"),
-    );
-    for note in ["FBX in centimetres", "leaf bones", "Simplify"] {
-        assert!(
-            stderr
-                .lines()
-                .any(|l| l.starts_with("note: ") && l.contains(note)),
-            "{rig}: no note says {note:?}:\n{stderr}"
-        );
-    }
 }
 
 /// A clip the FBX lacks is refused, naming the file and the stacks it has (Blender names them

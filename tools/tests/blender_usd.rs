@@ -9,7 +9,7 @@ mod blender;
 #[path = "../../tests/common/scratch.rs"]
 mod scratch;
 
-use blender::{assert_same_figures, bpy_scenarios, count, figure, rrskin};
+use blender::{assert_same_route, bpy_scenarios, figure, rrskin};
 use blender::{eval_with_notes as eval, refuses_broken_copies};
 use scratch::fixture_dir;
 use std::path::{Path, PathBuf};
@@ -43,42 +43,10 @@ fn numpy_route() -> &'static serde_json::Value {
     FIGURES.get_or_init(|| eval(&["eval", &at("numpy"), "--proxies", "0", "--json"]).0)
 }
 
-/// `rrskin eval RIG --clip rom --cache CACHE` on the held-out frames, without reduction: its
-/// figures against the NumPy route's, and its notes.
+/// `rrskin eval RIG --clip rom --cache CACHE` (files of the scenarios) on the held-out frames,
+/// without reduction: the NumPy route's figures, and `notes`.
 fn same_as_numpy(rig: &str, cache: &str, notes: &[&str]) {
-    let reference = numpy_route();
-    let (rig, cache) = (at(rig), at(cache));
-    let args = ["eval", &rig, "--clip", "rom", "--cache", &cache];
-    let (e, stderr) = eval(
-        &[
-            &args[..],
-            &["--test-frames", "23..30", "--proxies", "0", "--json"],
-        ]
-        .concat(),
-    );
-    for key in [
-        "vertices",
-        "triangles",
-        "bones",
-        "train_poses",
-        "test_poses",
-    ] {
-        assert_eq!(count(&e, key), count(reference, key), "{rig}: {key}");
-    }
-    assert_same_figures(
-        &e,
-        reference,
-        TOLERANCE,
-        &format!("{rig} + {cache} against the NumPy route"),
-    );
-    for note in notes {
-        assert!(
-            stderr
-                .lines()
-                .any(|l| l.starts_with("note: ") && l.contains(note)),
-            "no note says {note:?}:\n{stderr}"
-        );
-    }
+    assert_same_route(numpy_route(), &at(rig), &at(cache), TOLERANCE, notes);
 }
 
 #[test]

@@ -190,3 +190,37 @@ pub fn assert_same_figures(
 pub fn count(e: &serde_json::Value, key: &str) -> u64 {
     e[key].as_u64().unwrap_or_else(|| panic!("no {key} in {e}"))
 }
+
+/// `rrskin eval RIG --clip rom --cache CACHE` on the held-out frames 23..30, without
+/// reduction, gives `reference`'s counts (vertices, triangles, bones, poses of each split), its
+/// rigid, SSD and rig-LBS EE within `tolerance` points, and a note containing each of `notes`.
+pub fn assert_same_route(
+    reference: &serde_json::Value,
+    rig: &str,
+    cache: &str,
+    tolerance: f64,
+    notes: &[&str],
+) {
+    let args = ["eval", rig, "--clip", "rom", "--cache", cache];
+    let held_out = ["--test-frames", "23..30", "--proxies", "0", "--json"];
+    let (e, stderr) = eval_with_notes(&[&args[..], &held_out].concat());
+    for key in [
+        "vertices",
+        "triangles",
+        "bones",
+        "train_poses",
+        "test_poses",
+    ] {
+        assert_eq!(count(&e, key), count(reference, key), "{rig}: {key}");
+    }
+    let what = format!("{rig} + {cache} against the reference route");
+    assert_same_figures(&e, reference, tolerance, &what);
+    for note in notes {
+        assert!(
+            stderr
+                .lines()
+                .any(|l| l.starts_with("note: ") && l.contains(note)),
+            "{rig}: no note says {note:?}:\n{stderr}"
+        );
+    }
+}
