@@ -269,18 +269,14 @@ fn keys(table: &SectionTable, body: &[u8], version: u32, p: u64) -> Result<Vec<K
         return legacy_keys(table, body, p);
     }
     let length = (table.entry(KEYS)).ok_or(ModelProblem::MissingSection { tag: "KEYS".into() })?;
-    let whole = length / 4 * 4;
-    let words =
-        u32s(
-            table
-                .section(body, KEYS, whole)
-                .map_err(|_| ModelProblem::SectionLength {
-                    tag: "KEYS".into(),
-                    expected: whole,
-                    actual: length,
-                })?,
-        );
-    keys_of_words(&words, p as usize)
+    if length % 4 != 0 {
+        return Err(ModelProblem::SectionLength {
+            tag: "KEYS".into(),
+            expected: length / 4 * 4,
+            actual: length,
+        });
+    }
+    keys_of_words(&u32s(table.section(body, KEYS, length)?), p as usize)
 }
 
 /// The keys of a file before version 8: the PRED predictors, then the MUSH delta-mush keys.

@@ -44,7 +44,6 @@ impl KeyKind {
     pub fn of_tag(tag: u32) -> Option<KeyKind> {
         KeyKind::ALL.into_iter().find(|k| k.tag() == tag)
     }
-
 }
 
 /// A key predictor (paper §3): `D(q) = R(q) S(q)`.

@@ -432,18 +432,12 @@ impl Reduced {
                     h: crate::train::scale_shear::identity().map(|x| x as f32),
                 },
             })
-            .map(rrskin::Key::Predictor);
-        let delta_mush = self.delta_mush.as_ref().map_or(&[][..], |k| &k.runtime);
-        let keys = predictors
-            .chain(delta_mush.iter().cloned().map(rrskin::Key::DeltaMush))
-            .collect();
-        let frames: Vec<_> = (self.predictors.iter().map(|_| None))
-            .chain(
-                self.delta_mush
-                    .iter()
-                    .flat_map(|k| k.frames().iter().copied().map(Some)),
-            )
-            .collect();
+            .map(|k| (rrskin::Key::Predictor(k), None));
+        // Each key beside the frame C1 turns its fit out of (the delta-mush keys' only).
+        let delta_mush = (self.delta_mush.iter())
+            .flat_map(|k| k.runtime.iter().zip(k.frames()))
+            .map(|(key, frame)| (rrskin::Key::DeltaMush(key.clone()), Some(*frame)));
+        let (keys, frames): (Vec<_>, Vec<_>) = predictors.chain(delta_mush).unzip();
         let mut c1: Vec<f32> = self.c1.iter().map(|&x| x as f32).collect();
         rrskin::model::c1_in_key_frames(&mut c1, &frames);
         rrskin::Model::new(rrskin::ModelParts {
