@@ -43,7 +43,8 @@ struct Moments {
     m: DMat4,
     /// Per pose: Σ y ŷhᵀ as 3 rows of 4.
     n: Vec<[DVec4; 3]>,
-    s: Vec<f64>,
+    /// Σ |y|² over the poses.
+    s: f64,
 }
 
 impl Moments {
@@ -54,7 +55,7 @@ impl Moments {
                 a[r] += b[r];
             }
         }
-        self.s.iter_mut().zip(&other.s).for_each(|(a, b)| *a += b);
+        self.s += other.s;
     }
 
     /// Best affine fit per pose: T = N M⁻¹ (rows).
@@ -68,14 +69,20 @@ impl Moments {
 
     /// Error of mapping this group's samples with `fit`: `Σ_i s^i − 2 tr(T^i N^iᵀ) + ⟨M,
     /// Σ_i T^iᵀ T^i⟩`, the last sum the fit's [`Fit::gram`], so a cost is 12 multiply-adds a
-    /// pose (with `tr(T^i M T^iᵀ)` per pose it was 60, and the merging's time).
+    /// pose (with `tr(T^i M T^iᵀ)` per pose it was 60, and the merging's time). The cross
+    /// term sums into 12 independent lanes (a row's entries), not one chain of 12 adds a pose:
+    /// one dependent chain was most of the merging's time.
     fn error_with(&self, fit: &Fit) -> f64 {
-        let cross: f64 = (self.n.iter().zip(&fit.rows))
-            .map(|(n, rows)| rows[0].dot(n[0]) + rows[1].dot(n[1]) + rows[2].dot(n[2]))
-            .sum();
+        let mut lanes = [DVec4::ZERO; 3];
+        for (n, rows) in self.n.iter().zip(&fit.rows) {
+            for r in 0..3 {
+                lanes[r] += rows[r] * n[r];
+            }
+        }
+        let cross = (lanes[0] + lanes[1] + lanes[2]).element_sum();
         let (m, g) = (self.m.to_cols_array(), fit.gram.to_cols_array());
         let quadratic: f64 = m.iter().zip(&g).map(|(a, b)| a * b).sum();
-        (self.s.iter().sum::<f64>() - 2.0 * cross + quadratic).max(0.0)
+        (self.s - 2.0 * cross + quadratic).max(0.0)
     }
 }
 
@@ -136,24 +143,19 @@ fn triangle_moments(set: &ExampleSet, train: &[usize], k: usize) -> Moments {
     for p in &points {
         m += DMat4::from_cols(*p * p.x, *p * p.y, *p * p.z, *p * p.w);
     }
-    let (mut n, mut s) = (
-        Vec::with_capacity(train.len()),
-        Vec::with_capacity(train.len()),
-    );
+    let (mut n, mut s) = (Vec::with_capacity(train.len()), 0.0);
     for &i in train {
         let y = &set.poses[i].vertices;
         let posed = [y[a], y[b], y[c]];
         let posed4 = fourth_point(posed[0], posed[1], posed[2]);
         let mut rows = [DVec4::ZERO; 3];
-        let mut sum = 0.0;
         for (q, p) in posed.iter().chain([&posed4]).zip(&points) {
             for r in 0..3 {
                 rows[r] += *p * q[r];
             }
-            sum += q.length_squared();
+            s += q.length_squared();
         }
         n.push(rows);
-        s.push(sum);
     }
     // A tiny ridge keeps degenerate triangles invertible.
     Moments {
