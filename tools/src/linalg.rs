@@ -122,7 +122,8 @@ const NEWTON_POLAR_ITERATIONS: usize = 16;
 fn newton_polar(m: DMat3) -> Option<DMat3> {
     let norm = |x: DMat3| x.to_cols_array().iter().map(|e| e * e).sum::<f64>().sqrt();
     let size = norm(m);
-    if !(m.determinant() > NEWTON_POLAR_DET * size * size * size) {
+    let det = m.determinant();
+    if det.is_nan() || det <= NEWTON_POLAR_DET * size * size * size {
         return None;
     }
     let mut x = m / size;
