@@ -118,7 +118,8 @@ const NEWTON_POLAR_ITERATIONS: usize = 16;
 /// first below 1e-8 leaves an error of about 1e-16. None where det m is not clearly positive, or
 /// it does not converge. It replaced the signed SVD's cyclic Jacobi sweeps (fifteen dependent
 /// rotations, each with square roots and divisions), 28 % of the CPU while Direct Delta Mush's
-/// smoothing choice ran beside the merging on human_heavy; the two agree to 1e-12 (the tests).
+/// smoothing choice ran beside the merging on human_heavy (the choice 3.2 → 2.2 s); the two
+/// agree to 1e-12 (the tests).
 fn newton_polar(m: DMat3) -> Option<DMat3> {
     let norm = |x: DMat3| x.to_cols_array().iter().map(|e| e * e).sum::<f64>().sqrt();
     let size = norm(m);
