@@ -170,19 +170,19 @@ pub const LAVAPIPE: Device = Device {
     cpu_driver: true,
     frame: Rates {
         group: 0.0,
-        byte: 0.571,
+        byte: 0.07081,
         load: 0.0,
-        gather: 3.14096,
-        madd: 0.5654,
-        special: 5.287,
+        gather: 2.770,
+        madd: 0.1867,
+        special: 1.227,
     },
     palette: Rates {
-        group: 335.7,
-        byte: 0.02224,
+        group: 225.7,
+        byte: 0.01141,
         load: 0.0,
-        gather: 0.4526,
-        madd: 0.0,
-        special: 10.52,
+        gather: 0.2751,
+        madd: 0.02787,
+        special: 7.913,
     },
 };
 
