@@ -5,8 +5,8 @@
 //!    join A → B of contiguous groups with the smallest error
 //!    `E_A→B = s_A − 2 Σ_i tr(T_B^i N_A^iᵀ) + Σ_i tr(T_B^i M_A T_B^iᵀ)` is performed next. All
 //!    a cost needs is in per-group moments (M 4x4, N^i 3x4, s = Σ|y|²), so a join costs O(N)
-//!    whatever the group sizes; a binary heap holds each group's cheapest join, per-group versions skipping
-//!    the stale ones.
+//!    whatever the group sizes; a binary heap holds each group's cheapest join, per-group
+//!    versions skipping the stale ones.
 //! 2. Alternation (paper steps 3–4): per free vertex, NNLS weights α over the proxies of its own
 //!    group and the adjacent groups (at most K, Σα = 1); then all proxy transforms by least
 //!    squares, one (4P x 4P) normal matrix shared by every pose and coordinate.
