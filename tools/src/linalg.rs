@@ -165,11 +165,15 @@ pub fn nnls(g: &[f64], h: &[f64]) -> Vec<f64> {
     assert_eq!(g.len(), n * n, "nnls: G must be n x n");
     let mut w = vec![0.0; n];
     let mut passive = vec![false; n];
+    // One scratch for every iteration's gradient and passive-set solve: the solves are tiny,
+    // and allocating per solve cost as much as solving.
+    let mut grad = vec![0.0; n];
+    let mut subset = Subset::new(n);
     for _outer in 0..3 * n + 10 {
         // Gradient of ½|Aw − b|²: −(h − G w); pick the most negative among the active set.
-        let grad: Vec<f64> = (0..n)
-            .map(|i| h[i] - (0..n).map(|j| g[i * n + j] * w[j]).sum::<f64>())
-            .collect();
+        for (i, grad) in grad.iter_mut().enumerate() {
+            *grad = h[i] - (0..n).map(|j| g[i * n + j] * w[j]).sum::<f64>();
+        }
         let Some(best) = (0..n)
             .filter(|&i| !passive[i] && grad[i] > 1e-12 * (1.0 + h[i].abs()))
             .max_by(|&a, &b| grad[a].total_cmp(&grad[b]))
@@ -178,9 +182,9 @@ pub fn nnls(g: &[f64], h: &[f64]) -> Vec<f64> {
         };
         passive[best] = true;
         loop {
-            let z = solve_subset(g, h, &passive);
+            let z = subset.solve(g, h, &passive);
             if (0..n).all(|i| !passive[i] || z[i] > 0.0) {
-                w = z;
+                w.copy_from_slice(z);
                 break;
             }
             // Step toward z until a passive variable hits zero; move it back to the active set.
@@ -205,30 +209,54 @@ pub fn nnls(g: &[f64], h: &[f64]) -> Vec<f64> {
     w
 }
 
-/// Solves G_PP z_P = h_P on the passive set P (z = 0 elsewhere) by Cholesky with a tiny ridge.
-fn solve_subset(g: &[f64], h: &[f64], passive: &[bool]) -> Vec<f64> {
-    let n = h.len();
-    let idx: Vec<usize> = (0..n).filter(|&i| passive[i]).collect();
-    let m = idx.len();
-    let mut a = vec![0.0; m * m];
-    let mut b: Vec<f64> = idx.iter().map(|&i| h[i]).collect();
-    let ridge = 1e-12
-        * idx
-            .iter()
-            .map(|&i| g[i * n + i])
-            .fold(0.0, f64::max)
-            .max(1e-300);
-    for (r, &i) in idx.iter().enumerate() {
-        for (c, &j) in idx.iter().enumerate() {
-            a[r * m + c] = g[i * n + j] + if r == c { ridge } else { 0.0 };
+/// The scratch of [`nnls`]'s passive-set solves for n unknowns.
+struct Subset {
+    idx: Vec<usize>,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl Subset {
+    fn new(n: usize) -> Subset {
+        Subset {
+            idx: Vec::with_capacity(n),
+            a: vec![0.0; n * n],
+            b: vec![0.0; n],
+            z: vec![0.0; n],
         }
     }
-    cholesky_solve(&a, &mut b, m);
-    let mut z = vec![0.0; n];
-    for (r, &i) in idx.iter().enumerate() {
-        z[i] = b[r];
+
+    /// Solves G_PP z_P = h_P on the passive set P (z = 0 elsewhere) by Cholesky with a tiny
+    /// ridge.
+    fn solve(&mut self, g: &[f64], h: &[f64], passive: &[bool]) -> &[f64] {
+        let n = h.len();
+        self.idx.clear();
+        self.idx.extend((0..n).filter(|&i| passive[i]));
+        let (idx, m) = (&self.idx, self.idx.len());
+        let (a, b) = (&mut self.a[..m * m], &mut self.b[..m]);
+        for (b, &i) in b.iter_mut().zip(idx) {
+            *b = h[i];
+        }
+        let ridge = 1e-12
+            * idx
+                .iter()
+                .map(|&i| g[i * n + i])
+                .fold(0.0, f64::max)
+                .max(1e-300);
+        for (r, &i) in idx.iter().enumerate() {
+            for (c, &j) in idx.iter().enumerate() {
+                a[r * m + c] = g[i * n + j] + if r == c { ridge } else { 0.0 };
+            }
+        }
+        factor_in_place(a, m);
+        solve_factored(a, m, b);
+        self.z.fill(0.0);
+        for (&x, &i) in b.iter().zip(idx) {
+            self.z[i] = x;
+        }
+        &self.z
     }
-    z
 }
 
 /// A dense Cholesky factor (row-major lower triangle), factored once, solved many times.
@@ -242,42 +270,83 @@ impl DenseCholesky {
     pub fn new(a: &[f64], n: usize) -> DenseCholesky {
         assert_eq!(a.len(), n * n, "DenseCholesky: a must be n x n");
         let mut l = a.to_vec();
-        for j in 0..n {
-            let mut d = l[j * n + j];
-            for k in 0..j {
-                d -= l[j * n + k] * l[j * n + k];
-            }
-            let d = d.max(1e-300).sqrt();
-            l[j * n + j] = d;
-            for i in j + 1..n {
-                let mut s = l[i * n + j];
-                for k in 0..j {
-                    s -= l[i * n + k] * l[j * n + k];
-                }
-                l[i * n + j] = s / d;
-            }
-        }
+        factor_in_place(&mut l, n);
         DenseCholesky { l, n }
     }
 
     /// Solves A x = b in place.
     pub fn solve(&self, b: &mut [f64]) {
+        assert_eq!(b.len(), self.n, "DenseCholesky: b must have n rows");
+        solve_factored(&self.l, self.n, b);
+    }
+
+    /// Solves A X = B in place for B of n rows and `width` columns (row-major): each column
+    /// as [`DenseCholesky::solve`] would (the same operations in the same order), all columns
+    /// a row at a time.
+    pub fn solve_columns(&self, b: &mut [f64], width: usize) {
         let (l, n) = (&self.l, self.n);
-        assert_eq!(b.len(), n, "DenseCholesky: b must have n rows");
+        assert_eq!(b.len(), n * width, "DenseCholesky: B must have n rows");
+        let mut s = vec![0.0; width];
         for i in 0..n {
-            let mut s = b[i];
+            s.copy_from_slice(&b[i * width..][..width]);
             for k in 0..i {
-                s -= l[i * n + k] * b[k];
+                let x = l[i * n + k];
+                (s.iter_mut().zip(&b[k * width..][..width])).for_each(|(s, y)| *s -= x * y);
             }
-            b[i] = s / l[i * n + i];
+            let d = l[i * n + i];
+            (b[i * width..][..width].iter_mut().zip(&s)).for_each(|(b, s)| *b = s / d);
         }
         for i in (0..n).rev() {
-            let mut s = b[i];
+            s.copy_from_slice(&b[i * width..][..width]);
             for k in i + 1..n {
-                s -= l[k * n + i] * b[k];
+                let x = l[k * n + i];
+                (s.iter_mut().zip(&b[k * width..][..width])).for_each(|(s, y)| *s -= x * y);
             }
-            b[i] = s / l[i * n + i];
+            let d = l[i * n + i];
+            (b[i * width..][..width].iter_mut().zip(&s)).for_each(|(b, s)| *b = s / d);
         }
+    }
+}
+
+/// Overwrites the lower triangle of the SPD matrix `l` (n x n, row-major) with its Cholesky
+/// factor; pivots are clamped at 1e-300. Rows as slices, so the inner products run without
+/// bounds checks, in the same order as the textbook loops.
+fn factor_in_place(l: &mut [f64], n: usize) {
+    for j in 0..n {
+        let (above, below) = l.split_at_mut((j + 1) * n);
+        let row_j = &mut above[j * n..];
+        let mut d = row_j[j];
+        for &x in &row_j[..j] {
+            d -= x * x;
+        }
+        let d = d.max(1e-300).sqrt();
+        row_j[j] = d;
+        let row_j = &row_j[..j];
+        for row_i in below.chunks_exact_mut(n) {
+            let mut s = row_i[j];
+            for (x, y) in row_i[..j].iter().zip(row_j) {
+                s -= x * y;
+            }
+            row_i[j] = s / d;
+        }
+    }
+}
+
+/// Solves L Lᵀ x = b in place, `l` factored by [`factor_in_place`].
+fn solve_factored(l: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        let mut s = b[i];
+        for (x, y) in l[i * n..i * n + i].iter().zip(&b[..i]) {
+            s -= x * y;
+        }
+        b[i] = s / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= l[k * n + i] * b[k];
+        }
+        b[i] = s / l[i * n + i];
     }
 }
 
@@ -396,7 +465,7 @@ mod tests {
             let mut best = cost(&vec![0.0; n]);
             for mask in 1u32..(1 << n) {
                 let passive: Vec<bool> = (0..n).map(|i| mask & (1 << i) != 0).collect();
-                let z = solve_subset(&g, &h, &passive);
+                let z = Subset::new(n).solve(&g, &h, &passive).to_vec();
                 if z.iter().all(|&x| x >= 0.0) {
                     best = best.min(cost(&z));
                 }
@@ -408,6 +477,41 @@ mod tests {
                 "trial {trial}: {} vs {best}",
                 cost(&w)
             );
+        }
+    }
+
+    /// Many right-hand sides a row at a time give each column what a solve of its own gives,
+    /// to the bit, and solve the system.
+    #[test]
+    fn solving_columns_together_is_solving_each() {
+        let mut s = 11u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let (n, width) = (9, 5);
+        let m: Vec<f64> = (0..n * n).map(|_| next()).collect();
+        // A = MᵀM + I: SPD.
+        let a: Vec<f64> = (0..n * n)
+            .map(|u| {
+                let (r, c) = (u / n, u % n);
+                (0..n).map(|k| m[k * n + r] * m[k * n + c]).sum::<f64>() + f64::from(r == c)
+            })
+            .collect();
+        let b: Vec<f64> = (0..n * width).map(|_| next()).collect();
+        let factor = DenseCholesky::new(&a, n);
+        let mut together = b.clone();
+        factor.solve_columns(&mut together, width);
+        for c in 0..width {
+            let mut column: Vec<f64> = (0..n).map(|r| b[r * width + c]).collect();
+            factor.solve(&mut column);
+            for r in 0..n {
+                assert_eq!(column[r].to_bits(), together[r * width + c].to_bits());
+                let ax: f64 = (0..n).map(|k| a[r * n + k] * column[k]).sum();
+                assert!((ax - b[r * width + c]).abs() < 1e-9, "row {r}, column {c}");
+            }
         }
     }
 }

@@ -493,8 +493,9 @@ impl Normal {
                         continue;
                     }
                     basis.features(d, &poses.features[i], &mut x);
+                    // The upper triangle; the lower mirrors it below.
                     for p in 0..f {
-                        for q in 0..f {
+                        for q in p..f {
                             gram[p * f + q] += x[p] * x[q];
                         }
                     }
@@ -507,6 +508,11 @@ impl Normal {
                                 rhs[p * 12 + c] += x[p] * target[c];
                             }
                         }
+                    }
+                }
+                for p in 0..f {
+                    for q in 0..p {
+                        gram[p * f + q] = gram[q * f + p];
                     }
                 }
                 ProxyNormal {
@@ -524,23 +530,32 @@ impl Normal {
     /// The correctives of the `t`-th set of targets with ridge λ = `ridge` (times the Gram
     /// matrix's mean diagonal).
     fn solve(&self, t: usize, ridge: f64) -> ProxyCorrectives {
-        let mut out = self.basis.clone();
-        for n in &self.proxies {
-            let (f, gram, rhs) = (n.features, &n.gram, &n.rhs);
-            let mean = (0..f).map(|p| gram[p * f + p]).sum::<f64>() / f as f64;
-            let mut gram = gram.clone();
-            for p in 0..f {
-                gram[p * f + p] += ridge * mean.max(f64::MIN_POSITIVE);
-            }
-            let factor = DenseCholesky::new(&gram, f);
-            let mut map = vec![0.0; f * 12];
-            for c in 0..12 {
-                let mut col: Vec<f64> = (0..f).map(|p| rhs[t][p * 12 + c]).collect();
-                factor.solve(&mut col);
-                for (p, v) in col.iter().enumerate() {
-                    map[p * 12 + c] = *v;
+        self.solve_factored(t, &self.factors(ridge))
+    }
+
+    /// Per proxy, the Cholesky factor of its Gram matrix with ridge λ = `ridge` (times its mean
+    /// diagonal): what the sets of targets of one ridge share.
+    fn factors(&self, ridge: f64) -> Vec<DenseCholesky> {
+        (self.proxies.iter())
+            .map(|n| {
+                let f = n.features;
+                let mean = (0..f).map(|p| n.gram[p * f + p]).sum::<f64>() / f as f64;
+                let mut gram = n.gram.clone();
+                for p in 0..f {
+                    gram[p * f + p] += ridge * mean.max(f64::MIN_POSITIVE);
                 }
-            }
+                DenseCholesky::new(&gram, f)
+            })
+            .collect()
+    }
+
+    /// The correctives of the `t`-th set of targets, each proxy's equations factored
+    /// ([`Normal::factors`]).
+    fn solve_factored(&self, t: usize, factors: &[DenseCholesky]) -> ProxyCorrectives {
+        let mut out = self.basis.clone();
+        for (n, factor) in self.proxies.iter().zip(factors) {
+            let mut map = n.rhs[t].clone();
+            factor.solve_columns(&mut map, 12);
             out.proxies.push(Corrected {
                 proxy: n.proxy,
                 drivers: n.drivers.clone(),
@@ -592,8 +607,10 @@ pub fn fit(
             .map(|&k| held_error(set, train, reduced, &poses, k, None))
             .collect();
         let mut rows = vec![uncorrected];
-        // One set of normal equations per basis and gravity, solved per anchor and ridge.
+        // One set of normal equations per basis and gravity, factored per ridge and solved
+        // per anchor.
         let mut normals: Vec<((Basis, bool), Normal)> = Vec::new();
+        let mut factored: Vec<((usize, u64), Vec<DenseCholesky>)> = Vec::new();
         for &(a, c) in &grid {
             let key = (c.basis, c.gravity);
             let at = match normals.iter().position(|(k, _)| *k == key) {
@@ -604,7 +621,15 @@ pub fn fit(
                     normals.len() - 1
                 }
             };
-            let fitted = normals[at].1.solve(a, c.ridge);
+            let key = (at, c.ridge.to_bits());
+            let f = match factored.iter().position(|(k, _)| *k == key) {
+                Some(f) => f,
+                None => {
+                    factored.push((key, normals[at].1.factors(c.ridge)));
+                    factored.len() - 1
+                }
+            };
+            let fitted = normals[at].1.solve_factored(a, &factored[f].1);
             rows.push(
                 (fold.held.iter())
                     .map(|&k| held_error(set, train, reduced, &poses, k, Some(&fitted)))

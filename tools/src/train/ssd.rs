@@ -69,12 +69,12 @@ pub fn fit_weights_best_subset(
     }
     let position = |c: usize| candidates.iter().position(|&x| x == c).unwrap_or(0);
     let error = |w: &[(usize, f64)]| -> f64 {
+        let moved: Vec<(&[DVec3], f64)> = (w.iter())
+            .map(|&(c, x)| (&normal.moved[position(c)][..], x))
+            .collect();
         (0..poses)
             .map(|n| {
-                let y: DVec3 = w
-                    .iter()
-                    .map(|&(c, x)| normal.moved[position(c)][n] * x)
-                    .sum();
+                let y: DVec3 = moved.iter().map(|&(m, x)| m[n] * x).sum();
                 (y - target(n)).length_squared()
             })
             .sum()
@@ -128,9 +128,15 @@ impl<'a> Normal<'a> {
             let y = target(s);
             for r in 0..n {
                 h[r] += m[r][s].dot(y);
-                for c in 0..n {
+                // The upper triangle; the lower mirrors it below.
+                for c in r..n {
                     g[r * n + c] += m[r][s].dot(m[c][s]);
                 }
+            }
+        }
+        for r in 0..n {
+            for c in 0..r {
+                g[r * n + c] = g[c * n + r];
             }
         }
         Normal {

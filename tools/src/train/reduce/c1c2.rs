@@ -64,8 +64,9 @@ pub fn assemble(
     let (mut gtg, gtb, mut gtlk) = normal_equations(set, ssd, fixed, blend, proxies, keys);
     add_proxy_pull(set, ssd, proxies, &mut gtg, &mut gtlk);
     let factor = DenseCholesky::new(&gtg, n4p);
-    let c1 = solve_columns(&factor, &gtb, n4p, n3p);
-    let c2 = solve_columns(&factor, &gtlk, n4p, n4j);
+    let (mut c1, mut c2) = (gtb, gtlk);
+    factor.solve_columns(&mut c1, n3p);
+    factor.solve_columns(&mut c2, n4j);
     let skin = (0..set.vertex_count())
         .map(|a| match fixed[a] {
             true => ssd.influences[a].iter().map(|&(b, w)| (p + b, w)).collect(),
@@ -173,18 +174,6 @@ fn add_proxy_pull(
             gtlk[(4 * b + r) * n4j + 4 * bone + r] += mu;
         }
     }
-}
-
-/// `A⁻¹ rhs` for the factored n x n `A` and the row-major n x `cols` `rhs`, column by column.
-fn solve_columns(factor: &DenseCholesky, rhs: &[f64], n: usize, cols: usize) -> Vec<f64> {
-    let mut out = vec![0.0; n * cols];
-    let mut col = vec![0.0; n];
-    for c in 0..cols {
-        (0..n).for_each(|r| col[r] = rhs[r * cols + c]);
-        factor.solve(&mut col);
-        (0..n).for_each(|r| out[r * cols + c] = col[r]);
-    }
-    out
 }
 
 /// Sparse row difference x − y.
