@@ -50,17 +50,20 @@ impl Target {
 
 /// Work per character: bytes loaded and stored, the load and store instructions a thread
 /// issues (a CPU driver pays each once per lane, whatever its width), the gathers among them
-/// (loads in a loop whose length the shader reads at run time: a position through a fan
-/// entry, a product column's right-hand side, a bone through a key's bone index, a corrective
-/// target's delta; a skin influence's palette entry is not one: the K loop is compiled in),
-/// multiply-adds and special operations; and the workgroups launched (the CPU palette: its calls), whose fixed cost
-/// small meshes and small passes pay.
+/// (loads in a loop whose length the shader reads at run time, at an address read from
+/// memory: a position through a fan entry, a product column's right-hand side, a bone through
+/// a key's bone index; a skin influence's palette entry is not one: the K loop is compiled
+/// in), the streams (an iteration of such a loop whose loads step with the invocation, so
+/// neighbouring lanes read neighbouring words: a corrective target's delta), multiply-adds and
+/// special operations; and the workgroups launched (the CPU palette: its calls), whose fixed
+/// cost small meshes and small passes pay.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Work {
     pub groups: f64,
     pub bytes: f64,
     pub loads: f64,
     pub gathers: f64,
+    pub streams: f64,
     pub madds: f64,
     pub specials: f64,
 }
@@ -72,6 +75,7 @@ impl Work {
             bytes,
             loads,
             gathers: 0.0,
+            streams: 0.0,
             madds,
             specials,
         }
@@ -92,6 +96,14 @@ impl Work {
             ..Work::new(0.0, 0.0, 0.0, 0.0)
         }
     }
+
+    /// `n` streams.
+    const fn streams(n: f64) -> Work {
+        Work {
+            streams: n,
+            ..Work::new(0.0, 0.0, 0.0, 0.0)
+        }
+    }
 }
 
 impl Add for Work {
@@ -102,6 +114,7 @@ impl Add for Work {
             bytes: self.bytes + o.bytes,
             loads: self.loads + o.loads,
             gathers: self.gathers + o.gathers,
+            streams: self.streams + o.streams,
             madds: self.madds + o.madds,
             specials: self.specials + o.specials,
         }
@@ -122,6 +135,7 @@ impl Mul<f64> for Work {
             bytes: self.bytes * n,
             loads: self.loads * n,
             gathers: self.gathers * n,
+            streams: self.streams * n,
             madds: self.madds * n,
             specials: self.specials * n,
         }
@@ -135,6 +149,7 @@ pub struct Rates {
     pub byte: f64,
     pub load: f64,
     pub gather: f64,
+    pub stream: f64,
     pub madd: f64,
     pub special: f64,
 }
@@ -145,6 +160,7 @@ impl Rates {
             + self.byte * w.bytes
             + self.load * w.loads
             + self.gather * w.gathers
+            + self.stream * w.streams
             + self.madd * w.madds
             + self.special * w.specials
     }
@@ -170,19 +186,21 @@ pub const LAVAPIPE: Device = Device {
     cpu_driver: true,
     frame: Rates {
         group: 0.0,
-        byte: 0.07081,
+        byte: 0.07672,
         load: 0.0,
-        gather: 2.770,
-        madd: 0.1867,
-        special: 1.227,
+        gather: 3.002,
+        stream: 1.360,
+        madd: 0.1579,
+        special: 0.5366,
     },
     palette: Rates {
-        group: 225.7,
-        byte: 0.01141,
+        group: 224.6,
+        byte: 0.01235,
         load: 0.0,
-        gather: 0.2751,
-        madd: 0.02787,
-        special: 7.913,
+        gather: 0.3019,
+        stream: 0.0,
+        madd: 0.02478,
+        special: 7.910,
     },
 };
 
@@ -365,8 +383,9 @@ fn skinning(v: f64, k: f64, n: f64, target: Target) -> Work {
         0.0,
     );
     let normals = Work::new(24.0, 6.0, 30.0, 2.0);
-    // The targets' loop runs to N, a push constant: each target's delta a gather.
-    let positions = positions + Work::gathers(n);
+    // The targets' loop runs to N, a push constant: each target's delta a stream (its
+    // address steps with the vertex, and the weight is the character's).
+    let positions = positions + Work::streams(n);
     match target {
         Target::Transformed => groups + (positions + normals) * v,
         _ => groups + positions * v,

@@ -37,7 +37,7 @@ BENCH_PASSES = {
     "skin_ms": ["skinning"],
     "normals_ms": ["normals"],
 }
-UNITS = ("groups", "bytes", "loads", "gathers", "madds", "specials")
+UNITS = ("groups", "bytes", "loads", "gathers", "streams", "madds", "specials")
 
 
 def run(rrskin, *args):
@@ -150,8 +150,8 @@ def main():
     frame = fit_frame(results)
     a = np.array([r["palette_work"] / r["palette_ns"] for r in results])
     palette = nnls(a, np.ones(len(results)))
-    print("frame rates (ns per group, byte, load, gather, madd, special):", ", ".join(f"{x:.6g}" for x in frame))
-    print("palette rates (ns per group, byte, load, gather, madd, special):", ", ".join(f"{x:.6g}" for x in palette))
+    print("frame rates (ns per group, byte, load, gather, stream, madd, special):", ", ".join(f"{x:.6g}" for x in frame))
+    print("palette rates (ns per group, byte, load, gather, stream, madd, special):", ", ".join(f"{x:.6g}" for x in palette))
     print()
     report(results, frame, palette)
     if args.passes:

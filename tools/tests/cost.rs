@@ -152,6 +152,37 @@ fn trained(budget: CostBudget) -> train::Trained {
     train::run(&chain(), &options).expect("training")
 }
 
+/// A pose-space corrective target is one stream a vertex in the skinning pass (its delta's
+/// address steps with the vertex: not a gather), and nothing else there changes.
+#[test]
+fn each_corrective_target_streams_once_a_vertex() {
+    let plain = model(6);
+    let with = |n: usize| {
+        let mut parts = plain.parts().clone();
+        let v = plain.vertex_count();
+        parts.correctives = Some(rrskin::Correctives {
+            drivers: vec![1],
+            map: vec![0.1; n * 9],
+            targets: vec![[0.0, 0.01, 0.0]; n * v],
+        });
+        Model::new(parts).expect("a valid model")
+    };
+    let skinning = |m: &Model| {
+        let cost = Cost::of(m, Target::Transformed, &LAVAPIPE);
+        let pass = cost.passes.iter().find(|p| p.pass == "skinning");
+        pass.expect("a skinning pass").work
+    };
+    let a = skinning(&plain);
+    assert_eq!(a.streams, 0.0);
+    for n in [1, 4, 16] {
+        let b = skinning(&with(n));
+        assert_eq!(b.streams, (n * plain.vertex_count()) as f64, "{n} targets");
+        assert_eq!(a.gathers, b.gathers, "{n} targets");
+    }
+    let ratio_of = |n| ratio(&with(n), Target::Transformed);
+    assert!(ratio(&plain, Target::Transformed) < ratio_of(1) && ratio_of(1) < ratio_of(4));
+}
+
 #[test]
 fn training_keeps_to_the_budget_and_names_what_it_refused() {
     let free = trained(CostBudget::NONE);

@@ -39,6 +39,6 @@ pub fn line(model: &Model) -> String {
 
 fn work_json(pass: &str, w: Work) -> serde_json::Value {
     serde_json::json!({
-        "pass": pass, "groups": w.groups, "bytes": w.bytes, "loads": w.loads, "gathers": w.gathers, "madds": w.madds, "specials": w.specials,
+        "pass": pass, "groups": w.groups, "bytes": w.bytes, "loads": w.loads, "gathers": w.gathers, "streams": w.streams, "madds": w.madds, "specials": w.specials,
     })
 }

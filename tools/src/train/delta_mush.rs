@@ -141,9 +141,21 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         false => Vec::new(),
     };
     let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
-    // The merging runs on one thread: beside DDM's choice, which is parallel.
-    let (chosen, mut ladder) = rayon::join(
-        || direct_delta_mush::choose(set, train, &inputs.ssd.influences),
+    let split = Folds::new(train.len(), options.folds);
+    // The merging runs on one thread: beside DDM's choice, which is parallel, and the search of
+    // the joint-blend model's proxy correctives that every comparison of the kinds reads (it
+    // needs no delta-mush proxy).
+    let compared = compares_kinds(options, split.as_ref()).is_some();
+    let ((chosen, joint_blend_search), mut ladder) = rayon::join(
+        || {
+            rayon::join(
+                || direct_delta_mush::choose(set, train, &inputs.ssd.influences),
+                || match compared {
+                    true => corrective_search(inputs, options, inputs.reduced),
+                    false => None,
+                },
+            )
+        },
         || Groups::merge_at(set, train, &counts),
     );
     let (params, vertex_direct_delta_mush) = chosen.map_err(smoothing)?;
@@ -175,13 +187,12 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         smoothed,
     )?;
     let proxy_direct_delta_mush = plain.as_ref().unwrap_or(&vertex_direct_delta_mush);
-    let split = Folds::new(train.len(), options.folds);
     let first = Side {
         groups: &ladder[0],
         params: &proxy_params,
         proxies: fitted,
     };
-    let mut kinds = choose_kind(inputs, options, split.as_ref(), &first)?;
+    let mut kinds = choose_kind(inputs, options, split.as_ref(), &joint_blend_search, &first)?;
     let mut proxies = first.proxies;
     // Where the budget refused the proxy correctives, fewer proxies with their correctives
     // may be the better model within it: step down while the cross-validation says so.
@@ -201,7 +212,8 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
                 k,
             ),
         };
-        let lower_kinds = choose_kind(inputs, options, split.as_ref(), &lower)?;
+        let lower_kinds =
+            choose_kind(inputs, options, split.as_ref(), &joint_blend_search, &lower)?;
         if lower_kinds.kept == Kept::JointBlend || lower_kinds.score() >= kinds.score() {
             break;
         }
@@ -275,12 +287,23 @@ impl Kinds {
     }
 }
 
+/// The folds of `split` where the cross-validation compares the kinds: None where the kind is
+/// asked for ([`Method::DeltaMush`], [`Method::Both`]) or there are too few poses for folds.
+fn compares_kinds<'a>(options: &TrainOptions, split: Option<&'a Folds>) -> Option<&'a Folds> {
+    match options.method {
+        Method::DeltaMush | Method::Both => None,
+        _ => split,
+    }
+}
+
 /// The kind kept: asked for, or the cross-validation's over the folds of `split` (the
-/// joint-blend model where there are too few poses for folds).
+/// joint-blend model where there are too few poses for folds), with `joint_blend_search` the
+/// search of the joint-blend model's proxy correctives ([`corrective_search`]).
 fn choose_kind(
     inputs: &Inputs,
     options: &TrainOptions,
     split: Option<&Folds>,
+    joint_blend_search: &Option<proxy_corrective::Fit>,
     side: &Side,
 ) -> Result<Kinds, TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
@@ -291,11 +314,11 @@ fn choose_kind(
         correctives: None,
         shipped: None,
     };
-    let split = match (options.method, split) {
-        (Method::DeltaMush, _) => return Ok(asked(Kept::DeltaMush)),
-        (Method::Both, _) => return Ok(asked(Kept::Both)),
-        (_, None) => return Ok(asked(Kept::JointBlend)),
+    let split = match (options.method, compares_kinds(options, split)) {
         (_, Some(split)) => split,
+        (Method::DeltaMush, None) => return Ok(asked(Kept::DeltaMush)),
+        (Method::Both, None) => return Ok(asked(Kept::Both)),
+        (_, None) => return Ok(asked(Kept::JointBlend)),
     };
     // Both kinds add P proxies to the joint-blend model's: where P is asked for
     // (`--reduction joint-blend`), only the delta-mush proxies alone stand against it.
@@ -307,7 +330,9 @@ fn choose_kind(
     });
     let mut made: Vec<Reduced> = [alone].into_iter().chain(union).collect();
     let kinds: Vec<&Reduced> = std::iter::once(inputs.reduced).chain(&made).collect();
-    let mut searched = corrective_searches(inputs, options, &kinds);
+    let mut searched: Vec<_> = std::iter::once(joint_blend_search.clone())
+        .chain(corrective_searches(inputs, options, &kinds[1..]))
+        .collect();
     let had = |s: &[Option<proxy_corrective::Fit>]| -> Vec<bool> {
         (s.iter()
             .map(|f| f.as_ref().is_some_and(|f| f.correctives.is_some())))
@@ -786,16 +811,24 @@ fn corrective_searches(
     options: &TrainOptions,
     kinds: &[&Reduced],
 ) -> Vec<Option<proxy_corrective::Fit>> {
-    let (set, train, feats) = (inputs.set, inputs.train, inputs.feats);
-    let (ssd, rigid) = (inputs.ssd, inputs.rigid);
     // The kinds in parallel, not only each search's folds: a search has serial parts, and
     // three of them one after the other left a core idle (3.7 s against 1.4 s on human_heavy).
     (kinds.par_iter())
-        .map(|model| {
-            (options.proxy_correctives)
-                .then(|| proxy_corrective::fit(set, feats, ssd, rigid, model, train, options))
-        })
+        .map(|model| corrective_search(inputs, options, model))
         .collect()
+}
+
+/// The search of `model`'s proxy correctives (fitted to all training poses; None where the
+/// runtime model takes none).
+fn corrective_search(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    model: &Reduced,
+) -> Option<proxy_corrective::Fit> {
+    let (set, train, feats) = (inputs.set, inputs.train, inputs.feats);
+    let (ssd, rigid) = (inputs.ssd, inputs.rigid);
+    (options.proxy_correctives)
+        .then(|| proxy_corrective::fit(set, feats, ssd, rigid, model, train, options))
 }
 
 /// Each search's chosen candidate (None: uncorrected, or no search).
