@@ -363,6 +363,16 @@ mod tests {
         (a - b).to_cols_array().iter().all(|x| x.abs() < tol)
     }
 
+    /// Uniform samples in [-1, 1) from an LCG of seed `s`.
+    fn uniform(mut s: u64) -> impl FnMut() -> f64 {
+        move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        }
+    }
+
     fn sample_matrices() -> Vec<DMat3> {
         let mut out = vec![
             DMat3::IDENTITY,
@@ -378,14 +388,8 @@ mod tests {
                 DVec3::ZERO,
             ), // rank 2
         ];
-        let mut s = 1u64;
+        let mut next = uniform(1);
         for _ in 0..200 {
-            let mut next = || {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-            };
             out.push(DMat3::from_cols_array(&[(); 9].map(|_| next())));
         }
         out
@@ -435,13 +439,7 @@ mod tests {
 
     #[test]
     fn nnls_matches_brute_force_on_small_problems() {
-        let mut s = 7u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform(7);
         for trial in 0..200 {
             let (rows, n) = (8, 1 + trial % 5);
             let a: Vec<f64> = (0..rows * n).map(|_| next()).collect();
@@ -484,13 +482,7 @@ mod tests {
     /// to the bit, and solve the system.
     #[test]
     fn solving_columns_together_is_solving_each() {
-        let mut s = 11u64;
-        let mut next = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut next = uniform(11);
         let (n, width) = (9, 5);
         let m: Vec<f64> = (0..n * n).map(|_| next()).collect();
         // A = MᵀM + I: SPD.
