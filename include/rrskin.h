@@ -383,10 +383,12 @@ typedef struct rrskin_palette_model {
 } rrskin_palette_model;
 
 // What an engine skins with, borrowed from a palette model (valid until it is destroyed).
-// Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
-// * (rest_positions[a] + sum over n < correctives of w[n] * corrective_targets[n*V + a], 1)`,
-// each palette entry a 3x4 row-major matrix, w the character's corrective weights
-// (`rrskin_palette_compute_corrective_weights`; no sum without correctives).
+// Vertex a's position is `M_a * (x_a, 1)`: the blend of 3x4 row-major palette entries
+// `M_a = sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]`, and the
+// corrected rest position
+// `x_a = rest_positions[a] + sum over n < correctives of w[n] * corrective_targets[n*V + a]`,
+// w the character's corrective weights (`rrskin_palette_compute_corrective_weights`; no sum
+// without correctives).
 typedef struct rrskin_palette_skin {
   // V.
   uint32_t vertices;

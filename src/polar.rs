@@ -1,18 +1,18 @@
 //! The rotation of a delta-mush key's rigid fit ([`crate::model::DeltaMushKey`]): for a 3x3 matrix
 //! A, the proper rotation R maximising tr(Rᵀ A), the rotational part of A's polar decomposition
-//! where det A > 0. [`fit_rotation`] is the function every evaluator ships (the `f64`
-//! reference, the `f32` palette, `glsl/polar.glsl`) and training fits the model to.
+//! where det A > 0. [`nearest_rotation`] is the function every evaluator ships (the `f64`
+//! reference; [`nearest_rotation_f32`] the palette's; `glsl/polar.glsl`) and training fits the model to.
 //!
 //! **Newton's method on the rotation group from a warm start**, a fixed amount of work with no
 //! data-dependent loop:
 //! 1. the guess G, the Gram-Schmidt frame of A's first two columns (the identity where they are
 //!    zero or nearly parallel);
-//! 2. [`NEWTON_STEPS`] Newton steps on f(ω) = tr((G exp[ω]×)ᵀ A): with M = Gᵀ A, the gradient
+//! 2. [`NEWTON_STEPS`] Newton steps on f(ω) = tr((G exp(\[ω\]×))ᵀ A): with M = Gᵀ A, the gradient
 //!    is g = (M₂₁ − M₁₂, M₀₂ − M₂₀, M₁₀ − M₀₁) and the Hessian −H, H = tr(M) I − sym(M), so
 //!    ω = H⁻¹ g, and G ← G R(ω) with R(ω) the rotation of the unit quaternion ∝ (1, ω/2).
 //!
 //! H is positive definite near the optimum (its eigenvalues are sums of two of sym(M)'s, the
-//! stretch's), and is damped by [`DAMPING`] tr(M) so that a rank-1 A, whose rotation about its
+//! stretch's), and is damped by `DAMPING` tr(M) so that a rank-1 A, whose rotation about its
 //! line is free, takes no step about it. Where H is not positive definite (a guess more than a
 //! right angle off) the step is skipped: the result is then the guess, still a rotation.
 //!

@@ -32,10 +32,12 @@ fn palette_of(model: RrskinPaletteModel) -> Result<Arc<Palette>, Failure> {
 }
 
 /// What an engine skins with, borrowed from a palette model (valid until it is destroyed).
-/// Vertex a's position is `sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]
-/// * (rest_positions[a] + sum over n < correctives of w[n] * corrective_targets[n*V + a], 1)`,
-/// each palette entry a 3x4 row-major matrix, w the character's corrective weights
-/// (`rrskin_palette_compute_corrective_weights`; no sum without correctives).
+/// Vertex a's position is `M_a * (x_a, 1)`: the blend of 3x4 row-major palette entries
+/// `M_a = sum over k < influences of weights[a*K + k] * palette[joints[a*K + k]]`, and the
+/// corrected rest position
+/// `x_a = rest_positions[a] + sum over n < correctives of w[n] * corrective_targets[n*V + a]`,
+/// w the character's corrective weights (`rrskin_palette_compute_corrective_weights`; no sum
+/// without correctives).
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct RrskinPaletteSkin {

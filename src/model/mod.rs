@@ -136,7 +136,7 @@ pub struct ProxyCorrectives {
     pub centres: Vec<[f32; 9]>,
     /// J kernel widths w_b (2σ²); empty when C = 0.
     pub widths: Vec<f32>,
-    /// J per-joint ranges the features are clamped into (ranges[b] for driver b); empty: not
+    /// J per-joint ranges the features are clamped into (`ranges[b]` for driver b); empty: not
     /// clamped (files before version 6).
     pub ranges: Vec<FeatureRange>,
     /// The corrected proxies, ascending, distinct, < P.

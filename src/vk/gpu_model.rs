@@ -220,13 +220,13 @@ impl GpuModel {
     }
 
     /// Whether [C1 | C2] was stored block-sparse (the sparse product runs) rather than dense
-    /// (the tiled GEMM runs): see [`BlockSparse::layout_of`].
+    /// (the tiled GEMM runs): see `BlockSparse::layout_of`.
     pub fn is_block_sparse(&self) -> bool {
         self.inner.dims.sparse
     }
 
     /// Whether the product evaluates the key predictors itself (block-sparse, and every proxy
-    /// reads at most one key's columns: [`BlockSparse::one_key_per_proxy`]), so that the
+    /// reads at most one key's columns: `BlockSparse::one_key_per_proxy`), so that the
     /// predictor pass does not run.
     pub fn fuses_predictors(&self) -> bool {
         self.inner.dims.fused

@@ -97,7 +97,7 @@ pub fn polar(d: DMat3) -> (DMat3, DMat3) {
 }
 
 /// The rotation nearest to `m` (orthogonal Procrustes): argmax tr(Wᵀ m) over SO(3). By
-/// [`newton_polar`] where det m > 0 and m is not near singular (the common case: a
+/// `newton_polar` where det m > 0 and m is not near singular (the common case: a
 /// deformation's covariance), else by the signed SVD, which also settles reflections.
 pub fn procrustes(m: DMat3) -> DMat3 {
     newton_polar(m).unwrap_or_else(|| {

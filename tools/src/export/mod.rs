@@ -2,7 +2,7 @@
 //! viewer or engine plays with its own skinning.
 //!
 //! The skin's joints are the model's palette, in its order: P proxies, then the J bones, each
-//! an exact two-node form of its affine transform ([`bake`]); the vertices' JOINTS_0/WEIGHTS_0
+//! an exact two-node form of its affine transform ([`bake()`]); the vertices' JOINTS_0/WEIGHTS_0
 //! (and JOINTS_1/WEIGHTS_1 for K = 8) are the model's skin indices and weights, so a joint
 //! index is a palette index. Inverse bind matrices are the identity: the palette maps rest
 //! positions to posed ones. Every clip is baked through the model: the rig's clips with

@@ -22,7 +22,7 @@ use std::path::Path;
 pub struct Cache {
     /// Per sample: its time in seconds.
     pub times: Vec<f64>,
-    /// [sample][point], in world space.
+    /// \[sample\]\[point\], in world space.
     pub positions: Vec<Vec<DVec3>>,
 }
 

@@ -42,7 +42,7 @@ pub struct PointCache {
     pub frames: Vec<f64>,
     /// Per sample: the time in seconds.
     pub times: Vec<f64>,
-    /// [sample][point]
+    /// \[sample\]\[point\]
     pub positions: Vec<Vec<DVec3>>,
 }
 

@@ -28,7 +28,7 @@ pub const PAIRING_LIMIT: f64 = 0.3;
 /// random poses 7 or more, an animation in step 1.7, the same a frame late 0.57.
 pub const STEP_LIMIT: f64 = 0.75;
 
-/// What every loader checks last: that the set is its rig's motion ([`check_rig_motion`],
+/// What every loader checks last: that the set is its rig's motion (`check_rig_motion`,
 /// naming `motion_file` and `fix`), then a warning naming `bones_file` where the held-out poses
 /// move bones training leaves out ([`ExampleSet::inactive_bone_warning`]).
 pub fn check(

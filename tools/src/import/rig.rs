@@ -1,5 +1,5 @@
 //! A rig, whatever file it came from: the skinned rest mesh, the bones, the skin's own weights,
-//! what takes a DCC's object space to the world, and the clip ([`Clip`]) that poses the bones.
+//! what takes a DCC's object space to the world, and the clip (`Clip`) that poses the bones.
 //! `gltf_rig`, `fbx_rig` and `usd_rig` read one; `Rig::load` (in `import`) reads any by the
 //! file.
 

@@ -155,7 +155,7 @@ pub(crate) fn points(value: Option<Value>) -> Option<Vec<DVec3>> {
 pub struct Cache {
     /// Per sample: its time in seconds.
     pub times: Vec<f64>,
-    /// [sample][point], in world space, metres, Y up.
+    /// \[sample\]\[point\], in world space, metres, Y up.
     pub positions: Vec<Vec<DVec3>>,
 }
 

@@ -58,7 +58,7 @@ pub fn sweep(set: &ExampleSet, main: &Report, quiet: bool) -> crate::Result<Vec<
 }
 
 /// Held-out EE (training EE where the set has no test poses) against P, with SSD's and DQS's;
-/// and on the right the front of `report` ([`front`]).
+/// and on the right the front of `report` (`front`).
 pub fn plot(path: &Path, points: &[Point], report: &Report) -> crate::Result<()> {
     let output = |problem: String| crate::Error::Output {
         path: path.to_path_buf(),

@@ -47,15 +47,15 @@ pub struct Params {
 /// `R = polar(Σ_j M_j A_j)` and `t = Σ_j M_j ω_j − R p`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearFit {
-    /// Per bone j of the entry: (j, A_j: 4x3 rows, ω_j: 4). With s = Σ_j Ω_j[3][3],
+    /// Per bone j of the entry: (j, A_j: 4x3 rows, ω_j: 4). With s = Σ_j Ω_j\[3\]\[3\],
     /// `A_j = (Ω_j[.., 0..3] − Ω_j[.., 3] pᵀ) / s` and `ω_j = Ω_j[.., 3] / s`.
     pub terms: Vec<(usize, [[f64; 3]; 4], [f64; 4])>,
-    /// p = Σ_j Ω_j[3][0..3] / s: the entry's smoothed rest centre.
+    /// p = Σ_j Ω_j\[3\]\[0..3\] / s: the entry's smoothed rest centre.
     pub centre: DVec3,
 }
 
 /// The precomputed Ω: per vertex, for the bones j whose smoothed weight at it is above
-/// [`NEGLIGIBLE`], the upper triangle of the symmetric 4x4 Ω_ij, row by row: (0,0) (0,1) (0,2)
+/// `NEGLIGIBLE`, the upper triangle of the symmetric 4x4 Ω_ij, row by row: (0,0) (0,1) (0,2)
 /// (0,3) (1,1) (1,2) (1,3) (2,2) (2,3) (3,3).
 #[derive(Debug, Clone)]
 pub struct DirectDeltaMush {
@@ -115,7 +115,7 @@ impl DirectDeltaMush {
 
     /// Ω of `count` groups of vertices, Ω_gj = Σ_i s_ig Ω_ij, for `shares[i]` = vertex i's
     /// (group g, share s_ig) list; each group keeps the bones j carrying at least `floor` of its
-    /// Ω's mass Σ_j Ω_gj[3][3] (none dropped for 0), the `cap` heaviest at most. A group's [`DirectDeltaMush::motions`] entry is then
+    /// Ω's mass Σ_j Ω_gj\[3\]\[3\] (none dropped for 0), the `cap` heaviest at most. A group's [`DirectDeltaMush::motions`] entry is then
     /// the rigid motion Direct Delta DeltaMushReport gives all its vertices together: a rigid fit of the
     /// group's smoothed, weighted bone motions.
     pub fn grouped(

@@ -130,7 +130,7 @@ pub struct Inputs<'a> {
 /// cross-validates them, alone and after the joint-blend model's, against the chosen
 /// joint-blend structure (kept without asking with [`Method::DeltaMush`], alone, and
 /// [`Method::Both`], after the joint-blend proxies); where they ship, as many as
-/// [`offered_counts`] offers and the cross-validation keeps ([`MORE_KEYS_MARGIN`] a doubling).
+/// `offered_counts` offers and the cross-validation keeps ([`MORE_KEYS_MARGIN`] a doubling).
 /// With the fit, the reduced model that ships in place of the joint-blend one (None where that
 /// stays), fitted to all training poses.
 pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduced>), TrainError> {

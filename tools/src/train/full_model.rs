@@ -17,7 +17,7 @@ use rayon::prelude::*;
 /// polar factors (R, S) of every triangle's deformation gradient.
 pub struct Prepared {
     pub feats: Vec<PoseFeatures>,
-    /// [pose][triangle] → (R, S)
+    /// \[pose\]\[triangle\] → (R, S)
     pub polar: Vec<Vec<(DMat3, DMat3)>>,
 }
 

@@ -106,7 +106,7 @@ impl DeltaMushProxies {
     }
 
     /// These proxies as a reduced model of P delta-mush keys and no predictor, over J =
-    /// `bones`, with SSD's (bone, weight) lists `baseline` as its baseline ([`key_rows`]).
+    /// `bones`, with SSD's (bone, weight) lists `baseline` as its baseline (`key_rows`).
     pub fn reduced(&self, bones: usize, baseline: &[Vec<(usize, f64)>]) -> Reduced {
         let (c1, c2) = self.proxies.rows(bones);
         Reduced {

@@ -25,7 +25,7 @@ pub const ROUNDS: usize = 3;
 pub struct KeySequences {
     /// Per triangle: (key ℓ, β).
     pub beta: Vec<Vec<(usize, f64)>>,
-    /// [pose (train order)][key]
+    /// \[pose (train order)\]\[key\]
     pub d: Vec<Vec<DMat3>>,
 }
 

@@ -23,7 +23,7 @@ use std::collections::{BinaryHeap, HashMap, HashSet};
 pub struct Proxies {
     /// Per vertex: (proxy, α) for free vertices, empty for fixed ones.
     pub weights: Vec<Vec<(usize, f64)>>,
-    /// [pose (train order)][proxy]
+    /// \[pose (train order)\]\[proxy\]
     pub transforms: Vec<Vec<Affine>>,
     /// Per triangle: the proxy of its group.
     pub triangle_group: Vec<usize>,
