@@ -136,48 +136,25 @@ pub struct Inputs<'a> {
 pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduced>), TrainError> {
     let (set, train, k) = (inputs.set, inputs.train, options.influences);
     let mut offered = offered_counts(options, set.faces.len());
-    let fewer = match steps_down(options) {
-        true => fewer_counts(offered[0]),
-        false => Vec::new(),
-    };
+    let fewer = fewer_counts(options, offered[0]);
     let counts: Vec<usize> = offered.iter().chain(&fewer).copied().collect();
     let split = Folds::new(train.len(), options.folds);
-    // The merging runs on one thread: beside DDM's choice, which is parallel, and the search of
-    // the joint-blend model's proxy correctives that every comparison of the kinds reads (it
-    // needs no delta-mush proxy).
     let compared = compares_kinds(options, split.as_ref()).is_some();
-    let ((chosen, joint_blend_search), mut ladder) = rayon::join(
-        || {
-            rayon::join(
-                || direct_delta_mush::choose(set, train, &inputs.ssd.influences),
-                || match compared {
-                    true => corrective_search(inputs, options, inputs.reduced),
-                    false => None,
-                },
-            )
-        },
-        || Groups::merge_at(set, train, &counts),
-    );
+    let (chosen, joint_blend_search, mut ladder) = merge_beside(inputs, options, &counts, compared);
     let (params, vertex_direct_delta_mush) = chosen.map_err(smoothing)?;
     let mut fewer_groups = ladder.split_off(offered.len());
-    let mut smoothed = None;
-    let mut below = 0;
-    if steps_down(options) {
-        let (at, fitted) = first_within_budget(
+    let (smoothed, mut below) = match steps_down(options) {
+        true => step_down(
             inputs,
             options,
             &vertex_direct_delta_mush,
-            &ladder[0],
-            &fewer_groups,
-        )?;
-        if let Some(at) = at {
-            // Fewer than P: the larger counts cost more still.
-            offered = vec![fewer[at]];
-            ladder = fewer_groups.drain(..=at).skip(at).collect();
-        }
-        smoothed = Some(fitted);
-        below = fewer.len() - fewer_groups.len();
-    }
+            &fewer,
+            &mut offered,
+            &mut ladder,
+            &mut fewer_groups,
+        )?,
+        false => (None, 0),
+    };
     let (proxy_params, plain, fitted) = proxy_smoothing(
         inputs,
         k,
@@ -220,24 +197,21 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
         (kinds, proxies, offered) = (lower_kinds, lower.proxies, vec![fewer[below]]);
         below += 1;
     }
-    let mut counts = Vec::new();
-    if let (Some(split), Some(validated)) = (&split, &kinds.validated) {
-        if kinds.kept != Kept::JointBlend && offered.len() > 1 {
-            let first_row = &validated.relative[kinds.kept as usize];
-            let larger = Ladder {
-                kind: kinds.kept,
-                offered: &offered,
-                groups: &ladder,
-                direct_delta_mush: proxy_direct_delta_mush,
-                params: &proxy_params,
-            };
-            let count = choose_count(inputs, options, split, &larger, first_row)?;
-            counts = count.scores;
-            if let Some(more) = count.kept {
-                (proxies, kinds.correctives, kinds.shipped) = more;
-            }
-        }
-    }
+    let larger = Ladder {
+        kind: kinds.kept,
+        offered: &offered,
+        groups: &ladder,
+        direct_delta_mush: proxy_direct_delta_mush,
+        params: &proxy_params,
+    };
+    let counts = larger_count(
+        inputs,
+        options,
+        split.as_ref(),
+        &larger,
+        &mut kinds,
+        &mut proxies,
+    )?;
     let out = Fit {
         direct_delta_mush: vertex_direct_delta_mush,
         params,
@@ -256,6 +230,89 @@ pub fn fit(inputs: &Inputs, options: &TrainOptions) -> Result<(Fit, Option<Reduc
             .then(|| delta_mush_model(&out.proxies, (set, train), ssd, after, feats, k))
     });
     Ok((out, shipped))
+}
+
+/// Where the count steps down, the first count the budget admits ([`first_within_budget`]):
+/// P, `offered` with `ladder`'s groups, or else the first of `fewer` (`fewer_groups`'), which
+/// then takes their place, leaving in `fewer_groups` the smaller counts. With the proxies it
+/// fitted, and how many of `fewer` it passed.
+fn step_down(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    vertex_direct_delta_mush: &DirectDeltaMush,
+    fewer: &[usize],
+    offered: &mut Vec<usize>,
+    ladder: &mut Vec<Groups>,
+    fewer_groups: &mut Vec<Groups>,
+) -> Result<(Option<DeltaMushProxies>, usize), TrainError> {
+    let (at, fitted) = first_within_budget(
+        inputs,
+        options,
+        vertex_direct_delta_mush,
+        &ladder[0],
+        fewer_groups,
+    )?;
+    if let Some(at) = at {
+        // Fewer than P: the larger counts cost more still.
+        *offered = vec![fewer[at]];
+        *ladder = fewer_groups.drain(..=at).skip(at).collect();
+    }
+    Ok((Some(fitted), fewer.len() - fewer_groups.len()))
+}
+
+/// DDM's choice, the search of the joint-blend model's proxy correctives (where the kinds are
+/// `compared`: every comparison reads it, and it needs no delta-mush proxy), and the groups
+/// merged to each of `counts`. The merging runs on one thread, beside the other two, which are
+/// parallel.
+fn merge_beside(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    counts: &[usize],
+    compared: bool,
+) -> (
+    crate::Result<(direct_delta_mush::Params, DirectDeltaMush)>,
+    Option<proxy_corrective::Fit>,
+    Vec<Groups>,
+) {
+    let (set, train) = (inputs.set, inputs.train);
+    let ((chosen, joint_blend_search), ladder) = rayon::join(
+        || {
+            rayon::join(
+                || direct_delta_mush::choose(set, train, &inputs.ssd.influences),
+                || match compared {
+                    true => corrective_search(inputs, options, inputs.reduced),
+                    false => None,
+                },
+            )
+        },
+        || Groups::merge_at(set, train, counts),
+    );
+    (chosen, joint_blend_search, ladder)
+}
+
+/// Where the kinds' cross-validation kept a delta-mush kind and `larger` offers more counts
+/// than one, the count's choice ([`choose_count`]): each count's scores, and a larger count
+/// kept in place of `kinds`' proxies, correctives and model. No scores otherwise.
+fn larger_count(
+    inputs: &Inputs,
+    options: &TrainOptions,
+    split: Option<&Folds>,
+    larger: &Ladder,
+    kinds: &mut Kinds,
+    proxies: &mut DeltaMushProxies,
+) -> Result<Vec<(usize, f64, f64)>, TrainError> {
+    let (Some(split), Some(validated)) = (split, &kinds.validated) else {
+        return Ok(Vec::new());
+    };
+    if kinds.kept == Kept::JointBlend || larger.offered.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let first_row = &validated.relative[kinds.kept as usize];
+    let count = choose_count(inputs, options, split, larger, first_row)?;
+    if let Some(more) = count.kept {
+        (*proxies, kinds.correctives, kinds.shipped) = more;
+    }
+    Ok(count.scores)
 }
 
 /// The delta-mush proxies of the kinds' comparison: their groups, smoothing and fit to all
@@ -446,9 +503,11 @@ fn offered_counts(options: &TrainOptions, triangles: usize) -> Vec<usize> {
     counts
 }
 
-/// The counts below P the cost budget may step down to: P/2, P/4, … down to 1.
-fn fewer_counts(p: usize) -> Vec<usize> {
-    std::iter::successors(Some(p / 2), |&c| Some(c / 2))
+/// The counts below P the cost budget may step down to: P/2, P/4, … down to 1 (none where it
+/// does not step down, [`steps_down`]).
+fn fewer_counts(options: &TrainOptions, p: usize) -> Vec<usize> {
+    let first = steps_down(options).then_some(p / 2);
+    std::iter::successors(first, |&c| Some(c / 2))
         .take_while(|&c| c >= 1)
         .collect()
 }
