@@ -250,7 +250,7 @@ impl Subset {
             }
         }
         factor_in_place(a, m);
-        solve_factored(a, m, b);
+        solve_factored(a, m, b, 1);
         self.z.fill(0.0);
         for (&x, &i) in b.iter().zip(idx) {
             self.z[i] = x;
@@ -277,34 +277,15 @@ impl DenseCholesky {
     /// Solves A x = b in place.
     pub fn solve(&self, b: &mut [f64]) {
         assert_eq!(b.len(), self.n, "DenseCholesky: b must have n rows");
-        solve_factored(&self.l, self.n, b);
+        solve_factored(&self.l, self.n, b, 1);
     }
 
     /// Solves A X = B in place for B of n rows and `width` columns (row-major): each column
     /// as [`DenseCholesky::solve`] would (the same operations in the same order), all columns
     /// a row at a time.
     pub fn solve_columns(&self, b: &mut [f64], width: usize) {
-        let (l, n) = (&self.l, self.n);
-        assert_eq!(b.len(), n * width, "DenseCholesky: B must have n rows");
-        let mut s = vec![0.0; width];
-        for i in 0..n {
-            s.copy_from_slice(&b[i * width..][..width]);
-            for k in 0..i {
-                let x = l[i * n + k];
-                (s.iter_mut().zip(&b[k * width..][..width])).for_each(|(s, y)| *s -= x * y);
-            }
-            let d = l[i * n + i];
-            (b[i * width..][..width].iter_mut().zip(&s)).for_each(|(b, s)| *b = s / d);
-        }
-        for i in (0..n).rev() {
-            s.copy_from_slice(&b[i * width..][..width]);
-            for k in i + 1..n {
-                let x = l[k * n + i];
-                (s.iter_mut().zip(&b[k * width..][..width])).for_each(|(s, y)| *s -= x * y);
-            }
-            let d = l[i * n + i];
-            (b[i * width..][..width].iter_mut().zip(&s)).for_each(|(b, s)| *b = s / d);
-        }
+        assert_eq!(b.len(), self.n * width, "DenseCholesky: B must have n rows");
+        solve_factored(&self.l, self.n, b, width);
     }
 }
 
@@ -332,21 +313,40 @@ fn factor_in_place(l: &mut [f64], n: usize) {
     }
 }
 
-/// Solves L Lᵀ x = b in place, `l` factored by [`factor_in_place`].
-fn solve_factored(l: &[f64], n: usize, b: &mut [f64]) {
+/// Solves L Lᵀ X = B in place, `l` (n x n) factored by [`factor_in_place`], for B of n rows
+/// and `width` columns (row-major): forward then back substitution, a row of B at a time.
+fn solve_factored(l: &[f64], n: usize, b: &mut [f64], width: usize) {
+    // Row r -= x · row y, entry by entry.
+    let subtract = |r: &mut [f64], x: f64, y: &[f64]| {
+        r.iter_mut().zip(y).for_each(|(r, y)| *r -= x * y);
+    };
     for i in 0..n {
-        let mut s = b[i];
-        for (x, y) in l[i * n..i * n + i].iter().zip(&b[..i]) {
-            s -= x * y;
+        let (done, rest) = b.split_at_mut(i * width);
+        let row = &mut rest[..width];
+        for (k, &x) in l[i * n..i * n + i].iter().enumerate() {
+            subtract(row, x, &done[k * width..][..width]);
         }
-        b[i] = s / l[i * n + i];
+        let d = l[i * n + i];
+        row.iter_mut().for_each(|b| *b /= d);
     }
     for i in (0..n).rev() {
-        let mut s = b[i];
+        let (head, after) = b.split_at_mut((i + 1) * width);
+        let row = &mut head[i * width..];
         for k in i + 1..n {
-            s -= l[k * n + i] * b[k];
+            subtract(row, l[k * n + i], &after[(k - i - 1) * width..][..width]);
         }
-        b[i] = s / l[i * n + i];
+        let d = l[i * n + i];
+        row.iter_mut().for_each(|b| *b /= d);
+    }
+}
+
+/// Fills the strict lower triangle of the symmetric n x n matrix `g` (row-major) from its
+/// upper triangle: for Gram matrices summed over the upper triangle only.
+pub fn mirror_upper(g: &mut [f64], n: usize) {
+    for r in 0..n {
+        for c in 0..r {
+            g[r * n + c] = g[c * n + r];
+        }
     }
 }
 

@@ -36,7 +36,7 @@
 //!    computed: a second cross-validation, of the chosen fit against it clamped, decides, in
 //!    that order, on the held-out poses that fall past a fold's ranges.
 
-use crate::linalg::DenseCholesky;
+use crate::linalg::{mirror_upper, DenseCholesky};
 use crate::set::{Affine, ExampleSet};
 use crate::skinning::lbs::Skinning;
 use crate::train::budget::{ee_of_score, CostBudget, Ledger, Priced};
@@ -510,11 +510,7 @@ impl Normal {
                         }
                     }
                 }
-                for p in 0..f {
-                    for q in 0..p {
-                        gram[p * f + q] = gram[q * f + p];
-                    }
-                }
+                mirror_upper(&mut gram, f);
                 ProxyNormal {
                     proxy: e,
                     drivers: d.clone(),

@@ -1,7 +1,7 @@
 //! SSD, the baseline of paper §4.2 / §7.1: linear blend skinning ([`Skinning`]) with weights by
 //! non-negative least squares over the training poses (James & Twigg 2005; docs/method.md §4).
 
-use crate::linalg::nnls;
+use crate::linalg::{mirror_upper, nnls};
 use crate::set::ExampleSet;
 use crate::skinning::lbs::Skinning;
 use glam::DVec3;
@@ -68,28 +68,25 @@ pub fn fit_weights_best_subset(
         return normal.fit(&all, k);
     }
     let position = |c: usize| candidates.iter().position(|&x| x == c).unwrap_or(0);
-    let error = |w: &[(usize, f64)]| -> f64 {
-        let moved: Vec<(&[DVec3], f64)> = (w.iter())
-            .map(|&(c, x)| (&normal.moved[position(c)][..], x))
-            .collect();
-        (0..poses)
-            .map(|n| {
-                let y: DVec3 = moved.iter().map(|&(m, x)| m[n] * x).sum();
-                (y - target(n)).length_squared()
-            })
-            .sum()
-    };
+    // One subset's positions and its weights' samples, reused from subset to subset.
+    let (mut subset, mut moved) = (Vec::with_capacity(k), Vec::with_capacity(k));
     let mut best: Option<(f64, Vec<(usize, f64)>)> = None;
     for mask in 0u32..(1 << support.len()) {
         if mask.count_ones() as usize != k {
             continue;
         }
-        let subset: Vec<usize> = (0..support.len())
-            .filter(|&i| mask & (1 << i) != 0)
-            .map(|i| position(support[i].0))
-            .collect();
+        subset.clear();
+        subset.extend((0..support.len()).filter(|&i| mask & (1 << i) != 0));
+        subset.iter_mut().for_each(|i| *i = position(support[*i].0));
         let w = normal.fit(&subset, k);
-        let e = error(&w);
+        moved.clear();
+        moved.extend(w.iter().map(|&(c, x)| (&normal.moved[position(c)][..], x)));
+        let e: f64 = (0..poses)
+            .map(|n| {
+                let y: DVec3 = moved.iter().map(|&(m, x): &(&[DVec3], f64)| m[n] * x).sum();
+                (y - target(n)).length_squared()
+            })
+            .sum();
         if best.as_ref().is_none_or(|b| e < b.0) {
             best = Some((e, w));
         }
@@ -134,11 +131,7 @@ impl<'a> Normal<'a> {
                 }
             }
         }
-        for r in 0..n {
-            for c in 0..r {
-                g[r * n + c] = g[c * n + r];
-            }
-        }
+        mirror_upper(&mut g, n);
         Normal {
             candidates,
             moved: m,
